@@ -1,0 +1,81 @@
+"""The backstepping law of SPEC section 1: virtual controls, actual control, adaptive laws.
+
+Pure functions of (state, inputs, parameters). The state is ``[r, eta_hat_1, ..., eta_hat_n]``;
+the inputs are the plant states ``x = [x_1..x_n]`` and the reference with its derivatives
+``yd = [yd, yd', ..., yd^(n)]``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from .params import ControllerParameters
+from .rbf import rbf_energy
+
+__all__ = ["ControlTerms", "evaluate", "sig"]
+
+
+def sig(z: float, p: float) -> float:
+    """sig(z)^p = sign(z) |z|^p."""
+    return math.copysign(abs(z) ** p, z) if z != 0.0 else 0.0
+
+
+@dataclass(frozen=True)
+class ControlTerms:
+    """Every intermediate term of one evaluation of the law, for the FMU and for tests."""
+
+    v: float
+    z: tuple[float, ...]
+    zeta: tuple[float, ...]
+    ptp: tuple[float, ...]
+    derivative: tuple[float, ...]
+
+
+def evaluate(
+    state: Sequence[float],
+    x: Sequence[float],
+    yd: Sequence[float],
+    p: ControllerParameters,
+) -> ControlTerms:
+    """Evaluate the law and the state derivative at one instant.
+
+    ``derivative`` is ``[r', eta_hat_1', ..., eta_hat_n']`` (eq. 20, 38, 55, 69).
+    """
+    n = p.n
+    r = state[0]
+    eta = state[1:]
+    p_alpha = 2.0 * p.alpha - 1.0
+    p_beta = 2.0 * p.beta - 1.0
+    k = p.k_effective
+    # X_1 = [x1, yd, yd', r]; X_{i+1} adds x_{i+1}, eta_hat_i and yd^(i+1).
+    s1 = x[0] + yd[0] + yd[1] + r
+    s2 = x[0] * x[0] + yd[0] * yd[0] + yd[1] * yd[1] + r * r
+    dim = 4
+    z_list: list[float] = []
+    zeta_list: list[float] = []
+    ptp_list: list[float] = []
+    derivative = [-p.a_bar * r + p.gamma_gain * abs(x[0]) ** p.gamma_power + p.d_r]  # eq. 20
+    previous = yd[0]
+    for i in range(n):
+        if i > 0:
+            s1 += x[i] + eta[i - 1] + yd[i + 1]
+            s2 += x[i] * x[i] + eta[i - 1] * eta[i - 1] + yd[i + 1] * yd[i + 1]
+            dim += 3
+        z = x[i] - previous  # eq. 26
+        ptp = rbf_energy(s1, s2, dim, p.centers, p.width)
+        weight = ptp / (2.0 * p.a[i] * p.a[i])
+        zeta = -k[i] * sig(z, p_alpha) - p.q[i] * sig(z, p_beta) - eta[i] * z * weight  # eq. 37/54/68
+        derivative.append(p.kappa[i] * z * z * weight - (p.rho[i] + p.rho_bar[i]) * eta[i])  # eq. 38
+        z_list.append(z)
+        zeta_list.append(zeta)
+        ptp_list.append(ptp)
+        previous = zeta
+    return ControlTerms(
+        v=zeta_list[-1],
+        z=tuple(z_list),
+        zeta=tuple(zeta_list),
+        ptp=tuple(ptp_list),
+        derivative=tuple(derivative),
+    )

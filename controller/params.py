@@ -1,0 +1,140 @@
+"""Design parameters of the adaptive fixed-time controller (SPEC section 1), validated once."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+
+__all__ = [
+    "FIXED_TIME",
+    "FINITE_TIME",
+    "MODES",
+    "ControllerParameters",
+    "ParameterError",
+    "example1_parameters",
+    "example2_parameters",
+]
+
+FIXED_TIME = "fixed-time"
+FINITE_TIME = "finite-time"
+MODES = (FIXED_TIME, FINITE_TIME)
+
+DEFAULT_CENTERS = (-1.5, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5)
+
+
+class ParameterError(ValueError):
+    """A design parameter violates the constraints of SPEC section 1."""
+
+
+def _positive(name: str, value: float) -> str | None:
+    if not (math.isfinite(value) and value > 0.0):
+        return f"{name} must satisfy {name} > 0 (got {value!r})"
+    return None
+
+
+@dataclass(frozen=True)
+class ControllerParameters:
+    """Gains of the backstepping law for a plant of order n = len(q).
+
+    Per-step gains are tuples of length n (index i-1 belongs to step i). In finite-time mode
+    the fast gains ``k`` are not used (the law of the paper's comparison method [36]).
+    """
+
+    k: tuple[float, ...]
+    q: tuple[float, ...]
+    a: tuple[float, ...]
+    kappa: tuple[float, ...]
+    rho: tuple[float, ...]
+    rho_bar: tuple[float, ...]
+    alpha: float = 1.5
+    beta: float = 0.75
+    mode: str = FIXED_TIME
+    a_bar: float = 1.0
+    gamma_gain: float = 2.5
+    gamma_power: float = 4.0
+    d_r: float = 0.625
+    r0: float = 0.0
+    eta0: tuple[float, ...] | None = None
+    centers: tuple[float, ...] = DEFAULT_CENTERS
+    width: float = 2.0
+
+    def __post_init__(self) -> None:
+        per_step = ("k", "q", "a", "kappa", "rho", "rho_bar")
+        for name in per_step + ("centers",):
+            object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
+        eta0 = self.eta0 if self.eta0 is not None else (0.0,) * len(self.q)
+        object.__setattr__(self, "eta0", tuple(float(v) for v in eta0))
+        for name in ("alpha", "beta", "a_bar", "gamma_gain", "gamma_power", "d_r", "r0", "width"):
+            object.__setattr__(self, name, float(getattr(self, name)))
+
+        problems: list[str] = []
+        n = len(self.q)
+        if n < 1:
+            problems.append("q must have at least one entry (plant order n >= 1)")
+        for name in per_step + ("eta0",):
+            if len(getattr(self, name)) != n:
+                problems.append(f"{name} must have n = {n} entries (got {len(getattr(self, name))})")
+        if self.mode not in MODES:
+            problems.append(f"mode must be one of {', '.join(MODES)} (got {self.mode!r})")
+        if not (self.alpha > 1.0 and math.isfinite(self.alpha)):
+            problems.append(f"alpha must satisfy alpha > 1 (got {self.alpha!r})")
+        if not 0.5 < self.beta < 1.0:
+            problems.append(f"beta must satisfy 0.5 < beta < 1 (got {self.beta!r})")
+        gains = ("q", "a", "kappa", "rho", "rho_bar")
+        if self.mode == FIXED_TIME:
+            gains = ("k",) + gains
+        for name in gains:
+            for i, value in enumerate(getattr(self, name), start=1):
+                problem = _positive(f"{name}[{i}]", value)
+                if problem:
+                    problems.append(problem)
+        for name in ("a_bar", "width"):
+            problem = _positive(name, getattr(self, name))
+            if problem:
+                problems.append(problem)
+        for name in ("gamma_gain", "d_r", "gamma_power"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                problems.append(f"{name} must satisfy {name} >= 0 (got {value!r})")
+        initial = [("r0", self.r0)] + [(f"eta0[{i}]", v) for i, v in enumerate(self.eta0, 1)]
+        for name, value in initial:
+            if not (math.isfinite(value) and value >= 0.0):
+                problems.append(f"{name} must satisfy {name} >= 0 (got {value!r})")
+        if not self.centers or not all(math.isfinite(c) for c in self.centers):
+            problems.append("centers must be a non-empty list of finite numbers")
+        if problems:
+            raise ParameterError("; ".join(problems))
+
+    @property
+    def n(self) -> int:
+        """Plant order: the number of backstepping steps."""
+        return len(self.q)
+
+    @property
+    def k_effective(self) -> tuple[float, ...]:
+        """The fast gains the law applies: ``k`` in fixed-time mode, zeros in finite-time mode."""
+        return self.k if self.mode == FIXED_TIME else (0.0,) * self.n
+
+    def with_changes(self, **changes: object) -> ControllerParameters:
+        """A validated copy with some fields replaced."""
+        return replace(self, **changes)
+
+    def as_dict(self) -> dict[str, object]:
+        """Field name -> value, for reports and FMU start values."""
+        return {f.name: getattr(self, f.name) for f in fields(self) }
+
+
+def example1_parameters(**changes: object) -> ControllerParameters:
+    """Gains of the paper's Example 1 (SPEC section 3)."""
+    base = ControllerParameters(
+        k=(10, 10), q=(8, 8), a=(5, 2), kappa=(2, 2), rho=(2, 2), rho_bar=(1, 1)
+    )
+    return replace(base, **changes) if changes else base
+
+
+def example2_parameters(**changes: object) -> ControllerParameters:
+    """Gains of the paper's Example 2, the pendulum (SPEC section 3)."""
+    base = ControllerParameters(
+        k=(25, 25), q=(20, 20), a=(5, 2), kappa=(2, 2), rho=(1, 1), rho_bar=(2, 1)
+    )
+    return replace(base, **changes) if changes else base

@@ -1,0 +1,27 @@
+"""Gaussian RBF network basis of the paper (eq. 24) and the fast form of P^T P the law uses."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+__all__ = ["rbf_basis", "rbf_energy"]
+
+
+def rbf_basis(X: Sequence[float], centers: Sequence[float], width: float) -> np.ndarray:
+    """Basis vector P(X): neuron j is exp(-||X - mu_j * ones||^2 / tau^2) (eq. 24)."""
+    X = np.asarray(X, dtype=float)
+    mu = np.asarray(centers, dtype=float)[:, None]
+    return np.exp(-np.sum((X[None, :] - mu) ** 2, axis=1) / width**2)
+
+
+def rbf_energy(s1: float, s2: float, dim: int, centers: Sequence[float], width: float) -> float:
+    """P^T P from s1 = sum(X) and s2 = sum(X^2) alone.
+
+    Because every center is mu_j * ones, ||X - mu_j||^2 = s2 - 2 mu_j s1 + dim mu_j^2, so the
+    law never needs the vector X itself: this is what keeps one controller step cheap.
+    """
+    scale = -2.0 / (width * width)
+    return sum(math.exp(scale * (s2 - 2.0 * mu * s1 + dim * mu * mu)) for mu in centers)

@@ -1,0 +1,66 @@
+"""A stepping interface for a sampled controller: the shape an FMU wraps.
+
+At a communication point the caller reads ``output(x, yd)``; then ``advance(x, yd, h)``
+integrates the controller's own states (r and eta_hat) over [t, t + h] with those inputs held
+(zero-order hold), by classical Runge-Kutta 4 with ``substeps`` equal sub-steps. The local error
+is O((h/substeps)^5): with h = 1 ms the states agree with ``solve_ivp`` at rtol 1e-12 to about
+1e-12 (tests/test_stepping.py measures it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from .law import ControlTerms, evaluate
+from .params import ControllerParameters
+
+__all__ = ["AdaptiveController"]
+
+
+class AdaptiveController:
+    """The adaptive fixed-time (or finite-time) controller with its states r and eta_hat."""
+
+    def __init__(self, params: ControllerParameters, substeps: int = 1) -> None:
+        if substeps < 1:
+            raise ValueError(f"substeps must be >= 1 (got {substeps})")
+        self.params = params
+        self.substeps = substeps
+        self.state: list[float] = []
+        self.last: ControlTerms | None = None
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the initial values r0 and eta0."""
+        self.state = [self.params.r0, *self.params.eta0]
+        self.last = None
+
+    @property
+    def r(self) -> float:
+        """The dynamic signal r (eq. 20)."""
+        return self.state[0]
+
+    @property
+    def eta_hat(self) -> tuple[float, ...]:
+        """The adaptive estimates eta_hat_1..eta_hat_n."""
+        return tuple(self.state[1:])
+
+    def output(self, x: Sequence[float], yd: Sequence[float]) -> ControlTerms:
+        """The control v and its intermediate terms for the current state and these inputs."""
+        self.last = evaluate(self.state, x, yd, self.params)
+        return self.last
+
+    def advance(self, x: Sequence[float], yd: Sequence[float], h: float) -> None:
+        """Integrate r and eta_hat over a step of length h with x and yd held (RK4)."""
+        p = self.params
+        dt = h / self.substeps
+        y = self.state
+        m = len(y)
+        for _ in range(self.substeps):
+            k1 = evaluate(y, x, yd, p).derivative
+            k2 = evaluate([y[j] + 0.5 * dt * k1[j] for j in range(m)], x, yd, p).derivative
+            k3 = evaluate([y[j] + 0.5 * dt * k2[j] for j in range(m)], x, yd, p).derivative
+            k4 = evaluate([y[j] + dt * k3[j] for j in range(m)], x, yd, p).derivative
+            y = [
+                y[j] + dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]) for j in range(m)
+            ]
+        self.state = y
