@@ -182,6 +182,21 @@ def test_advance_after_output_equals_advance_alone() -> None:
     assert with_output.state == alone.state
 
 
+def test_advance_does_not_reuse_output_for_other_inputs_or_state() -> None:
+    params, x, yd = STIFF_STARTS["example1"]
+    other_x = [0.4, 0.5]
+    stale = AdaptiveController(params)
+    stale.output(x, yd)
+    stale.advance(other_x, yd, H)  # inputs changed after output()
+    stale.output(other_x, yd)
+    stale.state = [0.1, 0.2, 0.3]  # state replaced after output()
+    stale.advance(other_x, yd, H)
+    fresh = AdaptiveController(params)
+    fresh.state = [0.1, 0.2, 0.3]
+    fresh.advance(other_x, yd, H)
+    assert stale.state == fresh.state
+
+
 def test_substeps_must_be_positive() -> None:
     with pytest.raises(ValueError, match="substeps"):
         AdaptiveController(example1_parameters(), substeps=0)
