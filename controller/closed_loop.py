@@ -1,0 +1,226 @@
+"""Monolithic closed-loop reference simulation of the paper's examples.
+
+Plant + unmodeled dynamics + actuator fault + dead-zone + controller in one ODE, solved with
+``solve_ivp`` at tight tolerances. It is the oracle the co-simulation is compared with. The plant,
+actuator and reference math are the very functions the FMUs wrap (``fmu_src.models``, pure math,
+no FMI); the control law is this package's.
+
+Two forms:
+
+* ``sample_time=None``: the continuous controller of the paper (v evaluated at every instant);
+* ``sample_time=h``: the sampled system a co-simulation computes: at ``t_k = k h`` the controller
+  output v and the actuator output uf are evaluated from the states at ``t_k`` and held over
+  ``[t_k, t_k + h]`` while ``solve_ivp`` integrates the plant and the controller's states.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from functools import partial
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from fmu_src.models import (
+    ActuatorParameters,
+    PendulumParameters,
+    ReferenceParameters,
+    actuator_output,
+    example1_rhs,
+    pendulum_rhs,
+    reference_signal,
+)
+
+from .law import evaluate
+from .params import (
+    FINITE_TIME,
+    FIXED_TIME,
+    MODES,
+    ControllerParameters,
+    example1_parameters,
+    example2_parameters,
+)
+
+__all__ = ["EXAMPLES", "Example", "ReferenceRun", "simulate"]
+
+RTOL = 1e-10
+ATOL = 1e-12
+# The fields of a run, in the order of the result columns.
+FIELDS = ("time", "x1", "x2", "z", "y", "yd", "v", "uf", "u_dz", "r", "eta1_hat", "eta2_hat", "z1", "z2")
+
+
+@dataclass(frozen=True)
+class Example:
+    """One of the paper's examples: plant, initial state, reference, actuator and gains."""
+
+    name: str
+    plant_rhs: Callable[[float, Sequence[float], float], tuple[float, float, float]]
+    x0: tuple[float, float, float]
+    reference: ReferenceParameters
+    actuator: ActuatorParameters
+    controller: ControllerParameters
+    stop_time: float = 30.0
+
+
+EXAMPLES: dict[int, Example] = {
+    1: Example(
+        name="Example 1",
+        plant_rhs=example1_rhs,
+        x0=(0.5, 0.5, 0.0),
+        reference=ReferenceParameters(amplitude=0.5, omega=1.0),
+        actuator=ActuatorParameters(t_fault=10.0),
+        controller=example1_parameters(),
+    ),
+    2: Example(
+        name="Example 2 (pendulum)",
+        plant_rhs=partial(pendulum_rhs, p=PendulumParameters()),
+        x0=(0.6, 0.1, 0.0),
+        reference=ReferenceParameters(amplitude=1.0, omega=0.5),
+        actuator=ActuatorParameters(t_fault=5.0),
+        controller=example2_parameters(),
+    ),
+}
+
+
+@dataclass
+class ReferenceRun:
+    """Samples of a reference run on a uniform grid, as a NumPy structured array."""
+
+    example: Example
+    controller: ControllerParameters
+    sample_time: float | None
+    data: np.ndarray = field(repr=False)
+
+
+def _controller_inputs(t: float, y: Sequence[float], ex: Example) -> tuple[list[float], tuple]:
+    return [y[0], y[1]], reference_signal(t, ex.reference)
+
+
+def _outputs(t: float, y: Sequence[float], ex: Example, params: ControllerParameters) -> tuple:
+    """(v, uf, u_dz, terms) for the full state y = [x1, x2, z, r, eta_1..eta_n] at time t."""
+    x, yd = _controller_inputs(t, y, ex)
+    terms = evaluate(y[3:], x, yd, params)
+    uf, u_dz = actuator_output(t, terms.v, y[0], y[1], ex.actuator)
+    return terms.v, uf, u_dz, terms
+
+
+def _continuous_rhs(t: float, y: np.ndarray, ex: Example, params: ControllerParameters) -> list[float]:
+    _, uf, _, terms = _outputs(t, y, ex, params)
+    return [*ex.plant_rhs(t, y[:3], uf), *terms.derivative]
+
+
+def _held_rhs(t: float, y: np.ndarray, ex: Example, params: ControllerParameters, x, yd, uf) -> list[float]:
+    """Plant driven by the held uf; controller states driven by the held inputs x, yd."""
+    return [*ex.plant_rhs(t, y[:3], uf), *evaluate(y[3:], x, yd, params).derivative]
+
+
+def _record(t: float, y: Sequence[float], ex: Example, params: ControllerParameters) -> tuple:
+    v, uf, u_dz, terms = _outputs(t, y, ex, params)
+    yd = reference_signal(t, ex.reference)[0]
+    return (t, y[0], y[1], y[2], y[0], yd, v, uf, u_dz, y[3], y[4], y[5], terms.z[0], terms.z[1])
+
+
+def simulate(
+    example: Example,
+    controller: ControllerParameters | None = None,
+    stop_time: float | None = None,
+    sample_time: float | None = None,
+    grid: float = 1e-3,
+) -> ReferenceRun:
+    """Run the closed loop from t = 0 and sample it every ``grid`` seconds.
+
+    With ``sample_time`` the controller and actuator are sampled with a zero-order hold (the
+    co-simulation's semantics); ``grid`` must then equal ``sample_time``.
+    """
+    params = controller or example.controller
+    if params.n != 2:
+        raise ValueError(f"the examples are second-order plants; controller has n = {params.n}")
+    stop = example.stop_time if stop_time is None else stop_time
+    steps = round(stop / grid)
+    if not math.isclose(steps * grid, stop, rel_tol=1e-12):
+        raise ValueError(f"stop time {stop} is not a whole number of grid steps {grid}")
+    times = [k * grid for k in range(steps + 1)]
+    y0 = np.array([*example.x0, params.r0, *params.eta0])
+    rows = []
+    if sample_time is None:
+        rows = _simulate_continuous(example, params, times, y0)
+    else:
+        if not math.isclose(sample_time, grid, rel_tol=1e-12):
+            raise ValueError(f"sampled runs are recorded at the sample time ({sample_time}), not {grid}")
+        rows = _simulate_sampled(example, params, times, y0)
+    data = np.array(rows, dtype=[(name, float) for name in FIELDS])
+    return ReferenceRun(example=example, controller=params, sample_time=sample_time, data=data)
+
+
+def _simulate_continuous(ex: Example, params: ControllerParameters, times: list[float], y0) -> list[tuple]:
+    """Integrate piecewise so the fault switch at t_fault is a segment boundary, not a kink inside."""
+    t_end = times[-1]
+    bounds = [0.0] + [b for b in (ex.actuator.t_fault,) if 0.0 < b < t_end] + [t_end]
+    rows: list[tuple] = []
+    y = y0
+    for start, end in zip(bounds[:-1], bounds[1:], strict=True):
+        t_eval = [t for t in times if start <= t <= end and (not rows or t > rows[-1][0])]
+        sol = solve_ivp(
+            _continuous_rhs, (start, end), y, method="DOP853", t_eval=t_eval,
+            rtol=RTOL, atol=ATOL, args=(ex, params),
+        )
+        if not sol.success:
+            raise RuntimeError(f"{ex.name}: solve_ivp failed on [{start}, {end}]: {sol.message}")
+        rows.extend(_record(t, sol.y[:, j], ex, params) for j, t in enumerate(sol.t))
+        y = sol.y[:, -1]
+    return rows
+
+
+def _simulate_sampled(ex: Example, params: ControllerParameters, times: list[float], y0) -> list[tuple]:
+    rows: list[tuple] = []
+    y = y0
+    for k, t in enumerate(times):
+        rows.append(_record(t, y, ex, params))
+        if k == len(times) - 1:
+            break
+        x, yd = _controller_inputs(t, y, ex)
+        _, uf, _, _ = _outputs(t, y, ex, params)
+        sol = solve_ivp(
+            _held_rhs, (t, times[k + 1]), y, method="DOP853", rtol=RTOL, atol=ATOL,
+            args=(ex, params, x, yd, uf),
+        )
+        if not sol.success:
+            raise RuntimeError(f"{ex.name}: solve_ivp failed on [{t}, {times[k + 1]}]: {sol.message}")
+        y = sol.y[:, -1]
+    return rows
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Print the metrics of one example and mode (or the table of all four)."""
+    parser = argparse.ArgumentParser(
+        prog="python -m controller.closed_loop",
+        description="Monolithic reference simulation of the paper's examples (no FMI).",
+    )
+    parser.add_argument("--example", type=int, choices=sorted(EXAMPLES), default=1)
+    parser.add_argument("--mode", choices=MODES, default=FIXED_TIME)
+    parser.add_argument("--sample-time", type=float, default=None,
+                        help="zero-order-hold sample time in s (default: continuous controller)")
+    parser.add_argument("--stop-time", type=float, default=None)
+    parser.add_argument("--table", action="store_true", help="all examples and both modes")
+    args = parser.parse_args(argv)
+    from .metrics import format_table, tracking_metrics
+
+    cases = [(e, m) for e in sorted(EXAMPLES) for m in (FIXED_TIME, FINITE_TIME)] if args.table else [
+        (args.example, args.mode)
+    ]
+    rows = []
+    for number, mode in cases:
+        ex = EXAMPLES[number]
+        grid = args.sample_time or 1e-3
+        run = simulate(ex, ex.controller.with_changes(mode=mode), args.stop_time, args.sample_time, grid)
+        d = run.data
+        rows.append((f"{ex.name}, {mode}", tracking_metrics(d["time"], d["y"], d["yd"], d["v"], d["uf"])))
+    print(format_table(rows))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
