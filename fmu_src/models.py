@@ -15,10 +15,14 @@ __all__ = [
     "PendulumParameters",
     "ReferenceParameters",
     "actuator_output",
+    "actuator_problems",
     "dead_zone",
     "example1_rhs",
     "hold_step",
+    "integration_problems",
+    "pendulum_problems",
     "pendulum_rhs",
+    "reference_problems",
     "reference_signal",
 ]
 
@@ -141,3 +145,61 @@ def hold_step(
         x2 += dt / 6.0 * (a2 + 2.0 * b2 + 2.0 * c2 + d2)
         z += dt / 6.0 * (a3 + 2.0 * b3 + 2.0 * c3 + d3)
     return x1, x2, z
+
+
+def _finite_problems(p: object, names: Sequence[str]) -> list[str]:
+    """``name`` must be finite, for every name."""
+    values = {name: getattr(p, name) for name in names}
+    return [
+        f"{name} must be a finite number (got {v!r})"
+        for name, v in values.items() if not math.isfinite(v)
+    ]
+
+
+def _bound_problems(p: object, names: Sequence[str], strict: bool) -> list[str]:
+    """``name > 0`` (strict) or ``name >= 0`` for every name, finite."""
+    problems = []
+    for name in names:
+        value = getattr(p, name)
+        ok = math.isfinite(value) and (value > 0.0 if strict else value >= 0.0)
+        if not ok:
+            relation = ">" if strict else ">="
+            problems.append(f"{name} must satisfy {name} {relation} 0 (got {value!r})")
+    return problems
+
+
+def reference_problems(p: ReferenceParameters) -> list[str]:
+    """Violated constraints of the reference parameters (empty if valid): all finite."""
+    return _finite_problems(p, ("amplitude", "omega", "phase", "offset"))
+
+
+def actuator_problems(p: ActuatorParameters) -> list[str]:
+    """Violated constraints of the actuator parameters (empty if valid).
+
+    Slopes ``m_r, m_l`` and the lasting effectiveness ``K_inf`` are positive (so K(t) > 0);
+    break points, ``K_amp`` and ``K_rate`` are non-negative; the rest finite (``t_fault`` may be
+    +inf: never faulty).
+    """
+    problems = _bound_problems(p, ("m_r", "m_l", "K_inf"), strict=True)
+    problems += _bound_problems(p, ("b_r", "b_l", "K_amp", "K_rate"), strict=False)
+    problems += _finite_problems(p, ("L_gain", "L_bias"))
+    if math.isnan(p.t_fault):
+        problems.append("t_fault must be a number (got nan)")
+    return problems
+
+
+def pendulum_problems(p: PendulumParameters) -> list[str]:
+    """Violated constraints of the pendulum parameters (empty if valid): M, L > 0, B >= 0."""
+    problems = _bound_problems(p, ("M", "L"), strict=True)
+    problems += _bound_problems(p, ("B",), strict=False)
+    return problems + _finite_problems(p, ("g", "d1", "d2"))
+
+
+def integration_problems(initial: dict[str, float], max_step: float) -> list[str]:
+    """Violated constraints of a plant's initial states (finite) and accuracy (max_step > 0)."""
+    problems = [
+        f"{name} must be a finite number (got {v!r})" for name, v in initial.items() if not math.isfinite(v)
+    ]
+    if not (math.isfinite(max_step) and max_step > 0.0):
+        problems.append(f"max_step must satisfy max_step > 0 (got {max_step!r})")
+    return problems

@@ -1,0 +1,95 @@
+"""FMU ``Actuator``: actuator fault and input dead-zone between controller and plant (SPEC 2).
+
+``uf`` and ``u_dz`` are direct feedthrough: computed when read, from the inputs set at the
+current communication point t (the absolute FMU time, as in the paper).
+"""
+
+from __future__ import annotations
+
+from pythonfmu import Fmi2Causality, Fmi2Slave
+
+from fmu_src.fmu_support import declare, fmu_model, raise_problems
+from fmu_src.models import ActuatorParameters, actuator_output, actuator_problems
+
+PARAMETER = Fmi2Causality.parameter
+INPUT = Fmi2Causality.input
+OUTPUT = Fmi2Causality.output
+
+# The FMU learns the time of a communication point as current_time + step_size, which can be an
+# ulp away from the master's t0 + k h; a point this close to t_fault counts as t_fault.
+FAULT_TIME_TOLERANCE = 1e-12
+
+
+@fmu_model
+class Actuator(Fmi2Slave):
+    """uf = v before t_fault; uf = K(t) u(v) + L(t) from t_fault on; u(v) is the dead-zone."""
+
+    description = "Actuator fault (K(t), L(t)) and input dead-zone u(v) of the paper (eq. 2-6, 86-87)"
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        defaults = ActuatorParameters()
+        for name in ActuatorParameters.__dataclass_fields__:
+            setattr(self, name, getattr(defaults, name))
+        self.v = 0.0
+        self.x1 = 0.0
+        self.x2 = 0.0
+        self.time = 0.0
+        self._params = defaults
+        declare(self, "v", INPUT, "Commanded control v from the controller")
+        declare(self, "x1", INPUT, "Plant state x1 (enters the bias fault L(t))")
+        declare(self, "x2", INPUT, "Plant state x2 (enters the bias fault L(t))")
+        declare(
+            self,
+            "uf",
+            OUTPUT,
+            "Control applied to the plant: v before t_fault, K(t) u(v) + L(t) after",
+            depends_on=("v", "x1", "x2"),
+            getter=lambda: self._output()[0],
+        )
+        declare(
+            self, "u_dz", OUTPUT, "Dead-zone output u(v)", depends_on=("v",), getter=lambda: self._output()[1]
+        )
+        declare(self, "m_r", PARAMETER, "Dead-zone slope for v >= b_r")
+        declare(self, "m_l", PARAMETER, "Dead-zone slope for v <= -b_l")
+        declare(self, "b_r", PARAMETER, "Right dead-zone break point")
+        declare(self, "b_l", PARAMETER, "Left dead-zone break point (at v = -b_l)")
+        declare(self, "K_inf", PARAMETER, "Lasting effectiveness: K(t) = K_inf + K_amp exp(-K_rate t)")
+        declare(self, "K_amp", PARAMETER, "Decaying part of the effectiveness K(t)")
+        declare(self, "K_rate", PARAMETER, "Decay rate of the effectiveness K(t)", unit="1/s")
+        declare(self, "L_gain", PARAMETER, "Bias fault gain: L(t) = L_gain x2 cos(x1)^2 + L_bias")
+        declare(self, "L_bias", PARAMETER, "Constant part of the bias fault L(t)")
+        declare(self, "t_fault", PARAMETER, "Time at which the fault and the dead-zone start", unit="s")
+
+    def _parameters(self) -> ActuatorParameters:
+        return ActuatorParameters(
+            **{name: getattr(self, name) for name in ActuatorParameters.__dataclass_fields__}
+        )
+
+    def _output(self) -> tuple[float, float]:
+        p = self._params
+        t = self.time
+        if abs(t - p.t_fault) <= FAULT_TIME_TOLERANCE * max(1.0, abs(p.t_fault)):
+            t = p.t_fault
+        return actuator_output(t, self.v, self.x1, self.x2, p)
+
+    def setup_experiment(
+        self, start_time: float, stop_time: float | None = None, tolerance: float | None = None
+    ) -> None:
+        """Remember the start time: the outputs at the first communication point use it."""
+        self.time = start_time
+
+    def enter_initialization_mode(self) -> None:
+        """Let outputs read during initialization see the parameters set so far."""
+        self._params = self._parameters()
+
+    def exit_initialization_mode(self) -> None:
+        """Validate the parameters (raises, naming them) and freeze them for the run."""
+        params = self._parameters()
+        raise_problems(self.modelName, actuator_problems(params))
+        self._params = params
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        """Move to the next communication point (the actuator has no state)."""
+        self.time = current_time + step_size
+        return True

@@ -1,0 +1,228 @@
+"""FMU ``FixedTimeController``: the adaptive fixed-time (or finite-time) NN controller of the
+paper for a plant of order n = 2, wrapping :class:`controller.stepping.AdaptiveController`.
+
+``v``, ``z1``, ``z2`` and ``zeta1`` are direct feedthrough: computed when read, for the inputs
+set at the current communication point (cached per input set and state). The states r and
+eta_hat advance in do_step with the inputs held over the step (RK4, ``substeps`` sub-steps).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+from pythonfmu import Fmi2Causality, Fmi2Slave
+
+from controller.law import ControlTerms
+from controller.params import FINITE_TIME, FIXED_TIME, ControllerParameters, ParameterError
+from controller.stepping import AdaptiveController
+from fmu_src.fmu_support import declare, fmu_model, raise_problems, rename_indexed, report
+
+PARAMETER = Fmi2Causality.parameter
+INPUT = Fmi2Causality.input
+OUTPUT = Fmi2Causality.output
+
+MODES = {0: FIXED_TIME, 1: FINITE_TIME}
+DEFAULT_CENTERS = (-1.5, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5)  # mu_1..mu_7 (SPEC section 1)
+INPUTS = ("x1", "x2", "yd", "yd_dot", "yd_ddot")
+# Example 1 gains (SPEC section 3): name -> default, per backstepping step i = 1, 2.
+GAINS = {"k": 10.0, "q": 8.0, "kappa": 2.0, "rho": 2.0, "rho_bar": 1.0}
+GAIN_DESCRIPTIONS = {
+    "k": "Fast (fixed-time) gain k_{i} of step {i}",
+    "q": "Gain q_{i} of the sig(z)^(2 beta - 1) term of step {i}",
+    "a": "NN weight design constant a_{i} of step {i}",
+    "kappa": "Adaptation gain kappa_{i} of eta_hat_{i}",
+    "rho": "Leakage rho_{i} of eta_hat_{i}",
+    "rho_bar": "Leakage rho_bar_{i} of eta_hat_{i}",
+}
+
+
+@fmu_model
+class FixedTimeController(Fmi2Slave):
+    """v = zeta_2 from the backstepping law of SPEC section 1, with states r, eta1_hat, eta2_hat."""
+
+    description = "Adaptive fixed-time NN backstepping controller (order 2) with actuator-fault compensation"
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        for name in INPUTS:
+            setattr(self, name, 0.0)
+        for name, default in GAINS.items():
+            setattr(self, f"{name}1", default)
+            setattr(self, f"{name}2", default)
+        self.a1, self.a2 = 5.0, 2.0
+        self.alpha = 1.5
+        self.beta = 0.75
+        self.mode = 0
+        self.a_bar = 1.0
+        self.gamma_gain = 2.5
+        self.gamma_power = 4.0
+        self.d_r = 0.625
+        self.r0 = 0.0
+        self.eta1_0 = 0.0
+        self.eta2_0 = 0.0
+        for j, center in enumerate(DEFAULT_CENTERS, start=1):
+            setattr(self, f"mu{j}", center)
+        self.tau = 2.0
+        self.substeps = 1
+        self._controller: AdaptiveController | None = None  # built at exit_initialization_mode
+        self._cache: tuple[tuple[float, ...], ControlTerms] | None = None
+
+        descriptions = {
+            "x1": "Plant state x1 (the output y)",
+            "x2": "Plant state x2",
+            "yd": "Reference yd",
+            "yd_dot": "Reference derivative yd'",
+            "yd_ddot": "Reference second derivative yd''",
+        }
+        for name in INPUTS:
+            declare(self, name, INPUT, descriptions[name])
+        declare(
+            self,
+            "v",
+            OUTPUT,
+            "Control v = zeta_2 (to the actuator)",
+            depends_on=INPUTS,
+            getter=lambda: self._terms().v,
+        )
+        declare(
+            self,
+            "z1",
+            OUTPUT,
+            "Tracking error z1 = x1 - yd",
+            depends_on=("x1", "yd"),
+            getter=lambda: self._terms().z[0],
+        )
+        declare(
+            self, "z2", OUTPUT, "Error z2 = x2 - zeta1", depends_on=INPUTS, getter=lambda: self._terms().z[1]
+        )
+        declare(
+            self,
+            "zeta1",
+            OUTPUT,
+            "Virtual control zeta1",
+            depends_on=("x1", "yd", "yd_dot"),
+            getter=lambda: self._terms().zeta[0],
+        )
+        declare(
+            self,
+            "eta1_hat",
+            OUTPUT,
+            "Adaptive estimate eta_hat_1",
+            depends_on=(),
+            getter=lambda: self._state()[1],
+        )
+        declare(
+            self,
+            "eta2_hat",
+            OUTPUT,
+            "Adaptive estimate eta_hat_2",
+            depends_on=(),
+            getter=lambda: self._state()[2],
+        )
+        declare(
+            self,
+            "r",
+            OUTPUT,
+            "Dynamic signal r of the unmodeled dynamics",
+            depends_on=(),
+            getter=lambda: self._state()[0],
+        )
+        for name in ("k", "q", "a", "kappa", "rho", "rho_bar"):
+            for i in (1, 2):
+                declare(self, f"{name}{i}", PARAMETER, GAIN_DESCRIPTIONS[name].format(i=i))
+        declare(self, "alpha", PARAMETER, "Exponent alpha > 1 of the fast term sig(z)^(2 alpha - 1)")
+        declare(self, "beta", PARAMETER, "Exponent 0.5 < beta < 1 of the term sig(z)^(2 beta - 1)")
+        declare(self, "mode", PARAMETER, "Control law: 0 = fixed-time, 1 = finite-time (k = 0)", integer=True)
+        declare(self, "a_bar", PARAMETER, "Decay rate a_bar of the dynamic signal r", unit="1/s")
+        declare(self, "gamma_gain", PARAMETER, "Gain of x1^gamma_power in r' (unmodeled dynamics bound)")
+        declare(self, "gamma_power", PARAMETER, "Power of x1 in r'")
+        declare(self, "d_r", PARAMETER, "Constant term d_r in r'")
+        declare(self, "r0", PARAMETER, "Initial value of r")
+        declare(self, "eta1_0", PARAMETER, "Initial value of eta_hat_1")
+        declare(self, "eta2_0", PARAMETER, "Initial value of eta_hat_2")
+        for j in range(1, len(DEFAULT_CENTERS) + 1):
+            declare(self, f"mu{j}", PARAMETER, f"Center of RBF neuron {j} (mu_{j} * ones)")
+        declare(self, "tau", PARAMETER, "Width tau of the Gaussian RBF neurons")
+        declare(
+            self,
+            "substeps",
+            PARAMETER,
+            "RK4 sub-steps per communication step for r and eta_hat",
+            integer=True,
+        )
+
+    def _parameters(self) -> ControllerParameters:
+        """The library's validated parameters; raises naming the FMU parameters."""
+        problems = []
+        if self.mode not in MODES:
+            problems.append(f"mode must be 0 (fixed-time) or 1 (finite-time) (got {self.mode!r})")
+        if self.substeps < 1:
+            problems.append(f"substeps must satisfy substeps >= 1 (got {self.substeps!r})")
+        try:
+            params = ControllerParameters(
+                **{
+                    name: (getattr(self, f"{name}1"), getattr(self, f"{name}2")) for name in GAIN_DESCRIPTIONS
+                },
+                alpha=self.alpha,
+                beta=self.beta,
+                mode=MODES.get(self.mode, FIXED_TIME),
+                a_bar=self.a_bar,
+                gamma_gain=self.gamma_gain,
+                gamma_power=self.gamma_power,
+                d_r=self.d_r,
+                r0=self.r0,
+                eta0=(self.eta1_0, self.eta2_0),
+                centers=tuple(getattr(self, f"mu{j}") for j in range(1, len(DEFAULT_CENTERS) + 1)),
+                width=self.tau,
+            )
+        except ParameterError as error:
+            message = rename_indexed(str(error), {"eta0": "eta{}_0"})
+            message = re.sub(r"\bwidth\b", "tau", message).replace("centers", "mu1..mu7")
+            problems.extend(message.split("; "))
+        raise_problems(self.modelName, problems)
+        return params
+
+    def _current(self) -> AdaptiveController:
+        if self._controller is not None:
+            return self._controller
+        return AdaptiveController(self._parameters(), self.substeps)  # initialization mode: as set so far
+
+    def _state(self) -> list[float]:
+        return self._current().state
+
+    def _inputs(self) -> tuple[tuple[float, float], tuple[float, float, float]]:
+        return (self.x1, self.x2), (self.yd, self.yd_dot, self.yd_ddot)
+
+    def _terms(self) -> ControlTerms:
+        """The law for the inputs set now; cached per (inputs, state) so reading v, z1, ... is cheap."""
+        controller = self._current()
+        key = (self.x1, self.x2, self.yd, self.yd_dot, self.yd_ddot, *controller.state)
+        if self._cache is None or self._cache[0] != key:
+            x, yd = self._inputs()
+            self._cache = (key, controller.output(x, yd))
+        return self._cache[1]
+
+    def exit_initialization_mode(self) -> None:
+        """Validate the parameters (raises, naming them) and start at r0, eta0."""
+        self._controller = AdaptiveController(self._parameters(), self.substeps)
+        self._cache = None
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        """Integrate r and eta_hat over the step with the inputs held.
+
+        Returns False (fmi2Discard, with a logged reason, state unchanged) if the states stop
+        being finite.
+        """
+        x, yd = self._inputs()
+        before = self._controller.state
+        self._controller.advance(x, yd, step_size)
+        if not all(math.isfinite(value) for value in self._controller.state):
+            report(
+                self,
+                f"non-finite state {self._controller.state} at t = "
+                f"{current_time + step_size!r} with inputs x = {x}, yd = {yd}; step rejected (fmi2Discard)",
+            )
+            self._controller.state = before
+            return False
+        return True

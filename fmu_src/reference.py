@@ -1,0 +1,73 @@
+"""FMU ``Reference``: yd = amplitude sin(omega t + phase) + offset with its first two derivatives.
+
+The outputs are the values at the current communication point t (no state besides time).
+"""
+
+from __future__ import annotations
+
+from pythonfmu import Fmi2Causality, Fmi2Slave
+
+from fmu_src.fmu_support import declare, fmu_model, raise_problems
+from fmu_src.models import ReferenceParameters, reference_problems, reference_signal
+
+PARAMETER = Fmi2Causality.parameter
+OUTPUT = Fmi2Causality.output
+
+
+@fmu_model
+class Reference(Fmi2Slave):
+    """Sinusoidal reference signal yd and its derivatives yd', yd''."""
+
+    description = "Reference signal yd = amplitude*sin(omega*t + phase) + offset and derivatives"
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self.amplitude = 0.5
+        self.omega = 1.0
+        self.phase = 0.0
+        self.offset = 0.0
+        self.time = 0.0
+        self._params = ReferenceParameters()
+        declare(self, "yd", OUTPUT, "Reference yd(t)", depends_on=(), getter=lambda: self._signal()[0])
+        declare(
+            self, "yd_dot", OUTPUT, "First derivative yd'(t)", depends_on=(), getter=lambda: self._signal()[1]
+        )
+        declare(
+            self,
+            "yd_ddot",
+            OUTPUT,
+            "Second derivative yd''(t)",
+            depends_on=(),
+            getter=lambda: self._signal()[2],
+        )
+        declare(self, "amplitude", PARAMETER, "Amplitude of the sine")
+        declare(self, "omega", PARAMETER, "Angular frequency", unit="rad/s")
+        declare(self, "phase", PARAMETER, "Phase at t = 0", unit="rad")
+        declare(self, "offset", PARAMETER, "Constant offset added to the sine")
+
+    def _parameters(self) -> ReferenceParameters:
+        return ReferenceParameters(self.amplitude, self.omega, self.phase, self.offset)
+
+    def _signal(self) -> tuple[float, float, float]:
+        return reference_signal(self.time, self._params)
+
+    def setup_experiment(
+        self, start_time: float, stop_time: float | None = None, tolerance: float | None = None
+    ) -> None:
+        """Remember the start time: the outputs at the first communication point use it."""
+        self.time = start_time
+
+    def enter_initialization_mode(self) -> None:
+        """Let outputs read during initialization see the parameters set so far."""
+        self._params = self._parameters()
+
+    def exit_initialization_mode(self) -> None:
+        """Validate the parameters (raises, naming them) and freeze them for the run."""
+        params = self._parameters()
+        raise_problems(self.modelName, reference_problems(params))
+        self._params = params
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        """Move to the next communication point."""
+        self.time = current_time + step_size
+        return True
