@@ -1,0 +1,54 @@
+"""The monolithic reference simulation: initial control, tracking, modes and sampling."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from controller.closed_loop import EXAMPLES, simulate
+from controller.metrics import tracking_metrics
+from controller.params import FINITE_TIME
+
+
+@pytest.mark.parametrize(("number", "v0"), [(1, 773.0), (2, 15218.0)])
+def test_initial_control_effort_matches_the_independent_figure(number, v0):
+    """SPEC section 6 (another implementation): |v(0)| near 770 (Example 1) and 15 000 (Example 2)."""
+    d = simulate(EXAMPLES[number], stop_time=0.01).data
+    assert abs(d["v"][0]) == pytest.approx(v0, rel=2e-3)
+    assert d["time"][0] == 0.0 and d["x1"][0] == EXAMPLES[number].x0[0]
+
+
+@pytest.mark.parametrize("number", [1, 2])
+def test_fixed_time_tracks_better_than_finite_time_over_30_s(number):
+    """The paper's claim (Tables 1-2), and SPEC section 6's RMSE near 0.012 for Example 1."""
+    ex = EXAMPLES[number]
+    metrics = {}
+    for mode in ("fixed-time", FINITE_TIME):
+        d = simulate(ex, ex.controller.with_changes(mode=mode)).data
+        metrics[mode] = tracking_metrics(d["time"], d["y"], d["yd"], d["v"], d["uf"])
+    fixed, finite = metrics["fixed-time"], metrics[FINITE_TIME]
+    assert fixed.rmse < finite.rmse and fixed.mae < finite.mae and fixed.rae < finite.rae
+    assert fixed.rmse < 0.02
+    if number == 1:
+        assert fixed.rmse == pytest.approx(0.012, abs=0.002)
+
+
+def test_sampled_reference_converges_to_the_continuous_loop_at_first_order():
+    """A zero-order hold of step h perturbs the loop by O(h): halving h halves the deviation."""
+    ex = EXAMPLES[1]
+    stop = 0.5
+    continuous = simulate(ex, stop_time=stop, grid=2e-3).data
+    deviations = []
+    for h in (2e-3, 1e-3, 5e-4):
+        sampled = simulate(ex, stop_time=stop, sample_time=h, grid=h).data
+        x1 = np.interp(continuous["time"], sampled["time"], sampled["x1"])
+        deviations.append(np.max(np.abs(x1 - continuous["x1"])))
+    ratios = deviations[0] / deviations[1], deviations[1] / deviations[2]
+    assert all(1.6 < ratio < 2.5 for ratio in ratios), (deviations, ratios)
+
+
+def test_bad_horizons_are_rejected_with_the_numbers():
+    with pytest.raises(ValueError, match="not a whole number"):
+        simulate(EXAMPLES[1], stop_time=0.0105, grid=1e-3)
+    with pytest.raises(ValueError, match="sample time"):
+        simulate(EXAMPLES[1], stop_time=0.01, sample_time=1e-3, grid=2e-3)
