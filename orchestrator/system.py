@@ -1,0 +1,330 @@
+"""The co-simulation system: components, connections and parameters, validated on construction.
+
+``System`` joins what the SSD says with what each FMU's modelDescription.xml says, collects every
+inconsistency into one ScenarioError, and derives the order in which outputs must be read and
+inputs set at a communication point (from the ModelStructure dependencies), so that an input is
+set only after the outputs it depends on are up to date. Real algebraic loops are reported with the
+ports on the loop.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from fmpy import read_model_description
+from fmpy.model_description import ModelDescription
+
+from .errors import ScenarioError
+from .ssp import Parameter, ParameterSet, SystemStructure
+
+__all__ = ["ComponentModel", "Link", "Operation", "PortRef", "System"]
+
+FMU_TYPES = {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean", "String": "String",
+             "Enumeration": "Enumeration"}
+SETTABLE = ("parameter", "input")
+
+
+@dataclass(frozen=True, order=True)
+class PortRef:
+    """A variable of a component; ``str()`` is ``controller.v``, the name used everywhere."""
+
+    component: str
+    connector: str
+
+    def __str__(self) -> str:
+        return f"{self.component}.{self.connector}"
+
+    @classmethod
+    def parse(cls, text: str) -> PortRef:
+        """``"controller.k1"`` -> PortRef("controller", "k1"); the variable may contain dots."""
+        component, sep, connector = text.partition(".")
+        if not sep or not component or not connector:
+            raise ValueError(f"'{text}' is not of the form COMPONENT.VARIABLE")
+        return cls(component, connector)
+
+
+@dataclass(frozen=True)
+class Link:
+    """A connection as the master uses it: ``end = factor * start + offset``."""
+
+    start: PortRef
+    end: PortRef
+    factor: float = 1.0
+    offset: float = 0.0
+
+
+@dataclass(frozen=True)
+class Operation:
+    """One step of the propagation at a communication point: read a component's outputs
+    (``inputs`` empty) or set the listed inputs of a component."""
+
+    kind: str
+    component: str
+    inputs: tuple[str, ...] = ()
+
+
+@dataclass
+class ComponentModel:
+    """One FMU instance: its model description and the values to apply before initialization."""
+
+    name: str
+    fmu: Path
+    model: ModelDescription
+    outputs: list[str]
+    inputs: list[str]
+    start_values: dict[str, float | int | bool | str] = field(default_factory=dict)
+    feedthrough: dict[str, set[str]] = field(default_factory=dict)
+
+    @property
+    def variables(self) -> dict:
+        """Variables of the FMU by name."""
+        return {v.name: v for v in self.model.modelVariables}
+
+
+class System:
+    """Validated system: ``components`` (SSD order), ``links`` (by end port) and the propagation
+    ``schedule``.
+
+    ``parameter_sets`` name parameters ``<component>.<variable>`` and apply after the SSD's own
+    bindings; ``overrides`` (``"component.variable" -> value``) apply last.
+    """
+
+    def __init__(self, structure: SystemStructure,
+                 parameter_sets: Iterable[ParameterSet] = (),
+                 overrides: Mapping[str, object] | None = None,
+                 model_descriptions: Mapping[Path, ModelDescription] | None = None) -> None:
+        self.structure = structure
+        self.ssd = structure.ssd_file
+        problems: list[str] = []
+        self.components: dict[str, ComponentModel] = {}
+        for c in structure.components:
+            if c.name in self.components:
+                problems.append(f"{self.ssd}: component name '{c.name}' is used twice")
+                continue
+            try:
+                md = (model_descriptions or {}).get(c.source) or read_model_description(str(c.source))
+            except Exception as exc:  # fmpy raises plain Exception for broken FMUs
+                problems.append(f"{self.ssd}: component '{c.name}': cannot read FMU "
+                                f"'{os.path.basename(c.source)}': {exc}")
+                continue
+            if md.coSimulation is None:
+                problems.append(f"{self.ssd}: component '{c.name}': FMU is not a Co-Simulation FMU")
+                continue
+            self.components[c.name] = self._component(c, md, problems)
+        self.links: dict[PortRef, Link] = {}
+        self._check_connections(problems)
+        for ps in structure_sets(structure):
+            self._apply(ps[0], ps[1], problems)
+        for ps in parameter_sets:
+            self._apply_prefixed(ps, problems)
+        for key, value in (overrides or {}).items():
+            self._override(key, value, problems)
+        self._check_inputs(problems)
+        if problems:
+            raise ScenarioError(problems)
+        self.schedule = self._schedule()
+
+    # -- construction -----------------------------------------------------------------------
+    def _component(self, c, md: ModelDescription, problems: list[str]) -> ComponentModel:
+        variables = {v.name: v for v in md.modelVariables}
+        outputs, inputs = [], []
+        for k in c.connectors:
+            where = f"{self.ssd}: component '{c.name}', connector '{k.name}'"
+            v = variables.get(k.name)
+            if v is None:
+                problems.append(f"{where}: the FMU has no variable of that name")
+                continue
+            if v.causality != k.kind:
+                problems.append(f"{where}: declared kind '{k.kind}' but the FMU's causality is "
+                                f"'{v.causality}'")
+                continue
+            if k.type is not None and FMU_TYPES.get(k.type) != v.type:
+                problems.append(f"{where}: declared type {k.type} but the FMU's variable is {v.type}")
+                continue
+            (outputs if k.kind == "output" else inputs if k.kind == "input" else []).append(k.name)
+        feedthrough: dict[str, set[str]] = {}
+        all_inputs = {v.name for v in md.modelVariables if v.causality == "input"}
+        for unknown in md.outputs:
+            deps = all_inputs if unknown.dependencies is None else {d.name for d in unknown.dependencies}
+            for d in deps:
+                feedthrough.setdefault(d, set()).add(unknown.variable.name)
+        return ComponentModel(c.name, c.source, md, outputs, inputs, feedthrough=feedthrough)
+
+    def _check_connections(self, problems: list[str]) -> None:
+        declared = {c.name: {k.name: k for k in c.connectors} for c in self.structure.components}
+        for con in self.structure.connections:
+            start = PortRef(con.start_element, con.start_connector)
+            end = PortRef(con.end_element, con.end_connector)
+            where = f"{self.ssd}: connection {con}"
+            bad = False
+            for port, kind in ((start, "output"), (end, "input")):
+                if port.component not in declared:
+                    problems.append(f"{where}: no component named '{port.component}'")
+                    bad = True
+                elif port.connector not in declared[port.component]:
+                    problems.append(f"{where}: component '{port.component}' declares no connector "
+                                    f"'{port.connector}'")
+                    bad = True
+                elif declared[port.component][port.connector].kind != kind:
+                    problems.append(f"{where}: {port} is an {declared[port.component][port.connector].kind}, "
+                                    f"not an {kind}")
+                    bad = True
+            if bad:
+                continue
+            t_start = declared[start.component][start.connector].type
+            t_end = declared[end.component][end.connector].type
+            if t_start != t_end:
+                problems.append(f"{where}: type mismatch ({start} is {t_start}, {end} is {t_end})")
+            elif t_start != "Real":
+                problems.append(f"{where}: only Real connections are supported ({start} is {t_start})")
+            elif end in self.links:
+                problems.append(f"{where}: input {end} is already connected to {self.links[end].start}")
+            else:
+                self.links[end] = Link(start, end, con.factor, con.offset)
+
+    def _apply(self, component: str, ps: ParameterSet, problems: list[str]) -> None:
+        for p in ps.parameters:
+            self._set_start(PortRef(component, p.name), p, ps.origin, problems)
+
+    def _apply_prefixed(self, ps: ParameterSet, problems: list[str]) -> None:
+        for p in ps.parameters:
+            try:
+                ref = PortRef.parse(p.name)
+            except ValueError as exc:
+                problems.append(f"{ps.origin}: {exc}")
+                continue
+            self._set_start(ref, Parameter(ref.connector, p.type, p.value), ps.origin, problems)
+
+    def _override(self, key: str, value: object, problems: list[str]) -> None:
+        try:
+            ref = PortRef.parse(key)
+        except ValueError as exc:
+            problems.append(f"--set: {exc}")
+            return
+        comp = self.components.get(ref.component)
+        var = comp.variables.get(ref.connector) if comp else None
+        type_ = var.type if var is not None else "Real"
+        try:
+            converted = _convert(type_, value)
+        except ValueError:
+            problems.append(f"--set {key}: {value!r} is not a valid {type_}")
+            return
+        self._set_start(ref, Parameter(ref.connector, type_, converted), "--set", problems)
+
+    def _set_start(self, ref: PortRef, p: Parameter, origin: str, problems: list[str]) -> None:
+        comp = self.components.get(ref.component)
+        if comp is None:
+            if ref.component not in {c.name for c in self.structure.components}:
+                problems.append(f"{origin}: no component named '{ref.component}' (for {ref})")
+            return
+        var = comp.variables.get(ref.connector)
+        if var is None:
+            problems.append(f"{origin}: component '{ref.component}' has no variable '{ref.connector}'")
+        elif var.causality not in SETTABLE or var.variability == "constant":
+            problems.append(f"{origin}: {ref} is a {var.variability} {var.causality}, it cannot be set")
+        elif var.type != p.type and not (var.type == "Real" and p.type == "Integer"):
+            problems.append(f"{origin}: {ref} is {var.type} but the value given is {p.type}")
+        else:
+            comp.start_values[ref.connector] = float(p.value) if var.type == "Real" else p.value
+
+    def _check_inputs(self, problems: list[str]) -> None:
+        for comp in self.components.values():
+            for v in comp.model.modelVariables:
+                ref = PortRef(comp.name, v.name)
+                if (v.causality == "input" and ref not in self.links and v.start is None
+                        and v.name not in comp.start_values):
+                    problems.append(f"{self.ssd}: component '{comp.name}', input '{v.name}' is neither "
+                                    "connected nor has a start value")
+
+    # -- propagation order --------------------------------------------------------------------
+    def _feeds(self, comp: ComponentModel, inputs: Iterable[str]) -> bool:
+        return any(comp.feedthrough.get(i) for i in inputs)
+
+    def _schedule(self) -> list[Operation]:
+        """Order of 'get outputs' / 'set inputs' at a communication point (one set per component
+        when possible, else the inputs that feed no output are set last)."""
+        self._check_algebraic_loops()
+        order = self._toposort(split=False)
+        return order if order is not None else self._toposort(split=True)
+
+    def _toposort(self, split: bool) -> list[Operation] | None:
+        nodes: list[Operation] = []
+        for comp in self.components.values():
+            connected = [i for i in comp.inputs if PortRef(comp.name, i) in self.links]
+            direct = tuple(i for i in connected if comp.feedthrough.get(i))
+            late = tuple(i for i in connected if not comp.feedthrough.get(i))
+            if split:
+                nodes += [Operation("set", comp.name, g) for g in (direct, late) if g]
+            elif connected:
+                nodes.append(Operation("set", comp.name, direct + late))
+            nodes.append(Operation("get", comp.name))
+        before: dict[Operation, set[Operation]] = {n: set() for n in nodes}
+        for n in nodes:
+            if n.kind == "set":
+                comp = self.components[n.component]
+                for i in n.inputs:
+                    before[n].add(Operation("get", self.links[PortRef(n.component, i)].start.component))
+                if self._feeds(comp, n.inputs):
+                    before[Operation("get", n.component)].add(n)
+        order: list[Operation] = []
+        done: set[Operation] = set()
+        while len(order) < len(nodes):
+            ready = [n for n in nodes if n not in done and before[n] <= done]
+            if not ready:
+                return None
+            order.append(ready[0])
+            done.add(ready[0])
+        return order
+
+    def _check_algebraic_loops(self) -> None:
+        """Port graph: output -> connected input -> outputs depending on it. A cycle is a loop."""
+        succ: dict[PortRef, list[PortRef]] = {}
+        for link in self.links.values():
+            succ.setdefault(link.start, []).append(link.end)
+            comp = self.components[link.end.component]
+            succ.setdefault(link.end, []).extend(
+                PortRef(comp.name, o) for o in sorted(comp.feedthrough.get(link.end.connector, ())))
+        state: dict[PortRef, int] = {}
+        stack: list[PortRef] = []
+
+        def visit(p: PortRef) -> list[PortRef] | None:
+            state[p] = 1
+            stack.append(p)
+            for q in succ.get(p, ()):
+                if state.get(q) == 1:
+                    return stack[stack.index(q):] + [q]
+                if q not in state and (cycle := visit(q)):
+                    return cycle
+            stack.pop()
+            state[p] = 2
+            return None
+
+        for p in sorted(succ):
+            if p not in state and (cycle := visit(p)):
+                raise ScenarioError(f"{self.ssd}: algebraic loop: " + " -> ".join(map(str, cycle)))
+
+
+def structure_sets(structure: SystemStructure) -> list[tuple[str, ParameterSet]]:
+    """The SSD's own parameter sets as (component, set), in binding order."""
+    return [(c.name, ps) for c in structure.components for ps in c.parameter_sets]
+
+
+def _convert(type_: str, value: object) -> float | int | bool | str:
+    if type_ == "Real":
+        return float(value)
+    if type_ in ("Integer", "Enumeration"):
+        if isinstance(value, str):
+            return int(value)
+        if isinstance(value, float) and not value.is_integer():
+            raise ValueError(value)
+        return int(value)
+    if type_ == "Boolean":
+        if isinstance(value, str):
+            if value.lower() not in ("true", "false", "1", "0"):
+                raise ValueError(value)
+            return value.lower() in ("true", "1")
+        return bool(value)
+    return str(value)
