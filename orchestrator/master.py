@@ -33,7 +33,7 @@ import shutil
 import tempfile
 from collections.abc import Callable
 from contextlib import ExitStack
-from ctypes import byref, c_double, c_uint
+from ctypes import POINTER, byref, c_double, c_int, c_size_t, c_uint, c_void_p
 
 import fmpy
 import numpy as np
@@ -74,10 +74,15 @@ class _Instance:
     def __init__(self, name: str, fmu: FMU2Slave) -> None:
         self.name = name
         self.fmu = fmu
-        self.c = fmu.component
-        self.do_step = fmu.dll.fmi2DoStep
-        self.get_real = fmu.dll.fmi2GetReal
-        self.set_real = fmu.dll.fmi2SetReal
+        self.c = c_void_p(fmu.component)
+        # The FMI functions of the library fmpy loaded, bound as PyDLL functions: called without
+        # releasing the GIL, which a Python-based FMU would have to take back at once.
+        lib = ctypes.PyDLL(fmu.dll._name, handle=fmu.dll._handle)
+        self.do_step = lib.fmi2DoStep
+        self.do_step.argtypes, self.do_step.restype = [c_void_p, c_double, c_double, c_int], c_int
+        self.get_real, self.set_real = lib.fmi2GetReal, lib.fmi2SetReal
+        for f in (self.get_real, self.set_real):
+            f.argtypes, f.restype = [c_void_p, POINTER(c_uint), c_size_t, POINTER(c_double)], c_int
         self.initialized = False
         self.broken = False
         self.out_slice = slice(0, 0)
@@ -100,8 +105,8 @@ class Master:
                  output: str | os.PathLike | None = None,
                  progress: Callable[[int, int], None] | None = None) -> None:
         self.system = system
-        self.times = time_grid(start_time, stop_time, step)
-        self.start_time = float(self.times[0])
+        self.times = time_grid(start_time, stop_time, step).tolist()
+        self.start_time = self.times[0]
         self.stop_time = stop_time
         self.output = output
         self.progress = progress
@@ -157,7 +162,7 @@ class Master:
     def initialize(self) -> None:
         """FMI initialization; afterwards every FMU is in step mode and row t0 is recorded."""
         t0 = self.start_time
-        stop = float(self.times[-1]) if self.stop_time is None else float(self.stop_time)
+        stop = self.times[-1] if self.stop_time is None else float(self.stop_time)
         for inst in self.instances:
             self._apply_start_values(inst)
             self._call(inst, "fmi2SetupExperiment", t0, inst.fmu.setupExperiment, None, t0, stop)
@@ -169,7 +174,7 @@ class Master:
 
     def step(self, k: int) -> None:
         """Advance every FMU from t_k to t_k+1 and record row t_k+1."""
-        t, t_next = float(self.times[k]), float(self.times[k + 1])
+        t, t_next = self.times[k], self.times[k + 1]
         self._step_impl(t, t_next - t, t_next)
         self.recorder.append(self.values)
 
@@ -219,12 +224,9 @@ class Master:
                 start = comp.start_values.get(i, variables[i].start)
                 self.values[slot[PortRef(comp.name, i)]] = float(start) if start is not None else 0.0
         self.values[0] = self.start_time
-        self._slot = slot
+        self._cvalues = self._view(slice(0, len(columns)))
         # transfer of all connections at once (jacobi) and per set operation (gauss-seidel)
-        links = [system.links[p] for p in input_order[:n_connected]]
-        self._all_src = np.array([slot[lk.start] for lk in links], dtype=np.intp)
-        self._all_dst = self.values[1:1 + n_connected]
-        self._all_scale = self._transformation(links)
+        self._all_copy, self._all_scaled = self._transfers(input_order[:n_connected], slot)
         for inst in self.instances:
             comp = system.components[inst.name]
             inst.out_vr = self._vrs(comp, comp.outputs)
@@ -239,22 +241,22 @@ class Master:
             inst = by_name[op.component]
             if op.kind == "get":
                 self._ops.append((False, inst, inst.get_real, inst.out_vr, len(inst.out_vr), inst.out_ptr,
-                                  None, None, None))
+                                  (), ()))
             else:
                 ports = [PortRef(op.component, i) for i in op.inputs]
                 dst = slice(slot[ports[0]], slot[ports[-1]] + 1)
-                op_links = [system.links[p] for p in ports]
-                src = np.array([slot[lk.start] for lk in op_links], dtype=np.intp)
                 vrs = self._vrs(system.components[op.component], op.inputs)
-                self._ops.append((True, inst, inst.set_real, vrs,
-                                  len(ports), self._view(dst), src, self.values[dst],
-                                  self._transformation(op_links)))
+                copy, scaled = self._transfers(ports, slot)
+                self._ops.append((True, inst, inst.set_real, vrs, len(ports), self._view(dst), copy, scaled))
 
-    @staticmethod
-    def _transformation(links) -> tuple[np.ndarray, np.ndarray] | None:
-        if all(lk.factor == 1.0 and lk.offset == 0.0 for lk in links):
-            return None
-        return (np.array([lk.factor for lk in links]), np.array([lk.offset for lk in links]))
+    def _transfers(self, ports: list[PortRef], slot: dict[PortRef, int]) -> tuple[tuple, tuple]:
+        """Connections into ``ports`` as (input slot, output slot) pairs, and as (input slot,
+        output slot, factor, offset) for those with a linear transformation."""
+        links = [self.system.links[p] for p in ports]
+        copy = tuple((slot[lk.end], slot[lk.start]) for lk in links if lk.factor == 1.0 and lk.offset == 0.0)
+        scaled = tuple((slot[lk.end], slot[lk.start], lk.factor, lk.offset) for lk in links
+                       if not (lk.factor == 1.0 and lk.offset == 0.0))
+        return copy, scaled
 
     @staticmethod
     def _vrs(comp, names) -> ctypes.Array:
@@ -266,20 +268,21 @@ class Master:
         return (c_double * n).from_buffer(self.values, part.start * self.values.itemsize)
 
     def _transfer_all(self) -> None:
-        np.take(self.values, self._all_src, out=self._all_dst)
-        if self._all_scale is not None:
-            self._all_dst *= self._all_scale[0]
-            self._all_dst += self._all_scale[1]
+        v = self._cvalues
+        for dst, src in self._all_copy:
+            v[dst] = v[src]
+        for dst, src, factor, offset in self._all_scaled:
+            v[dst] = factor * v[src] + offset
 
     def _propagate(self, t: float) -> None:
         """Read outputs and set inputs in dependency order (gauss-seidel at a communication point)."""
-        values = self.values
-        for is_set, inst, fn, vr, n, ptr, src, dst, scale in self._ops:
+        v = self._cvalues
+        for is_set, inst, fn, vr, n, ptr, copy, scaled in self._ops:
             if is_set:
-                np.take(values, src, out=dst)
-                if scale is not None:
-                    dst *= scale[0]
-                    dst += scale[1]
+                for dst, src in copy:
+                    v[dst] = v[src]
+                for dst, src, factor, offset in scaled:
+                    v[dst] = factor * v[src] + offset
                 status = fn(inst.c, vr, n, ptr)
                 if status > 1:
                     self._fail(inst, "fmi2SetReal", status, t)

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
+from fmpy.validation import validate_model_description
 
 from .errors import ScenarioError
 from .ssp import Parameter, ParameterSet, SystemStructure
@@ -104,11 +105,17 @@ class System:
             if c.name in self.components:
                 problems.append(f"{self.ssd}: component name '{c.name}' is used twice")
                 continue
+            where = f"{self.ssd}: component '{c.name}': FMU '{os.path.basename(c.source)}'"
             try:
-                md = (model_descriptions or {}).get(c.source) or read_model_description(str(c.source))
-            except Exception as exc:  # fmpy raises plain Exception for broken FMUs
-                problems.append(f"{self.ssd}: component '{c.name}': cannot read FMU "
-                                f"'{os.path.basename(c.source)}': {exc}")
+                md = (model_descriptions or {}).get(c.source) or read_model_description(str(c.source),
+                                                                                         validate=False)
+            except Exception as exc:  # fmpy raises plain Exception for unreadable FMUs
+                problems.append(f"{where}: cannot read modelDescription.xml: {exc}")
+                continue
+            # fmpy's checks, except a missing input start, which _check_inputs reports in context
+            invalid = [p for p in validate_model_description(md) if not _is_input_start(p, md)]
+            if invalid:
+                problems.extend(f"{where}: {p}" for p in invalid)
                 continue
             if md.coSimulation is None:
                 problems.append(f"{self.ssd}: component '{c.name}': FMU is not a Co-Simulation FMU")
@@ -305,6 +312,11 @@ class System:
         for p in sorted(succ):
             if p not in state and (cycle := visit(p)):
                 raise ScenarioError(f"{self.ssd}: algebraic loop: " + " -> ".join(map(str, cycle)))
+
+
+def _is_input_start(problem: str, md: ModelDescription) -> bool:
+    inputs = {v.name for v in md.modelVariables if v.causality == "input"}
+    return problem.endswith("has no start value.") and problem.split('"')[1] in inputs
 
 
 def structure_sets(structure: SystemStructure) -> list[tuple[str, ParameterSet]]:

@@ -61,3 +61,17 @@ def loop_scenario(folder: Path, fmus: dict[str, Path], gain: float = -2.0, x0: f
             (folder / "resources" / name).write_bytes(path.read_bytes())
         return folder
     return pack_ssp(folder, files, folder.parent / f"{folder.name}.ssp")
+
+
+def without_start(fmu: Path, variable: str, dest: Path) -> Path:
+    """Copy of ``fmu`` whose variable has no start value (not FMI-compliant for an input: for tests
+    of the 'input neither connected nor started' check)."""
+    with zipfile.ZipFile(fmu) as zf:
+        files = {i.filename: zf.read(i) for i in zf.infolist()}
+    xml = files["modelDescription.xml"].decode()
+    pattern = rf'(<ScalarVariable name="{variable}"[^>]*>\s*<Real) start="[^"]*"'
+    files["modelDescription.xml"] = re.sub(pattern, r"\1", xml).encode()
+    with zipfile.ZipFile(dest, "w", zipfile.ZIP_DEFLATED) as zf:
+        for filename, data in files.items():
+            zf.writestr(filename, data)
+    return dest

@@ -1,0 +1,159 @@
+"""Reading SSP scenarios: schema validity of what we write, the parts fmpy's reader drops, and
+hostile or broken archives (each a clear ScenarioError naming the file, user files untouched)."""
+
+from __future__ import annotations
+
+import zipfile
+from contextlib import ExitStack
+from pathlib import Path
+
+import pytest
+from fmpy.ssp.ssd import read_ssd
+from lxml import etree
+from orch_helpers import build_test_fmu, loop_scenario
+
+import orchestrator
+from orchestrator import ScenarioError
+from orchestrator.ssp import NS, open_scenario, read_parameter_set, read_scenario
+from orchestrator.sspwriter import write_ssv
+
+REPO = Path(__file__).resolve().parent.parent
+SCENARIOS = ["example1", "example1_finite_time", "example1_no_fault", "pendulum", "pendulum_finite_time"]
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory) -> dict[str, Path]:
+    folder = tmp_path_factory.mktemp("fmus")
+    return {n: build_test_fmu(n, folder) for n in ("Source", "Gain", "Integrator")}
+
+
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_scenario_sources_follow_the_spec(name):
+    """SSP 1.0, literal prefixes, tool namespaces on the root, typed connectors, one binding per
+    component, the step in both tool annotations; the schema check is inside read_scenario."""
+    ssd = REPO / "ssp" / name / "SystemStructure.ssd"
+    text = ssd.read_text()
+    root = etree.fromstring(text.encode())
+    assert root.get("version") == "1.0"
+    assert root.prefix == "ssd" and {"ssd", "ssc", "ssv", "osp", "oms"} <= set(root.nsmap)
+    components = root.findall("ssd:System/ssd:Elements/ssd:Component", NS)
+    assert [c.get("name") for c in components] == ["reference", "controller", "actuator", "plant"]
+    for c in components:
+        assert len(c.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS)) == 1
+        for k in c.findall("ssd:Connectors/ssd:Connector", NS):
+            assert k.get("kind") in ("input", "output") and k.find("ssc:Real", NS) is not None
+    assert root.find("ssd:System/ssd:ParameterBindings", NS) is None
+    assert 'baseStepSize="0.001" numWorkerThreads="0"' in text and 'stepSize="0.001"' in text
+    for ssv in ssd.parent.glob("*.ssv"):
+        assert read_parameter_set(ssv).parameters
+    with pytest.raises(ScenarioError, match="is missing"):  # valid XML; only the FMUs are absent
+        read_scenario(ssd.parent)
+
+
+def test_reads_what_fmpy_drops(tmp_path, fmus):
+    """ssc:LinearTransformation, DefaultExperiment and the step annotation, which
+    fmpy.ssp.ssd.read_ssd does not deliver."""
+    ssp = loop_scenario(tmp_path / "s", fmus, factor=2.5, offset=-0.25, stop=3.0, step=0.02)
+    fmpy_view = read_ssd(str(ssp))
+    assert not any(hasattr(c, "linearTransformation") for c in fmpy_view.system.connections)
+    assert fmpy_view.defaultExperiment is None
+    with ExitStack() as stack:
+        structure = read_scenario(open_scenario(ssp, stack))
+    (link,) = [c for c in structure.connections if c.end_element == "integrator"]
+    assert (link.factor, link.offset) == (2.5, -0.25)
+    assert (structure.experiment.start_time, structure.experiment.stop_time, structure.experiment.step) == (
+        0.0, 3.0, 0.02)
+
+
+def test_step_from_either_tool_annotation(tmp_path, fmus):
+    folder = loop_scenario(tmp_path / "s", fmus, step=0.02, pack=False)
+    ssd = folder / "SystemStructure.ssd"
+    text = ssd.read_text()
+    ssd.write_text(text.replace('stepSize="0.02"', 'stepSize="0.05"'))
+    assert read_scenario(folder).experiment.step == 0.02  # libcosim's annotation first
+    start = text.index("<ssd:Annotations>\n      <ssc:Annotation type=\"com.opensimulationplatform\"")
+    end = text.index("</ssd:Annotations>", start) + len("</ssd:Annotations>")
+    ssd.write_text(text[:start] + text[end:])
+    assert read_scenario(folder).experiment.step == 0.02  # OMSimulator's annotation
+    result = orchestrator.run(folder, stop_time=0.1)
+    assert len(result) == 6
+
+
+def _zip(path: Path, members: dict[str, bytes]) -> Path:
+    with zipfile.ZipFile(path, "w") as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+    return path
+
+
+def test_archive_escaping_the_folder_is_refused(tmp_path, fmus):
+    good = loop_scenario(tmp_path / "s", fmus)
+    with zipfile.ZipFile(good) as zf:
+        members = {n: zf.read(n) for n in zf.namelist()}
+    user_file = tmp_path / "precious.txt"
+    user_file.write_text("mine")
+    for evil in ("../precious.txt", "/tmp/precious.txt", "resources/../../precious.txt"):
+        bad = _zip(tmp_path / "bad.ssp", {**members, evil: b"overwritten"})
+        with pytest.raises(ScenarioError, match=r"bad\.ssp: member .* points outside"):
+            orchestrator.run(bad)
+        assert user_file.read_text() == "mine"
+
+
+def test_symlink_member_is_refused(tmp_path, fmus):
+    good = loop_scenario(tmp_path / "s", fmus)
+    bad = tmp_path / "link.ssp"
+    bad.write_bytes(good.read_bytes())
+    with zipfile.ZipFile(bad, "a") as zf:
+        info = zipfile.ZipInfo("resources/link")
+        info.external_attr = (0o120777 << 16)
+        zf.writestr(info, "/etc/passwd")
+    with pytest.raises(ScenarioError, match="symbolic link"):
+        orchestrator.run(bad)
+
+
+@pytest.mark.parametrize("case, message", [
+    ("not_a_zip", r"not a valid SSP \(zip\) archive"),
+    ("no_ssd", r"no SystemStructure\.ssd at the root"),
+    ("missing_fmu", r"component 'gain': FMU 'resources/Gain\.fmu' is missing"),
+    ("broken_ssd", r"SystemStructure\.ssd: broken XML"),
+    ("broken_ssv", r"gain\.ssv: broken XML"),
+    ("invalid_ssd", r"SystemStructure\.ssd line \d+: .*Connektor"),
+    ("missing_ssv", r"gain\.ssv: file is missing"),
+])
+def test_broken_archives_name_the_file(tmp_path, fmus, case, message):
+    good = loop_scenario(tmp_path / "s", fmus)
+    with zipfile.ZipFile(good) as zf:
+        members = {n: zf.read(n) for n in zf.namelist()}
+    ssd = members["SystemStructure.ssd"].decode()
+    if case == "not_a_zip":
+        bad = tmp_path / "bad.ssp"
+        bad.write_bytes(b"PK\x03\x04 this is not a zip")
+    else:
+        if case == "no_ssd":
+            del members["SystemStructure.ssd"]
+        elif case == "missing_fmu":
+            del members["resources/Gain.fmu"]
+        elif case == "broken_ssd":
+            members["SystemStructure.ssd"] = ssd[:-40].encode()
+        elif case == "broken_ssv":
+            members["gain.ssv"] = b"<ssv:ParameterSet"
+        elif case == "invalid_ssd":
+            members["SystemStructure.ssd"] = ssd.replace("ssd:Connector ", "ssd:Connektor ", 1).replace(
+                "</ssd:Connector>", "</ssd:Connektor>", 1).encode()
+        elif case == "missing_ssv":
+            del members["gain.ssv"]
+        bad = _zip(tmp_path / "bad.ssp", members)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    with pytest.raises(ScenarioError, match=message):
+        orchestrator.run(bad)
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_parameter_set_prefix_and_types(tmp_path):
+    path = tmp_path / "p.ssv"
+    write_ssv(path, "p", {"gain.k": 3.0, "integrator.n": 4, "flag": True})
+    ps = read_parameter_set(path)
+    assert [(p.name, p.type, p.value) for p in ps.parameters] == [
+        ("gain.k", "Real", 3.0), ("integrator.n", "Integer", 4), ("flag", "Boolean", True)]
+    with pytest.raises(ScenarioError, match="does not start with the prefix 'gain.'"):
+        read_parameter_set(path, prefix="gain.")
