@@ -17,7 +17,7 @@ __all__ = ["DEFAULT_MAX_STEP", "current_state", "declare_plant_outputs", "step_p
 # RK4 sub-step bound: with the paper's huge initial controls (|uf| ~ 1e4 in the first ms) the
 # states stay within 1e-6 of solve_ivp (rtol 1e-10) over 30 s at h = 1 ms with margin
 # (tests/test_fmu_plants.py measures it).
-DEFAULT_MAX_STEP = 1e-4
+DEFAULT_MAX_STEP = 2.5e-5
 
 
 def current_state(slave: Fmi2Slave) -> State:

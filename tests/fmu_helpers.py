@@ -1,0 +1,118 @@
+"""Helpers for the FMU tests: build the five FMUs once per test process and drive one FMU
+directly through fmpy's FMI 2.0 API (exact input values and step times, state get/set)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Mapping
+from contextlib import ExitStack, contextmanager
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+from scipy.integrate import solve_ivp
+
+from fmu_src.build import FMU_SCRIPTS, build_all
+
+MODELS = tuple(FMU_SCRIPTS)
+_built: dict[str, Path] = {}
+_extracted: dict[Path, str] = {}
+
+
+def built_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Model name -> FMU path, built at most once per test process (xdist: once per worker)."""
+    if not _built:
+        dest = tmp_path_factory.mktemp("fmus")
+        _built.update({path.stem: path for path in build_all(dest)})
+    return dict(_built)
+
+
+class Slave:
+    """One FMU instance driven by name: ``set``/``get`` of variables, ``step`` from time t."""
+
+    def __init__(self, path: Path, instance_name: str) -> None:
+        self.md = read_model_description(str(path))
+        if path not in _extracted:
+            _extracted[path] = extract(str(path))
+        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
+        self.types = {v.name: v.type for v in self.md.modelVariables}
+        self.fmu = FMU2Slave(
+            guid=self.md.guid,
+            unzipDirectory=_extracted[path],
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName=instance_name,
+        )
+        self.fmu.instantiate()
+
+    def set(self, **values: float) -> None:
+        for name, value in values.items():
+            if self.types[name] == "Integer":
+                self.fmu.setInteger([self.vr[name]], [int(value)])
+            else:
+                self.fmu.setReal([self.vr[name]], [float(value)])
+
+    def get(self, *names: str) -> list[float]:
+        return [
+            self.fmu.getInteger([self.vr[n]])[0]
+            if self.types[n] == "Integer"
+            else self.fmu.getReal([self.vr[n]])[0]
+            for n in names
+        ]
+
+    def initialize(self, start_time: float = 0.0, **parameters: float) -> None:
+        self.fmu.setupExperiment(startTime=start_time)
+        self.fmu.enterInitializationMode()
+        self.set(**parameters)
+        self.fmu.exitInitializationMode()
+
+    def step(self, t: float, h: float) -> None:
+        self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+
+
+@contextmanager
+def open_slaves(paths: Mapping[str, Path]) -> Iterator[dict[str, Slave]]:
+    """Instantiate several FMUs (instance name -> FMU path); terminated and freed on every path."""
+    with ExitStack() as stack:
+        slaves = {}
+        for name, path in paths.items():
+            slave = Slave(path, name)
+            stack.callback(slave.fmu.freeInstance)
+            slaves[name] = slave
+        yield slaves
+
+
+@contextmanager
+def open_slave(path: Path, name: str = "instance") -> Iterator[Slave]:
+    """One FMU instance, freed on every path."""
+    slave = Slave(path, name)
+    try:
+        yield slave
+    finally:
+        slave.fmu.freeInstance()
+
+
+def solve_held(rhs, t0: float, y0, inputs, h: float) -> np.ndarray:  # noqa: ANN001
+    """The oracle: solve_ivp (DOP853, rtol 1e-10) interval by interval with input k held on
+    [t0 + k h, t0 + (k + 1) h]; returns the states at the end of every interval."""
+    y = np.asarray(y0, dtype=float)
+    out = np.empty((len(inputs), len(y)))
+    for k, u in enumerate(inputs):
+        ta, tb = t0 + k * h, t0 + (k + 1) * h
+        sol = solve_ivp(lambda t, s, u=u: rhs(t, s, u), (ta, tb), y, method="DOP853", rtol=1e-10, atol=1e-13)
+        y = sol.y[:, -1]
+        out[k] = y
+    return out
+
+
+def reference_formula(
+    t: float, amplitude: float, omega: float, phase: float, offset: float
+) -> tuple[float, ...]:
+    """yd, yd', yd'' of amplitude sin(omega t + phase) + offset, written out independently."""
+    angle = omega * t + phase
+    return (
+        amplitude * math.sin(angle) + offset,
+        amplitude * omega * math.cos(angle),
+        -amplitude * omega**2 * math.sin(angle),
+    )

@@ -1,0 +1,193 @@
+"""The model descriptions: validity, the interface contract of SPEC section 5, descriptions,
+units, DefaultExperiment and the ModelStructure dependencies pythonfmu does not write itself."""
+
+from __future__ import annotations
+
+import zipfile
+
+import fmpy
+import pytest
+from fmpy.validation import validate_fmu
+
+from fmu_helpers import MODELS, built_fmus
+
+INTERFACE = {  # model -> (inputs, outputs)
+    "Reference": ((), ("yd", "yd_dot", "yd_ddot")),
+    "FixedTimeController": (
+        ("x1", "x2", "yd", "yd_dot", "yd_ddot"),
+        ("v", "z1", "z2", "zeta1", "eta1_hat", "eta2_hat", "r"),
+    ),
+    "Actuator": (("v", "x1", "x2"), ("uf", "u_dz")),
+    "Example1Plant": (("uf",), ("x1", "x2", "z", "y")),
+    "PendulumPlant": (("uf",), ("x1", "x2", "z", "y")),
+}
+CONTROLLER_PARAMETERS = (
+    [f"{g}{i}" for g in ("k", "q", "a", "kappa", "rho", "rho_bar") for i in (1, 2)]
+    + ["alpha", "beta", "mode", "a_bar", "gamma_gain", "gamma_power", "d_r", "r0", "eta1_0", "eta2_0"]
+    + [f"mu{j}" for j in range(1, 8)]
+    + ["tau", "substeps"]
+)
+PARAMETERS = {  # model -> parameter -> (default, unit)
+    "Reference": {
+        "amplitude": (0.5, None),
+        "omega": (1.0, "rad/s"),
+        "phase": (0.0, "rad"),
+        "offset": (0.0, None),
+    },
+    "FixedTimeController": {
+        **{
+            f"{g}{i}": (d[i - 1], None)
+            for g, d in {
+                "k": (10, 10),
+                "q": (8, 8),
+                "a": (5, 2),
+                "kappa": (2, 2),
+                "rho": (2, 2),
+                "rho_bar": (1, 1),
+            }.items()
+            for i in (1, 2)
+        },
+        "alpha": (1.5, None),
+        "beta": (0.75, None),
+        "mode": (0, None),
+        "a_bar": (1.0, "1/s"),
+        "gamma_gain": (2.5, None),
+        "gamma_power": (4.0, None),
+        "d_r": (0.625, None),
+        "r0": (0.0, None),
+        "eta1_0": (0.0, None),
+        "eta2_0": (0.0, None),
+        "tau": (2.0, None),
+        "substeps": (1, None),
+        **{f"mu{j}": (c, None) for j, c in enumerate((-1.5, -1, -0.5, 0, 0.5, 1, 1.5), start=1)},
+    },
+    "Actuator": {
+        "m_r": (1.0, None),
+        "m_l": (1.2, None),
+        "b_r": (0.5, None),
+        "b_l": (0.6, None),
+        "K_inf": (0.4, None),
+        "K_amp": (0.6, None),
+        "K_rate": (0.2, "1/s"),
+        "L_gain": (1.0, None),
+        "L_bias": (0.0, None),
+        "t_fault": (10.0, "s"),
+    },
+    "Example1Plant": {"x1_0": (0.5, None), "x2_0": (0.5, None), "z_0": (0.0, None)},
+    "PendulumPlant": {
+        "M": (0.25, "kg"),
+        "L": (4.0, "m"),
+        "B": (0.25, "kg/s2"),
+        "g": (10.0, "m/s2"),
+        "d1": (0.2, "rad/s"),
+        "d2": (0.3, "rad/s2"),
+        "x1_0": (0.6, "rad"),
+        "x2_0": (0.1, "rad/s"),
+        "z_0": (0.0, None),
+    },
+}
+# output -> the inputs it depends on directly (SPEC section 5; z1 and zeta1 use fewer inputs)
+DEPENDENCIES = {
+    "Reference": {"yd": (), "yd_dot": (), "yd_ddot": ()},
+    "FixedTimeController": {
+        "v": ("x1", "x2", "yd", "yd_dot", "yd_ddot"),
+        "z1": ("x1", "yd"),
+        "z2": ("x1", "x2", "yd", "yd_dot", "yd_ddot"),
+        "zeta1": ("x1", "yd", "yd_dot"),
+        "eta1_hat": (),
+        "eta2_hat": (),
+        "r": (),
+    },
+    "Actuator": {"uf": ("v", "x1", "x2"), "u_dz": ("v",)},
+    "Example1Plant": {"x1": (), "x2": (), "z": (), "y": ()},
+    "PendulumPlant": {"x1": (), "x2": (), "z": (), "y": ()},
+}
+SI = {
+    "s": {"s": 1},
+    "1/s": {"s": -1},
+    "rad": {"rad": 1},
+    "rad/s": {"rad": 1, "s": -1},
+    "rad/s2": {"rad": 1, "s": -2},
+    "m": {"m": 1},
+    "kg": {"kg": 1},
+    "m/s2": {"m": 1, "s": -2},
+    "kg/s2": {"kg": 1, "s": -2},
+    "N": {"kg": 1, "m": 1, "s": -2},
+}
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    return built_fmus(tmp_path_factory)
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_validates_and_dumps(fmus: dict, model: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert validate_fmu(str(fmus[model])) == []
+    fmpy.dump(str(fmus[model]))
+    assert model in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_interface_descriptions_and_experiment(fmus: dict, model: str) -> None:
+    md = fmpy.read_model_description(str(fmus[model]))
+    assert md.modelName == model
+    assert md.coSimulation.modelIdentifier == model
+    assert md.coSimulation.canGetAndSetFMUstate
+    inputs, outputs = INTERFACE[model]
+    assert tuple(v.name for v in md.modelVariables if v.causality == "input") == inputs
+    assert tuple(v.name for v in md.modelVariables if v.causality == "output") == outputs
+    parameters = [v.name for v in md.modelVariables if v.causality == "parameter"]
+    expected = list(PARAMETERS[model]) + (["max_step"] if "Plant" in model else [])
+    assert sorted(parameters) == sorted(expected)
+    if model == "FixedTimeController":
+        assert sorted(parameters) == sorted(CONTROLLER_PARAMETERS)
+    assert all(v.description for v in md.modelVariables)
+    assert md.description
+    experiment = md.defaultExperiment
+    assert (float(experiment.startTime), float(experiment.stopTime), float(experiment.stepSize)) == (
+        0,
+        30,
+        0.001,
+    )
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_parameter_defaults_and_units(fmus: dict, model: str) -> None:
+    md = fmpy.read_model_description(str(fmus[model]))
+    variables = {v.name: v for v in md.modelVariables}
+    for name, (default, unit) in PARAMETERS[model].items():
+        assert float(variables[name].start) == default, name
+        assert variables[name].variability == "fixed", name
+        assert variables[name].unit == unit, name
+    if "Plant" in model:
+        assert variables["max_step"].unit == "s"
+        assert 0 < float(variables["max_step"].start) <= 1e-4
+    if model == "PendulumPlant":
+        assert (variables["x1"].unit, variables["x2"].unit, variables["y"].unit) == ("rad", "rad/s", "rad")
+        assert variables["uf"].unit == "N"
+    if model == "FixedTimeController":
+        assert variables["mode"].type == variables["substeps"].type == "Integer"
+    # every unit used is defined, with SI base-unit exponents
+    used = {v.unit for v in md.modelVariables if v.unit}
+    defined = {u.name: u.baseUnit for u in md.unitDefinitions}
+    assert used == set(defined)
+    for name, base in defined.items():
+        exponents = {
+            k: getattr(base, k) for k in ("kg", "m", "s", "A", "K", "mol", "cd", "rad") if getattr(base, k)
+        }
+        assert exponents == SI[name], name
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_output_dependencies(fmus: dict, model: str) -> None:
+    md = fmpy.read_model_description(str(fmus[model]))
+    found = {u.variable.name: tuple(d.name for d in u.dependencies) for u in md.outputs}
+    assert found == DEPENDENCIES[model]
+    # the XML carries an explicit (possibly empty) list for every output
+    with zipfile.ZipFile(fmus[model]) as archive:
+        xml = archive.read("modelDescription.xml").decode()
+    outputs_xml = xml.split("<Outputs>")[1].split("</Outputs>")[0]
+    assert outputs_xml.count("dependencies=") == len(DEPENDENCIES[model])
+    initial = {u.variable.name for u in md.initialUnknowns}
+    assert initial == set(DEPENDENCIES[model])
