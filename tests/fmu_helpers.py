@@ -116,3 +116,21 @@ def reference_formula(
         amplitude * omega * math.cos(angle),
         -amplitude * omega**2 * math.sin(angle),
     )
+
+
+def libcosim_execution(step: float):  # noqa: ANN201 - libcosimpy types are imported lazily
+    """A libcosim execution with a fixed step (given in s; libcosim counts integer ns), quiet logs."""
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+
+    log_output_level(CosimLogLevel.WARNING)
+    return CosimExecution.from_step_size(step_size=round(step * 1e9))
+
+
+def libcosim_add(execution, path: Path, name: str) -> tuple[int, dict[str, int]]:  # noqa: ANN001
+    """Add an FMU to a libcosim execution; returns its index and variable name -> reference."""
+    from libcosimpy.CosimSlave import CosimLocalSlave
+
+    index = execution.add_local_slave(CosimLocalSlave(fmu_path=str(path), instance_name=name))
+    assert index >= 0, f"libcosim could not load {path}"
+    return index, {v.name.decode(): v.reference for v in execution.slave_variables(index)}

@@ -8,7 +8,6 @@ import zipfile
 import fmpy
 import pytest
 from fmpy.validation import validate_fmu
-
 from fmu_helpers import MODELS, built_fmus
 
 INTERFACE = {  # model -> (inputs, outputs)

@@ -14,8 +14,7 @@ import math
 
 import numpy as np
 import pytest
-
-from fmu_helpers import built_fmus, open_slave, solve_held
+from fmu_helpers import built_fmus, libcosim_add, libcosim_execution, open_slave, solve_held
 
 H = 1e-3
 
@@ -133,15 +132,10 @@ def test_max_step_is_the_accuracy_parameter(fmus: dict) -> None:
 
 def test_plant_in_libcosim(fmus: dict) -> None:
     """A short libcosim run with a constant input (set as initial value of uf) matches solve_ivp."""
-    from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimObserver import CosimObserver
-    from libcosimpy.CosimSlave import CosimLocalSlave
 
-    execution = CosimExecution.from_step_size(step_size=1_000_000)
-    index = execution.add_local_slave(
-        CosimLocalSlave(fmu_path=str(fmus["PendulumPlant"]), instance_name="plant")
-    )
-    refs = {v.name.decode(): v.reference for v in execution.slave_variables(index)}
+    execution = libcosim_execution(H)
+    index, refs = libcosim_add(execution, fmus["PendulumPlant"], "plant")
     execution.real_initial_value(index, refs["uf"], -2.0)
     observer = CosimObserver.create_last_value()
     execution.add_observer(observer)

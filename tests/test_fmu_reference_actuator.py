@@ -8,8 +8,7 @@ import math
 import numpy as np
 import pytest
 from fmpy import simulate_fmu
-
-from fmu_helpers import built_fmus, open_slave, reference_formula
+from fmu_helpers import built_fmus, libcosim_add, libcosim_execution, open_slave, reference_formula
 
 ACTUATOR = {
     "m_r": 1.0,
@@ -62,15 +61,10 @@ def test_reference_matches_formula(fmus: dict, parameters: dict) -> None:
 
 
 def test_reference_in_libcosim(fmus: dict) -> None:
-    from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimObserver import CosimObserver
-    from libcosimpy.CosimSlave import CosimLocalSlave
 
-    execution = CosimExecution.from_step_size(step_size=10_000_000)  # 10 ms, in ns
-    index = execution.add_local_slave(
-        CosimLocalSlave(fmu_path=str(fmus["Reference"]), instance_name="reference")
-    )
-    refs = {v.name.decode(): v.reference for v in execution.slave_variables(index)}
+    execution = libcosim_execution(0.01)
+    index, refs = libcosim_add(execution, fmus["Reference"], "reference")
     execution.real_initial_value(index, refs["omega"], 2.0)
     observer = CosimObserver.create_last_value()
     execution.add_observer(observer)
