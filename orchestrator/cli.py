@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 from collections.abc import Sequence
 from contextlib import ExitStack
@@ -59,6 +60,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plot", action="store_true", help="do not plot")
     p.add_argument("--master", choices=list(MASTERS), default="gauss-seidel", help="master algorithm")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
+    p.add_argument("--verbose", action="store_true", help="show the FMUs' log messages as they come")
 
     p = sub.add_parser("build", help="build the FMUs and pack the scenarios into .ssp archives")
     p.add_argument("scenarios", nargs="*", metavar="NAME", help="scenarios to pack (default: all in ssp/)")
@@ -113,6 +115,22 @@ class _Progress:
         sys.stderr.flush()
 
 
+class _LastMessage(logging.Handler):
+    """Keeps the last warning or error logged (FMUs written in Python log in our process), so a
+    failure is reported on one line with the FMU's own explanation; prints them with --verbose."""
+
+    def __init__(self, verbose: bool) -> None:
+        super().__init__(logging.INFO if verbose else logging.WARNING)
+        self.verbose = verbose
+        self.last = ""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if record.levelno >= logging.WARNING:
+            self.last = record.getMessage().strip().splitlines()[-1] if record.getMessage().strip() else ""
+        if self.verbose:
+            print(f"{record.name}: {record.getMessage()}", file=sys.stderr)
+
+
 def _run(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     overrides = {}
     for item in args.set:
@@ -127,16 +145,23 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     output = args.output or Path("results") / f"{name}.csv"
     plot = None if args.no_plot else args.plot or output.with_suffix(".png")
     progress = None if args.quiet or not sys.stderr.isatty() else _Progress(name)
+    messages = _LastMessage(args.verbose)
+    logging.getLogger().addHandler(messages)
+    if args.verbose:
+        logging.getLogger().setLevel(logging.INFO)
     try:
         result = run(scenario, args.stop_time, args.step, args.parameter_set, overrides, args.master,
                      output, progress)
     except SimulationError as exc:
         rows = len(getattr(exc, "result", ()))
-        print(f"orchestrate: error: {exc}; {rows} rows kept in {output}", file=sys.stderr)
+        detail = f" ({messages.last})" if messages.last and "(" not in str(exc) else ""
+        print(f"orchestrate: error: {exc}{detail}; {rows} rows kept in {output}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"orchestrate: interrupted; rows computed so far kept in {output}", file=sys.stderr)
         return 130
+    finally:
+        logging.getLogger().removeHandler(messages)
     if plot is not None:
         plot_result(result, plot, f"{name} ({args.master})")
     if not args.quiet:

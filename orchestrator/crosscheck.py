@@ -15,7 +15,15 @@ import numpy as np
 from .master import NS_PER_S
 from .results import structured
 
-__all__ = ["run_libcosim"]
+__all__ = ["LibcosimError", "run_libcosim"]
+
+
+class LibcosimError(RuntimeError):
+    """libcosim stopped before the stop time; ``result`` holds the samples recorded until then."""
+
+    def __init__(self, message: str, result: np.ndarray) -> None:
+        super().__init__(message)
+        self.result = result
 
 
 def run_libcosim(ssp: str | os.PathLike, stop_time: float,
@@ -49,8 +57,7 @@ def run_libcosim(ssp: str | os.PathLike, stop_time: float,
     for index, vr in refs:
         observer.start_time_series(index, vr, CosimVariableType.REAL)
     started = time.perf_counter()
-    if not execution.simulate_until(round(stop_time * NS_PER_S)):
-        raise RuntimeError(f"libcosim failed to simulate {ssp}")
+    ok = execution.simulate_until(round(stop_time * NS_PER_S))
     wall = time.perf_counter() - started
 
     samples = wrap_function(lib=libcosimc(), funcname="cosim_observer_slave_get_real_samples",
@@ -67,5 +74,8 @@ def run_libcosim(ssp: str | os.PathLike, stop_time: float,
         if times is None:
             times = np.array(points[:n], dtype=np.int64) / NS_PER_S
         data.append(np.array(values[:n]))
-    table = np.column_stack([times] + data)
-    return structured(table, ["time"] + names), wall
+    n = min(len(d) for d in data)
+    result = structured(np.column_stack([times[:n]] + [d[:n] for d in data]), ["time"] + names)
+    if not ok:
+        raise LibcosimError(f"libcosim failed to simulate {ssp} (after {n} samples)", result)
+    return result, wall
