@@ -118,6 +118,42 @@ def reference_formula(
     )
 
 
+# The actuator of SPEC section 2, written out independently of fmu_src.models.
+def dead_zone_formula(v: float, p: dict) -> float:
+    """u(v) of SPEC section 2, written out."""
+    if v >= p["b_r"]:
+        return p["m_r"] * (v - p["b_r"])
+    if v <= -p["b_l"]:
+        return p["m_l"] * (v + p["b_l"])
+    return 0.0
+
+
+def uf_formula(t: float, v: float, x1: float, x2: float, p: dict) -> float:
+    if t < p["t_fault"]:
+        return v
+    K = p["K_inf"] + p["K_amp"] * math.exp(-p["K_rate"] * t)
+    return K * dead_zone_formula(v, p) + p["L_gain"] * x2 * math.cos(x1) ** 2 + p["L_bias"]
+
+
+# The plant equations of SPEC section 3, written out independently of fmu_src.models.
+def example1(t: float, s, uf: float) -> list[float]:  # noqa: ANN001
+    x1, x2, z = s
+    return [
+        (2 + math.sin(x1)) * x2 + 0.1 * math.sin(x1 * x2) + z * math.sin(x1**2),
+        (2 + math.cos(x1 * x2)) * uf + 0.5 * math.sin(x1**2 * x2**2) + x1**2 * z,
+        -z - x1**2 + 0.5,
+    ]
+
+
+def pendulum(t: float, s, uf: float, M=0.25, L=4.0, B=0.25, g=10.0, d1=0.2, d2=0.3) -> list[float]:  # noqa: ANN001
+    x1, x2, z = s
+    return [
+        x2 + z * x1 + d1 * math.sin(t),
+        uf / (M * L) - (g / L + B / M) * math.sin(x1 * x2) + z * x2 * math.sin(x1) + d2 * math.cos(t),
+        -2 * z + 0.25 * x1**2,
+    ]
+
+
 def libcosim_execution(step: float):  # noqa: ANN201 - libcosimpy types are imported lazily
     """A libcosim execution with a fixed step (given in s; libcosim counts integer ns), quiet logs."""
     from libcosimpy.CosimExecution import CosimExecution

@@ -14,27 +14,17 @@ import math
 
 import numpy as np
 import pytest
-from fmu_helpers import built_fmus, libcosim_add, libcosim_execution, open_slave, solve_held
+from fmu_helpers import (
+    built_fmus,
+    example1,
+    libcosim_add,
+    libcosim_execution,
+    open_slave,
+    pendulum,
+    solve_held,
+)
 
 H = 1e-3
-
-
-def example1(t: float, s, uf: float) -> list[float]:  # noqa: ANN001
-    x1, x2, z = s
-    return [
-        (2 + math.sin(x1)) * x2 + 0.1 * math.sin(x1 * x2) + z * math.sin(x1**2),
-        (2 + math.cos(x1 * x2)) * uf + 0.5 * math.sin(x1**2 * x2**2) + x1**2 * z,
-        -z - x1**2 + 0.5,
-    ]
-
-
-def pendulum(t: float, s, uf: float, M=0.25, L=4.0, B=0.25, g=10.0, d1=0.2, d2=0.3) -> list[float]:  # noqa: ANN001
-    x1, x2, z = s
-    return [
-        x2 + z * x1 + d1 * math.sin(t),
-        uf / (M * L) - (g / L + B / M) * math.sin(x1 * x2) + z * x2 * math.sin(x1) + d2 * math.cos(t),
-        -2 * z + 0.25 * x1**2,
-    ]
 
 
 def example1_input(t: float, x1: float, x2: float) -> float:

@@ -3,12 +3,18 @@ fmpy.simulate_fmu, fmpy's FMI API and libcosim."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 from fmpy import simulate_fmu
-from fmu_helpers import built_fmus, libcosim_add, libcosim_execution, open_slave, reference_formula
+from fmu_helpers import (
+    built_fmus,
+    dead_zone_formula,
+    libcosim_add,
+    libcosim_execution,
+    open_slave,
+    reference_formula,
+    uf_formula,
+)
 
 ACTUATOR = {
     "m_r": 1.0,
@@ -27,22 +33,6 @@ ACTUATOR = {
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict:
     return built_fmus(tmp_path_factory)
-
-
-def dead_zone_formula(v: float, p: dict) -> float:
-    """u(v) of SPEC section 2, written out."""
-    if v >= p["b_r"]:
-        return p["m_r"] * (v - p["b_r"])
-    if v <= -p["b_l"]:
-        return p["m_l"] * (v + p["b_l"])
-    return 0.0
-
-
-def uf_formula(t: float, v: float, x1: float, x2: float, p: dict) -> float:
-    if t < p["t_fault"]:
-        return v
-    K = p["K_inf"] + p["K_amp"] * math.exp(-p["K_rate"] * t)
-    return K * dead_zone_formula(v, p) + p["L_gain"] * x2 * math.cos(x1) ** 2 + p["L_bias"]
 
 
 @pytest.mark.parametrize(
