@@ -14,9 +14,10 @@ from .models import RightHandSide, State, hold_step
 
 __all__ = ["DEFAULT_MAX_STEP", "current_state", "declare_plant_outputs", "step_plant"]
 
-# RK4 sub-step bound: with the paper's huge initial controls (|uf| ~ 1e4 in the first ms) the
-# states stay within 1e-6 of solve_ivp (rtol 1e-10) over 30 s at h = 1 ms with margin
-# (tests/test_fmu_plants.py measures it).
+# RK4 sub-step bound (40 sub-steps per 1 ms communication step). With the paper's huge initial
+# controls (|uf| ~ 770 for Example 1, ~15000 for the pendulum in the first ms) the states stay
+# within 3e-8 of solve_ivp (rtol 1e-10) over 30 s at h = 1 ms; 5e-5 gives 4e-7, 1e-4 gives 7e-6
+# (tests/test_fmu_plants.py). One doStep costs about 70 us.
 DEFAULT_MAX_STEP = 2.5e-5
 
 
@@ -29,7 +30,7 @@ def declare_plant_outputs(slave: Fmi2Slave, x1_unit: str | None, x2_unit: str | 
     """Register x1, x2, z and y = x1; none depends directly on the input uf."""
     out = Fmi2Causality.output
 
-    def state_getter(i: int):  # noqa: ANN202 - a tiny closure factory
+    def state_getter(i: int):
         return lambda: current_state(slave)[i]
 
     declare(slave, "x1", out, "Plant state x1", unit=x1_unit, depends_on=(), getter=state_getter(0))

@@ -41,7 +41,7 @@ def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict:
     return built_fmus(tmp_path_factory)
 
 
-def run_plant(path, feedback, n: int, inputs=None, **parameters) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+def run_plant(path, feedback, n: int, inputs=None, **parameters) -> tuple[np.ndarray, np.ndarray]:
     """Drive a plant FMU over n steps of H; uf_k from ``inputs`` or from feedback(t_k, x1_k, x2_k)."""
     states = np.empty((n + 1, 3))
     used = np.empty(n)
@@ -57,7 +57,7 @@ def run_plant(path, feedback, n: int, inputs=None, **parameters) -> tuple[np.nda
     return states, used
 
 
-def solve_closed_loop(rhs, y0, feedback, n: int) -> np.ndarray:  # noqa: ANN001
+def solve_closed_loop(rhs, y0, feedback, n: int) -> np.ndarray:
     """solve_ivp interval by interval, uf_k = feedback(t_k, own state at t_k) held over the interval."""
     y = np.asarray(y0, dtype=float)
     out = np.empty((n + 1, 3))
