@@ -12,7 +12,7 @@ from ctypes import POINTER, c_double, c_int, c_int64, c_size_t, c_uint32
 
 import numpy as np
 
-from .master import NS_PER_S
+from .master import NS_PER_S, interpreter_guard
 from .results import structured
 
 __all__ = ["LibcosimError", "run_libcosim"]
@@ -32,8 +32,16 @@ def run_libcosim(ssp: str | os.PathLike, stop_time: float,
     with a time-series observer. Step and parameter sets come from the SSD, as libcosim reads them.
 
     Returns the structured result (``time`` first, one row per communication point including t0) and
-    the wall time in seconds of the simulation proper (``simulate_until``).
+    the wall time in seconds of the simulation proper (``simulate_until``). Raises LibcosimError
+    (with the samples so far) if libcosim stops early.
     """
+    with interpreter_guard():
+        return _run_libcosim(ssp, stop_time, columns)
+
+
+def _run_libcosim(ssp: str | os.PathLike, stop_time: float,
+                  columns: Sequence[str]) -> tuple[np.ndarray, float]:
+    """Body of run_libcosim; the execution (and its FMUs) is freed before returning."""
     import time
 
     from libcosimpy import CosimLogging
@@ -74,6 +82,7 @@ def run_libcosim(ssp: str | os.PathLike, stop_time: float,
         if times is None:
             times = np.array(points[:n], dtype=np.int64) / NS_PER_S
         data.append(np.array(values[:n]))
+    del execution, observer  # frees the FMUs inside interpreter_guard
     n = min(len(d) for d in data)
     result = structured(np.column_stack([times[:n]] + [d[:n] for d in data]), ["time"] + names)
     if not ok:

@@ -30,9 +30,10 @@ import ctypes
 import logging
 import os
 import shutil
+import sys
 import tempfile
-from collections.abc import Callable
-from contextlib import ExitStack
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack, contextmanager
 from ctypes import POINTER, byref, c_double, c_int, c_size_t, c_uint, c_void_p
 
 import fmpy
@@ -50,7 +51,7 @@ from .errors import SimulationError
 from .results import Recorder
 from .system import PortRef, System
 
-__all__ = ["MASTERS", "GaussSeidel", "Jacobi", "Master", "time_grid"]
+__all__ = ["MASTERS", "GaussSeidel", "Jacobi", "Master", "interpreter_guard", "time_grid"]
 
 log = logging.getLogger(__name__)
 NS_PER_S = 1_000_000_000
@@ -66,6 +67,23 @@ def time_grid(start: float, stop: float, step: float) -> np.ndarray:
         raise ValueError(f"the stop time {stop!r} s is before the start time {start!r} s")
     n = (t1 - t0) // h
     return (t0 + h * np.arange(n + 1, dtype=np.int64)) / NS_PER_S
+
+
+@contextmanager
+def interpreter_guard() -> Iterator[None]:
+    """Undo what FMUs written in Python do to this interpreter: pythonfmu puts each FMU's resources
+    folder on sys.path and imports from it (even its bundled copy of pythonfmu), which would shadow
+    our own modules after the run. Restores sys.path and forgets modules imported from those folders."""
+    path, before = list(sys.path), set(sys.modules)
+    try:
+        yield
+    finally:
+        added = [p for p in sys.path if p and p not in path]
+        sys.path[:] = path
+        for name in set(sys.modules) - before:
+            file = getattr(sys.modules[name], "__file__", None) or ""
+            if any(file.startswith(p) for p in added):
+                del sys.modules[name]
 
 
 class _Instance:
@@ -142,6 +160,7 @@ class Master:
         """Extract and instantiate every FMU (freed by ``stack``) and lay out the value arrays."""
         workdir = tempfile.mkdtemp(prefix="orchestrate-")
         stack.callback(shutil.rmtree, workdir, ignore_errors=True)
+        stack.enter_context(interpreter_guard())
         self._callbacks = self._make_callbacks()
         for comp in self.system.components.values():
             unzipdir = fmpy.extract(str(comp.fmu), unzipdir=os.path.join(workdir, comp.name))
