@@ -35,7 +35,7 @@ class Actuator(Fmi2Slave):
         self.x1 = 0.0
         self.x2 = 0.0
         self.time = 0.0
-        self._params = defaults
+        self._params: ActuatorParameters | None = None  # frozen at exit_initialization_mode
         declare(self, "v", INPUT, "Commanded control v from the controller")
         declare(self, "x1", INPUT, "Plant state x1 (enters the bias fault L(t))")
         declare(self, "x2", INPUT, "Plant state x2 (enters the bias fault L(t))")
@@ -67,7 +67,7 @@ class Actuator(Fmi2Slave):
         )
 
     def _output(self) -> tuple[float, float]:
-        p = self._params
+        p = self._params or self._parameters()
         t = self.time
         if abs(t - p.t_fault) <= FAULT_TIME_TOLERANCE * max(1.0, abs(p.t_fault)):
             t = p.t_fault
@@ -78,10 +78,6 @@ class Actuator(Fmi2Slave):
     ) -> None:
         """Remember the start time: the outputs at the first communication point use it."""
         self.time = start_time
-
-    def enter_initialization_mode(self) -> None:
-        """Let outputs read during initialization see the parameters set so far."""
-        self._params = self._parameters()
 
     def exit_initialization_mode(self) -> None:
         """Validate the parameters (raises, naming them) and freeze them for the run."""

@@ -27,7 +27,7 @@ class Reference(Fmi2Slave):
         self.phase = 0.0
         self.offset = 0.0
         self.time = 0.0
-        self._params = ReferenceParameters()
+        self._params: ReferenceParameters | None = None  # frozen at exit_initialization_mode
         declare(self, "yd", OUTPUT, "Reference yd(t)", depends_on=(), getter=lambda: self._signal()[0])
         declare(
             self, "yd_dot", OUTPUT, "First derivative yd'(t)", depends_on=(), getter=lambda: self._signal()[1]
@@ -49,17 +49,13 @@ class Reference(Fmi2Slave):
         return ReferenceParameters(self.amplitude, self.omega, self.phase, self.offset)
 
     def _signal(self) -> tuple[float, float, float]:
-        return reference_signal(self.time, self._params)
+        return reference_signal(self.time, self._params or self._parameters())
 
     def setup_experiment(
         self, start_time: float, stop_time: float | None = None, tolerance: float | None = None
     ) -> None:
         """Remember the start time: the outputs at the first communication point use it."""
         self.time = start_time
-
-    def enter_initialization_mode(self) -> None:
-        """Let outputs read during initialization see the parameters set so far."""
-        self._params = self._parameters()
 
     def exit_initialization_mode(self) -> None:
         """Validate the parameters (raises, naming them) and freeze them for the run."""

@@ -3,6 +3,8 @@ fmpy.simulate_fmu, fmpy's FMI API and libcosim."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from fmpy import simulate_fmu
@@ -122,3 +124,15 @@ def test_actuator_through_simulate_fmu(fmus: dict) -> None:
     np.testing.assert_allclose(result["uf"], expected, rtol=1e-13)
     np.testing.assert_allclose(result["u_dz"], dead_zone_formula(1.7, p), rtol=1e-15)
     assert result["uf"][0] == 1.7 and result["uf"][-1] != 1.7
+
+
+def test_outputs_during_initialization_use_the_parameters_set_so_far(fmus: dict) -> None:
+    with open_slave(fmus["Reference"]) as reference, open_slave(fmus["Actuator"], "actuator") as actuator:
+        reference.fmu.setupExperiment(startTime=1.0)
+        reference.fmu.enterInitializationMode()
+        reference.set(amplitude=2.0, offset=0.5)
+        assert reference.get("yd") == pytest.approx([2.0 * math.sin(1.0) + 0.5], abs=1e-15)
+        actuator.fmu.setupExperiment(startTime=0.0)
+        actuator.fmu.enterInitializationMode()
+        actuator.set(t_fault=0.0, v=2.0, x1=0.0, x2=0.0, K_amp=0.0)
+        assert actuator.get("uf") == [pytest.approx(0.4 * 1.5)]  # K_inf (v - b_r)
