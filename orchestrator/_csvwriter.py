@@ -9,11 +9,14 @@ on stdin.
 
 from __future__ import annotations
 
+import signal
 import sys
 
 
 def main(argv: list[str]) -> int:
-    """Copy the header line, then format rows until stdin closes."""
+    """Copy the header line, then format rows until stdin closes (Ctrl-C is for the parent: it
+    sends the rows it still holds and then closes stdin)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     path, ncols = argv[0], int(argv[1])
     source = sys.stdin.buffer
     row_bytes = 8 * ncols

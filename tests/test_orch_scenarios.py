@@ -53,6 +53,30 @@ def test_every_scenario_runs(built, name):
     assert abs(r["controller.v"][0]) > 10 and r["actuator.uf"][0] == r["controller.v"][0]
 
 
+def test_libcosim_honours_parameter_sets_and_step(built, tmp_path):
+    """A copy of example1 with the reference amplitude 0.25 (in reference.ssv) and a 0.5 ms step
+    (in both tool annotations): libcosim and we both follow it."""
+    import shutil
+
+    from orchestrator.sspwriter import pack_ssp
+
+    folder = tmp_path / "variant"
+    shutil.copytree(REPO / "ssp" / "example1", folder)
+    ssv = folder / "reference.ssv"
+    ssv.write_text(ssv.read_text().replace('name="amplitude">\n      <ssv:Real value="0.5"',
+                                           'name="amplitude">\n      <ssv:Real value="0.25"'))
+    ssd = folder / "SystemStructure.ssd"
+    ssd.write_text(ssd.read_text().replace('"0.001"', '"0.0005"'))
+    fmus = {p.name: p for p in (built / "fmus").glob("*.fmu")}
+    names = ("Reference.fmu", "FixedTimeController.fmu", "Actuator.fmu", "Example1Plant.fmu")
+    archive = pack_ssp(folder, {n: fmus[n] for n in names}, tmp_path / "variant.ssp")
+    theirs, _ = run_libcosim(archive, 0.1, ["time", "reference.yd", "plant.y"])
+    ours = orchestrator.run(archive, stop_time=0.1, master="jacobi")
+    assert theirs["time"].tolist() == ours["time"].tolist() == [k / 2000 for k in range(201)]
+    np.testing.assert_allclose(theirs["reference.yd"], 0.25 * np.sin(theirs["time"]), rtol=0, atol=1e-15)
+    assert (theirs["plant.y"] == ours["plant.y"]).all()
+
+
 def test_masters_differ_by_the_coupling_delay(built):
     """Before the fault uf = v: gauss-seidel passes v to the plant at the same instant,
     jacobi one step later (libcosim's semantics)."""
