@@ -1,0 +1,536 @@
+"""Regression of co-simulation results against stored baselines, with tubes.
+
+``compare`` checks every signal of a baseline against a result on the baseline's time grid with the
+tube of the FMI cross-check practice (:func:`fmpy.util.validate_signal`): a band of half-width
+``max(atol, rtol * range)`` around the baseline, widened by ``dt`` seconds horizontally (the band's
+min/max over neighbouring samples). ``baseline`` runs scenarios and stores their outputs, resampled
+to a coarse grid, as CSV text under ``tests/baselines/``; the tolerances live beside them in
+``tolerances.json`` with the measurement behind each one.
+
+Two tolerances per signal, because of the physics of the sampled loop (1 ms zero-order hold, high
+gains, ``sig(z)^(2 beta - 1)`` terms): up to the first chattering burst (``quiet_until``) nearby
+trajectories contract and two correct integrators agree to 1e-8, so the tube is tight there
+(``quiet_atol``); during bursts any difference, even round-off, is amplified to a bounded level
+(about 5e-4 in y, several units in v), so afterwards the tube (``atol``) must be that wide.
+
+Usage::
+
+    python -m orchestrator.regression compare RESULT.csv BASELINE.csv [--plot-dir DIR]
+    python -m orchestrator.regression baseline [--scenario NAME]...
+
+Exit status of ``compare``: 0 every signal inside its tube, 1 regression (a signal outside its tube,
+a baseline column missing from the result, or a result that does not cover the baseline's time
+span), 2 usage or unreadable input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import tempfile
+from collections.abc import Iterable, Mapping, Sequence
+from contextlib import ExitStack
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from fmpy.util import read_csv, validate_signal
+
+from . import load, run
+from .master import time_grid
+
+__all__ = [
+    "BASELINE_DIR",
+    "BASELINE_GRID",
+    "SCENARIO_DIR",
+    "Comparison",
+    "RegressionError",
+    "SignalCheck",
+    "Tolerance",
+    "Tolerances",
+    "build_scenarios",
+    "compare",
+    "compare_files",
+    "format_comparison",
+    "load_tolerances",
+    "main",
+    "output_columns",
+    "plot_failures",
+    "read_result",
+    "resample",
+    "write_baseline",
+    "write_baselines",
+]
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+BASELINE_DIR = REPO_ROOT / "tests" / "baselines"
+SCENARIO_DIR = REPO_ROOT / "ssp"
+TOLERANCES_NAME = "tolerances.json"
+BASELINE_GRID = 0.02  # s: 1501 rows per 30 s scenario; the loop's features last longer than 20 ms
+DIGITS = 9  # significant digits in baselines: rounding stays far below every tube (even quiet ones)
+
+
+class RegressionError(ValueError):
+    """An input of the comparison is unusable (unreadable file, no time column, bad tolerance)."""
+
+
+# -- tolerances -------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Tolerance:
+    """Tube of one signal: half-width ``max(atol, rtol * range of the baseline)``, widened by ``dt``
+    seconds in time; ``quiet_atol`` (if given) replaces it for ``t <= quiet_until``."""
+
+    atol: float = 0.0
+    rtol: float = 0.0
+    dt: float = 0.0
+    quiet_atol: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("atol", "rtol", "dt", "quiet_atol"):
+            value = getattr(self, name)
+            valid = isinstance(value, (int, float)) and math.isfinite(value) and value >= 0
+            if value is not None and not valid:
+                raise RegressionError(f"tolerance {name} must be a finite number >= 0 (got {value!r})")
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Per-signal tubes (column name -> Tolerance), the tube of unlisted signals, and the end of
+    the quiet phase in which the ``quiet_atol`` tubes apply."""
+
+    signals: Mapping[str, Tolerance] = field(default_factory=dict)
+    default: Tolerance = Tolerance(rtol=0.01)
+    quiet_until: float = 0.0
+    source: str = "built-in defaults"
+
+    def of(self, name: str) -> Tolerance:
+        """The tube of column ``name``."""
+        return self.signals.get(name, self.default)
+
+    def with_overrides(self, overrides: Mapping[str, Tolerance]) -> Tolerances:
+        """A copy with some signals' tubes replaced."""
+        return replace(self, signals={**self.signals, **overrides})
+
+
+_TOLERANCE_KEYS = {"atol", "rtol", "dt", "quiet_atol"}
+
+
+def _tolerance(entry: object, where: str) -> Tolerance:
+    if not isinstance(entry, Mapping):
+        raise RegressionError(f"{where}: expected an object with {', '.join(sorted(_TOLERANCE_KEYS))}")
+    values = {k: v for k, v in entry.items() if k in _TOLERANCE_KEYS}
+    unknown = set(entry) - _TOLERANCE_KEYS - {"reason"}
+    if unknown:
+        raise RegressionError(f"{where}: unknown key(s) {', '.join(sorted(unknown))}")
+    try:
+        return Tolerance(**values)
+    except RegressionError as exc:
+        raise RegressionError(f"{where}: {exc}") from exc
+
+
+def load_tolerances(path: str | os.PathLike) -> Tolerances:
+    """Read a tolerance file: ``{"quiet_until": s, "default": {...}, "signals": {"plant.y": {"atol":
+    ..., "quiet_atol": ..., "reason": "..."}}}`` (``reason`` is for the reader)."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise RegressionError(f"{path}: cannot read tolerances ({exc})") from exc
+    if not isinstance(data, Mapping):
+        raise RegressionError(f"{path}: expected a JSON object")
+    signals = data.get("signals", {})
+    if not isinstance(signals, Mapping):
+        raise RegressionError(f"{path}: 'signals' must be an object")
+    quiet_until = data.get("quiet_until", 0.0)
+    if not isinstance(quiet_until, (int, float)) or not math.isfinite(quiet_until):
+        raise RegressionError(f"{path}: quiet_until must be a number of seconds (got {quiet_until!r})")
+    default = _tolerance(data["default"], f"{path}: default") if "default" in data else Tolerance(rtol=0.01)
+    tubes = {name: _tolerance(entry, f"{path}: signal '{name}'") for name, entry in signals.items()}
+    return Tolerances(tubes, default, float(quiet_until), str(path))
+
+
+def parse_tolerance(text: str, base: Tolerances) -> tuple[str, Tolerance]:
+    """``plant.y=1e-3`` (atol) or ``plant.y=atol:1e-3,quiet_atol:1e-6`` -> (name, Tolerance); keys not
+    given keep the signal's tube from ``base``."""
+    name, sep, spec = text.partition("=")
+    if not sep or not name or not spec:
+        raise RegressionError(f"--tol expects SIGNAL=ATOL or SIGNAL=KEY:VALUE[,KEY:VALUE] (got '{text}')")
+    values: dict[str, float] = {}
+    for item in spec.split(","):
+        key, colon, value = item.partition(":")
+        if not colon:
+            key, value = "atol", key
+        if key not in _TOLERANCE_KEYS:
+            keys = ", ".join(sorted(_TOLERANCE_KEYS))
+            raise RegressionError(f"--tol {text}: unknown key '{key}' (use {keys})")
+        try:
+            values[key] = float(value)
+        except ValueError:
+            raise RegressionError(f"--tol {text}: '{value}' is not a number") from None
+    return name, replace(base.of(name), **values)
+
+
+# -- results and baselines ----------------------------------------------------------------------
+def read_result(path: str | os.PathLike) -> np.ndarray:
+    """Read a result CSV (``time`` first, one column per signal) with fmpy's reader; errors name the
+    file. Time must increase strictly."""
+    path = Path(path)
+    if not path.is_file():
+        raise RegressionError(f"{path}: no such file")
+    try:
+        data = read_csv(path)
+    except (OSError, ValueError, IndexError, UnicodeDecodeError) as exc:
+        raise RegressionError(f"{path}: not a result CSV ({exc})") from exc
+    names = data.dtype.names or ()
+    if "time" not in names:
+        raise RegressionError(f"{path}: no 'time' column (columns: {', '.join(names)})")
+    if len(data) < 2:
+        raise RegressionError(f"{path}: needs at least two rows (has {len(data)})")
+    bad = np.flatnonzero(np.diff(data["time"]) <= 0)
+    if len(bad):
+        i = int(bad[0]) + 1
+        raise RegressionError(f"{path}: column 'time' does not increase at line {i + 2} "
+                              f"(t = {float(data['time'][i])!r} after {float(data['time'][i - 1])!r})")
+    return data
+
+
+def resample(result: np.ndarray, grid: float, columns: Sequence[str] | None = None) -> np.ndarray:
+    """The result on the grid ``t0 + k*grid`` (computed like the master's grid, so points shared
+    with the result's own grid take its values exactly), keeping ``columns`` (default all)."""
+    t = result["time"]
+    times = time_grid(float(t[0]), float(t[-1]), grid)
+    names = ["time", *[c for c in (columns or result.dtype.names) if c != "time"]]
+    out = np.zeros(len(times), dtype=[(n, np.float64) for n in names])
+    out["time"] = times
+    for n in names[1:]:
+        out[n] = np.interp(times, t, result[n])
+    return out
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` via a temporary file in the same folder: never a half-written file."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
+            f.write(text)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file the usual mode
+        os.replace(tmp, path)
+    except BaseException:
+        os.unlink(tmp)
+        raise
+
+
+def write_baseline(data: np.ndarray, path: str | os.PathLike) -> Path:
+    """Write a baseline CSV readable by ``fmpy.util.read_csv``: exact time, values to 9 significant
+    digits (a reviewable, stable text diff)."""
+    names = data.dtype.names
+    lines = [",".join(names)]
+    for row in data.tolist():
+        lines.append(",".join([repr(row[0]), *(f"{v:.{DIGITS}g}" for v in row[1:])]))
+    path = Path(path)
+    _atomic_write(path, "\n".join(lines) + "\n")
+    return path
+
+
+# -- the comparison -----------------------------------------------------------------------------
+@dataclass
+class SignalCheck:
+    """Outcome for one signal: samples outside the tube, first time out, and the worst excess
+    (distance beyond the tube) with its time; arrays kept for plots."""
+
+    name: str
+    tolerance: Tolerance
+    width: float  # half-width of the tube after the quiet phase
+    n_out: int
+    first_out: float | None
+    worst_time: float | None
+    worst_excess: float
+    max_deviation: float
+    time: np.ndarray
+    value: np.ndarray
+    reference: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+
+    @property
+    def passed(self) -> bool:
+        """True if every sample lies inside the tube."""
+        return self.n_out == 0
+
+
+@dataclass
+class Comparison:
+    """All signal checks plus the problems that fail a comparison without a tube."""
+
+    result: str
+    baseline: str
+    tolerances: Tolerances
+    checks: list[SignalCheck]
+    missing: list[str]
+    extra: list[str]
+    problems: list[str]
+
+    @property
+    def failed(self) -> list[SignalCheck]:
+        """Signals outside their tubes."""
+        return [c for c in self.checks if not c.passed]
+
+    @property
+    def passed(self) -> bool:
+        """No signal outside its tube, no missing column, no coverage problem."""
+        return not self.failed and not self.missing and not self.problems
+
+
+def _tube(t: np.ndarray, y: np.ndarray, y_ref: np.ndarray, width: float,
+          dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper tube limits at the samples ``t`` (signal and reference on the same grid),
+    computed by ``fmpy.util.validate_signal``."""
+    if len(t) == 1:
+        return y_ref - width, y_ref + width
+    h = float(np.median(np.diff(t)))
+    # validate_signal skips the band's end points; one padded sample on each side covers them
+    t_pad = np.concatenate(([t[0] - h], t, [t[-1] + h]))
+    y_pad = np.concatenate(([y_ref[0]], y_ref, [y_ref[-1]]))
+    span = float(np.ptp(y_pad))
+    shift = 0.0
+    if span == 0.0:  # validate_signal uses |y| * dy for a flat band (0.5 if zero): move it to 1
+        shift = 1.0 - float(y_pad[0])
+        dy = width
+    else:
+        dy = width / span
+    dx = 2 * int(round(dt / h)) + 1
+    t_band, y_min, y_max, _ = validate_signal(t, y + shift, t_pad.copy(), y_pad + shift,
+                                              num=len(t_pad), dx=dx, dy=dy)
+    return np.interp(t, t_band, y_min) - shift, np.interp(t, t_band, y_max) - shift
+
+
+def _check(name: str, t: np.ndarray, y: np.ndarray, y_ref: np.ndarray, tol: Tolerance,
+           quiet_until: float) -> SignalCheck:
+    quiet = t <= quiet_until if tol.quiet_atol is not None else np.zeros(len(t), dtype=bool)
+    lower = np.empty(len(t))
+    upper = np.empty(len(t))
+    width = max(tol.atol, tol.rtol * float(np.ptp(y_ref[~quiet]))) if (~quiet).any() else 0.0
+    for part, w in ((quiet, tol.quiet_atol), (~quiet, width)):
+        if part.any():
+            lower[part], upper[part] = _tube(t[part], y[part], y_ref[part], w, tol.dt)
+    finite = np.isfinite(y)
+    excess = np.where(finite, np.maximum(lower - y, y - upper), np.inf)
+    out = excess > 0
+    n_out = int(out.sum())
+    worst = int(np.argmax(excess)) if n_out else None
+    deviation = np.where(finite, np.abs(y - y_ref), np.inf)
+    return SignalCheck(name, tol, width, n_out,
+                       float(t[np.argmax(out)]) if n_out else None,
+                       float(t[worst]) if worst is not None else None,
+                       float(excess[worst]) if worst is not None else 0.0,
+                       float(deviation.max()), t, y, y_ref, lower, upper)
+
+
+def compare(result: np.ndarray, baseline: np.ndarray, tolerances: Tolerances | None = None,
+            result_name: str = "result", baseline_name: str = "baseline") -> Comparison:
+    """Compare every baseline column with the result's column of the same name on the baseline's
+    time grid (the result is interpolated linearly onto it)."""
+    tolerances = tolerances or Tolerances()
+    names = [n for n in baseline.dtype.names if n != "time"]
+    have = set(result.dtype.names)
+    missing = [n for n in names if n not in have]
+    extra = [n for n in result.dtype.names if n != "time" and n not in set(baseline.dtype.names)]
+    problems = []
+    t_ref, t_res = baseline["time"], result["time"]
+    eps = 1e-9 * max(1.0, abs(float(t_ref[-1])))
+    if t_res[0] > t_ref[0] + eps or t_res[-1] < t_ref[-1] - eps:
+        problems.append(f"{result_name} covers t = {t_res[0]:g} .. {t_res[-1]:g} s but {baseline_name} "
+                        f"runs over t = {t_ref[0]:g} .. {t_ref[-1]:g} s")
+    checks = []
+    if not problems:
+        for n in names:
+            if n in have:
+                y_ref = np.asarray(baseline[n], dtype=float)
+                if not np.isfinite(y_ref).all():
+                    problems.append(f"{baseline_name}: column '{n}' has non-finite values")
+                    continue
+                y = np.interp(t_ref, t_res, result[n])
+                checks.append(_check(n, t_ref, y, y_ref, tolerances.of(n), tolerances.quiet_until))
+    return Comparison(result_name, baseline_name, tolerances, checks, missing, extra, problems)
+
+
+def compare_files(result: str | os.PathLike, baseline: str | os.PathLike,
+                  tolerances: Tolerances | None = None) -> Comparison:
+    """``compare`` on two CSV files; tolerances default to ``tolerances.json`` beside the baseline."""
+    baseline = Path(baseline)
+    if tolerances is None:
+        beside = baseline.parent / TOLERANCES_NAME
+        tolerances = load_tolerances(beside) if beside.is_file() else Tolerances()
+    return compare(read_result(result), read_result(baseline), tolerances, str(result), str(baseline))
+
+
+def format_comparison(comparison: Comparison) -> str:
+    """A Markdown table of the signals outside their tubes, then what is missing; one summary line."""
+    c = comparison
+    lines = [f"compare {c.result} with {c.baseline} (tolerances: {c.tolerances.source})"]
+    failed = c.failed
+    if failed:
+        lines += ["", "| signal | tube +- | first out (s) | worst at (s) | beyond tube | max abs deviation "
+                  "| samples out |", "|---|---|---|---|---|---|---|"]
+        for s in failed:
+            quiet = "" if s.tolerance.quiet_atol is None else f" ({s.tolerance.quiet_atol:.3g} quiet)"
+            lines.append(f"| {s.name} | {s.width:.3g}{quiet} | {s.first_out:.3f} | {s.worst_time:.3f} | "
+                         f"{s.worst_excess:.3g} | {s.max_deviation:.3g} | {s.n_out} of {len(s.time)} |")
+        lines.append("")
+    for p in c.problems:
+        lines.append(f"problem: {p}")
+    if c.missing:
+        lines.append(f"missing in {c.result}: {', '.join(c.missing)}")
+    if c.extra:
+        lines.append(f"not in the baseline (not compared): {', '.join(c.extra)}")
+    verdict = "PASS" if c.passed else "REGRESSION"
+    lines.append(f"{verdict}: {len(c.checks) - len(failed)} of {len(c.checks) + len(c.missing)} signals "
+                 f"inside their tubes")
+    return "\n".join(lines)
+
+
+def plot_failures(comparison: Comparison, folder: str | os.PathLike) -> list[Path]:
+    """One PNG per signal outside its tube: baseline, result and tube, then the deviation."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    for s in comparison.failed:
+        fig, (ax, ax_d) = plt.subplots(2, 1, sharex=True, figsize=(9, 5.5))
+        ax.fill_between(s.time, s.lower, s.upper, color="tab:green", alpha=0.25, label="tube")
+        ax.plot(s.time, s.reference, color="tab:green", linewidth=1, label="baseline")
+        ax.plot(s.time, s.value, color="tab:blue", linewidth=1, label="result")
+        out = (s.value < s.lower) | (s.value > s.upper) | ~np.isfinite(s.value)
+        ax.plot(s.time[out], s.value[out], "r.", markersize=3, label="outside")
+        ax.set_ylabel(s.name)
+        ax.legend(loc="upper right", fontsize="small")
+        ax.set_title(f"{s.name}: {s.n_out} samples outside, worst {s.worst_excess:.3g} beyond at "
+                     f"t = {s.worst_time:.3f} s")
+        ax_d.fill_between(s.time, s.lower - s.reference, s.upper - s.reference, color="tab:green", alpha=0.25)
+        ax_d.plot(s.time, s.value - s.reference, color="tab:blue", linewidth=1)
+        ax_d.set_ylabel("result - baseline")
+        ax_d.set_xlabel("time (s)")
+        for a in (ax, ax_d):
+            a.grid(True, alpha=0.3)
+        fig.tight_layout()
+        path = folder / f"{s.name}.png"
+        fig.savefig(path, dpi=100)
+        plt.close(fig)
+        written.append(path)
+    return written
+
+
+# -- scenarios and baselines ------------------------------------------------------------------------
+def build_scenarios(names: Iterable[str], dest: str | os.PathLike,
+                    sources: str | os.PathLike = SCENARIO_DIR) -> dict[str, Path]:
+    """Build the five FMUs into ``dest/fmus`` and pack ``sources/<name>/`` into ``dest/<name>.ssp``
+    (as ``orchestrate build`` does); returns name -> archive."""
+    from fmu_src.build import build_all
+
+    from .sspwriter import pack_ssp
+
+    dest, sources = Path(dest), Path(sources)
+    fmus = {p.name: p for p in build_all(dest / "fmus")}
+    archives = {}
+    for name in names:
+        folder = sources / name
+        if not (folder / "SystemStructure.ssd").is_file():
+            known = ", ".join(all_scenarios(sources))
+            raise RegressionError(f"{folder}: no SystemStructure.ssd (scenarios in {sources}: {known})")
+        archives[name] = pack_ssp(folder, fmus, dest / f"{name}.ssp")
+    return archives
+
+
+def output_columns(scenario: str | os.PathLike) -> list[str]:
+    """Result columns of every component output (inputs are copies of outputs and are left out)."""
+    with ExitStack() as stack:
+        system = load(scenario, stack)
+        return [f"{c.name}.{o}" for c in system.components.values() for o in c.outputs]
+
+
+def all_scenarios(sources: str | os.PathLike = SCENARIO_DIR) -> list[str]:
+    """Names of the scenario folders in ``sources``."""
+    return sorted(p.parent.name for p in Path(sources).glob("*/SystemStructure.ssd"))
+
+
+def write_baselines(names: Iterable[str] | None = None, dest: str | os.PathLike = BASELINE_DIR,
+                    sources: str | os.PathLike = SCENARIO_DIR, grid: float = BASELINE_GRID) -> list[Path]:
+    """Run each scenario over its full DefaultExperiment and write ``dest/<name>.csv`` (outputs on
+    ``grid``). Each file is replaced only once its run has succeeded."""
+    names = list(names) if names else all_scenarios(sources)
+    written = []
+    with tempfile.TemporaryDirectory(prefix="baselines-") as work:
+        archives = build_scenarios(names, work, sources)
+        for name, archive in archives.items():
+            result = run(archive)
+            written.append(write_baseline(resample(result, grid, output_columns(archive)),
+                                          Path(dest) / f"{name}.csv"))
+    return written
+
+
+# -- command line ---------------------------------------------------------------------------------------
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="python -m orchestrator.regression",
+                                     description="Compare results with baselines (tubes); write baselines.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    p = sub.add_parser("compare", help="compare a result CSV with a baseline CSV",
+                       description="Exit status: 0 pass, 1 regression, 2 usage or unreadable input.")
+    p.add_argument("result", type=Path, metavar="RESULT.csv")
+    p.add_argument("baseline", type=Path, metavar="BASELINE.csv")
+    p.add_argument("--tolerances", type=Path, metavar="FILE.json",
+                   help=f"tubes (default: {TOLERANCES_NAME} beside the baseline, else 1 %% of range)")
+    p.add_argument("--tol", action="append", default=[], metavar="SIGNAL=ATOL|KEY:VALUE,...",
+                   help="one signal's tube, e.g. plant.y=1e-3 or plant.y=atol:1e-3,quiet_atol:1e-6")
+    p.add_argument("--plot-dir", type=Path, metavar="DIR", help="write DIR/<signal>.png per failing signal")
+    p = sub.add_parser("baseline", help="run scenarios and (re)write their baselines")
+    p.add_argument("--scenario", action="append", default=[], metavar="NAME",
+                   help="scenario folder name in --sources (repeatable; default: all)")
+    p.add_argument("--sources", type=Path, default=SCENARIO_DIR, help="scenario sources (default: ssp/)")
+    p.add_argument("--dest", type=Path, default=BASELINE_DIR, help="baselines (default: tests/baselines/)")
+    p.add_argument("--grid", type=float, default=BASELINE_GRID, help=f"grid in s (default {BASELINE_GRID})")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``compare`` or ``baseline``; returns the exit status."""
+    parser = _parser()
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "compare":
+            return _compare(args)
+        if args.grid <= 0:
+            parser.error("--grid must be positive")
+        for path in write_baselines(args.scenario, args.dest, args.sources, args.grid):
+            print(path)
+        return 0
+    except RegressionError as exc:
+        print(f"regression: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _compare(args: argparse.Namespace) -> int:
+    tolerances = load_tolerances(args.tolerances) if args.tolerances else None
+    if tolerances is None:
+        beside = args.baseline.parent / TOLERANCES_NAME
+        tolerances = load_tolerances(beside) if beside.is_file() else Tolerances()
+    overrides = dict(parse_tolerance(text, tolerances) for text in args.tol)
+    comparison = compare_files(args.result, args.baseline, tolerances.with_overrides(overrides))
+    print(format_comparison(comparison))
+    if args.plot_dir is not None:
+        for path in plot_failures(comparison, args.plot_dir):
+            print(path)
+    return 0 if comparison.passed else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

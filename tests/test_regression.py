@@ -1,0 +1,225 @@
+"""compare's own behaviour on hand-made CSVs: tubes, times and sizes of excursions, missing columns,
+exit codes, tolerance files; and the shape of the stored baselines."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from orchestrator.master import time_grid
+from orchestrator.regression import (
+    BASELINE_DIR,
+    BASELINE_GRID,
+    RegressionError,
+    Tolerance,
+    Tolerances,
+    compare,
+    compare_files,
+    load_tolerances,
+    main,
+    read_result,
+    write_baseline,
+)
+
+
+def table(t: np.ndarray, **columns: np.ndarray) -> np.ndarray:
+    data = np.zeros(len(t), dtype=[("time", float)] + [(n.replace("__", "."), float) for n in columns])
+    data["time"] = t
+    for name, values in columns.items():
+        data[name.replace("__", ".")] = values
+    return data
+
+
+def write(path: Path, data: np.ndarray) -> Path:
+    names = data.dtype.names
+    lines = [",".join(names)] + [",".join(repr(float(v)) for v in row) for row in data.tolist()]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+T = time_grid(0.0, 10.0, 0.01)
+TUBE = Tolerances({"p.y": Tolerance(atol=0.1), "p.u": Tolerance(atol=0.1)})
+
+
+def test_identical_signal_passes() -> None:
+    base = table(T, p__y=np.sin(T), p__u=np.cos(T))
+    result = compare(base.copy(), base, TUBE)
+    assert result.passed
+    assert [c.name for c in result.checks] == ["p.y", "p.u"]
+    assert all(c.max_deviation == 0 for c in result.checks)
+
+
+def test_step_beyond_the_tube_fails_with_its_time_and_size() -> None:
+    base = table(T, p__y=np.sin(T), p__u=np.cos(T))
+    stepped = base.copy()
+    stepped["p.y"] = np.where(T >= 4.0, np.sin(T) + 0.5, np.sin(T))
+    result = compare(stepped, base, TUBE)
+    assert not result.passed
+    [bad] = result.failed
+    assert bad.name == "p.y"
+    assert bad.first_out == 4.0
+    assert bad.worst_excess == pytest.approx(0.4, abs=1e-12)  # 0.5 step minus the 0.1 tube
+    assert bad.max_deviation == pytest.approx(0.5, abs=1e-12)
+    assert bad.n_out == np.count_nonzero(T >= 4.0)
+
+
+def test_step_inside_the_tube_passes() -> None:
+    base = table(T, p__y=np.sin(T))
+    stepped = base.copy()
+    stepped["p.y"] += 0.09
+    assert compare(stepped, base, TUBE).passed
+
+
+def test_first_and_last_samples_are_checked() -> None:
+    """validate_signal skips the band's end points; compare pads the band so they count."""
+    base = table(T, p__y=np.sin(T))
+    for index in (0, -1):
+        changed = base.copy()
+        changed["p.y"][index] += 1.0
+        [bad] = compare(changed, base, TUBE).failed
+        assert bad.first_out == T[index]
+        assert bad.worst_excess == pytest.approx(0.9)
+
+
+def test_horizontal_tolerance_accepts_a_small_time_shift() -> None:
+    base = table(T, p__y=np.where(T >= 5.0, 1.0, 0.0))
+    late = table(T, p__y=np.where(T >= 5.02, 1.0, 0.0))
+    assert not compare(late, base, Tolerances({"p.y": Tolerance(atol=0.01)})).passed
+    assert compare(late, base, Tolerances({"p.y": Tolerance(atol=0.01, dt=0.03)})).passed
+
+
+def test_quiet_phase_has_its_own_tube() -> None:
+    tolerances = Tolerances({"p.y": Tolerance(atol=0.1, quiet_atol=1e-6)}, quiet_until=1.0)
+    base = table(T, p__y=np.sin(T))
+    early = base.copy()
+    early["p.y"][T <= 1.0] += 1e-5
+    [bad] = compare(early, base, tolerances).failed
+    assert bad.first_out == 0.0
+    late = base.copy()
+    late["p.y"][T > 1.0] += 0.05
+    assert compare(late, base, tolerances).passed
+
+
+def test_flat_and_zero_signals_get_the_tube_asked_for() -> None:
+    """validate_signal would give a flat zero reference a fixed 0.5 band."""
+    base = table(T, p__y=np.zeros_like(T), p__u=np.full_like(T, 3.0))
+    off = table(T, p__y=np.full_like(T, 0.2), p__u=np.full_like(T, 3.2))
+    assert [c.name for c in compare(off, base, TUBE).failed] == ["p.y", "p.u"]
+
+
+def test_non_finite_result_fails() -> None:
+    base = table(T, p__y=np.sin(T))
+    broken = base.copy()
+    broken["p.y"][500:] = np.nan
+    [bad] = compare(broken, base, TUBE).failed
+    assert bad.first_out == T[500]
+    assert math.isinf(bad.worst_excess)
+
+
+def test_result_on_a_finer_grid_is_compared_on_the_baseline_grid() -> None:
+    fine = time_grid(0.0, 10.0, 0.001)
+    coarse = table(T, p__y=np.sin(T))
+    assert compare(table(fine, p__y=np.sin(fine)), coarse, TUBE).passed
+
+
+def test_missing_columns_short_results_and_extra_columns(tmp_path: Path) -> None:
+    base = table(T, p__y=np.sin(T), p__u=np.cos(T))
+    partial = table(T, p__y=np.sin(T), p__extra=np.ones_like(T))
+    result = compare(partial, base, TUBE, "r.csv", "b.csv")
+    assert not result.passed
+    assert result.missing == ["p.u"]
+    assert result.extra == ["p.extra"]
+    short = compare(base[:500], base, TUBE, "r.csv", "b.csv")
+    assert not short.passed
+    assert "r.csv covers t = 0 .. 4.99 s but b.csv runs over t = 0 .. 10 s" in short.problems[0]
+
+
+def test_command_exit_status_table_and_plots(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    base = table(T, p__y=np.sin(T), p__u=np.cos(T))
+    (tmp_path / "tolerances.json").write_text(json.dumps(
+        {"signals": {"p.y": {"atol": 0.1, "reason": "test"}, "p.u": {"atol": 0.1}}}))
+    baseline = write(tmp_path / "base.csv", base)
+    same = write(tmp_path / "same.csv", base)
+    assert main(["compare", str(same), str(baseline)]) == 0
+    assert "PASS: 2 of 2 signals" in capsys.readouterr().out
+
+    stepped = base.copy()
+    stepped["p.y"] = np.where(T >= 4.0, np.sin(T) + 0.5, np.sin(T))
+    bad = write(tmp_path / "bad.csv", stepped)
+    plots = tmp_path / "plots"
+    assert main(["compare", str(bad), str(baseline), "--plot-dir", str(plots)]) == 1
+    out = capsys.readouterr().out
+    assert "| p.y | 0.1 | 4.000 |" in out
+    assert "REGRESSION: 1 of 2 signals" in out
+    assert (plots / "p.y.png").stat().st_size > 1000
+    assert not (plots / "p.u.png").exists()
+    # a wider tube given on the command line accepts the step
+    assert main(["compare", str(bad), str(baseline), "--tol", "p.y=0.6"]) == 0
+
+    missing = write(tmp_path / "missing.csv", table(T, p__y=np.sin(T)))
+    assert main(["compare", str(missing), str(baseline)]) == 1
+    assert "missing in" in capsys.readouterr().out
+
+
+def test_command_errors_name_the_file(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    baseline = write(tmp_path / "base.csv", table(T, p__y=np.sin(T)))
+    assert main(["compare", str(tmp_path / "nope.csv"), str(baseline)]) == 2
+    assert "nope.csv: no such file" in capsys.readouterr().err
+    no_time = tmp_path / "no_time.csv"
+    no_time.write_text("t,p.y\n0,1\n1,2\n")
+    assert main(["compare", str(no_time), str(baseline)]) == 2
+    assert "no_time.csv: no 'time' column" in capsys.readouterr().err
+    garbage = tmp_path / "garbage.csv"
+    garbage.write_text("time,p.y\n0,abc\n")
+    assert main(["compare", str(garbage), str(baseline)]) == 2
+    assert "garbage.csv: not a result CSV" in capsys.readouterr().err
+    backwards = tmp_path / "backwards.csv"
+    backwards.write_text("time,p.y\n0,1\n1,2\n0.5,3\n")
+    with pytest.raises(RegressionError, match="backwards.csv: column 'time' does not increase at line 4"):
+        read_result(backwards)
+    assert main(["compare", str(baseline), str(baseline), "--tol", "p.y=wide"]) == 2
+    assert "'wide' is not a number" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["compare", str(baseline)])
+
+
+def test_tolerance_file_errors_name_file_and_signal(tmp_path: Path) -> None:
+    path = tmp_path / "tol.json"
+    path.write_text(json.dumps({"signals": {"p.y": {"atol": -1}}}))
+    with pytest.raises(RegressionError, match=r"tol.json: signal 'p.y': tolerance atol must be"):
+        load_tolerances(path)
+    path.write_text(json.dumps({"signals": {"p.y": {"abs": 1}}}))
+    with pytest.raises(RegressionError, match=r"signal 'p.y': unknown key\(s\) abs"):
+        load_tolerances(path)
+    path.write_text("{")
+    with pytest.raises(RegressionError, match="tol.json: cannot read tolerances"):
+        load_tolerances(path)
+
+
+def test_baseline_writer_round_trips_through_fmpy(tmp_path: Path) -> None:
+    base = table(T, p__y=np.sin(T) * 1e-4, p__u=np.cos(T) * 1e4)
+    path = write_baseline(base, tmp_path / "b.csv")
+    again = read_result(path)
+    assert np.array_equal(again["time"], T)
+    assert compare_files(path, path, TUBE).passed
+    assert np.allclose(again["p.y"], base["p.y"], rtol=1e-8, atol=0)
+    assert (path.stat().st_mode & 0o777) != 0o600
+
+
+def test_stored_baselines_and_tolerances_agree() -> None:
+    """Every stored baseline is on the 20 ms grid over 30 s, and every column has its own reasoned tube."""
+    tolerances = load_tolerances(BASELINE_DIR / "tolerances.json")
+    raw = json.loads((BASELINE_DIR / "tolerances.json").read_text())
+    assert all(entry.get("reason") for entry in raw["signals"].values())
+    baselines = sorted(BASELINE_DIR.glob("*.csv"))
+    assert {p.stem for p in baselines} >= {"example1", "example1_finite_time", "example1_no_fault",
+                                             "pendulum", "pendulum_finite_time"}
+    for path in baselines:
+        data = read_result(path)
+        assert np.array_equal(data["time"], time_grid(0.0, 30.0, BASELINE_GRID)), path
+        unlisted = [n for n in data.dtype.names[1:] if n not in tolerances.signals]
+        assert not unlisted, f"{path}: no tolerance for {unlisted}"
