@@ -1,0 +1,106 @@
+"""System tests of the regression: every scenario against its stored baseline (full 30 s), and one
+perturbation at a time must be flagged with the stored tolerances while an unchanged rerun passes.
+
+The perturbations run 1 s, inside the quiet phase (t <= quiet_until) where the tubes are tight and
+every change shows; the fault-related ones move the fault to t = 0.5 s in both runs so that it acts
+there. After the first chattering burst (~1.3 s) the tubes must be as wide as the amplified noise,
+and changes as small as these are no longer visible to them (see tests/baselines/tolerances.json).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from orchestrator import run
+from orchestrator.regression import (
+    BASELINE_DIR,
+    BASELINE_GRID,
+    all_scenarios,
+    build_scenarios,
+    compare,
+    format_comparison,
+    load_tolerances,
+    main,
+    output_columns,
+    read_result,
+    resample,
+    write_baseline,
+)
+
+pytestmark = pytest.mark.system
+
+SCENARIOS = all_scenarios()
+TOLERANCES = load_tolerances(BASELINE_DIR / "tolerances.json")
+SHORT = 1.0
+EARLY_FAULT = {"actuator.t_fault": 0.5}
+
+
+@pytest.fixture(scope="module")
+def archives(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    return build_scenarios(SCENARIOS, tmp_path_factory.mktemp("scenarios"))
+
+
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_scenario_matches_its_baseline(archives: dict[str, Path], name: str) -> None:
+    result = run(archives[name])
+    comparison = compare(result, read_result(BASELINE_DIR / f"{name}.csv"), TOLERANCES,
+                         f"{name} (this run)", f"tests/baselines/{name}.csv")
+    assert comparison.passed, format_comparison(comparison)
+    assert len(comparison.checks) == len(output_columns(archives[name]))
+
+
+def short_baseline(archive: Path, **kwargs: object) -> np.ndarray:
+    return resample(run(archive, stop_time=SHORT, **kwargs), BASELINE_GRID, output_columns(archive))
+
+
+@pytest.fixture(scope="module")
+def reference_runs(archives: dict[str, Path]) -> dict[str, np.ndarray]:
+    """The unperturbed 1 s runs the perturbations are compared with."""
+    archive = archives["example1"]
+    return {"plain": short_baseline(archive), "early fault": short_baseline(archive, overrides=EARLY_FAULT)}
+
+
+PERTURBATIONS = {
+    "controller gain k1 +5 %": ("plain", {"overrides": {"controller.k1": 10.5}}),
+    "plant integrator max_step 2.5e-5 -> 1e-3": ("plain", {"overrides": {"plant.max_step": 1e-3}}),
+    "jacobi master instead of gauss-seidel": ("plain", {"master": "jacobi"}),
+    "dead-zone break point b_l +10 %": ("early fault", {"overrides": {**EARLY_FAULT, "actuator.b_l": 0.66}}),
+    "fault time 0.5 s -> 0.55 s": ("early fault", {"overrides": {"actuator.t_fault": 0.55}}),
+}
+
+
+@pytest.mark.parametrize("label", PERTURBATIONS)
+def test_one_perturbation_is_flagged(archives: dict[str, Path], reference_runs: dict[str, np.ndarray],
+                                     label: str) -> None:
+    which, kwargs = PERTURBATIONS[label]
+    result = run(archives["example1"], stop_time=SHORT, **kwargs)
+    comparison = compare(result, reference_runs[which], TOLERANCES, label, which)
+    assert not comparison.passed, format_comparison(comparison)
+
+
+@pytest.mark.parametrize("which", ["plain", "early fault"])
+def test_unchanged_rerun_passes(archives: dict[str, Path], reference_runs: dict[str, np.ndarray],
+                                which: str) -> None:
+    overrides = EARLY_FAULT if which == "early fault" else {}
+    result = run(archives["example1"], stop_time=SHORT, overrides=overrides)
+    comparison = compare(result, reference_runs[which], TOLERANCES)
+    assert comparison.passed, format_comparison(comparison)
+    assert all(check.max_deviation == 0 for check in comparison.checks)  # reruns are bit-identical
+
+
+def test_command_flags_a_gain_change_from_csv_files(archives: dict[str, Path], tmp_path: Path,
+                                                    reference_runs: dict[str, np.ndarray],
+                                                    capsys: pytest.CaptureFixture) -> None:
+    """The whole path: orchestrator CSV -> compare command -> exit 1, table and plot."""
+    baseline = write_baseline(reference_runs["plain"], tmp_path / "baseline.csv")
+    result = tmp_path / "k1.csv"
+    run(archives["example1"], stop_time=SHORT, overrides={"controller.k1": 10.5}, output=result)
+    status = main(["compare", str(result), str(baseline), "--tolerances", str(BASELINE_DIR / "tolerances.json"),
+                   "--plot-dir", str(tmp_path / "plots")])
+    out = capsys.readouterr().out
+    assert status == 1, out
+    assert "| plant.y |" in out
+    assert (tmp_path / "plots" / "plant.y.png").is_file()
