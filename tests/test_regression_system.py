@@ -98,7 +98,8 @@ def test_command_flags_a_gain_change_from_csv_files(archives: dict[str, Path], t
     baseline = write_baseline(reference_runs["plain"], tmp_path / "baseline.csv")
     result = tmp_path / "k1.csv"
     run(archives["example1"], stop_time=SHORT, overrides={"controller.k1": 10.5}, output=result)
-    status = main(["compare", str(result), str(baseline), "--tolerances", str(BASELINE_DIR / "tolerances.json"),
+    tolerances = str(BASELINE_DIR / "tolerances.json")
+    status = main(["compare", str(result), str(baseline), "--tolerances", tolerances,
                    "--plot-dir", str(tmp_path / "plots")])
     out = capsys.readouterr().out
     assert status == 1, out
