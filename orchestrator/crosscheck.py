@@ -27,20 +27,20 @@ class LibcosimError(RuntimeError):
 
 
 def run_libcosim(ssp: str | os.PathLike, stop_time: float,
-                 columns: Sequence[str]) -> tuple[np.ndarray, float]:
+                 columns: Sequence[str]) -> tuple[np.ndarray, dict[str, float]]:
     """Simulate ``ssp`` with libcosim up to ``stop_time`` recording ``columns`` (``component.variable``)
     with a time-series observer. Step and parameter sets come from the SSD, as libcosim reads them.
 
     Returns the structured result (``time`` first, one row per communication point including t0) and
-    the wall time in seconds of the simulation proper (``simulate_until``). Raises LibcosimError
-    (with the samples so far) if libcosim stops early.
+    the wall and CPU seconds of the simulation proper (``simulate_until``) as ``{"wall": .., "cpu": ..}``.
+    Raises LibcosimError (with the samples so far) if libcosim stops early.
     """
     with interpreter_guard():
         return _run_libcosim(ssp, stop_time, columns)
 
 
 def _run_libcosim(ssp: str | os.PathLike, stop_time: float,
-                  columns: Sequence[str]) -> tuple[np.ndarray, float]:
+                  columns: Sequence[str]) -> tuple[np.ndarray, dict[str, float]]:
     """Body of run_libcosim; the execution (and its FMUs) is freed before returning."""
     import time
 
@@ -64,9 +64,9 @@ def _run_libcosim(ssp: str | os.PathLike, stop_time: float,
     execution.add_observer(observer)
     for index, vr in refs:
         observer.start_time_series(index, vr, CosimVariableType.REAL)
-    started = time.perf_counter()
+    wall, cpu = time.perf_counter(), time.process_time()
     ok = execution.simulate_until(round(stop_time * NS_PER_S))
-    wall = time.perf_counter() - started
+    timing = {"wall": time.perf_counter() - wall, "cpu": time.process_time() - cpu}
 
     samples = wrap_function(lib=libcosimc(), funcname="cosim_observer_slave_get_real_samples",
                             argtypes=[POINTER(CosimObserver), c_int, c_uint32, c_int64, c_size_t,
@@ -87,4 +87,4 @@ def _run_libcosim(ssp: str | os.PathLike, stop_time: float,
     result = structured(np.column_stack([times[:n]] + [d[:n] for d in data]), ["time"] + names)
     if not ok:
         raise LibcosimError(f"libcosim failed to simulate {ssp} (after {n} samples)", result)
-    return result, wall
+    return result, timing

@@ -151,7 +151,8 @@ class System:
             if k.type is not None and FMU_TYPES.get(k.type) != v.type:
                 problems.append(f"{where}: declared type {k.type} but the FMU's variable is {v.type}")
                 continue
-            (outputs if k.kind == "output" else inputs if k.kind == "input" else []).append(k.name)
+            if v.type == "Real":  # recorded and exchanged; other types are checked, not recorded
+                (outputs if k.kind == "output" else inputs if k.kind == "input" else []).append(k.name)
         feedthrough: dict[str, set[str]] = {}
         all_inputs = {v.name for v in md.modelVariables if v.causality == "input"}
         for unknown in md.outputs:
