@@ -6,6 +6,7 @@ the slave keeps only plain values so that state snapshots are cheap deep copies.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
@@ -30,7 +31,7 @@ def declare_plant_outputs(slave: Fmi2Slave, x1_unit: str | None, x2_unit: str | 
     """Register x1, x2, z and y = x1; none depends directly on the input uf."""
     out = Fmi2Causality.output
 
-    def state_getter(i: int):
+    def state_getter(i: int) -> Callable[[], float]:
         return lambda: current_state(slave)[i]
 
     declare(slave, "x1", out, "Plant state x1", unit=x1_unit, depends_on=(), getter=state_getter(0))

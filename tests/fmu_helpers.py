@@ -4,9 +4,10 @@ directly through fmpy's FMI 2.0 API (exact input values and step times, state ge
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -93,7 +94,9 @@ def open_slave(path: Path, name: str = "instance") -> Iterator[Slave]:
         slave.fmu.freeInstance()
 
 
-def solve_held(rhs, t0: float, y0, inputs, h: float) -> np.ndarray:
+def solve_held(
+    rhs: Callable[..., Sequence[float]], t0: float, y0: Sequence[float], inputs: Sequence[float], h: float
+) -> np.ndarray:
     """The oracle: solve_ivp (DOP853, rtol 1e-10) interval by interval with input k held on
     [t0 + k h, t0 + (k + 1) h]; returns the states at the end of every interval."""
     y = np.asarray(y0, dtype=float)
@@ -136,7 +139,7 @@ def uf_formula(t: float, v: float, x1: float, x2: float, p: dict) -> float:
 
 
 # The plant equations of SPEC section 3, written out independently of fmu_src.models.
-def example1(t: float, s, uf: float) -> list[float]:
+def example1(t: float, s: Sequence[float], uf: float) -> list[float]:
     x1, x2, z = s
     return [
         (2 + math.sin(x1)) * x2 + 0.1 * math.sin(x1 * x2) + z * math.sin(x1**2),
@@ -145,7 +148,9 @@ def example1(t: float, s, uf: float) -> list[float]:
     ]
 
 
-def pendulum(t: float, s, uf: float, M=0.25, L=4.0, B=0.25, g=10.0, d1=0.2, d2=0.3) -> list[float]:
+def pendulum(
+    t: float, s: Sequence[float], uf: float, M=0.25, L=4.0, B=0.25, g=10.0, d1=0.2, d2=0.3
+) -> list[float]:
     x1, x2, z = s
     return [
         x2 + z * x1 + d1 * math.sin(t),
@@ -154,7 +159,7 @@ def pendulum(t: float, s, uf: float, M=0.25, L=4.0, B=0.25, g=10.0, d1=0.2, d2=0
     ]
 
 
-def libcosim_execution(step: float):
+def libcosim_execution(step: float) -> Any:
     """A libcosim execution with a fixed step (given in s; libcosim counts integer ns), quiet logs."""
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
@@ -163,7 +168,7 @@ def libcosim_execution(step: float):
     return CosimExecution.from_step_size(step_size=round(step * 1e9))
 
 
-def libcosim_add(execution, path: Path, name: str) -> tuple[int, dict[str, int]]:
+def libcosim_add(execution: Any, path: Path, name: str) -> tuple[int, dict[str, int]]:
     """Add an FMU to a libcosim execution; returns its index and variable name -> reference."""
     from libcosimpy.CosimSlave import CosimLocalSlave
 

@@ -44,7 +44,7 @@ def test_invalid_parameter_is_fatal_and_named(
 ) -> None:
     received = []
 
-    def logger(component, instance, status, category, text) -> None:
+    def logger(component: object, instance: bytes, status: int, category: bytes, text: bytes) -> None:
         received.append((status, text.decode()))
 
     with caplog.at_level(logging.ERROR, logger="fixed_time_cosim.fmu"):

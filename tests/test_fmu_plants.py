@@ -11,6 +11,8 @@ states (errors stay bounded), and the strict replay is checked on the first 3 s.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,6 +27,7 @@ from fmu_helpers import (
 )
 
 H = 1e-3
+Feedback = Callable[[float, float, float], float]  # uf from (t, x1, x2)
 
 
 def example1_input(t: float, x1: float, x2: float) -> float:
@@ -41,7 +44,9 @@ def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict:
     return built_fmus(tmp_path_factory)
 
 
-def run_plant(path, feedback, n: int, inputs=None, **parameters) -> tuple[np.ndarray, np.ndarray]:
+def run_plant(
+    path: Path, feedback: Feedback, n: int, inputs: Sequence[float] | None = None, **parameters: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Drive a plant FMU over n steps of H; uf_k from ``inputs`` or from feedback(t_k, x1_k, x2_k)."""
     states = np.empty((n + 1, 3))
     used = np.empty(n)
@@ -57,7 +62,9 @@ def run_plant(path, feedback, n: int, inputs=None, **parameters) -> tuple[np.nda
     return states, used
 
 
-def solve_closed_loop(rhs, y0, feedback, n: int) -> np.ndarray:
+def solve_closed_loop(
+    rhs: Callable[..., Sequence[float]], y0: Sequence[float], feedback: Feedback, n: int
+) -> np.ndarray:
     """solve_ivp interval by interval, uf_k = feedback(t_k, own state at t_k) held over the interval."""
     y = np.asarray(y0, dtype=float)
     out = np.empty((n + 1, 3))
