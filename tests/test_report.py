@@ -1,0 +1,32 @@
+"""Smoke test of the report: short horizons into tmp_path, every file written, four metric rows."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from orchestrator.report import CASES, FIGURES, main
+
+pytestmark = pytest.mark.system
+
+
+def test_report_on_a_short_horizon(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    out = tmp_path / "report"
+    assert main(["--out", str(out), "--stop-time", "0.5", "--study-horizon", "0.5", "--study-values", "0",
+                 "2"]) == 0
+    report = out / "report.md"
+    assert capsys.readouterr().out.strip() == str(report)
+    text = report.read_text()
+    for example in (1, 2):
+        for key, *_ in FIGURES:
+            figure = out / f"example{example}_{key}.png"
+            assert figure.stat().st_size > 5000, figure
+            assert f"]({figure.name})" in text
+    section = text.split("## Metrics beside the paper's Tables 1-2")[1].split("\n\n")[1]
+    rows = [line for line in section.splitlines() if line.startswith("| ") and "---" not in line][1:]
+    assert [tuple(r.split(" | ")[:2]) for r in rows] == [(f"| {e}", m) for e, m in CASES]
+    assert "| 0.1375 | 0.0027 | 0.0517 | 0.0209 |" in rows[0]
+    study = text.split("## The fixed-time claim, measured")[1]
+    assert study.count("\n| ") == 1 + 4  # header and the 2 x 2 initial states
+    assert "horizon 0.5 s" in study
