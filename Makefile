@@ -1,10 +1,11 @@
-# One-command set-up: every target creates .venv and installs the project itself.
+# One-command set-up: every target creates .venv and installs the pinned project itself.
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
+ORCH   := $(VENV)/bin/orchestrate
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test lint table bench clean
+.PHONY: run test build lint table study report baselines bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -12,20 +13,45 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-run: $(STAMP)
-	$(PY) -m controller.closed_loop --example 1 --mode fixed-time
+## build: the five FMUs into build/fmus/, every scenario into build/ssp/<name>.ssp
+build: $(STAMP)
+	$(ORCH) build
 
-test: $(STAMP)
+## run: the pendulum scenario, its metrics, and where the CSV and the plot went
+run: build
+	$(ORCH) run pendulum --quiet --output results/pendulum.csv --plot results/pendulum.png
+	$(ORCH) metrics results/pendulum.csv
+	@echo "results CSV: results/pendulum.csv"
+	@echo "plot:        results/pendulum.png"
+
+## test: the whole suite (unit + system tests with real FMUs) on 2 workers
+test: build
 	$(PY) -m pytest -q -n 2
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 
+## table: metrics of the monolithic reference, continuous law and 1 ms zero-order hold
 table: $(STAMP)
 	$(PY) -m controller.closed_loop --table
+	$(PY) -m controller.closed_loop --table --sample-time 0.001
 
-bench: $(STAMP)
+## study: the alpha/beta experiment behind the defaults (about 10 minutes)
+study: $(STAMP)
+	$(PY) -m controller.alpha_beta_study
+
+## report: results/report/report.md with the paper's figures, tables and the settling study
+report: build
+	$(ORCH) report
+
+## baselines: regenerate tests/baselines/ after an intended change (review the diff)
+baselines: build
+	$(ORCH) baseline
+
+bench: build
 	$(PY) benchmarks/controller_step.py
+	$(PY) benchmarks/fmu_step.py
+	$(PY) benchmarks/cosim_step.py
 
 clean:
 	rm -rf build results

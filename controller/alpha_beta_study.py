@@ -26,13 +26,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--alpha", type=float, nargs="+", default=[1.25, 1.5, 2.0])
     parser.add_argument("--beta", type=float, nargs="+", default=[0.6, 0.75, 0.9])
     parser.add_argument("--stop-time", type=float, default=30.0)
+    parser.add_argument("--example", type=int, nargs="+", choices=sorted(EXAMPLES), default=sorted(EXAMPLES))
+    parser.add_argument("--finite-time", action=argparse.BooleanOptionalAction, default=True,
+                        help="also run finite-time mode once per beta")
     args = parser.parse_args(argv)
     print("| example | mode | alpha | beta | RMSE | MAE | settling time (s) | peak abs(v) |")
     print("|---|---|---|---|---|---|---|---|")
-    for number in sorted(EXAMPLES):
+    for number in args.example:
         ex = EXAMPLES[number]
         cases = [(FIXED_TIME, a, b) for a, b in itertools.product(args.alpha, args.beta)]
-        cases += [(FINITE_TIME, ex.controller.alpha, b) for b in args.beta]
+        if args.finite_time:
+            cases += [(FINITE_TIME, ex.controller.alpha, b) for b in args.beta]
         for mode, alpha, beta in cases:
             params = ex.controller.with_changes(mode=mode, alpha=alpha, beta=beta)
             d = simulate(ex, params, stop_time=args.stop_time, sample_time=1e-3).data
