@@ -22,6 +22,8 @@ Run SSP co-simulation scenarios (controller + actuator + plant FMUs) with fmpy.
   orchestrate run example1             simulate; writes results/example1.csv and .png
   orchestrate metrics results/example1.csv   tracking metrics (RAE, MSE, RMSE, MAE, ...)
   orchestrate plot results/example1.csv      plot a result file
+  orchestrate compare RESULT.csv BASELINE.csv  regression check against a baseline
+  orchestrate baseline / orchestrate report  rewrite baselines / write the paper report
 
 Run 'orchestrate COMMAND --help' for the options of a command.
 """
@@ -71,6 +73,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("results", nargs="+", type=Path, metavar="RESULT.csv")
     p.add_argument("--band", type=float, default=0.05, help="settling band on |y - yd| (default 0.05)")
 
+    for name, text in (("compare", "compare a result CSV with a baseline (regression tubes)"),
+                       ("baseline", "run the scenarios and rewrite the regression baselines"),
+                       ("report", "the paper's examples by co-simulation, as a report")):
+        sub.add_parser(name, help=text)  # listed here; main() hands the options to the delegate
+
     p = sub.add_parser("plot", help="plot a result file")
     p.add_argument("result", type=Path, metavar="RESULT.csv")
     p.add_argument("--output", type=Path, metavar="FILE.png", help="default: RESULT with .png")
@@ -79,6 +86,15 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``orchestrate``; returns the exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in ("compare", "baseline"):  # the regression tool parses its own options
+        from .regression import main as regression_main
+
+        return regression_main(argv)
+    if argv and argv[0] == "report":
+        from .report import main as report_main
+
+        return report_main(argv[1:])
     parser = _parser()
     args = parser.parse_args(argv)
     try:

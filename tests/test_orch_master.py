@@ -163,6 +163,10 @@ def test_cli_run_metrics_plot_and_usage(loop, tmp_path, capsys):
         assert info.value.code == 2
     assert main(["run", "no_such_scenario", "--quiet"]) == 1
     assert "run 'orchestrate build' first" in capsys.readouterr().err
+    for delegated in (["report", "--help"], ["baseline", "--help"], ["compare", "--help"]):
+        with pytest.raises(SystemExit) as info:  # handed to orchestrator.report / .regression
+            main(delegated)
+        assert info.value.code == 0
 
 
 def test_installed_script(loop, tmp_path):
