@@ -103,6 +103,10 @@ def plot_result(result: np.ndarray, path: str | os.PathLike, title: str = "") ->
     for ax, (label, cols) in zip(axes[:, 0], groups, strict=True):
         for c in cols:
             ax.plot(result["time"], result[c], label=c, linewidth=1)
+        magnitude = np.abs(np.concatenate([result[c] for c in cols]))
+        typical = float(np.percentile(magnitude, 95)) if magnitude.size else 0.0
+        if typical > 0.0 and magnitude.max() > 50.0 * typical:  # e.g. the controller's initial spike
+            ax.set_yscale("symlog", linthresh=typical)
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
         ax.legend(loc="upper right", fontsize="small")
