@@ -355,9 +355,15 @@ class Master:
         raise SimulationError(inst.name, function, status, t, self._messages.get(inst.name, ""))
 
     def _release(self, inst: _Instance) -> None:
-        """Terminate (if still running and usable) and free one FMU; never raises."""
+        """Terminate (if still running and usable) and free one FMU; never raises.
+
+        An instance that returned fmi2Fatal is left alone: FMI 2.0 allows no further call on it, and
+        pythonfmu 0.7.0's fmi2FreeInstance after a Python exception corrupts the interpreter (the
+        process crashed with SIGSEGV at its next garbage collection)."""
+        if inst.broken:
+            return
         try:
-            if inst.initialized and not inst.broken:
+            if inst.initialized:
                 inst.fmu.terminate()
         except Exception:  # noqa: BLE001 - cleanup must go on for the other FMUs
             log.warning("%s: fmi2Terminate failed during cleanup", inst.name)

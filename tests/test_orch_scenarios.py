@@ -163,3 +163,29 @@ def test_pendulum_runs_in_libcosim_at_half_a_millisecond(built, tmp_path):
     assert np.isfinite(theirs["plant.y"]).all()
     assert deviation.max() <= 0.1
     assert deviation[late].max() <= 2e-3
+
+
+def test_invalid_parameter_fails_cleanly_without_crashing_the_process(built, tmp_path):
+    """beta = 1.2 makes the controller FMU return fmi2Fatal; the CLI reports it on one line and the
+    process survives its garbage collection (it used to die with SIGSEGV: freeing a fatal pythonfmu
+    instance). Run three times in one fresh interpreter, since the crash came at a random GC."""
+    import subprocess
+    import sys
+
+    code = (
+        "import gc, sys\n"
+        "from orchestrator.cli import main\n"
+        "codes = [main(['run', sys.argv[1], '--set', 'controller.beta=1.2', '--stop-time', '0.01',\n"
+        "               '--quiet', '--no-plot', '--output', sys.argv[2]]) for _ in range(3)]\n"
+        "gc.collect()\n"
+        "print(codes)\n"
+    )
+    archive, output = str(built / "ssp" / "example1.ssp"), str(tmp_path / "r.csv")
+    done = subprocess.run([sys.executable, "-c", code, archive, output], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[1, 1, 1]"
+    errors = done.stderr.strip().splitlines()
+    assert len(errors) == 3 and "Traceback" not in done.stderr
+    assert errors[0].startswith("orchestrate: error: controller: ")
+    assert "fmi2Fatal" in errors[0] and "beta must satisfy 0.5 < beta < 1 (got 1.2)" in errors[0]
