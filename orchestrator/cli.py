@@ -9,6 +9,8 @@ from collections.abc import Sequence
 from contextlib import ExitStack
 from pathlib import Path
 
+import numpy as np
+
 from . import MASTERS, load, run
 from .errors import ScenarioError, SimulationError
 from .results import plot_result
@@ -224,16 +226,22 @@ def _component_sources(folder: Path) -> list[str]:
     return [Path(c.get("source")).name for c in root.iterfind("ssd:System/ssd:Elements/ssd:Component", NS)]
 
 
-def _metrics(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from fmpy.util import read_csv
+def _read_result(path: Path, parser: argparse.ArgumentParser) -> np.ndarray:
+    """A result CSV read with fmpy's reader; a missing or unreadable file is a usage error naming it."""
+    from .regression import RegressionError, read_result
 
+    try:
+        return read_result(path)
+    except RegressionError as exc:
+        parser.error(str(exc))
+
+
+def _metrics(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from controller.metrics import format_table, tracking_metrics
 
     rows = []
     for path in args.results:
-        if not path.is_file():
-            parser.error(f"{path}: no such file")
-        data = read_csv(path)
+        data = _read_result(path, parser)
         names = data.dtype.names
         missing = [c for c in ("plant.y", "reference.yd") if c not in names]
         if missing:
@@ -250,11 +258,8 @@ def _metrics(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 
 def _plot(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from fmpy.util import read_csv
-
-    if not args.result.is_file():
-        parser.error(f"{args.result}: no such file")
+    data = _read_result(args.result, parser)
     target = args.output or args.result.with_suffix(".png")
-    plot_result(read_csv(args.result), target, args.result.stem)
+    plot_result(data, target, args.result.stem)
     print(target)
     return 0

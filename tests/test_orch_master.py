@@ -189,3 +189,19 @@ def test_installed_script(loop, tmp_path):
     assert "loop: 11 rows" in done.stdout
     help_text = subprocess.run([str(script), "run", "--help"], capture_output=True, text=True).stdout
     assert "gauss-seidel" in help_text and "--parameter-set" in help_text
+
+
+@pytest.mark.parametrize("command", ["metrics", "plot"])
+def test_cli_unreadable_result_is_one_line_usage_error(tmp_path, capsys, command):
+    """A missing file or a file that is not a result CSV: exit 2, one line naming the file, no
+    traceback, the file untouched."""
+    text = tmp_path / "notes.csv"
+    text.write_text("# not a result\n\nhello, world\n")
+    for path, reason in ((tmp_path / "missing.csv", "no such file"), (text, "not a result CSV")):
+        with pytest.raises(SystemExit) as info:
+            main([command, str(path)])
+        assert info.value.code == 2
+        err = capsys.readouterr().err
+        assert f"orchestrate: error: {path}: {reason}" in err and "Traceback" not in err
+    assert text.read_text() == "# not a result\n\nhello, world\n"
+    assert not (tmp_path / "notes.png").exists()
