@@ -178,10 +178,18 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     except KeyboardInterrupt:
         print(f"orchestrate: interrupted; rows computed so far kept in {output}", file=sys.stderr)
         return 130
+    except OSError as exc:
+        print(f"orchestrate: error: cannot write the results: {exc}", file=sys.stderr)
+        return 1
     finally:
         logging.getLogger().removeHandler(messages)
     if plot is not None:
-        plot_result(result, plot, f"{name} ({args.master})")
+        try:
+            plot_result(result, plot, f"{name} ({args.master})")
+        except OSError as exc:
+            print(f"orchestrate: error: cannot write the plot: {exc}; results kept in {output}",
+                  file=sys.stderr)
+            return 1
     if not args.quiet:
         extra = f" and {plot}" if plot is not None else ""
         span = f"t = {result['time'][0]:g} .. {result['time'][-1]:g} s"

@@ -44,6 +44,7 @@ class Recorder:
         if path is not None:
             path = Path(path)
             path.parent.mkdir(parents=True, exist_ok=True)
+            path.open("w").close()  # an unwritable path fails here, in this process, before any step
             self._writer = subprocess.Popen(
                 [sys.executable, "-m", "orchestrator._csvwriter", str(path.resolve()),
                  str(len(self.columns))],

@@ -205,3 +205,25 @@ def test_cli_unreadable_result_is_one_line_usage_error(tmp_path, capsys, command
         assert f"orchestrate: error: {path}: {reason}" in err and "Traceback" not in err
     assert text.read_text() == "# not a result\n\nhello, world\n"
     assert not (tmp_path / "notes.png").exists()
+
+
+def test_cli_unwritable_output_is_one_line_error(loop, tmp_path, capsys):
+    """--output naming a folder, or a path under a file: exit 1 and one line naming the path; the
+    file in the way is untouched. An unwritable --plot keeps the CSV."""
+    blocker = tmp_path / "notes.txt"
+    blocker.write_text("keep me\n")
+    for output, reason in ((tmp_path, "Is a directory"), (blocker / "r.csv", str(blocker))):
+        argv = ["run", str(loop), "--stop-time", "0.1", "--no-plot", "--quiet", "--output", str(output)]
+        assert main(argv) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("orchestrate: error: cannot write the results: ")
+        assert reason in err[0]
+    assert blocker.read_text() == "keep me\n"
+    csv = tmp_path / "r.csv"
+    assert main(["run", str(loop), "--stop-time", "0.1", "--quiet", "--output", str(csv),
+                 "--plot", str(blocker / "r.png")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("orchestrate: error: cannot write the plot: ")
+    assert err[0].endswith(f"results kept in {csv}")
+    assert read_csv(csv)["time"].tolist() == [float(Fraction(k, 100)) for k in range(11)]
+    assert blocker.read_text() == "keep me\n"
