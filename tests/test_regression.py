@@ -126,7 +126,7 @@ def test_result_on_a_finer_grid_is_compared_on_the_baseline_grid() -> None:
     assert compare(table(fine, p__y=np.sin(fine)), coarse, TUBE).passed
 
 
-def test_missing_columns_short_results_and_extra_columns(tmp_path: Path) -> None:
+def test_missing_columns_short_results_and_extra_columns() -> None:
     base = table(T, p__y=np.sin(T), p__u=np.cos(T))
     partial = table(T, p__y=np.sin(T), p__extra=np.ones_like(T))
     result = compare(partial, base, TUBE, "r.csv", "b.csv")
