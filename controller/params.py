@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, replace
 
 __all__ = [
     "FIXED_TIME",
@@ -118,10 +118,6 @@ class ControllerParameters:
     def with_changes(self, **changes: object) -> ControllerParameters:
         """A validated copy with some fields replaced."""
         return replace(self, **changes)
-
-    def as_dict(self) -> dict[str, object]:
-        """Field name -> value, for reports and FMU start values."""
-        return {f.name: getattr(self, f.name) for f in fields(self) }
 
 
 def example1_parameters(**changes: object) -> ControllerParameters:
