@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import sys
 from collections.abc import Sequence
 from contextlib import ExitStack
@@ -156,8 +157,10 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         if not sep or "." not in key:
             parser.error(f"--set expects COMPONENT.VARIABLE=VALUE (got '{item}')")
         overrides[key.strip()] = value.strip()
-    if args.step is not None and args.step <= 0:
-        parser.error("--step must be positive")
+    if args.step is not None and not (math.isfinite(args.step) and args.step > 0):
+        parser.error(f"--step must be positive and finite (got {args.step!r})")
+    if args.stop_time is not None and not math.isfinite(args.stop_time):
+        parser.error(f"--stop-time must be finite (got {args.stop_time!r})")
     scenario = _resolve(args.scenario)
     name = scenario.stem if scenario.is_file() else scenario.resolve().name
     output = args.output or Path("results") / f"{name}.csv"

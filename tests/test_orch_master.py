@@ -157,7 +157,8 @@ def test_cli_run_metrics_plot_and_usage(loop, tmp_path, capsys):
     assert main(["plot", str(out), "--output", str(tmp_path / "p.png")]) == 0
     assert main(["metrics", str(out)]) == 1  # no plant.y / reference.yd columns
     assert "needs plant.y and reference.yd" in capsys.readouterr().err
-    for bad in (["run", str(loop), "--set", "gain.k"], ["run", str(loop), "--master", "nope"], []):
+    for bad in (["run", str(loop), "--set", "gain.k"], ["run", str(loop), "--master", "nope"], [],
+                ["run", str(loop), "--stop-time", "nan"], ["run", str(loop), "--step", "inf"]):
         with pytest.raises(SystemExit) as info:
             main(bad)
         assert info.value.code == 2
