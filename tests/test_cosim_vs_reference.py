@@ -19,19 +19,12 @@ import pytest
 
 import orchestrator
 from controller.closed_loop import EXAMPLES, simulate
-from orchestrator.cli import main
 
 REPO = Path(__file__).resolve().parent.parent
 STEP = 1e-3
 
 pytestmark = pytest.mark.system
 
-
-@pytest.fixture(scope="module")
-def built(tmp_path_factory) -> Path:
-    dest = tmp_path_factory.mktemp("build")
-    assert main(["build", "--sources", str(REPO / "ssp"), "--dest", str(dest)]) == 0
-    return dest
 
 
 @pytest.mark.parametrize(("scenario", "number"), [("example1", 1), ("pendulum", 2)])

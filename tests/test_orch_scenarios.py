@@ -23,13 +23,6 @@ OUTPUTS = ["reference.yd", "reference.yd_dot", "reference.yd_ddot", "controller.
 pytestmark = pytest.mark.system
 
 
-@pytest.fixture(scope="module")
-def built(tmp_path_factory) -> Path:
-    """``orchestrate build`` into a temporary folder: FMUs under fmus/, archives under ssp/."""
-    dest = tmp_path_factory.mktemp("build")
-    assert main(["build", "--sources", str(REPO / "ssp"), "--dest", str(dest)]) == 0
-    return dest
-
 
 def test_build_packs_ssd_ssv_and_fmus(built):
     import zipfile
