@@ -1,7 +1,7 @@
 """The FMUs outside a Python process: a minimal C importer (tests/fmu_c_host.c) loads the FMU
 binary with dlopen, as C/C++ tools do. pythonfmu's linux64 binary does not link libpython (its
 Python symbols are undefined), so the host must have libpython loaded globally, e.g. with
-LD_PRELOAD; this is what fmu_src/README.md tells tool users."""
+LD_PRELOAD; this is what README.md ("Running the FMUs outside Python") tells tool users."""
 
 from __future__ import annotations
 
