@@ -33,12 +33,12 @@ lint: $(STAMP)
 
 ## table: metrics of the monolithic reference, continuous law and 1 ms zero-order hold
 table: $(STAMP)
-	$(PY) -m controller.closed_loop --table
-	$(PY) -m controller.closed_loop --table --sample-time 0.001
+	$(PY) -m orchestrator.experiments.closed_loop --table
+	$(PY) -m orchestrator.experiments.closed_loop --table --sample-time 0.001
 
 ## study: the alpha/beta experiment behind the defaults (about 10 minutes)
 study: $(STAMP)
-	$(PY) -m controller.alpha_beta_study
+	$(PY) -m orchestrator.experiments.alpha_beta_study
 
 ## report: results/report/report.md with the paper's figures, tables and the settling study
 report: build

@@ -13,9 +13,9 @@ import time
 from collections.abc import Callable, Sequence
 
 from controller.law import evaluate
-from controller.params import example1_parameters
 from controller.rbf import rbf_energy
 from controller.stepping import AdaptiveController
+from fmu_src.models.examples import EXAMPLE1
 
 __all__ = ["main", "median_microseconds"]
 
@@ -41,7 +41,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--batches", type=int, default=20)
     parser.add_argument("--per-batch", type=int, default=2000)
     args = parser.parse_args(argv)
-    params = example1_parameters()
+    params = EXAMPLE1.controller
     x, yd = [0.5, 0.5], [0.0, 0.5, 0.0]
     state = [0.0, 0.0, 0.0]
 

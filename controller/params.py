@@ -4,20 +4,51 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from enum import IntEnum
 
 __all__ = [
-    "FIXED_TIME",
+    "DEFAULT_CENTERS",
     "FINITE_TIME",
-    "MODES",
+    "FIXED_TIME",
     "ControllerParameters",
+    "Mode",
     "ParameterError",
-    "example1_parameters",
-    "example2_parameters",
 ]
 
-FIXED_TIME = "fixed-time"
-FINITE_TIME = "finite-time"
-MODES = (FIXED_TIME, FINITE_TIME)
+
+class Mode(IntEnum):
+    """Which law: the paper's fixed-time one, or its finite-time comparison method [36] (no k term).
+
+    The value is the controller FMU's Integer parameter ``mode``; ``str()`` gives the label
+    ("fixed-time") used in tables and on the command line.
+    """
+
+    FIXED_TIME = 0
+    FINITE_TIME = 1
+
+    @property
+    def label(self) -> str:
+        """The label: "fixed-time" or "finite-time"."""
+        return self.name.lower().replace("_", "-")
+
+    def __str__(self) -> str:
+        return self.label
+
+    @classmethod
+    def parse(cls, value: object) -> Mode:
+        """A Mode from itself, its integer value or its label; ValueError naming the choices."""
+        if isinstance(value, str):
+            for mode in cls:
+                if value.strip().lower() in (mode.label, mode.name.lower(), str(mode.value)):
+                    return mode
+        elif isinstance(value, int) and not isinstance(value, bool) and value in tuple(cls):
+            return cls(value)
+        choices = " or ".join(f"{m.value} ({m.label})" for m in cls)
+        raise ValueError(f"mode must be {choices} (got {value!r})")
+
+
+FIXED_TIME = Mode.FIXED_TIME
+FINITE_TIME = Mode.FINITE_TIME
 
 DEFAULT_CENTERS = (-1.5, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5)
 
@@ -48,7 +79,7 @@ class ControllerParameters:
     rho_bar: tuple[float, ...]
     alpha: float = 1.5
     beta: float = 0.75
-    mode: str = FIXED_TIME
+    mode: Mode = FIXED_TIME
     a_bar: float = 1.0
     gamma_gain: float = 2.5
     gamma_power: float = 4.0
@@ -68,14 +99,16 @@ class ControllerParameters:
             object.__setattr__(self, name, float(getattr(self, name)))
 
         problems: list[str] = []
+        try:
+            object.__setattr__(self, "mode", Mode.parse(self.mode))
+        except ValueError as error:
+            problems.append(str(error))
         n = len(self.q)
         if n < 1:
             problems.append("q must have at least one entry (plant order n >= 1)")
         for name in per_step + ("eta0",):
             if len(getattr(self, name)) != n:
                 problems.append(f"{name} must have n = {n} entries (got {len(getattr(self, name))})")
-        if self.mode not in MODES:
-            problems.append(f"mode must be one of {', '.join(MODES)} (got {self.mode!r})")
         if not (self.alpha > 1.0 and math.isfinite(self.alpha)):
             problems.append(f"alpha must satisfy alpha > 1 (got {self.alpha!r})")
         if not 0.5 < self.beta < 1.0:
@@ -118,19 +151,3 @@ class ControllerParameters:
     def with_changes(self, **changes: object) -> ControllerParameters:
         """A validated copy with some fields replaced."""
         return replace(self, **changes)
-
-
-def example1_parameters(**changes: object) -> ControllerParameters:
-    """Gains of the paper's Example 1 (SPEC section 3)."""
-    base = ControllerParameters(
-        k=(10, 10), q=(8, 8), a=(5, 2), kappa=(2, 2), rho=(2, 2), rho_bar=(1, 1)
-    )
-    return replace(base, **changes) if changes else base
-
-
-def example2_parameters(**changes: object) -> ControllerParameters:
-    """Gains of the paper's Example 2, the pendulum (SPEC section 3)."""
-    base = ControllerParameters(
-        k=(25, 25), q=(20, 20), a=(5, 2), kappa=(2, 2), rho=(1, 1), rho_bar=(2, 1)
-    )
-    return replace(base, **changes) if changes else base

@@ -9,7 +9,7 @@ from __future__ import annotations
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from fmu_src.fmu_support import declare, fmu_model, raise_problems
-from fmu_src.models import ActuatorParameters, actuator_output, actuator_problems
+from fmu_src.models.actuator import ActuatorParameters, actuator_output, actuator_problems
 
 PARAMETER = Fmi2Causality.parameter
 INPUT = Fmi2Causality.input

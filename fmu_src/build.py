@@ -198,7 +198,7 @@ def _stage(bundle: Bundle, digest: str, where: Path) -> tuple[Path, Path]:
     (package_dir / "__init__.py").write_text(init, encoding="utf-8")
     for name, source in bundle.modules.items():
         target = package_dir.joinpath(*name.split(".")).with_suffix(".py")
-        for parent in target.relative_to(package_dir).parents:
+        for parent in reversed(target.relative_to(package_dir).parents):  # outermost first
             if parent != Path("."):
                 (package_dir / parent).mkdir(exist_ok=True)
                 (package_dir / parent / "__init__.py").write_text(init, encoding="utf-8")

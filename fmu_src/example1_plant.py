@@ -9,7 +9,7 @@ from __future__ import annotations
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from fmu_src.fmu_support import declare, fmu_model, raise_problems
-from fmu_src.models import State, example1_rhs, integration_problems
+from fmu_src.models.plants import State, example1_rhs, integration_problems
 from fmu_src.plant_core import DEFAULT_MAX_STEP, declare_plant_outputs, step_plant
 
 PARAMETER = Fmi2Causality.parameter

@@ -14,7 +14,7 @@ import re
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from controller.law import ControlTerms
-from controller.params import FINITE_TIME, FIXED_TIME, ControllerParameters, ParameterError
+from controller.params import DEFAULT_CENTERS, ControllerParameters, ParameterError
 from controller.stepping import AdaptiveController
 from fmu_src.fmu_support import declare, fmu_model, raise_problems, rename_indexed, report
 
@@ -22,8 +22,6 @@ PARAMETER = Fmi2Causality.parameter
 INPUT = Fmi2Causality.input
 OUTPUT = Fmi2Causality.output
 
-MODES = {0: FIXED_TIME, 1: FINITE_TIME}
-DEFAULT_CENTERS = (-1.5, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5)  # mu_1..mu_7 (SPEC section 1)
 INPUTS = ("x1", "x2", "yd", "yd_dot", "yd_ddot")
 # Example 1 gains (SPEC section 3): name -> default, per backstepping step i = 1, 2.
 GAINS = {"k": 10.0, "q": 8.0, "kappa": 2.0, "rho": 2.0, "rho_bar": 1.0}
@@ -155,8 +153,6 @@ class FixedTimeController(Fmi2Slave):
     def _parameters(self) -> ControllerParameters:
         """The library's validated parameters; raises naming the FMU parameters."""
         problems = []
-        if self.mode not in MODES:
-            problems.append(f"mode must be 0 (fixed-time) or 1 (finite-time) (got {self.mode!r})")
         if self.substeps < 1:
             problems.append(f"substeps must satisfy substeps >= 1 (got {self.substeps!r})")
         try:
@@ -166,7 +162,7 @@ class FixedTimeController(Fmi2Slave):
                 },
                 alpha=self.alpha,
                 beta=self.beta,
-                mode=MODES.get(self.mode, FIXED_TIME),
+                mode=self.mode,
                 a_bar=self.a_bar,
                 gamma_gain=self.gamma_gain,
                 gamma_power=self.gamma_power,

@@ -13,7 +13,13 @@ from dataclasses import fields
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from fmu_src.fmu_support import declare, fmu_model, raise_problems
-from fmu_src.models import PendulumParameters, State, integration_problems, pendulum_problems, pendulum_rhs
+from fmu_src.models.plants import (
+    PendulumParameters,
+    State,
+    integration_problems,
+    pendulum_problems,
+    pendulum_rhs,
+)
 from fmu_src.plant_core import DEFAULT_MAX_STEP, declare_plant_outputs, step_plant
 
 PARAMETER = Fmi2Causality.parameter

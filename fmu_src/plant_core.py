@@ -1,5 +1,5 @@
 """What every plant FMU shares: states (x1, x2, z) in ``slave.state``, advanced over a
-communication step with the input held by :func:`fmu_src.models.hold_step` (RK4 with sub-steps
+communication step with the input held by :func:`fmu_src.models.plants.hold_step` (RK4 with sub-steps
 of at most ``slave.max_step``). Functions, not a base class (see :mod:`fmu_src.fmu_support`);
 the slave keeps only plain values so that state snapshots are cheap deep copies."""
 
@@ -11,7 +11,7 @@ from collections.abc import Callable
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from .fmu_support import declare, report
-from .models import RightHandSide, State, hold_step
+from .models.plants import RightHandSide, State, hold_step
 
 __all__ = ["DEFAULT_MAX_STEP", "current_state", "declare_plant_outputs", "step_plant"]
 

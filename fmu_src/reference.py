@@ -8,7 +8,7 @@ from __future__ import annotations
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from fmu_src.fmu_support import declare, fmu_model, raise_problems
-from fmu_src.models import ReferenceParameters, reference_problems, reference_signal
+from fmu_src.models.reference import ReferenceParameters, reference_problems, reference_signal
 
 PARAMETER = Fmi2Causality.parameter
 OUTPUT = Fmi2Causality.output

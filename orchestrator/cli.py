@@ -1,4 +1,12 @@
-"""The ``orchestrate`` command: run, build, metrics and plot for SSP co-simulation scenarios."""
+"""The ``orchestrate`` command: the engine's own subcommands (run, plot) and those of every
+application (experiments, crosscheck, campaigns, ...), which register themselves.
+
+An application lists a ``register(subparsers)`` function under the entry-point group
+``orchestrate.commands`` (pyproject.toml); it adds its subcommands with :func:`add_command`. A
+handler returns the exit status; an :class:`~orchestrator.errors.OrchestratorError` it raises is
+printed as one line (``orchestrate: error: ...``) and its ``exit_status`` returned; a
+:class:`~orchestrator.errors.UsageError` goes through ``parser.error`` (usage, one line, exit 2).
+"""
 
 from __future__ import annotations
 
@@ -6,17 +14,17 @@ import argparse
 import logging
 import math
 import sys
-from collections.abc import Sequence
-from contextlib import ExitStack
+from collections.abc import Callable, Sequence
+from importlib.metadata import entry_points
 from pathlib import Path
 
-import numpy as np
+from . import MASTERS, run
+from .errors import OrchestratorError, ScenarioError, SimulationError, UsageError
+from .results import plot_result, read_result
 
-from . import MASTERS, load, run
-from .errors import ScenarioError, SimulationError
-from .results import plot_result
+__all__ = ["COMMAND_GROUP", "add_command", "main", "resolve_scenario"]
 
-__all__ = ["main"]
+COMMAND_GROUP = "orchestrate.commands"
 
 DESCRIPTION = """\
 Run SSP co-simulation scenarios (controller + actuator + plant FMUs) with fmpy.
@@ -30,7 +38,6 @@ Run SSP co-simulation scenarios (controller + actuator + plant FMUs) with fmpy.
 
 Run 'orchestrate COMMAND --help' for the options of a command.
 """
-
 RUN_HELP = """\
 SCENARIO is a .ssp archive, a folder holding SystemStructure.ssd, or the name of a built
 scenario (build/ssp/NAME.ssp). Stop time and step come from the scenario unless given.
@@ -46,13 +53,24 @@ exit status: 0 success, 1 scenario error or simulation failure, 2 usage error, 1
 """
 
 
+Handler = Callable[[argparse.Namespace], int]
+
+
+def add_command(subparsers: argparse._SubParsersAction, name: str, handler: Handler,
+                **kwargs: object) -> argparse.ArgumentParser:
+    """Add subcommand ``name`` run by ``handler(args) -> exit status``; returns its parser."""
+    parser = subparsers.add_parser(name, **kwargs)
+    parser.set_defaults(handler=handler)
+    return parser
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="orchestrate", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
-    p = sub.add_parser("run", help="simulate a scenario", description=RUN_HELP,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = add_command(sub, "run", _run, help="simulate a scenario", description=RUN_HELP,
+                    formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("scenario", metavar="SCENARIO", help=".ssp file, scenario folder or built scenario name")
     p.add_argument("--stop-time", type=float, metavar="T", help="stop time in s (default: from the SSD)")
     p.add_argument("--step", type=float, metavar="H", help="communication step in s (default: from the SSD)")
@@ -67,47 +85,30 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
     p.add_argument("--verbose", action="store_true", help="show the FMUs' log messages as they come")
 
-    p = sub.add_parser("build", help="build the FMUs and pack the scenarios into .ssp archives")
-    p.add_argument("scenarios", nargs="*", metavar="NAME", help="scenarios to pack (default: all in ssp/)")
-    p.add_argument("--sources", type=Path, default=Path("ssp"), help="scenario sources (default: ssp/)")
-    p.add_argument("--dest", type=Path, default=Path("build"), help="output folder (default: build/)")
-
-    p = sub.add_parser("metrics", help="tracking metrics of result files (SPEC section 4)")
-    p.add_argument("results", nargs="+", type=Path, metavar="RESULT.csv")
-    p.add_argument("--band", type=float, default=0.05, help="settling band on |y - yd| (default 0.05)")
-
-    for name, text in (("compare", "compare a result CSV with a baseline (regression tubes)"),
-                       ("baseline", "run the scenarios and rewrite the regression baselines"),
-                       ("report", "the paper's examples by co-simulation, as a report")):
-        sub.add_parser(name, help=text)  # listed here; main() hands the options to the delegate
-
-    p = sub.add_parser("plot", help="plot a result file")
+    p = add_command(sub, "plot", _plot, help="plot a result file")
     p.add_argument("result", type=Path, metavar="RESULT.csv")
     p.add_argument("--output", type=Path, metavar="FILE.png", help="default: RESULT with .png")
+
+    for entry in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
+        entry.load()(sub)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``orchestrate``; returns the exit status."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] in ("compare", "baseline"):  # the regression tool parses its own options
-        from .regression import main as regression_main
-
-        return regression_main(argv)
-    if argv and argv[0] == "report":
-        from .report import main as report_main
-
-        return report_main(argv[1:])
     parser = _parser()
     args = parser.parse_args(argv)
     try:
-        return {"run": _run, "build": _build, "metrics": _metrics, "plot": _plot}[args.command](args, parser)
-    except ScenarioError as exc:
+        return args.handler(args)
+    except UsageError as exc:
+        parser.error(str(exc))  # usage, one line "orchestrate: error: ...", exit status 2
+    except OrchestratorError as exc:
         print(f"orchestrate: error: {exc}", file=sys.stderr)
-        return 1
+        return exc.exit_status
 
 
-def _resolve(scenario: str) -> Path:
+def resolve_scenario(scenario: str) -> Path:
+    """A scenario given as a file, a folder, or the name of a built scenario (build/ssp/NAME.ssp)."""
     path = Path(scenario)
     if path.exists():
         return path
@@ -150,18 +151,18 @@ class _LastMessage(logging.Handler):
             print(f"{record.name}: {record.getMessage()}", file=sys.stderr)
 
 
-def _run(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+def _run(args: argparse.Namespace) -> int:
     overrides = {}
     for item in args.set:
         key, sep, value = item.partition("=")
         if not sep or "." not in key:
-            parser.error(f"--set expects COMPONENT.VARIABLE=VALUE (got '{item}')")
+            raise UsageError(f"--set expects COMPONENT.VARIABLE=VALUE (got '{item}')")
         overrides[key.strip()] = value.strip()
     if args.step is not None and not (math.isfinite(args.step) and args.step > 0):
-        parser.error(f"--step must be positive and finite (got {args.step!r})")
+        raise UsageError(f"--step must be positive and finite (got {args.step!r})")
     if args.stop_time is not None and not math.isfinite(args.stop_time):
-        parser.error(f"--stop-time must be finite (got {args.stop_time!r})")
-    scenario = _resolve(args.scenario)
+        raise UsageError(f"--stop-time must be finite (got {args.stop_time!r})")
+    scenario = resolve_scenario(args.scenario)
     name = scenario.stem if scenario.is_file() else scenario.resolve().name
     output = args.output or Path("results") / f"{name}.csv"
     plot = None if args.no_plot else args.plot or output.with_suffix(".png")
@@ -200,76 +201,8 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     return 0
 
 
-def _build(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from fmu_src.build import build_all
-
-    from .sspwriter import pack_ssp
-
-    sources: Path = args.sources
-    names = args.scenarios or sorted(p.parent.name for p in sources.glob("*/SystemStructure.ssd"))
-    if not names:
-        parser.error(f"no scenarios found in {sources}/")
-    fmus = {p.name: p for p in build_all(args.dest / "fmus")}
-    for name in names:
-        folder = sources / name
-        if not (folder / "SystemStructure.ssd").is_file():
-            raise ScenarioError(f"{folder}: no SystemStructure.ssd")
-        needed = {}
-        for component in _component_sources(folder):
-            if component not in fmus:
-                raise ScenarioError(f"{folder}/SystemStructure.ssd: FMU '{component}' is not built by "
-                                    f"fmu_src.build (built: {', '.join(sorted(fmus))})")
-            needed[component] = fmus[component]
-        target = pack_ssp(folder, needed, args.dest / "ssp" / f"{name}.ssp")
-        with ExitStack() as stack:
-            load(target, stack)  # validate the packed archive against the FMUs
-        print(f"{target}")
-    return 0
-
-
-def _component_sources(folder: Path) -> list[str]:
-    """FMU file names the SSD refers to (``resources/X.fmu`` -> ``X.fmu``), read without the FMUs."""
-    from lxml import etree
-
-    from .ssp import NS
-
-    root = etree.parse(str(folder / "SystemStructure.ssd")).getroot()
-    return [Path(c.get("source")).name for c in root.iterfind("ssd:System/ssd:Elements/ssd:Component", NS)]
-
-
-def _read_result(path: Path, parser: argparse.ArgumentParser) -> np.ndarray:
-    """A result CSV read with fmpy's reader; a missing or unreadable file is a usage error naming it."""
-    from .regression import RegressionError, read_result
-
-    try:
-        return read_result(path)
-    except RegressionError as exc:
-        parser.error(str(exc))
-
-
-def _metrics(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from controller.metrics import format_table, tracking_metrics
-
-    rows = []
-    for path in args.results:
-        data = _read_result(path, parser)
-        names = data.dtype.names
-        missing = [c for c in ("plant.y", "reference.yd") if c not in names]
-        if missing:
-            raise ScenarioError(f"{path}: no column {', '.join(missing)} (needs plant.y and reference.yd)")
-        try:
-            m = tracking_metrics(data["time"], data["plant.y"], data["reference.yd"],
-                                 data["controller.v"] if "controller.v" in names else None,
-                                 data["actuator.uf"] if "actuator.uf" in names else None, band=args.band)
-        except ValueError as exc:
-            raise ScenarioError(f"{path}: {exc}") from exc
-        rows.append((path.stem, m))
-    print(format_table(rows))
-    return 0
-
-
-def _plot(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    data = _read_result(args.result, parser)
+def _plot(args: argparse.Namespace) -> int:
+    data = read_result(args.result)
     target = args.output or args.result.with_suffix(".png")
     plot_result(data, target, args.result.stem)
     print(target)

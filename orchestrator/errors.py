@@ -1,11 +1,27 @@
-"""The two ways a co-simulation can fail: a bad set-up, or a failure while it runs."""
+"""How ``orchestrate`` fails: a bad set-up, a failure while a scenario runs, or a usage mistake.
+
+Every error derives from :class:`OrchestratorError`, whose ``exit_status`` is what the command
+line returns after printing the one-line message.
+"""
 
 from __future__ import annotations
 
-__all__ = ["ScenarioError", "SimulationError"]
+__all__ = ["OrchestratorError", "ScenarioError", "SimulationError", "UsageError"]
 
 
-class ScenarioError(ValueError):
+class OrchestratorError(Exception):
+    """Base of every error the engine and its applications report as one line."""
+
+    exit_status = 1
+
+
+class UsageError(OrchestratorError):
+    """The command was called wrongly (an option out of range, a file that is not a result)."""
+
+    exit_status = 2
+
+
+class ScenarioError(OrchestratorError, ValueError):
     """The scenario (archive, SSD, SSV, FMU interface) is unusable; nothing was simulated.
 
     ``problems`` lists every problem found, so one run reports them all at once.
@@ -20,7 +36,7 @@ class ScenarioError(ValueError):
         super().__init__(message)
 
 
-class SimulationError(RuntimeError):
+class SimulationError(OrchestratorError, RuntimeError):
     """An FMU call failed while the scenario ran.
 
     Reads ``controller: fmi2DoStep returned fmi2Error at t=10.000 s``.

@@ -19,14 +19,44 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+from fmpy.util import read_csv
 
-__all__ = ["Recorder", "plot_result", "structured"]
+from .errors import UsageError
+
+__all__ = ["Recorder", "ResultFileError", "plot_result", "read_result", "structured"]
 
 
 def structured(data: np.ndarray, columns: Sequence[str]) -> np.ndarray:
     """View a 2-D float array as a structured array with one field per column (no copy)."""
     dtype = np.dtype([(name, np.float64) for name in columns])
     return np.ascontiguousarray(data).view(dtype).reshape(len(data))
+
+
+class ResultFileError(UsageError, ValueError):
+    """A file given as a result is missing or is not a result CSV; the message names it."""
+
+
+def read_result(path: str | os.PathLike) -> np.ndarray:
+    """Read a result CSV (``time`` first, one column per signal) with fmpy's reader; errors name the
+    file. Time must increase strictly."""
+    path = Path(path)
+    if not path.is_file():
+        raise ResultFileError(f"{path}: no such file")
+    try:
+        data = read_csv(path)
+    except (OSError, ValueError, IndexError, UnicodeDecodeError) as exc:
+        raise ResultFileError(f"{path}: not a result CSV ({exc})") from exc
+    names = data.dtype.names or ()
+    if "time" not in names:
+        raise ResultFileError(f"{path}: no 'time' column (columns: {', '.join(names)})")
+    if len(data) < 2:
+        raise ResultFileError(f"{path}: needs at least two rows (has {len(data)})")
+    bad = np.flatnonzero(np.diff(data["time"]) <= 0)
+    if len(bad):
+        i = int(bad[0]) + 1
+        raise ResultFileError(f"{path}: column 'time' does not increase at line {i + 2} "
+                              f"(t = {float(data['time'][i])!r} after {float(data['time'][i - 1])!r})")
+    return data
 
 
 class Recorder:

@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from controller.closed_loop import EXAMPLES, simulate
 from controller.law import evaluate
-from controller.metrics import tracking_metrics
 from controller.params import FINITE_TIME
+from fmu_src.models.examples import EXAMPLES
+from orchestrator.experiments.closed_loop import simulate
+from orchestrator.experiments.metrics import tracking_metrics
 
 
 @pytest.mark.parametrize(("number", "v0", "rel"), [(1, 770.0, 0.01), (2, 15000.0, 0.03)])

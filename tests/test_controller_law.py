@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from controller.law import evaluate, sig
-from controller.params import FINITE_TIME, ControllerParameters, example1_parameters, example2_parameters
+from controller.params import FINITE_TIME, ControllerParameters
 from controller.rbf import rbf_basis
+from fmu_src.models.examples import EXAMPLE1, EXAMPLE2
 
 MU = (-1.5, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5)
 
@@ -113,10 +114,10 @@ def random_points(seed: int, count: int = 25):
         yield state, list(rng.uniform(-1.5, 1.5, 2)), list(rng.uniform(-1.0, 1.0, 3))
 
 
-@pytest.mark.parametrize("make", [example1_parameters, example2_parameters])
+@pytest.mark.parametrize("example", [EXAMPLE1, EXAMPLE2], ids=["example1", "example2"])
 @pytest.mark.parametrize("mode", ["fixed-time", "finite-time"])
-def test_second_order_against_transcription(make, mode: str) -> None:
-    params = make(mode=mode, alpha=1.3, beta=0.8)
+def test_second_order_against_transcription(example, mode: str) -> None:
+    params = example.controller.with_changes(mode=mode, alpha=1.3, beta=0.8)
     points = [([0.0, 0.0, 0.0], [0.5, 0.5], [0.0, 0.5, 0.0])] + list(random_points(7))
     for state, x, yd in points:
         v, z, zeta, ptp, derivative = second_order_transcription(state, x, yd, params)
@@ -130,20 +131,20 @@ def test_second_order_against_transcription(make, mode: str) -> None:
 
 def test_example1_initial_control_is_large() -> None:
     # SPEC section 6: |v(0)| near 770 for Example 1, 15 000 for Example 2 (independent implementation).
-    v1 = evaluate([0.0, 0.0, 0.0], [0.5, 0.5], [0.0, 0.5, 0.0], example1_parameters()).v
-    v2 = evaluate([0.0, 0.0, 0.0], [0.6, 0.1], [0.0, 0.5, 0.0], example2_parameters()).v
+    v1 = evaluate([0.0, 0.0, 0.0], [0.5, 0.5], [0.0, 0.5, 0.0], EXAMPLE1.controller).v
+    v2 = evaluate([0.0, 0.0, 0.0], [0.6, 0.1], [0.0, 0.5, 0.0], EXAMPLE2.controller).v
     assert abs(v1) == pytest.approx(770, rel=0.01)
     assert abs(v2) == pytest.approx(15000, rel=0.03)
 
 
 def test_finite_time_is_the_limit_of_vanishing_k() -> None:
     """Finite-time mode (k unused) is the fixed-time law as k -> 0: the gap shrinks linearly in k."""
-    finite = example1_parameters(mode=FINITE_TIME)
+    finite = EXAMPLE1.controller.with_changes(mode=FINITE_TIME)
     for state, x, yd in random_points(11, 10):
         reference = np.array(evaluate(state, x, yd, finite).derivative + (evaluate(state, x, yd, finite).v,))
         gaps = []
         for scale in (1e-4, 1e-6):
-            fixed = example1_parameters(k=(10 * scale, 10 * scale))
+            fixed = EXAMPLE1.controller.with_changes(k=(10 * scale, 10 * scale))
             terms = evaluate(state, x, yd, fixed)
             gaps.append(np.max(np.abs(np.array(terms.derivative + (terms.v,)) - reference)))
         assert gaps[1] <= 1.1e-2 * gaps[0] + 1e-12
@@ -151,8 +152,8 @@ def test_finite_time_is_the_limit_of_vanishing_k() -> None:
 
 def test_finite_time_first_step_differs_by_exactly_the_k_term() -> None:
     # For step 1, z_1 = x_1 - yd does not depend on k, so zeta_1 differs by -k_1 sig(z_1)^(2 alpha - 1) only.
-    fixed = example2_parameters()
-    finite = example2_parameters(mode=FINITE_TIME)
+    fixed = EXAMPLE2.controller
+    finite = EXAMPLE2.controller.with_changes(mode=FINITE_TIME)
     for state, x, yd in random_points(3, 10):
         z1 = x[0] - yd[0]
         difference = evaluate(state, x, yd, fixed).zeta[0] - evaluate(state, x, yd, finite).zeta[0]

@@ -11,15 +11,14 @@ from controller.params import (
     FIXED_TIME,
     ControllerParameters,
     ParameterError,
-    example1_parameters,
-    example2_parameters,
 )
+from fmu_src.models.examples import EXAMPLE1, EXAMPLE2
 
 GAINS = ("k", "q", "a", "kappa", "rho", "rho_bar")
 
 
 def test_examples_are_valid_and_second_order() -> None:
-    for params in (example1_parameters(), example2_parameters()):
+    for params in (EXAMPLE1.controller, EXAMPLE2.controller):
         assert params.n == 2
         assert params.mode == FIXED_TIME
         assert params.eta0 == (0.0, 0.0)
@@ -49,7 +48,7 @@ def test_examples_are_valid_and_second_order() -> None:
 )
 def test_scalar_constraints(changes: dict, expected: list[str]) -> None:
     with pytest.raises(ParameterError) as info:
-        example1_parameters(**changes)
+        EXAMPLE1.controller.with_changes(**changes)
     for text in expected:
         assert text in str(info.value)
 
@@ -58,10 +57,10 @@ def test_scalar_constraints(changes: dict, expected: list[str]) -> None:
 @pytest.mark.parametrize("index", [1, 2])
 @pytest.mark.parametrize("bad", [0.0, -3.0, math.nan, math.inf])
 def test_each_gain_must_be_positive_per_index(name: str, index: int, bad: float) -> None:
-    values = list(getattr(example1_parameters(), name))
+    values = list(getattr(EXAMPLE1.controller, name))
     values[index - 1] = bad
     with pytest.raises(ParameterError) as info:
-        example1_parameters(**{name: tuple(values)})
+        EXAMPLE1.controller.with_changes(**{name: tuple(values)})
     message = str(info.value)
     assert f"{name}[{index}]" in message
     assert f"{name}[{index}] > 0" in message
@@ -71,14 +70,14 @@ def test_each_gain_must_be_positive_per_index(name: str, index: int, bad: float)
 @pytest.mark.parametrize("name", ("k", "a", "kappa", "rho", "rho_bar", "eta0"))
 def test_wrong_lengths(name: str) -> None:
     with pytest.raises(ParameterError) as info:
-        example1_parameters(**{name: (1.0, 1.0, 1.0)})
+        EXAMPLE1.controller.with_changes(**{name: (1.0, 1.0, 1.0)})
     assert f"{name} must have n = 2 entries (got 3)" in str(info.value)
 
 
 def test_q_defines_the_order() -> None:
     # n = len(q): a three-entry q makes every other per-step tuple the wrong length.
     with pytest.raises(ParameterError) as info:
-        example1_parameters(q=(1.0, 1.0, 1.0))
+        EXAMPLE1.controller.with_changes(q=(1.0, 1.0, 1.0))
     for name in ("k", "a", "kappa", "rho", "rho_bar", "eta0"):
         assert f"{name} must have n = 3 entries (got 2)" in str(info.value)
     with pytest.raises(ParameterError, match="q must have at least one entry"):
@@ -87,7 +86,7 @@ def test_q_defines_the_order() -> None:
 
 def test_every_problem_is_reported_at_once() -> None:
     with pytest.raises(ParameterError) as info:
-        example1_parameters(alpha=0.9, beta=1.5, q=(8.0, -8.0))
+        EXAMPLE1.controller.with_changes(alpha=0.9, beta=1.5, q=(8.0, -8.0))
     message = str(info.value)
     assert "alpha" in message and "beta" in message and "q[2]" in message
 
@@ -97,14 +96,14 @@ def test_parameter_error_is_a_value_error() -> None:
 
 
 def test_finite_time_mode_ignores_k() -> None:
-    params = example1_parameters(mode=FINITE_TIME, k=(0.0, 0.0))
+    params = EXAMPLE1.controller.with_changes(mode=FINITE_TIME, k=(0.0, 0.0))
     assert params.k_effective == (0.0, 0.0)
-    assert example1_parameters().k_effective == (10.0, 10.0)
+    assert EXAMPLE1.controller.k_effective == (10.0, 10.0)
 
 
 def test_with_changes_validates() -> None:
     with pytest.raises(ParameterError, match="beta"):
-        example2_parameters().with_changes(beta=2.0)
+        EXAMPLE2.controller.with_changes(beta=2.0)
 
 
 def test_order_one_is_supported() -> None:

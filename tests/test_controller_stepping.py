@@ -23,15 +23,16 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from controller.law import evaluate
-from controller.params import ControllerParameters, example1_parameters, example2_parameters
+from controller.params import ControllerParameters
 from controller.stepping import AdaptiveController
+from fmu_src.models.examples import EXAMPLE1, EXAMPLE2
 
 H = 1e-3
 # (parameters, x held, yd held) at the stiff start: Example 1 (yd = 0.5 sin t) and the pendulum
 # (yd = sin(0.5 t)), both at t = 0.
 STIFF_STARTS = {
-    "example1": (example1_parameters(), [0.5, 0.5], [0.0, 0.5, 0.0]),
-    "pendulum": (example2_parameters(), [0.6, 0.1], [0.0, 0.5, 0.0]),
+    "example1": (EXAMPLE1.controller, [0.5, 0.5], [0.0, 0.5, 0.0]),
+    "pendulum": (EXAMPLE2.controller, [0.6, 0.1], [0.0, 0.5, 0.0]),
 }
 
 
@@ -150,7 +151,7 @@ class TestAdaptiveLawExactSolution:
 
 
 def test_reset_restores_initial_state() -> None:
-    params = example1_parameters(r0=0.25, eta0=(0.5, 1.5))
+    params = EXAMPLE1.controller.with_changes(r0=0.25, eta0=(0.5, 1.5))
     controller = AdaptiveController(params)
     assert controller.state == [0.25, 0.5, 1.5]
     controller.output([0.5, 0.5], [0.0, 0.5, 0.0])
@@ -199,4 +200,4 @@ def test_advance_does_not_reuse_output_for_other_inputs_or_state() -> None:
 
 def test_substeps_must_be_positive() -> None:
     with pytest.raises(ValueError, match="substeps"):
-        AdaptiveController(example1_parameters(), substeps=0)
+        AdaptiveController(EXAMPLE1.controller, substeps=0)

@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 import orchestrator
-from controller.closed_loop import EXAMPLES, simulate
+from fmu_src.models.examples import EXAMPLES
+from orchestrator.experiments.closed_loop import simulate
 
 REPO = Path(__file__).resolve().parent.parent
 STEP = 1e-3

@@ -40,8 +40,8 @@ def test_guid_is_deterministic_per_source(fmus: dict, tmp_path: Path) -> None:
     guids = {m: fmpy.read_model_description(str(fmus[m])).guid for m in MODELS}
     assert len(set(guids.values())) == len(MODELS)
     root = source_copy(tmp_path)
-    (root / "fmu_src" / "models.py").write_text(
-        (root / "fmu_src" / "models.py").read_text() + "\n# changed\n"
+    (root / "fmu_src" / "models" / "checks.py").write_text(
+        (root / "fmu_src" / "models" / "checks.py").read_text() + "\n# changed\n"
     )
     changed = build_fmu("Reference", tmp_path / "out", root=root)
     assert fmpy.read_model_description(str(changed)).guid != guids["Reference"]

@@ -8,17 +8,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from fmu_src.models import (
-    ActuatorParameters,
-    PendulumParameters,
-    ReferenceParameters,
-    actuator_output,
-    dead_zone,
-    example1_rhs,
-    hold_step,
-    pendulum_rhs,
-    reference_signal,
-)
+from fmu_src.models.actuator import ActuatorParameters, actuator_output, dead_zone
+from fmu_src.models.plants import PendulumParameters, example1_rhs, hold_step, pendulum_rhs
+from fmu_src.models.reference import ReferenceParameters, reference_signal
 
 RNG = np.random.default_rng(7)
 STATES = RNG.uniform(-2.0, 2.0, size=(20, 3))

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from orchestrator.master import time_grid
-from orchestrator.regression import (
+from orchestrator.cli import main
+from orchestrator.experiments.regression import (
     BASELINE_DIR,
     BASELINE_GRID,
     RegressionError,
@@ -20,10 +20,10 @@ from orchestrator.regression import (
     compare,
     compare_files,
     load_tolerances,
-    main,
-    read_result,
     write_baseline,
 )
+from orchestrator.master import time_grid
+from orchestrator.results import ResultFileError, read_result
 
 
 def table(t: np.ndarray, **columns: np.ndarray) -> np.ndarray:
@@ -165,23 +165,31 @@ def test_command_exit_status_table_and_plots(tmp_path: Path, capsys: pytest.Capt
     assert "missing in" in capsys.readouterr().out
 
 
+def exit_status(argv: list[str]) -> int:
+    """``orchestrate ARGV``'s exit status, whether returned or raised by argparse (usage errors)."""
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return exc.code
+
+
 def test_command_errors_name_the_file(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     baseline = write(tmp_path / "base.csv", table(T, p__y=np.sin(T)))
-    assert main(["compare", str(tmp_path / "nope.csv"), str(baseline)]) == 2
+    assert exit_status(["compare", str(tmp_path / "nope.csv"), str(baseline)]) == 2
     assert "nope.csv: no such file" in capsys.readouterr().err
     no_time = tmp_path / "no_time.csv"
     no_time.write_text("t,p.y\n0,1\n1,2\n")
-    assert main(["compare", str(no_time), str(baseline)]) == 2
+    assert exit_status(["compare", str(no_time), str(baseline)]) == 2
     assert "no_time.csv: no 'time' column" in capsys.readouterr().err
     garbage = tmp_path / "garbage.csv"
     garbage.write_text("time,p.y\n0,abc\n")
-    assert main(["compare", str(garbage), str(baseline)]) == 2
+    assert exit_status(["compare", str(garbage), str(baseline)]) == 2
     assert "garbage.csv: not a result CSV" in capsys.readouterr().err
     backwards = tmp_path / "backwards.csv"
     backwards.write_text("time,p.y\n0,1\n1,2\n0.5,3\n")
-    with pytest.raises(RegressionError, match="backwards.csv: column 'time' does not increase at line 4"):
+    with pytest.raises(ResultFileError, match="backwards.csv: column 'time' does not increase at line 4"):
         read_result(backwards)
-    assert main(["compare", str(baseline), str(baseline), "--tol", "p.y=wide"]) == 2
+    assert exit_status(["compare", str(baseline), str(baseline), "--tol", "p.y=wide"]) == 2
     assert "'wide' is not a number" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["compare", str(baseline)])

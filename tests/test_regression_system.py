@@ -15,20 +15,19 @@ import numpy as np
 import pytest
 
 from orchestrator import run
-from orchestrator.regression import (
+from orchestrator.cli import main
+from orchestrator.experiments.regression import (
     BASELINE_DIR,
     BASELINE_GRID,
-    all_scenarios,
-    build_scenarios,
     compare,
     format_comparison,
     load_tolerances,
-    main,
     output_columns,
-    read_result,
     resample,
     write_baseline,
 )
+from orchestrator.experiments.scenarios import all_scenarios, build_scenarios
+from orchestrator.results import read_result
 
 pytestmark = pytest.mark.system
 

@@ -6,15 +6,16 @@ from pathlib import Path
 
 import pytest
 
-from orchestrator.report import CASES, FIGURES, main
+from orchestrator.cli import main
+from orchestrator.experiments.report import CASES, FIGURES
 
 pytestmark = pytest.mark.system
 
 
 def test_report_on_a_short_horizon(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     out = tmp_path / "report"
-    assert main(["--out", str(out), "--stop-time", "0.5", "--study-horizon", "0.5", "--study-values", "0",
-                 "2"]) == 0
+    assert main(["report", "--out", str(out), "--stop-time", "0.5", "--study-horizon", "0.5",
+                 "--study-values", "0", "2"]) == 0
     report = out / "report.md"
     assert capsys.readouterr().out.strip() == str(report)
     text = report.read_text()

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from controller.metrics import TrackingMetrics, format_table, tracking_metrics
+from orchestrator.experiments.metrics import TrackingMetrics, format_table, tracking_metrics
 
 
 def periodic_grid(periods: int = 3, samples: int = 3000) -> np.ndarray:

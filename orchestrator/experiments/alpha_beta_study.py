@@ -1,6 +1,6 @@
 """Choose alpha and beta by experiment (SPEC section 6): run both examples over a grid.
 
-``python -m controller.alpha_beta_study`` prints, for every (alpha, beta), the RMSE, MAE,
+``python -m orchestrator.experiments.alpha_beta_study`` prints, for every (alpha, beta), the RMSE, MAE,
 settling time and peak |v| of both examples, run as the product runs them: the monolithic
 reference with the controller and actuator sampled every 1 ms (zero-order hold; the continuous
 law with small 2 beta - 1 chatters and stalls an adaptive solver). Finite-time mode does not use
@@ -13,16 +13,18 @@ import argparse
 import itertools
 from collections.abc import Sequence
 
+from controller.params import FINITE_TIME, FIXED_TIME
+
 from .closed_loop import EXAMPLES, simulate
 from .metrics import tracking_metrics
-from .params import FINITE_TIME, FIXED_TIME
 
 __all__ = ["main"]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Print one Markdown row per (example, mode, alpha, beta)."""
-    parser = argparse.ArgumentParser(prog="python -m controller.alpha_beta_study", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m orchestrator.experiments.alpha_beta_study",
+                                     description=__doc__)
     parser.add_argument("--alpha", type=float, nargs="+", default=[1.25, 1.5, 2.0])
     parser.add_argument("--beta", type=float, nargs="+", default=[0.6, 0.75, 0.9])
     parser.add_argument("--stop-time", type=float, default=30.0)

@@ -3,7 +3,7 @@
 Plant + unmodeled dynamics + actuator fault + dead-zone + controller in one ODE, solved with
 ``solve_ivp`` at tight tolerances. It is the oracle the co-simulation is compared with. The plant,
 actuator and reference math are the very functions the FMUs wrap (``fmu_src.models``, pure math,
-no FMI); the control law is this package's.
+no FMI); the control law is ``controller``'s.
 
 Two forms:
 
@@ -17,72 +17,24 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from functools import partial
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from fmu_src.models import (
-    ActuatorParameters,
-    PendulumParameters,
-    ReferenceParameters,
-    actuator_output,
-    example1_rhs,
-    pendulum_rhs,
-    reference_signal,
-)
+from controller.law import evaluate
+from controller.params import FINITE_TIME, FIXED_TIME, ControllerParameters, Mode
+from fmu_src.models.actuator import actuator_output
+from fmu_src.models.examples import EXAMPLES, Example
+from fmu_src.models.reference import reference_signal
 
-from .law import evaluate
-from .params import (
-    FINITE_TIME,
-    FIXED_TIME,
-    MODES,
-    ControllerParameters,
-    example1_parameters,
-    example2_parameters,
-)
-
-__all__ = ["EXAMPLES", "Example", "ReferenceRun", "simulate"]
+__all__ = ["ReferenceRun", "simulate"]
 
 RTOL = 1e-10
 ATOL = 1e-12
 # The fields of a run, in the order of the result columns.
 FIELDS = ("time", "x1", "x2", "z", "y", "yd", "v", "uf", "u_dz", "r", "eta1_hat", "eta2_hat", "z1", "z2")
-
-
-@dataclass(frozen=True)
-class Example:
-    """One of the paper's examples: plant, initial state, reference, actuator and gains."""
-
-    name: str
-    plant_rhs: Callable[[float, Sequence[float], float], tuple[float, float, float]]
-    x0: tuple[float, float, float]
-    reference: ReferenceParameters
-    actuator: ActuatorParameters
-    controller: ControllerParameters
-    stop_time: float = 30.0
-
-
-EXAMPLES: dict[int, Example] = {
-    1: Example(
-        name="Example 1",
-        plant_rhs=example1_rhs,
-        x0=(0.5, 0.5, 0.0),
-        reference=ReferenceParameters(amplitude=0.5, omega=1.0),
-        actuator=ActuatorParameters(t_fault=10.0),
-        controller=example1_parameters(),
-    ),
-    2: Example(
-        name="Example 2 (pendulum)",
-        plant_rhs=partial(pendulum_rhs, p=PendulumParameters()),
-        x0=(0.6, 0.1, 0.0),
-        reference=ReferenceParameters(amplitude=1.0, omega=0.5),
-        actuator=ActuatorParameters(t_fault=5.0),
-        controller=example2_parameters(),
-    ),
-}
 
 
 @dataclass
@@ -196,11 +148,11 @@ def _simulate_sampled(ex: Example, params: ControllerParameters, times: list[flo
 def main(argv: Sequence[str] | None = None) -> int:
     """Print the metrics of one example and mode (or the table of all four)."""
     parser = argparse.ArgumentParser(
-        prog="python -m controller.closed_loop",
+        prog="python -m orchestrator.experiments.closed_loop",
         description="Monolithic reference simulation of the paper's examples (no FMI).",
     )
     parser.add_argument("--example", type=int, choices=sorted(EXAMPLES), default=1)
-    parser.add_argument("--mode", choices=MODES, default=FIXED_TIME)
+    parser.add_argument("--mode", type=Mode.parse, choices=list(Mode), default=FIXED_TIME)
     parser.add_argument("--sample-time", type=float, default=None,
                         help="zero-order-hold sample time in s (default: continuous controller)")
     parser.add_argument("--stop-time", type=float, default=None)

@@ -15,8 +15,8 @@ trajectories contract and two correct integrators agree to 1e-8, so the tube is 
 
 Usage::
 
-    python -m orchestrator.regression compare RESULT.csv BASELINE.csv [--plot-dir DIR]
-    python -m orchestrator.regression baseline [--scenario NAME]...
+    orchestrate compare RESULT.csv BASELINE.csv [--plot-dir DIR]
+    orchestrate baseline [--scenario NAME]...
 
 Exit status of ``compare``: 0 every signal inside its tube, 1 regression (a signal outside its tube,
 a baseline column missing from the result, or a result that does not cover the baseline's time
@@ -25,11 +25,9 @@ span), 2 usage or unreadable input.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
-import sys
 import tempfile
 from collections.abc import Iterable, Mapping, Sequence
 from contextlib import ExitStack
@@ -37,26 +35,26 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-from fmpy.util import read_csv, validate_signal
+from fmpy.util import validate_signal
 
-from . import load, run
-from .master import time_grid
+from .. import load, run
+from ..errors import UsageError
+from ..master import time_grid
+from ..results import read_result
+from .scenarios import SCENARIO_DIR, all_scenarios, build_scenarios
 
 __all__ = [
     "BASELINE_DIR",
     "BASELINE_GRID",
-    "SCENARIO_DIR",
     "Comparison",
     "RegressionError",
     "SignalCheck",
     "Tolerance",
     "Tolerances",
-    "build_scenarios",
     "compare",
     "compare_files",
     "format_comparison",
     "load_tolerances",
-    "main",
     "output_columns",
     "plot_failures",
     "read_result",
@@ -65,15 +63,14 @@ __all__ = [
     "write_baselines",
 ]
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
+REPO_ROOT = Path(__file__).resolve().parents[2]
 BASELINE_DIR = REPO_ROOT / "tests" / "baselines"
-SCENARIO_DIR = REPO_ROOT / "ssp"
 TOLERANCES_NAME = "tolerances.json"
 BASELINE_GRID = 0.02  # s: 1501 rows per 30 s scenario; the loop's features last longer than 20 ms
 DIGITS = 9  # significant digits in baselines: rounding stays far below every tube (even quiet ones)
 
 
-class RegressionError(ValueError):
+class RegressionError(UsageError, ValueError):
     """An input of the comparison is unusable (unreadable file, no time column, bad tolerance)."""
 
 
@@ -174,29 +171,6 @@ def parse_tolerance(text: str, base: Tolerances) -> tuple[str, Tolerance]:
 
 
 # -- results and baselines ----------------------------------------------------------------------
-def read_result(path: str | os.PathLike) -> np.ndarray:
-    """Read a result CSV (``time`` first, one column per signal) with fmpy's reader; errors name the
-    file. Time must increase strictly."""
-    path = Path(path)
-    if not path.is_file():
-        raise RegressionError(f"{path}: no such file")
-    try:
-        data = read_csv(path)
-    except (OSError, ValueError, IndexError, UnicodeDecodeError) as exc:
-        raise RegressionError(f"{path}: not a result CSV ({exc})") from exc
-    names = data.dtype.names or ()
-    if "time" not in names:
-        raise RegressionError(f"{path}: no 'time' column (columns: {', '.join(names)})")
-    if len(data) < 2:
-        raise RegressionError(f"{path}: needs at least two rows (has {len(data)})")
-    bad = np.flatnonzero(np.diff(data["time"]) <= 0)
-    if len(bad):
-        i = int(bad[0]) + 1
-        raise RegressionError(f"{path}: column 'time' does not increase at line {i + 2} "
-                              f"(t = {float(data['time'][i])!r} after {float(data['time'][i - 1])!r})")
-    return data
-
-
 def resample(result: np.ndarray, grid: float, columns: Sequence[str] | None = None) -> np.ndarray:
     """The result on the grid ``t0 + k*grid`` (computed like the master's grid, so points shared
     with the result's own grid take its values exactly), keeping ``columns`` (default all)."""
@@ -431,36 +405,11 @@ def plot_failures(comparison: Comparison, folder: str | os.PathLike) -> list[Pat
 
 
 # -- scenarios and baselines ------------------------------------------------------------------------
-def build_scenarios(names: Iterable[str], dest: str | os.PathLike,
-                    sources: str | os.PathLike = SCENARIO_DIR) -> dict[str, Path]:
-    """Build the five FMUs into ``dest/fmus`` and pack ``sources/<name>/`` into ``dest/<name>.ssp``
-    (as ``orchestrate build`` does); returns name -> archive."""
-    from fmu_src.build import build_all
-
-    from .sspwriter import pack_ssp
-
-    dest, sources = Path(dest), Path(sources)
-    fmus = {p.name: p for p in build_all(dest / "fmus")}
-    archives = {}
-    for name in names:
-        folder = sources / name
-        if not (folder / "SystemStructure.ssd").is_file():
-            known = ", ".join(all_scenarios(sources))
-            raise RegressionError(f"{folder}: no SystemStructure.ssd (scenarios in {sources}: {known})")
-        archives[name] = pack_ssp(folder, fmus, dest / f"{name}.ssp")
-    return archives
-
-
 def output_columns(scenario: str | os.PathLike) -> list[str]:
     """Result columns of every component output (inputs are copies of outputs and are left out)."""
     with ExitStack() as stack:
         system = load(scenario, stack)
         return [f"{c.name}.{o}" for c in system.components.values() for o in c.outputs]
-
-
-def all_scenarios(sources: str | os.PathLike = SCENARIO_DIR) -> list[str]:
-    """Names of the scenario folders in ``sources``."""
-    return sorted(p.parent.name for p in Path(sources).glob("*/SystemStructure.ssd"))
 
 
 def write_baselines(names: Iterable[str] | None = None, dest: str | os.PathLike = BASELINE_DIR,
@@ -476,61 +425,3 @@ def write_baselines(names: Iterable[str] | None = None, dest: str | os.PathLike 
             written.append(write_baseline(resample(result, grid, output_columns(archive)),
                                           Path(dest) / f"{name}.csv"))
     return written
-
-
-# -- command line ---------------------------------------------------------------------------------------
-def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m orchestrator.regression",
-                                     description="Compare results with baselines (tubes); write baselines.")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    p = sub.add_parser("compare", help="compare a result CSV with a baseline CSV",
-                       description="Exit status: 0 pass, 1 regression, 2 usage or unreadable input.")
-    p.add_argument("result", type=Path, metavar="RESULT.csv")
-    p.add_argument("baseline", type=Path, metavar="BASELINE.csv")
-    p.add_argument("--tolerances", type=Path, metavar="FILE.json",
-                   help=f"tubes (default: {TOLERANCES_NAME} beside the baseline, else 1 %% of range)")
-    p.add_argument("--tol", action="append", default=[], metavar="SIGNAL=ATOL|KEY:VALUE,...",
-                   help="one signal's tube, e.g. plant.y=1e-3 or plant.y=atol:1e-3,quiet_atol:1e-6")
-    p.add_argument("--plot-dir", type=Path, metavar="DIR", help="write DIR/<signal>.png per failing signal")
-    p = sub.add_parser("baseline", help="run scenarios and (re)write their baselines")
-    p.add_argument("--scenario", action="append", default=[], metavar="NAME",
-                   help="scenario folder name in --sources (repeatable; default: all)")
-    p.add_argument("--sources", type=Path, default=SCENARIO_DIR, help="scenario sources (default: ssp/)")
-    p.add_argument("--dest", type=Path, default=BASELINE_DIR, help="baselines (default: tests/baselines/)")
-    p.add_argument("--grid", type=float, default=BASELINE_GRID, help=f"grid in s (default {BASELINE_GRID})")
-    return parser
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """``compare`` or ``baseline``; returns the exit status."""
-    parser = _parser()
-    args = parser.parse_args(argv)
-    try:
-        if args.command == "compare":
-            return _compare(args)
-        if args.grid <= 0:
-            parser.error("--grid must be positive")
-        for path in write_baselines(args.scenario, args.dest, args.sources, args.grid):
-            print(path)
-        return 0
-    except RegressionError as exc:
-        print(f"regression: error: {exc}", file=sys.stderr)
-        return 2
-
-
-def _compare(args: argparse.Namespace) -> int:
-    tolerances = load_tolerances(args.tolerances) if args.tolerances else None
-    if tolerances is None:
-        beside = args.baseline.parent / TOLERANCES_NAME
-        tolerances = load_tolerances(beside) if beside.is_file() else Tolerances()
-    overrides = dict(parse_tolerance(text, tolerances) for text in args.tol)
-    comparison = compare_files(args.result, args.baseline, tolerances.with_overrides(overrides))
-    print(format_comparison(comparison))
-    if args.plot_dir is not None:
-        for path in plot_failures(comparison, args.plot_dir):
-            print(path)
-    return 0 if comparison.passed else 1
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,0 +1,36 @@
+"""Reference trajectory yd(t) = A sin(omega t + phase) + offset and its derivatives (SPEC section 2)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from .checks import finite_problems
+
+__all__ = ["ReferenceParameters", "reference_problems", "reference_signal"]
+
+
+@dataclass(frozen=True)
+class ReferenceParameters:
+    """yd(t) = amplitude * sin(omega * t + phase) + offset."""
+
+    amplitude: float = 0.5
+    omega: float = 1.0
+    phase: float = 0.0
+    offset: float = 0.0
+
+
+def reference_signal(t: float, p: ReferenceParameters) -> tuple[float, float, float]:
+    """yd, yd' and yd'' at time t."""
+    angle = p.omega * t + p.phase
+    s, c = math.sin(angle), math.cos(angle)
+    return (
+        p.amplitude * s + p.offset,
+        p.amplitude * p.omega * c,
+        -p.amplitude * p.omega * p.omega * s,
+    )
+
+
+def reference_problems(p: ReferenceParameters) -> list[str]:
+    """Violated constraints of the reference parameters (empty if valid): all finite."""
+    return finite_problems(p, ("amplitude", "omega", "phase", "offset"))

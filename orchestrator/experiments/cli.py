@@ -1,0 +1,115 @@
+"""Subcommands of the paper's experiments: build, metrics, compare, baseline, report."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..cli import add_command
+from ..errors import ScenarioError, UsageError
+from ..results import read_result
+from . import regression, report
+from .metrics import format_table, tracking_metrics
+from .scenarios import SCENARIO_DIR, build_scenarios
+
+__all__ = ["register"]
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the experiments' subcommands to ``orchestrate``."""
+    p = add_command(sub, "build", _build, help="build the FMUs and pack the scenarios into .ssp archives")
+    p.add_argument("scenarios", nargs="*", metavar="NAME", help="scenarios to pack (default: all in ssp/)")
+    p.add_argument("--sources", type=Path, default=Path("ssp"), help="scenario sources (default: ssp/)")
+    p.add_argument("--dest", type=Path, default=Path("build"), help="output folder (default: build/)")
+
+    p = add_command(sub, "metrics", _metrics, help="tracking metrics of result files (SPEC section 4)")
+    p.add_argument("results", nargs="+", type=Path, metavar="RESULT.csv")
+    p.add_argument("--band", type=float, default=0.05, help="settling band on |y - yd| (default 0.05)")
+
+    p = add_command(sub, "compare", _compare, help="compare a result CSV with a baseline (regression tubes)",
+                    description="Exit status: 0 pass, 1 regression, 2 usage or unreadable input.")
+    p.add_argument("result", type=Path, metavar="RESULT.csv")
+    p.add_argument("baseline", type=Path, metavar="BASELINE.csv")
+    p.add_argument("--tolerances", type=Path, metavar="FILE.json",
+                   help=f"tubes (default: {regression.TOLERANCES_NAME} beside the baseline, "
+                        "else 1 %% of range)")
+    p.add_argument("--tol", action="append", default=[], metavar="SIGNAL=ATOL|KEY:VALUE,...",
+                   help="one signal's tube, e.g. plant.y=1e-3 or plant.y=atol:1e-3,quiet_atol:1e-6")
+    p.add_argument("--plot-dir", type=Path, metavar="DIR", help="write DIR/<signal>.png per failing signal")
+
+    p = add_command(sub, "baseline", _baseline, help="run the scenarios and rewrite the regression baselines")
+    p.add_argument("--scenario", action="append", default=[], metavar="NAME",
+                   help="scenario folder name in --sources (repeatable; default: all)")
+    p.add_argument("--sources", type=Path, default=SCENARIO_DIR, help="scenario sources (default: ssp/)")
+    p.add_argument("--dest", type=Path, default=regression.BASELINE_DIR,
+                   help="baselines (default: tests/baselines/)")
+    p.add_argument("--grid", type=float, default=regression.BASELINE_GRID,
+                   help=f"grid in s (default {regression.BASELINE_GRID})")
+
+    p = add_command(sub, "report", _report, help="the paper's examples by co-simulation, as a report",
+                    description=report.__doc__.split("\n\n")[0])
+    p.add_argument("--out", type=Path, default=report.DEFAULT_OUT,
+                   help=f"output folder ({report.DEFAULT_OUT}/)")
+    p.add_argument("--stop-time", type=float, metavar="T", help="horizon of the four runs (the SSD's)")
+    p.add_argument("--study-horizon", type=float, default=report.STUDY_HORIZON, metavar="T",
+                   help=f"horizon of the settling study (default {report.STUDY_HORIZON:g} s)")
+    p.add_argument("--study-values", type=float, nargs="+", default=list(report.STUDY_VALUES), metavar="V",
+                   help="initial x1(0) and x2(0) values of the study (default: -2 -1 0 1 2)")
+    p.add_argument("--processes", type=int, default=2, help="worker processes (default 2)")
+
+
+def _build(args: argparse.Namespace) -> int:
+    if not args.scenarios and not list(args.sources.glob("*/SystemStructure.ssd")):
+        raise UsageError(f"no scenarios found in {args.sources}/")
+    for target in build_scenarios(args.scenarios, args.dest, args.sources).values():
+        print(target)
+    return 0
+
+
+def _metrics(args: argparse.Namespace) -> int:
+    rows = []
+    for path in args.results:
+        data = read_result(path)
+        names = data.dtype.names
+        missing = [c for c in ("plant.y", "reference.yd") if c not in names]
+        if missing:
+            raise ScenarioError(f"{path}: no column {', '.join(missing)} (needs plant.y and reference.yd)")
+        try:
+            m = tracking_metrics(data["time"], data["plant.y"], data["reference.yd"],
+                                 data["controller.v"] if "controller.v" in names else None,
+                                 data["actuator.uf"] if "actuator.uf" in names else None, band=args.band)
+        except ValueError as exc:
+            raise ScenarioError(f"{path}: {exc}") from exc
+        rows.append((path.stem, m))
+    print(format_table(rows))
+    return 0
+
+
+def _compare(args: argparse.Namespace) -> int:
+    tolerances = regression.load_tolerances(args.tolerances) if args.tolerances else None
+    if tolerances is None:
+        beside = args.baseline.parent / regression.TOLERANCES_NAME
+        tolerances = regression.load_tolerances(beside) if beside.is_file() else regression.Tolerances()
+    overrides = dict(regression.parse_tolerance(text, tolerances) for text in args.tol)
+    comparison = regression.compare_files(args.result, args.baseline, tolerances.with_overrides(overrides))
+    print(regression.format_comparison(comparison))
+    if args.plot_dir is not None:
+        for path in regression.plot_failures(comparison, args.plot_dir):
+            print(path)
+    return 0 if comparison.passed else 1
+
+
+def _baseline(args: argparse.Namespace) -> int:
+    if args.grid <= 0:
+        raise UsageError("--grid must be positive")
+    for path in regression.write_baselines(args.scenario, args.dest, args.sources, args.grid):
+        print(path)
+    return 0
+
+
+def _report(args: argparse.Namespace) -> int:
+    if args.processes < 1:
+        raise UsageError("--processes must be at least 1")
+    print(report.write_report(args.out, args.stop_time, args.study_values, args.study_horizon,
+                              args.processes))
+    return 0
