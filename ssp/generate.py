@@ -43,9 +43,9 @@ def parameters(example: Example, mode: Mode, t_fault: float | None) -> dict[str,
             "plant": physical | initial}
 
 
-def scenario(name: str, example: Example, mode: Mode, description: str,
+def scenario(dest: Path, name: str, example: Example, mode: Mode, description: str,
              t_fault: float | None = None) -> None:
-    """Write one scenario folder."""
+    """Write the scenario folder ``dest/name``."""
     values = parameters(example, mode, t_fault)
     components = [
         ComponentSpec("reference", "Reference.fmu", REFERENCE, values["reference"]),
@@ -53,20 +53,20 @@ def scenario(name: str, example: Example, mode: Mode, description: str,
         ComponentSpec("actuator", "Actuator.fmu", ACTUATOR, values["actuator"]),
         ComponentSpec("plant", f"{example.plant_fmu}.fmu", PLANT, values["plant"]),
     ]
-    write_ssd(HERE / name, name, components, CONNECTIONS, 0.0, example.stop_time, 1e-3, description)
+    write_ssd(dest / name, name, components, CONNECTIONS, 0.0, example.stop_time, 1e-3, description)
 
 
-def main() -> None:
-    """Write all scenarios of SPEC section 7."""
-    scenario("example1", EXAMPLE1, Mode.FIXED_TIME,
+def main(dest: Path = HERE) -> None:
+    """Write all scenarios of SPEC section 7 into ``dest`` (default: beside this script)."""
+    scenario(dest, "example1", EXAMPLE1, Mode.FIXED_TIME,
              "Example 1 (eq. 85), fixed-time controller, actuator fault from t = 10 s")
-    scenario("example1_finite_time", EXAMPLE1, Mode.FINITE_TIME,
+    scenario(dest, "example1_finite_time", EXAMPLE1, Mode.FINITE_TIME,
              "Example 1, finite-time baseline controller [36], actuator fault from t = 10 s")
-    scenario("example1_no_fault", EXAMPLE1, Mode.FIXED_TIME,
+    scenario(dest, "example1_no_fault", EXAMPLE1, Mode.FIXED_TIME,
              "Example 1, fixed-time controller, fault never occurs (t_fault = 1e9 s)", t_fault=1e9)
-    scenario("pendulum", EXAMPLE2, Mode.FIXED_TIME,
+    scenario(dest, "pendulum", EXAMPLE2, Mode.FIXED_TIME,
              "Example 2 pendulum (eq. 99), fixed-time controller, actuator fault from t = 5 s")
-    scenario("pendulum_finite_time", EXAMPLE2, Mode.FINITE_TIME,
+    scenario(dest, "pendulum_finite_time", EXAMPLE2, Mode.FINITE_TIME,
              "Example 2 pendulum, finite-time baseline controller [36], actuator fault from t = 5 s")
 
 
