@@ -59,7 +59,7 @@ def _loop(scenario: Path, stop: float, master: str, csv: Path | None,
         return call
 
     with ExitStack() as stack:
-        system = orchestrator.load(scenario, stack)
+        system = stack.enter_context(orchestrator.open_system(scenario))
         experiment = system.structure.experiment
         m = MASTERS[master](system, experiment.start_time, stop, experiment.step or 1e-3, csv)
         m.setup(stack)

@@ -7,35 +7,38 @@ components, connections, propagation order) -> master (FMI stepping) -> results 
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterable, Mapping
-from contextlib import ExitStack
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 import numpy as np
 
-from .errors import ScenarioError, SimulationError
+from .errors import OrchestratorError, ScenarioError, SimulationError, UsageError
 from .master import MASTERS
 from .ssp import SSD_NAME, open_scenario, read_parameter_set, read_scenario
 from .system import PortRef, System
 
-__all__ = ["MASTERS", "PortRef", "ScenarioError", "SimulationError", "load", "run"]
+__all__ = ["MASTERS", "OrchestratorError", "PortRef", "ScenarioError", "SimulationError", "UsageError",
+           "open_system", "run"]
 
 DEFAULT_STEP = 1e-3
 
 
-def load(scenario: str | os.PathLike, stack: ExitStack,
-         parameter_sets: Iterable[str | os.PathLike] = (),
-         overrides: Mapping[str, object] | None = None) -> System:
-    """Open, read and validate a scenario (an archive is unpacked until ``stack`` closes)."""
-    folder = open_scenario(scenario, stack)
-    path = Path(scenario)
-    label = f"{path}:{SSD_NAME}" if path.is_file() else str(folder / SSD_NAME)
-    structure = read_scenario(folder, label)
-    sets = [read_parameter_set(p) for p in parameter_sets]
-    return System(structure, sets, overrides)
+@contextmanager
+def open_system(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.PathLike] = (),
+                overrides: Mapping[str, object] | None = None) -> Iterator[System]:
+    """Open, read and validate a scenario (``.ssp`` archive or folder); an archive stays unpacked
+    until the ``with`` block ends. Raises ScenarioError listing every problem found."""
+    with ExitStack() as stack:
+        folder = open_scenario(scenario, stack)
+        path = Path(scenario)
+        label = f"{path}:{SSD_NAME}" if path.is_file() else str(folder / SSD_NAME)
+        structure = read_scenario(folder, label)
+        sets = [read_parameter_set(p) for p in parameter_sets]
+        yield System(structure, sets, overrides)
 
 
-def run(scenario: str | os.PathLike, stop_time: float | None = None, step: float | None = None,
+def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: float | None = None,
         parameter_sets: Iterable[str | os.PathLike] = (), overrides: Mapping[str, object] | None = None,
         master: str = "gauss-seidel", output: str | os.PathLike | None = None,
         progress: Callable[[int, int], None] | None = None) -> np.ndarray:
@@ -50,8 +53,7 @@ def run(scenario: str | os.PathLike, stop_time: float | None = None, step: float
     """
     if master not in MASTERS:
         raise ValueError(f"unknown master '{master}' (choose from {', '.join(MASTERS)})")
-    with ExitStack() as stack:
-        system = load(scenario, stack, parameter_sets, overrides)
+    with open_system(scenario, parameter_sets=parameter_sets, overrides=overrides) as system:
         experiment = system.structure.experiment
         stop = stop_time if stop_time is not None else experiment.stop_time
         if stop is None:

@@ -172,8 +172,8 @@ def _run(args: argparse.Namespace) -> int:
     if args.verbose:
         logging.getLogger().setLevel(logging.INFO)
     try:
-        result = run(scenario, args.stop_time, args.step, args.parameter_set, overrides, args.master,
-                     output, progress)
+        result = run(scenario, stop_time=args.stop_time, step=args.step, parameter_sets=args.parameter_set,
+                     overrides=overrides, master=args.master, output=output, progress=progress)
     except SimulationError as exc:
         rows = len(getattr(exc, "result", ()))
         detail = f" ({messages.last})" if messages.last and "(" not in str(exc) else ""

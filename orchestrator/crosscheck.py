@@ -12,7 +12,8 @@ from ctypes import POINTER, c_double, c_int, c_int64, c_size_t, c_uint32
 
 import numpy as np
 
-from .master import NS_PER_S, interpreter_guard
+from .fmi import interpreter_guard
+from .master import NS_PER_S
 from .results import structured
 
 __all__ = ["LibcosimError", "run_libcosim"]

@@ -30,14 +30,13 @@ import math
 import os
 import tempfile
 from collections.abc import Iterable, Mapping, Sequence
-from contextlib import ExitStack
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 from fmpy.util import validate_signal
 
-from .. import load, run
+from .. import open_system, run
 from ..errors import UsageError
 from ..master import time_grid
 from ..results import read_result
@@ -407,8 +406,7 @@ def plot_failures(comparison: Comparison, folder: str | os.PathLike) -> list[Pat
 # -- scenarios and baselines ------------------------------------------------------------------------
 def output_columns(scenario: str | os.PathLike) -> list[str]:
     """Result columns of every component output (inputs are copies of outputs and are left out)."""
-    with ExitStack() as stack:
-        system = load(scenario, stack)
+    with open_system(scenario) as system:
         return [f"{c.name}.{o}" for c in system.components.values() for o in c.outputs]
 
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from controller.params import Mode
 
-from .. import load, run
+from .. import open_system, run
 from ..errors import SimulationError
 from .metrics import TrackingMetrics, format_table, tracking_metrics
 from .scenarios import build_scenarios
@@ -150,10 +150,7 @@ def _figures(results: dict[tuple[int, str], np.ndarray], out: Path) -> dict[int,
 # -- the report -------------------------------------------------------------------------------------
 def _experiment(archive: Path) -> tuple[float, float, dict[str, object]]:
     """Stop time, step and the controller's alpha, beta of a scenario, as the orchestrator reads them."""
-    from contextlib import ExitStack
-
-    with ExitStack() as stack:
-        system = load(archive, stack)
+    with open_system(archive) as system:
         ex = system.structure.experiment
         controller = system.components["controller"]
         variables = controller.variables

@@ -5,12 +5,11 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterable
-from contextlib import ExitStack
 from pathlib import Path
 
 from lxml import etree
 
-from .. import load
+from .. import open_system
 from ..errors import ScenarioError
 from ..ssp import NS, SSD_NAME
 from ..sspwriter import pack_ssp
@@ -56,7 +55,7 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
                                     f"fmu_src.build (built: {', '.join(sorted(fmus))})")
             needed[component] = fmus[component]
         target = pack_ssp(folder, needed, dest / "ssp" / f"{name}.ssp")
-        with ExitStack() as stack:
-            load(target, stack)  # validate the packed archive against the FMUs
+        with open_system(target):  # validate the packed archive against the FMUs
+            pass
         archives[name] = target
     return archives
