@@ -1,10 +1,17 @@
-"""Read an SSP scenario (a ``.ssp`` archive or a folder holding ``SystemStructure.ssd``).
+"""SSP 1.0 scenarios as one object model: frozen dataclasses read from and written to SSD/SSV
+files (a ``.ssp`` archive or a folder holding ``SystemStructure.ssd``).
 
-The archive is unpacked safely (no member may escape the folder), every XML file is parsed and
-validated against the SSP 1.0 schemas that fmpy ships, and the SSD is read into plain frozen
+Reading: the archive is unpacked safely (no member may escape the folder), every XML file is
+parsed and validated against the SSP 1.0 schemas that fmpy ships, and the SSD is read into the
 dataclasses. fmpy's reader is used for parameter sets; the parts that ``fmpy.ssp.ssd.read_ssd``
 drops (connector types, ``ssc:LinearTransformation``, ``DefaultExperiment``, the tool annotations
 that hold the communication step) are read here. Every problem names the file it is in.
+
+Writing (lxml) the way every tool reads it (SPEC section 7): literal ``ssd:``/``ssc:``/``ssv:``
+prefixes, ``version="1.0"``, every connector declared with its causality and type, parameter
+bindings on components (one ``.ssv`` each: libcosim applies only the first binding of a
+component), the communication step both where libcosim reads it (``osp:FixedStepAlgorithm
+baseStepSize``) and where OMSimulator does (``oms:FixedStepMaster stepSize``).
 """
 
 from __future__ import annotations
@@ -15,6 +22,7 @@ import shutil
 import stat
 import tempfile
 import zipfile
+from collections.abc import Iterable, Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
@@ -26,16 +34,22 @@ from .errors import ScenarioError
 
 __all__ = [
     "NS",
+    "SSD_NAME",
     "Component",
     "Connection",
     "Connector",
     "Experiment",
     "Parameter",
     "ParameterSet",
+    "PortRef",
     "SystemStructure",
+    "component",
     "open_scenario",
+    "pack_ssp",
     "read_parameter_set",
     "read_scenario",
+    "write_ssd",
+    "write_ssv",
 ]
 
 SSD_NAME = "SystemStructure.ssd"
@@ -50,6 +64,25 @@ NS = {
 OSP_ANNOTATION = "com.opensimulationplatform"
 OMS_ANNOTATION = "org.openmodelica"
 TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration", "Binary")
+
+
+@dataclass(frozen=True, order=True)
+class PortRef:
+    """A variable of a component; ``str()`` is ``controller.v``, the name used everywhere."""
+
+    component: str
+    connector: str
+
+    def __str__(self) -> str:
+        return f"{self.component}.{self.connector}"
+
+    @classmethod
+    def parse(cls, text: str) -> PortRef:
+        """``"controller.k1"`` -> PortRef("controller", "k1"); the variable may contain dots."""
+        component, sep, connector = text.partition(".")
+        if not sep or not component or not connector:
+            raise ValueError(f"'{text}' is not of the form COMPONENT.VARIABLE")
+        return cls(component, connector)
 
 
 @dataclass(frozen=True)
@@ -72,35 +105,51 @@ class Parameter:
 
 @dataclass(frozen=True)
 class ParameterSet:
-    """Parameters in the order written; ``origin`` names the file (and element) for messages."""
+    """Parameters in the order written; ``origin`` names the file (relative to the SSD when bound by
+    a component) and is how messages name it."""
 
     origin: str
     parameters: tuple[Parameter, ...]
 
+    @classmethod
+    def of(cls, origin: str, values: Mapping[str, float | int | bool | str]) -> ParameterSet:
+        """A parameter set from Python values, typed Boolean, Integer, Real or String by value."""
+        return cls(origin, tuple(Parameter(name, _type_of(v), v) for name, v in values.items()))
+
 
 @dataclass(frozen=True)
 class Component:
-    """An FMU instance of the system, with its parameter sets in the order they apply."""
+    """An FMU instance of the system, with its parameter sets in the order they apply. ``source``
+    is the FMU file: as written in the SSD (``resources/X.fmu``) for writing, resolved when read."""
 
     name: str
     source: Path
     connectors: tuple[Connector, ...]
-    parameter_sets: tuple[ParameterSet, ...]
+    parameter_sets: tuple[ParameterSet, ...] = ()
 
 
 @dataclass(frozen=True)
 class Connection:
-    """``start`` output -> ``end`` input, with the value passed as ``factor * value + offset``."""
+    """``start`` output -> ``end`` input, with the value passed as ``factor * value + offset``
+    (``ssc:LinearTransformation``; the identity when there is none)."""
 
-    start_element: str
-    start_connector: str
-    end_element: str
-    end_connector: str
+    start: PortRef
+    end: PortRef
     factor: float = 1.0
     offset: float = 0.0
 
+    @classmethod
+    def between(cls, start: str, end: str, factor: float = 1.0, offset: float = 0.0) -> Connection:
+        """``Connection.between("plant.x1", "controller.x1")``."""
+        return cls(PortRef.parse(start), PortRef.parse(end), factor, offset)
+
+    @property
+    def transformed(self) -> bool:
+        """True when the value is not passed unchanged."""
+        return not (self.factor == 1.0 and self.offset == 0.0)
+
     def __str__(self) -> str:
-        return f"{self.start_element}.{self.start_connector} -> {self.end_element}.{self.end_connector}"
+        return f"{self.start} -> {self.end}"
 
 
 @dataclass(frozen=True)
@@ -114,13 +163,15 @@ class Experiment:
 
 @dataclass(frozen=True)
 class SystemStructure:
-    """Everything the SSD says, with file references resolved to paths that exist."""
+    """Everything the SSD says. When read, every file reference is resolved to a path that exists
+    and ``ssd_file`` is how messages name the SSD."""
 
-    ssd_file: str
     name: str
     components: tuple[Component, ...]
     connections: tuple[Connection, ...]
     experiment: Experiment
+    description: str = ""
+    ssd_file: str = ""
 
 
 def open_scenario(scenario: str | os.PathLike, stack: ExitStack) -> Path:
@@ -256,13 +307,13 @@ def read_scenario(folder: Path, label: str | None = None) -> SystemStructure:
         if transformation is not None:
             factor = float(transformation.get("factor", "1"))
             offset = float(transformation.get("offset", "0"))
-        connections.append(Connection(element.get("startElement"), element.get("startConnector"),
-                                      element.get("endElement"), element.get("endConnector"),
+        connections.append(Connection(PortRef(element.get("startElement"), element.get("startConnector")),
+                                      PortRef(element.get("endElement"), element.get("endConnector")),
                                       1.0 if factor is None else factor, 0.0 if offset is None else offset))
     if problems:
         raise ScenarioError(problems)
-    return SystemStructure(label, system.get("name"), tuple(components), tuple(connections),
-                           _read_experiment(root, system))
+    return SystemStructure(system.get("name"), tuple(components), tuple(connections),
+                           _read_experiment(root, system), system.get("description", ""), label)
 
 
 def _read_component(element: etree._Element, folder: Path, label: str) -> Component:
@@ -314,3 +365,118 @@ def _read_experiment(root: etree._Element, system: etree._Element) -> Experiment
         if oms is not None:
             step = float(oms.get("stepSize"))
     return Experiment(start, stop, step)
+
+
+# -- writing ------------------------------------------------------------------------------------------
+def _type_of(value: float | int | bool | str) -> str:
+    if isinstance(value, bool):
+        return "Boolean"
+    if isinstance(value, int):
+        return "Integer"
+    return "String" if isinstance(value, str) else "Real"
+
+
+def _literal(value: float | int | bool | str) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return value if isinstance(value, str) else repr(value)
+
+
+def _element(parent: etree._Element | None, tag: str, nsmap: Mapping[str, str] | None = None,
+             **attributes: str) -> etree._Element:
+    """``prefix:Name`` element with attributes in the order given, appended to ``parent``."""
+    prefix, name = tag.split(":")
+    qualified = f"{{{NS[prefix]}}}{name}"
+    element = etree.Element(qualified, nsmap=nsmap) if parent is None else etree.SubElement(parent, qualified)
+    for key, value in attributes.items():
+        element.set(key, value)
+    return element
+
+
+def _write(root: etree._Element, path: Path) -> None:
+    etree.ElementTree(root).write(str(path), pretty_print=True, xml_declaration=True, encoding="UTF-8")
+
+
+def component(name: str, fmu: str, connectors: Iterable[tuple[str, str, str]],
+              parameters: Mapping[str, float | int | bool | str] | None = None) -> Component:
+    """A component to write: FMU file name under ``resources/``, connectors ``(name, kind, type)``
+    and the parameter values bound from ``<name>.ssv`` (none: no binding)."""
+    sets = (ParameterSet.of(f"{name}.ssv", parameters),) if parameters else ()
+    return Component(name, Path("resources") / fmu, tuple(Connector(*c) for c in connectors), sets)
+
+
+def write_ssv(path: str | os.PathLike, parameter_set: ParameterSet, name: str | None = None) -> Path:
+    """Write a parameter set (names as given, no prefix); ``name`` defaults to the file's stem."""
+    path = Path(path)
+    root = _element(None, "ssv:ParameterSet", {"ssv": NS["ssv"]}, version="1.0", name=name or path.stem)
+    parameters = _element(root, "ssv:Parameters")
+    for p in parameter_set.parameters:
+        _element(_element(parameters, "ssv:Parameter", name=p.name), f"ssv:{p.type}", value=_literal(p.value))
+    _write(root, path)
+    return path
+
+
+def write_ssd(folder: str | os.PathLike, structure: SystemStructure) -> Path:
+    """Write ``folder/SystemStructure.ssd`` and the ``.ssv`` file of every parameter set bound by a
+    component (named by its ``origin``); returns the SSD's path."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    nsmap = {prefix: NS[prefix] for prefix in ("ssd", "ssc", "ssv", "osp", "oms")}
+    root = _element(None, "ssd:SystemStructureDescription", nsmap, version="1.0", name=structure.name)
+    system = _element(root, "ssd:System", name=structure.name, description=structure.description)
+    elements = _element(system, "ssd:Elements")
+    for c in structure.components:
+        source = c.source.relative_to(folder) if c.source.is_absolute() else c.source
+        element = _element(elements, "ssd:Component", name=c.name, type="application/x-fmu-sharedlibrary",
+                           source=source.as_posix())
+        connectors = _element(element, "ssd:Connectors")
+        for k in c.connectors:
+            connector = _element(connectors, "ssd:Connector", name=k.name, kind=k.kind)
+            if k.type is not None:
+                _element(connector, f"ssc:{k.type}")
+        if c.parameter_sets:
+            bindings = _element(element, "ssd:ParameterBindings")
+            for ps in c.parameter_sets:
+                write_ssv(folder / ps.origin, ps, c.name)
+                _element(bindings, "ssd:ParameterBinding", source=ps.origin)
+    connections = _element(system, "ssd:Connections")
+    for k in structure.connections:
+        connection = _element(connections, "ssd:Connection", startElement=k.start.component,
+                              startConnector=k.start.connector, endElement=k.end.component,
+                              endConnector=k.end.connector)
+        if k.transformed:
+            _element(connection, "ssc:LinearTransformation", factor=repr(k.factor), offset=repr(k.offset))
+    ex = structure.experiment
+    if ex.step is not None:
+        annotation = _element(_element(system, "ssd:Annotations"), "ssc:Annotation", type=OMS_ANNOTATION)
+        information = _element(_element(annotation, "oms:Annotations"), "oms:SimulationInformation")
+        _element(information, "oms:FixedStepMaster", description="oms-ma", stepSize=repr(ex.step))
+    times = {"startTime": repr(ex.start_time)}
+    if ex.stop_time is not None:
+        times["stopTime"] = repr(ex.stop_time)
+    experiment = _element(root, "ssd:DefaultExperiment", **times)
+    if ex.step is not None:
+        annotation = _element(_element(experiment, "ssd:Annotations"), "ssc:Annotation", type=OSP_ANNOTATION)
+        _element(_element(annotation, "osp:Algorithm"), "osp:FixedStepAlgorithm", baseStepSize=repr(ex.step),
+                 numWorkerThreads="0")
+    path = folder / SSD_NAME
+    _write(root, path)
+    return path
+
+
+def pack_ssp(folder: str | os.PathLike, fmus: Mapping[str, str | os.PathLike],
+             dest: str | os.PathLike) -> Path:
+    """Zip ``folder`` (SSD at the root, .ssv files beside it) with ``fmus`` (archive name -> file)
+    placed under ``resources/``; written to a temporary name first so a failed build leaves no
+    half-written archive."""
+    folder, dest = Path(folder), Path(dest)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    partial = dest.with_name(dest.name + ".part")
+    with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zf:
+        for path in sorted(folder.rglob("*")):
+            if path.is_file() and not path.name.startswith("."):
+                zf.write(path, path.relative_to(folder).as_posix())
+        for name, path in sorted(fmus.items()):
+            zf.write(path, f"resources/{name}")
+    partial.replace(dest)
+    return dest

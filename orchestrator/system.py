@@ -19,42 +19,13 @@ from fmpy.model_description import ModelDescription
 from fmpy.validation import validate_model_description
 
 from .errors import ScenarioError
-from .ssp import Parameter, ParameterSet, SystemStructure
+from .ssp import Connection, Parameter, ParameterSet, PortRef, SystemStructure
 
-__all__ = ["ComponentModel", "Link", "Operation", "PortRef", "System"]
+__all__ = ["ComponentModel", "Operation", "PortRef", "System"]
 
 FMU_TYPES = {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean", "String": "String",
              "Enumeration": "Enumeration"}
 SETTABLE = ("parameter", "input")
-
-
-@dataclass(frozen=True, order=True)
-class PortRef:
-    """A variable of a component; ``str()`` is ``controller.v``, the name used everywhere."""
-
-    component: str
-    connector: str
-
-    def __str__(self) -> str:
-        return f"{self.component}.{self.connector}"
-
-    @classmethod
-    def parse(cls, text: str) -> PortRef:
-        """``"controller.k1"`` -> PortRef("controller", "k1"); the variable may contain dots."""
-        component, sep, connector = text.partition(".")
-        if not sep or not component or not connector:
-            raise ValueError(f"'{text}' is not of the form COMPONENT.VARIABLE")
-        return cls(component, connector)
-
-
-@dataclass(frozen=True)
-class Link:
-    """A connection as the master uses it: ``end = factor * start + offset``."""
-
-    start: PortRef
-    end: PortRef
-    factor: float = 1.0
-    offset: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -121,7 +92,7 @@ class System:
                 problems.append(f"{self.ssd}: component '{c.name}': FMU is not a Co-Simulation FMU")
                 continue
             self.components[c.name] = self._component(c, md, problems)
-        self.links: dict[PortRef, Link] = {}
+        self.links: dict[PortRef, Connection] = {}
         self._check_connections(problems)
         for ps in structure_sets(structure):
             self._apply(ps[0], ps[1], problems)
@@ -164,8 +135,7 @@ class System:
     def _check_connections(self, problems: list[str]) -> None:
         declared = {c.name: {k.name: k for k in c.connectors} for c in self.structure.components}
         for con in self.structure.connections:
-            start = PortRef(con.start_element, con.start_connector)
-            end = PortRef(con.end_element, con.end_connector)
+            start, end = con.start, con.end
             where = f"{self.ssd}: connection {con}"
             bad = False
             for port, kind in ((start, "output"), (end, "input")):
@@ -191,7 +161,7 @@ class System:
             elif end in self.links:
                 problems.append(f"{where}: input {end} is already connected to {self.links[end].start}")
             else:
-                self.links[end] = Link(start, end, con.factor, con.offset)
+                self.links[end] = con
 
     def _apply(self, component: str, ps: ParameterSet, problems: list[str]) -> None:
         for p in ps.parameters:

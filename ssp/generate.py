@@ -13,7 +13,7 @@ from pathlib import Path
 
 from controller.params import Mode
 from fmu_src.models.examples import EXAMPLE1, EXAMPLE2, Example
-from orchestrator.sspwriter import ComponentSpec, ConnectionSpec, write_ssd
+from orchestrator.ssp import Connection, Experiment, SystemStructure, component, write_ssd
 
 HERE = Path(__file__).resolve().parent
 
@@ -24,10 +24,10 @@ ACTUATOR = [("v", "input", "Real"), ("x1", "input", "Real"), ("x2", "input", "Re
             ("uf", "output", "Real"), ("u_dz", "output", "Real")]
 PLANT = [("uf", "input", "Real")] + [(n, "output", "Real") for n in ("x1", "x2", "z", "y")]
 
-CONNECTIONS = [ConnectionSpec(f"reference.{s}", f"controller.{s}") for s in ("yd", "yd_dot", "yd_ddot")] + [
-    ConnectionSpec("plant.x1", "controller.x1"), ConnectionSpec("plant.x2", "controller.x2"),
-    ConnectionSpec("plant.x1", "actuator.x1"), ConnectionSpec("plant.x2", "actuator.x2"),
-    ConnectionSpec("controller.v", "actuator.v"), ConnectionSpec("actuator.uf", "plant.uf")]
+CONNECTIONS = tuple(Connection.between(start, end) for start, end in [
+    *((f"reference.{s}", f"controller.{s}") for s in ("yd", "yd_dot", "yd_ddot")),
+    ("plant.x1", "controller.x1"), ("plant.x2", "controller.x2"), ("plant.x1", "actuator.x1"),
+    ("plant.x2", "actuator.x2"), ("controller.v", "actuator.v"), ("actuator.uf", "plant.uf")])
 GAINS = ("k", "q", "a", "kappa", "rho", "rho_bar")  # per backstepping step: FMU parameters k1, k2, ...
 
 
@@ -47,13 +47,14 @@ def scenario(dest: Path, name: str, example: Example, mode: Mode, description: s
              t_fault: float | None = None) -> None:
     """Write the scenario folder ``dest/name``."""
     values = parameters(example, mode, t_fault)
-    components = [
-        ComponentSpec("reference", "Reference.fmu", REFERENCE, values["reference"]),
-        ComponentSpec("controller", "FixedTimeController.fmu", CONTROLLER, values["controller"]),
-        ComponentSpec("actuator", "Actuator.fmu", ACTUATOR, values["actuator"]),
-        ComponentSpec("plant", f"{example.plant_fmu}.fmu", PLANT, values["plant"]),
-    ]
-    write_ssd(dest / name, name, components, CONNECTIONS, 0.0, example.stop_time, 1e-3, description)
+    components = (
+        component("reference", "Reference.fmu", REFERENCE, values["reference"]),
+        component("controller", "FixedTimeController.fmu", CONTROLLER, values["controller"]),
+        component("actuator", "Actuator.fmu", ACTUATOR, values["actuator"]),
+        component("plant", f"{example.plant_fmu}.fmu", PLANT, values["plant"]),
+    )
+    experiment = Experiment(0.0, example.stop_time, 1e-3)
+    write_ssd(dest / name, SystemStructure(name, components, CONNECTIONS, experiment, description))
 
 
 def main(dest: Path = HERE) -> None:

@@ -8,7 +8,7 @@ import sys
 import zipfile
 from pathlib import Path
 
-from orchestrator.sspwriter import ComponentSpec, ConnectionSpec, pack_ssp, write_ssd
+from orchestrator.ssp import Connection, Experiment, SystemStructure, component, pack_ssp, write_ssd
 
 FMU_SCRIPTS = Path(__file__).parent / "fmus"
 PYTHONFMU = Path(sys.executable).with_name("pythonfmu")
@@ -45,15 +45,16 @@ def loop_scenario(folder: Path, fmus: dict[str, Path], gain: float = -2.0, x0: f
 
     Returns the packed .ssp (or the folder when ``pack`` is False; the FMUs are then copied in).
     """
-    components = [
-        ComponentSpec("source", "Source.fmu", [("y", "output", "Real")], {"amplitude": 2.0, "omega": 3.0}),
-        ComponentSpec("gain", "Gain.fmu", [("u", "input", "Real"), ("y", "output", "Real")], {"k": gain}),
-        ComponentSpec("integrator", "Integrator.fmu", [("u", "input", "Real"), ("x", "output", "Real")],
-                      {"x0": x0, "fail_at": fail_at}),
-    ]
-    connections = [ConnectionSpec("integrator.x", "gain.u"),
-                   ConnectionSpec("gain.y", "integrator.u", factor, offset)]
-    write_ssd(folder, "loop", components, connections, 0.0, stop, step)
+    components = (
+        component("source", "Source.fmu", [("y", "output", "Real")], {"amplitude": 2.0, "omega": 3.0}),
+        component("gain", "Gain.fmu", [("u", "input", "Real"), ("y", "output", "Real")], {"k": gain}),
+        component("integrator", "Integrator.fmu", [("u", "input", "Real"), ("x", "output", "Real")],
+                  {"x0": x0, "fail_at": fail_at}),
+    )
+    connections = (Connection.between("integrator.x", "gain.u"),
+                   Connection.between("gain.y", "integrator.u", 1.0 if factor is None else factor,
+                                      0.0 if offset is None else offset))
+    write_ssd(folder, SystemStructure("loop", components, connections, Experiment(0.0, stop, step)))
     files = {f"{n}.fmu": fmus[n] for n in ("Source", "Gain", "Integrator")}
     if not pack:
         (folder / "resources").mkdir(exist_ok=True)

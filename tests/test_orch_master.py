@@ -23,7 +23,7 @@ from orchestrator import SimulationError
 from orchestrator.cli import main
 from orchestrator.crosscheck import run_libcosim
 from orchestrator.master import time_grid
-from orchestrator.sspwriter import write_ssv
+from orchestrator.ssp import ParameterSet, write_ssv
 
 H, K, X0 = 0.01, -2.0, 1.0
 
@@ -96,7 +96,7 @@ def test_offset_on_connection_closed_form(fmus, tmp_path):
 
 def test_parameter_set_and_set_override(loop, tmp_path):
     ssv = tmp_path / "override.ssv"
-    write_ssv(ssv, "override", {"gain.k": -3.0, "integrator.x0": 2.0})
+    write_ssv(ssv, ParameterSet.of("override.ssv", {"gain.k": -3.0, "integrator.x0": 2.0}))
     r = orchestrator.run(loop, parameter_sets=[ssv])
     k = np.arange(len(r))
     np.testing.assert_allclose(r["integrator.x"], 2.0 * (1 - 3.0 * H) ** k, rtol=1e-13)

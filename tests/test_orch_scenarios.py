@@ -51,7 +51,7 @@ def test_libcosim_honours_parameter_sets_and_step(built, tmp_path):
     (in both tool annotations): libcosim and we both follow it."""
     import shutil
 
-    from orchestrator.sspwriter import pack_ssp
+    from orchestrator.ssp import pack_ssp
 
     folder = tmp_path / "variant"
     shutil.copytree(REPO / "ssp" / "example1", folder)
@@ -137,7 +137,7 @@ def test_pendulum_runs_in_libcosim_at_half_a_millisecond(built, tmp_path):
     start, 9.4e-4 after 1 s)."""
     import shutil
 
-    from orchestrator.sspwriter import pack_ssp
+    from orchestrator.ssp import pack_ssp
 
     folder = tmp_path / "pendulum_half_ms"
     shutil.copytree(REPO / "ssp" / "pendulum", folder)

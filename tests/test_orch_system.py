@@ -10,8 +10,7 @@ from orch_helpers import build_test_fmu, loop_scenario, without_start
 
 import orchestrator
 from orchestrator import ScenarioError
-from orchestrator.ssp import read_scenario
-from orchestrator.sspwriter import ComponentSpec, ConnectionSpec, write_ssd
+from orchestrator.ssp import Connection, Experiment, SystemStructure, component, read_scenario, write_ssd
 from orchestrator.system import Operation, System
 
 
@@ -47,9 +46,10 @@ def test_unknown_connector_in_connection(tmp_path, fmus):
 
 def test_connector_missing_in_fmu_and_type_mismatch_reported_together(tmp_path, fmus):
     folder = loop_scenario(tmp_path / "s", fmus, pack=False)
-    _edit(folder, '<ssd:Connector name="u" kind="input"><ssc:Real/>',
-          '<ssd:Connector name="u" kind="input"><ssc:Integer/>')
-    _edit(folder, '<ssd:Connector name="y" kind="output"><ssc:Real/></ssd:Connector>',
+    _edit(folder, '<ssd:Connector name="u" kind="input">\n            <ssc:Real/>',
+          '<ssd:Connector name="u" kind="input">\n            <ssc:Integer/>')
+    _edit(folder,
+          '<ssd:Connector name="y" kind="output">\n            <ssc:Real/>\n          </ssd:Connector>',
           '<ssd:Connector name="y" kind="output"><ssc:Real/></ssd:Connector>'
           '<ssd:Connector name="nope" kind="output"><ssc:Real/></ssd:Connector>')
     with pytest.raises(ScenarioError) as info:
@@ -100,8 +100,10 @@ def test_bad_parameter_bindings_all_reported(tmp_path, fmus):
 
 def test_algebraic_loop_is_reported_by_name(tmp_path, fmus):
     gain = [("u", "input", "Real"), ("y", "output", "Real")]
-    write_ssd(tmp_path, "ring", [ComponentSpec("a", "Gain.fmu", gain), ComponentSpec("b", "Gain.fmu", gain)],
-              [ConnectionSpec("a.y", "b.u"), ConnectionSpec("b.y", "a.u")], 0.0, 1.0, 0.1)
+    ring = SystemStructure("ring", (component("a", "Gain.fmu", gain), component("b", "Gain.fmu", gain)),
+                           (Connection.between("a.y", "b.u"), Connection.between("b.y", "a.u")),
+                           Experiment(0.0, 1.0, 0.1))
+    write_ssd(tmp_path, ring)
     (tmp_path / "resources").mkdir()
     (tmp_path / "resources" / "Gain.fmu").write_bytes(fmus["Gain"].read_bytes())
     with pytest.raises(ScenarioError, match=r"algebraic loop: a\.u -> a\.y -> b\.u -> b\.y -> a\.u"):

@@ -11,8 +11,7 @@ from lxml import etree
 
 from .. import open_system
 from ..errors import ScenarioError
-from ..ssp import NS, SSD_NAME
-from ..sspwriter import pack_ssp
+from ..ssp import NS, SSD_NAME, pack_ssp
 
 __all__ = ["SCENARIO_DIR", "all_scenarios", "build_scenarios", "component_sources"]
 
