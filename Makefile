@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 ORCH   := $(VENV)/bin/orchestrate
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test build lint table study report baselines bench clean
+.PHONY: run test unit build lint table study report baselines bench clean
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -24,9 +24,14 @@ run: build
 	@echo "results CSV: results/pendulum.csv"
 	@echo "plot:        results/pendulum.png"
 
-## test: the whole suite (unit + system tests with real FMUs) on 2 workers
+## test: the whole suite (unit + system tests with real FMUs) on 2 workers; tests sharing an
+## expensive reference run in one worker (xdist groups)
 test: build
-	$(PY) -m pytest -q -n 2
+	$(PY) -m pytest -q -n 2 --dist loadgroup
+
+## unit: the fast unit tests only (no FMU, no other tool, no 30 s reference)
+unit: $(STAMP)
+	$(PY) -m pytest -q -m "not system"
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

@@ -1,10 +1,12 @@
-"""Fixtures shared by the system tests."""
+"""Fixtures shared by the system tests: everything is built once per test process (xdist: once
+per worker) and shared read-only."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import pytest
+from orch_helpers import build_test_fmu
 
 from orchestrator.cli import main
 
@@ -13,8 +15,21 @@ REPO = Path(__file__).resolve().parent.parent
 
 @pytest.fixture(scope="session")
 def built(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """``orchestrate build`` into a temporary folder, once per test process: FMUs under fmus/,
-    archives under ssp/."""
+    """``orchestrate build`` into a temporary folder: the five FMUs under fmus/, every scenario of
+    ssp/ under ssp/<name>.ssp."""
     dest = tmp_path_factory.mktemp("build")
     assert main(["build", "--sources", str(REPO / "ssp"), "--dest", str(dest)]) == 0
     return dest
+
+
+@pytest.fixture(scope="session")
+def fmus(built: Path) -> dict[str, Path]:
+    """The project's five FMUs, model name -> path."""
+    return {path.stem: path for path in sorted((built / "fmus").glob("*.fmu"))}
+
+
+@pytest.fixture(scope="session")
+def test_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The small test FMUs of tests/fmus/ (Source, Gain, Integrator), name -> path."""
+    folder = tmp_path_factory.mktemp("test_fmus")
+    return {n: build_test_fmu(n, folder) for n in ("Source", "Gain", "Integrator")}

@@ -1,5 +1,5 @@
-"""Helpers for the FMU tests: build the five FMUs once per test process and drive one FMU
-directly through fmpy's FMI 2.0 API (exact input values and step times, state get/set)."""
+"""Helpers for the FMU tests: drive one FMU directly through fmpy's FMI 2.0 API (exact input
+values and step times, state get/set). The FMUs come from the session fixture ``fmus``."""
 
 from __future__ import annotations
 
@@ -10,24 +10,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pytest
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from scipy.integrate import solve_ivp
 
-from fmu_src.build import FMU_SCRIPTS, build_all
+from fmu_src.build import FMU_SCRIPTS
 
 MODELS = tuple(FMU_SCRIPTS)
-_built: dict[str, Path] = {}
 _extracted: dict[Path, str] = {}
 
-
-def built_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """Model name -> FMU path, built at most once per test process (xdist: once per worker)."""
-    if not _built:
-        dest = tmp_path_factory.mktemp("fmus")
-        _built.update({path.stem: path for path in build_all(dest)})
-    return dict(_built)
 
 
 class Slave:

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from references import GROUP, reference
 
 from controller.law import evaluate
-from controller.params import FINITE_TIME
+from controller.params import Mode
 from fmu_src.models.examples import EXAMPLES
 from orchestrator.experiments.closed_loop import simulate
 from orchestrator.experiments.metrics import tracking_metrics
@@ -28,15 +29,16 @@ def test_initial_control_effort_matches_the_independent_figure(number, v0, rel):
     assert d["time"][0] == 0.0 and d["x1"][0] == ex.x0[0]
 
 
+@GROUP
+@pytest.mark.system
 @pytest.mark.parametrize("number", [1, 2])
 def test_fixed_time_tracks_better_than_finite_time_over_30_s(number):
     """The paper's claim (Tables 1-2), and SPEC section 6's RMSE near 0.012 for Example 1."""
-    ex = EXAMPLES[number]
     metrics = {}
-    for mode in ("fixed-time", FINITE_TIME):
-        d = simulate(ex, ex.controller.with_changes(mode=mode)).data
+    for mode in Mode:
+        d = reference(number, mode)
         metrics[mode] = tracking_metrics(d["time"], d["y"], d["yd"], d["v"], d["uf"])
-    fixed, finite = metrics["fixed-time"], metrics[FINITE_TIME]
+    fixed, finite = metrics[Mode.FIXED_TIME], metrics[Mode.FINITE_TIME]
     assert fixed.rmse < finite.rmse and fixed.mae < finite.mae and fixed.rae < finite.rae
     assert fixed.rmse < 0.02
     if number == 1:

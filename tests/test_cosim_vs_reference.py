@@ -16,23 +16,21 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from references import GROUP, reference
 
 import orchestrator
-from fmu_src.models.examples import EXAMPLES
-from orchestrator.experiments.closed_loop import simulate
 
 REPO = Path(__file__).resolve().parent.parent
 STEP = 1e-3
 
-pytestmark = pytest.mark.system
-
+pytestmark = [pytest.mark.system, GROUP]
 
 
 @pytest.mark.parametrize(("scenario", "number"), [("example1", 1), ("pendulum", 2)])
 def test_cosimulated_plant_output_matches_the_monolithic_reference(built, scenario, number):
     cosim = orchestrator.run(built / "ssp" / f"{scenario}.ssp")
-    sampled = simulate(EXAMPLES[number], sample_time=STEP, grid=STEP).data
-    continuous = simulate(EXAMPLES[number], grid=STEP).data
+    sampled = reference(number, sample_time=STEP)
+    continuous = reference(number)
     # The master's grid is the double nearest to k*h (integer nanoseconds); the reference's is k*h.
     assert np.max(np.abs(cosim["time"] - sampled["time"])) <= 1e-12
     early = cosim["time"] <= 1.0

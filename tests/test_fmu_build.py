@@ -10,14 +10,11 @@ from pathlib import Path
 
 import fmpy
 import pytest
-from fmu_helpers import MODELS, built_fmus
+from fmu_helpers import MODELS
 
 from fmu_src.build import CLASS_LINE, REPO_ROOT, BuildError, build_all, build_fmu, main
 
-
-@pytest.fixture(scope="module")
-def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    return built_fmus(tmp_path_factory)
+pytestmark = pytest.mark.system
 
 
 def source_copy(tmp_path: Path) -> Path:

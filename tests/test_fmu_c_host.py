@@ -15,10 +15,11 @@ from pathlib import Path
 
 import fmpy
 import pytest
-from fmu_helpers import built_fmus, reference_formula
+from fmu_helpers import reference_formula
 
 LIBPYTHON = Path(sysconfig.get_config_var("LIBDIR") or "", sysconfig.get_config_var("INSTSONAME") or "")
 pytestmark = [
+    pytest.mark.system,
     pytest.mark.skipif(shutil.which("gcc") is None, reason="needs gcc to build the C host"),
     pytest.mark.skipif(not LIBPYTHON.is_file(), reason="needs a shared libpython"),
 ]
@@ -46,14 +47,12 @@ def run_host(
     return subprocess.run(command, env={**clean, **env}, capture_output=True, text=True, timeout=60)
 
 
-def test_binary_needs_libpython_loaded_by_the_host(tmp_path_factory, host: Path, tmp_path: Path) -> None:
-    fmus = built_fmus(tmp_path_factory)
+def test_binary_needs_libpython_loaded_by_the_host(fmus: dict, host: Path, tmp_path: Path) -> None:
     result = run_host(host, fmus["Reference"], tmp_path, "yd", 10, {})
     assert "undefined symbol" in result.stdout
 
 
-def test_c_host_runs_reference_and_controller(tmp_path_factory, host: Path, tmp_path: Path) -> None:
-    fmus = built_fmus(tmp_path_factory)
+def test_c_host_runs_reference_and_controller(fmus: dict, host: Path, tmp_path: Path) -> None:
     site = sysconfig.get_paths()["purelib"]  # where numpy lives for this interpreter
     env = {"LD_PRELOAD": str(LIBPYTHON), "PYTHONPATH": site}
     result = run_host(host, fmus["Reference"], tmp_path, "yd", 100, env)

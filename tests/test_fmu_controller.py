@@ -8,10 +8,12 @@ import math
 import numpy as np
 import pytest
 from fmpy import simulate_fmu
-from fmu_helpers import built_fmus, libcosim_add, libcosim_execution, open_slave, reference_formula
+from fmu_helpers import libcosim_add, libcosim_execution, open_slave, reference_formula
 
 from controller.params import ControllerParameters
 from controller.stepping import AdaptiveController
+
+pytestmark = pytest.mark.system
 
 H = 1e-3
 EXAMPLE1 = dict(k=(10, 10), q=(8, 8), a=(5, 2), kappa=(2, 2), rho=(2, 2), rho_bar=(1, 1))
@@ -48,11 +50,6 @@ FINITE_TIME_LIBRARY = dict(
     width=1.5,
     gamma_power=2.0,
 )
-
-
-@pytest.fixture(scope="module")
-def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    return built_fmus(tmp_path_factory)
 
 
 def plant_like_inputs(t: float) -> tuple[tuple[float, float], tuple[float, float, float]]:

@@ -8,7 +8,9 @@ import zipfile
 import fmpy
 import pytest
 from fmpy.validation import validate_fmu
-from fmu_helpers import MODELS, built_fmus
+from fmu_helpers import MODELS
+
+pytestmark = pytest.mark.system
 
 INTERFACE = {  # model -> (inputs, outputs)
     "Reference": ((), ("yd", "yd_dot", "yd_ddot")),
@@ -113,11 +115,6 @@ SI = {
     "kg/s2": {"kg": 1, "s": -2},
     "N": {"kg": 1, "m": 1, "s": -2},
 }
-
-
-@pytest.fixture(scope="module")
-def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    return built_fmus(tmp_path_factory)
 
 
 @pytest.mark.parametrize("model", MODELS)

@@ -12,7 +12,8 @@ import logging
 import pytest
 from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
-from fmu_helpers import built_fmus
+
+pytestmark = pytest.mark.system
 
 CASES = [
     ("FixedTimeController", {"beta": 1.2}, "beta must satisfy 0.5 < beta < 1 (got 1.2)"),
@@ -31,11 +32,6 @@ CASES = [
     ("PendulumPlant", {"M": 0.0}, "M must satisfy M > 0 (got 0.0)"),
     ("PendulumPlant", {"max_step": -1e-3}, "max_step must satisfy max_step > 0"),
 ]
-
-
-@pytest.fixture(scope="module")
-def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    return built_fmus(tmp_path_factory)
 
 
 @pytest.mark.parametrize(("model", "values", "message"), CASES)

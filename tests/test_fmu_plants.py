@@ -17,7 +17,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fmu_helpers import (
-    built_fmus,
     example1,
     libcosim_add,
     libcosim_execution,
@@ -25,6 +24,8 @@ from fmu_helpers import (
     pendulum,
     solve_held,
 )
+
+pytestmark = pytest.mark.system
 
 H = 1e-3
 Feedback = Callable[[float, float, float], float]  # uf from (t, x1, x2)
@@ -37,11 +38,6 @@ def example1_input(t: float, x1: float, x2: float) -> float:
 
 def pendulum_input(t: float, x1: float, x2: float) -> float:
     return 15000.0 * math.exp(-t / 0.0005) + 0.5 * math.sin(t) - 100.0 * x1 - 20.0 * x2
-
-
-@pytest.fixture(scope="module")
-def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    return built_fmus(tmp_path_factory)
 
 
 def run_plant(

@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 from fmpy import simulate_fmu
 from fmu_helpers import (
-    built_fmus,
     dead_zone_formula,
     libcosim_add,
     libcosim_execution,
@@ -17,6 +16,8 @@ from fmu_helpers import (
     reference_formula,
     uf_formula,
 )
+
+pytestmark = pytest.mark.system
 
 ACTUATOR = {
     "m_r": 1.0,
@@ -30,11 +31,6 @@ ACTUATOR = {
     "L_bias": 0.0,
     "t_fault": 10.0,
 }
-
-
-@pytest.fixture(scope="module")
-def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    return built_fmus(tmp_path_factory)
 
 
 @pytest.mark.parametrize(

@@ -6,7 +6,9 @@ from __future__ import annotations
 import math
 
 import pytest
-from fmu_helpers import MODELS, built_fmus, open_slave
+from fmu_helpers import MODELS, open_slave
+
+pytestmark = pytest.mark.system
 
 H = 1e-3
 SETUP = {  # model -> (parameters, inputs at step k)
@@ -25,11 +27,6 @@ SETUP = {  # model -> (parameters, inputs at step k)
     "Example1Plant": ({}, lambda k: {"uf": 700.0 * math.exp(-k) - k}),
     "PendulumPlant": ({"M": 0.3}, lambda k: {"uf": 15000.0 * math.exp(-k) + 0.5 * k}),
 }
-
-
-@pytest.fixture(scope="module")
-def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    return built_fmus(tmp_path_factory)
 
 
 @pytest.mark.parametrize("model", MODELS)

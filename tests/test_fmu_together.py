@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fmu_helpers import (
-    built_fmus,
     example1,
     libcosim_add,
     libcosim_execution,
@@ -26,6 +25,8 @@ from fmu_helpers import (
 from controller.params import ControllerParameters
 from controller.stepping import AdaptiveController
 from fmu_src.build import REPO_ROOT, build_fmu
+
+pytestmark = pytest.mark.system
 
 H = 1e-3
 ACTUATOR = {
@@ -41,11 +42,6 @@ ACTUATOR = {
     "t_fault": 0.1,
 }  # fault early, inside the short run
 EXAMPLE1 = dict(k=(10, 10), q=(8, 8), a=(5, 2), kappa=(2, 2), rho=(2, 2), rho_bar=(1, 1))
-
-
-@pytest.fixture(scope="module")
-def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    return built_fmus(tmp_path_factory)
 
 
 def test_closed_loop_of_all_five_in_one_process(fmus: dict) -> None:

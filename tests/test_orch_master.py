@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fmpy.util import read_csv
-from orch_helpers import build_test_fmu, loop_scenario
+from orch_helpers import loop_scenario
 
 import orchestrator
 from orchestrator import SimulationError
@@ -25,18 +25,14 @@ from orchestrator.crosscheck import run_libcosim
 from orchestrator.master import time_grid
 from orchestrator.ssp import ParameterSet, write_ssv
 
+pytestmark = pytest.mark.system
+
 H, K, X0 = 0.01, -2.0, 1.0
 
 
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory) -> dict[str, Path]:
-    folder = tmp_path_factory.mktemp("fmus")
-    return {n: build_test_fmu(n, folder) for n in ("Source", "Gain", "Integrator")}
-
-
-@pytest.fixture(scope="module")
-def loop(fmus, tmp_path_factory) -> Path:
-    return loop_scenario(tmp_path_factory.mktemp("loop") / "loop", fmus, gain=K, x0=X0, stop=1.0, step=H)
+def loop(test_fmus, tmp_path_factory) -> Path:
+    return loop_scenario(tmp_path_factory.mktemp("loop") / "loop", test_fmus, gain=K, x0=X0, stop=1.0, step=H)
 
 
 def test_time_column_is_exactly_t0_plus_k_h():
@@ -78,18 +74,18 @@ def test_jacobi_equals_libcosim(loop):
     np.testing.assert_allclose(ours["gain.u"][:-1], theirs["gain.u"][1:], rtol=0, atol=1e-12)
 
 
-def test_factor_on_connection_equals_doubled_gain(fmus, tmp_path):
-    with_factor = loop_scenario(tmp_path / "f", fmus, gain=K, factor=2.0)
+def test_factor_on_connection_equals_doubled_gain(test_fmus, tmp_path):
+    with_factor = loop_scenario(tmp_path / "f", test_fmus, gain=K, factor=2.0)
     a = orchestrator.run(with_factor)
-    b = orchestrator.run(loop_scenario(tmp_path / "g", fmus, gain=K), overrides={"gain.k": 2 * K})
+    b = orchestrator.run(loop_scenario(tmp_path / "g", test_fmus, gain=K), overrides={"gain.k": 2 * K})
     assert (a["integrator.x"] == b["integrator.x"]).all()  # 2*(k*x) == (2k)*x exactly
     assert (a["integrator.u"] == 2.0 * a["gain.y"]).all()
 
 
-def test_offset_on_connection_closed_form(fmus, tmp_path):
+def test_offset_on_connection_closed_form(test_fmus, tmp_path):
     """x' = k x + c: x_k = (x0 + c/k)(1 + h k)^k - c/k."""
     c = 0.75
-    r = orchestrator.run(loop_scenario(tmp_path / "o", fmus, gain=K, offset=c))
+    r = orchestrator.run(loop_scenario(tmp_path / "o", test_fmus, gain=K, offset=c))
     k = np.arange(len(r))
     np.testing.assert_allclose(r["integrator.x"], (X0 + c / K) * (1 + H * K) ** k - c / K, rtol=1e-12)
 
@@ -112,8 +108,8 @@ def test_csv_matches_array_and_is_read_by_fmpy(loop, tmp_path):
         assert (csv[name] == r[name]).all()
 
 
-def test_failure_mid_run_keeps_rows(fmus, tmp_path, capsys):
-    ssp = loop_scenario(tmp_path / "fail", fmus, fail_at=0.5)
+def test_failure_mid_run_keeps_rows(test_fmus, tmp_path, capsys):
+    ssp = loop_scenario(tmp_path / "fail", test_fmus, fail_at=0.5)
     with pytest.raises(SimulationError) as info:
         orchestrator.run(ssp)
     assert str(info.value) == "integrator: fmi2DoStep returned fmi2Discard at t=0.500 s"

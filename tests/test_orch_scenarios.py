@@ -23,7 +23,6 @@ OUTPUTS = ["reference.yd", "reference.yd_dot", "reference.yd_ddot", "controller.
 pytestmark = pytest.mark.system
 
 
-
 def test_build_packs_ssd_ssv_and_fmus(built):
     import zipfile
 

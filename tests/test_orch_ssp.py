@@ -10,20 +10,16 @@ from pathlib import Path
 import pytest
 from fmpy.ssp.ssd import read_ssd
 from lxml import etree
-from orch_helpers import build_test_fmu, loop_scenario
+from orch_helpers import loop_scenario
 
 import orchestrator
 from orchestrator import ScenarioError
 from orchestrator.ssp import NS, ParameterSet, open_scenario, read_parameter_set, read_scenario, write_ssv
 
+pytestmark = pytest.mark.system
+
 REPO = Path(__file__).resolve().parent.parent
 SCENARIOS = ["example1", "example1_finite_time", "example1_no_fault", "pendulum", "pendulum_finite_time"]
-
-
-@pytest.fixture(scope="module")
-def fmus(tmp_path_factory) -> dict[str, Path]:
-    folder = tmp_path_factory.mktemp("fmus")
-    return {n: build_test_fmu(n, folder) for n in ("Source", "Gain", "Integrator")}
 
 
 @pytest.mark.parametrize("name", SCENARIOS)
@@ -49,10 +45,10 @@ def test_scenario_sources_follow_the_spec(name):
         read_scenario(ssd.parent)
 
 
-def test_reads_what_fmpy_drops(tmp_path, fmus):
+def test_reads_what_fmpy_drops(tmp_path, test_fmus):
     """ssc:LinearTransformation, DefaultExperiment and the step annotation, which
     fmpy.ssp.ssd.read_ssd does not deliver."""
-    ssp = loop_scenario(tmp_path / "s", fmus, factor=2.5, offset=-0.25, stop=3.0, step=0.02)
+    ssp = loop_scenario(tmp_path / "s", test_fmus, factor=2.5, offset=-0.25, stop=3.0, step=0.02)
     fmpy_view = read_ssd(str(ssp))
     assert not any(hasattr(c, "linearTransformation") for c in fmpy_view.system.connections)
     assert fmpy_view.defaultExperiment is None
@@ -64,8 +60,8 @@ def test_reads_what_fmpy_drops(tmp_path, fmus):
         0.0, 3.0, 0.02)
 
 
-def test_step_from_either_tool_annotation(tmp_path, fmus):
-    folder = loop_scenario(tmp_path / "s", fmus, step=0.02, pack=False)
+def test_step_from_either_tool_annotation(tmp_path, test_fmus):
+    folder = loop_scenario(tmp_path / "s", test_fmus, step=0.02, pack=False)
     ssd = folder / "SystemStructure.ssd"
     text = ssd.read_text()
     ssd.write_text(text.replace('stepSize="0.02"', 'stepSize="0.05"'))
@@ -85,8 +81,8 @@ def _zip(path: Path, members: dict[str, bytes]) -> Path:
     return path
 
 
-def test_archive_escaping_the_folder_is_refused(tmp_path, fmus):
-    good = loop_scenario(tmp_path / "s", fmus)
+def test_archive_escaping_the_folder_is_refused(tmp_path, test_fmus):
+    good = loop_scenario(tmp_path / "s", test_fmus)
     with zipfile.ZipFile(good) as zf:
         members = {n: zf.read(n) for n in zf.namelist()}
     user_file = tmp_path / "precious.txt"
@@ -98,8 +94,8 @@ def test_archive_escaping_the_folder_is_refused(tmp_path, fmus):
         assert user_file.read_text() == "mine"
 
 
-def test_symlink_member_is_refused(tmp_path, fmus):
-    good = loop_scenario(tmp_path / "s", fmus)
+def test_symlink_member_is_refused(tmp_path, test_fmus):
+    good = loop_scenario(tmp_path / "s", test_fmus)
     bad = tmp_path / "link.ssp"
     bad.write_bytes(good.read_bytes())
     with zipfile.ZipFile(bad, "a") as zf:
@@ -119,8 +115,8 @@ def test_symlink_member_is_refused(tmp_path, fmus):
     ("invalid_ssd", r"SystemStructure\.ssd line \d+: .*Connektor"),
     ("missing_ssv", r"gain\.ssv: file is missing"),
 ])
-def test_broken_archives_name_the_file(tmp_path, fmus, case, message):
-    good = loop_scenario(tmp_path / "s", fmus)
+def test_broken_archives_name_the_file(tmp_path, test_fmus, case, message):
+    good = loop_scenario(tmp_path / "s", test_fmus)
     with zipfile.ZipFile(good) as zf:
         members = {n: zf.read(n) for n in zf.namelist()}
     ssd = members["SystemStructure.ssd"].decode()

@@ -26,7 +26,7 @@ from orchestrator.experiments.regression import (
     resample,
     write_baseline,
 )
-from orchestrator.experiments.scenarios import all_scenarios, build_scenarios
+from orchestrator.experiments.scenarios import all_scenarios
 from orchestrator.results import read_result
 
 pytestmark = pytest.mark.system
@@ -38,8 +38,8 @@ EARLY_FAULT = {"actuator.t_fault": 0.5}
 
 
 @pytest.fixture(scope="module")
-def archives(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    return build_scenarios(SCENARIOS, tmp_path_factory.mktemp("scenarios"))
+def archives(built: Path) -> dict[str, Path]:
+    return {name: built / "ssp" / f"{name}.ssp" for name in SCENARIOS}
 
 
 @pytest.mark.parametrize("name", SCENARIOS)

@@ -1,0 +1,27 @@
+"""The monolithic reference runs (30 s, solve_ivp at rtol 1e-10) that several tests compare with,
+each computed once per test process. Their tests share the xdist group ``monolithic-references``
+(``pytest -n 2 --dist loadgroup``), so one worker computes each run once."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+from controller.params import Mode
+from fmu_src.models.examples import EXAMPLES
+from orchestrator.experiments.closed_loop import simulate
+
+GROUP = pytest.mark.xdist_group("monolithic-references")
+
+
+@functools.cache
+def reference(number: int, mode: Mode = Mode.FIXED_TIME, sample_time: float | None = None) -> np.ndarray:
+    """Example ``number`` over its 30 s on the 1 ms grid: the continuous law, or sampled and held
+    every ``sample_time`` seconds (read-only: shared between tests)."""
+    example = EXAMPLES[number]
+    data = simulate(example, example.controller.with_changes(mode=mode), sample_time=sample_time,
+                    grid=sample_time or 1e-3).data
+    data.flags.writeable = False
+    return data
