@@ -8,9 +8,16 @@ package ``_ftc_<model>_<hash>``, where ``<hash>`` is a digest of every bundled b
 script's own ``from fmu_src... / from controller... import`` lines are rewritten (with ``ast``);
 bundled modules must import each other relatively.
 
+pythonfmu's linux64 binary does not link libpython, so a host without Python in its process
+cannot load it. The build compiles ``fmu_src/shim/fmi2_shim.c`` with the system C compiler into
+``binaries/linux64/<model>.so``, keeps pythonfmu's binary beside it as ``<model>_pythonfmu.so``
+and records the building interpreter (its shared libpython, home and site-packages) in
+``binaries/linux64/python_env.txt``; the shim loads that Python when the host has none (see the
+shim's header). The win64 binary stays as pythonfmu made it.
+
 The archive is normalized afterwards: GUID derived from the digest, no generation date, sorted
 entries with fixed timestamps, ``resources/requirements.txt`` with the pinned run-time imports.
-Rebuilding the same sources gives identical bytes.
+Rebuilding the same sources with the same compiler gives identical bytes.
 
 Usage: ``python -m fmu_src.build DEST [--model NAME]...``
 """
@@ -21,9 +28,12 @@ import argparse
 import ast
 import hashlib
 import importlib.metadata
+import os
 import re
 import shutil
+import subprocess
 import sys
+import sysconfig
 import tempfile
 import uuid
 import zipfile
@@ -36,7 +46,7 @@ from xml.etree import ElementTree
 import pythonfmu
 from pythonfmu import FmuBuilder
 
-__all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "main"]
+__all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "c_compiler", "main", "python_env_record"]
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 LOCAL_PACKAGES = ("fmu_src", "controller")
@@ -50,7 +60,15 @@ FMU_SCRIPTS = {
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
-BUILD_FORMAT = "1"
+BUILD_FORMAT = "2"
+SHIM_SOURCE = Path("fmu_src", "shim", "fmi2_shim.c")  # relative to the source root
+# No debug info, build id or symbol table, so the bytes depend only on source, compiler and flags.
+SHIM_FLAGS = (
+    "-std=c11", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-g0", "-Wall", "-Wextra",
+    "-Wno-format-truncation", "-Wl,--build-id=none", "-s",
+)
+SHIM_LIBS = ("-ldl", "-pthread")
+PYTHON_ENV = "binaries/linux64/python_env.txt"
 CLASS_LINE = re.compile(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", re.MULTILINE)  # pythonfmu's loader regex
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 GUID_NAMESPACE = uuid.UUID("5b0f3a52-4c1e-4d59-9a4e-2f6f1c1e7a10")
@@ -69,10 +87,12 @@ class Bundle:
     modules: dict[str, Path]  # dotted name (e.g. "controller.law") -> source file
     third_party: frozenset[str]  # top-level names of non-local, non-stdlib imports
 
-    def digest(self) -> str:
-        """SHA-256 over everything that ends up in the archive (sources, pythonfmu version, format)."""
+    def digest(self, native: str) -> str:
+        """SHA-256 over everything that ends up in the archive (sources, pythonfmu version, format,
+        and ``native``: the shim's source, compiler, flags and recorded Python)."""
         h = hashlib.sha256()
-        for part in (BUILD_FORMAT, pythonfmu.__version__, self.model, repr(sorted(BUILD_OPTIONS.items()))):
+        options = repr(sorted(BUILD_OPTIONS.items()))
+        for part in (BUILD_FORMAT, pythonfmu.__version__, self.model, options, native):
             h.update(part.encode() + b"\0")
         h.update(self.script.read_bytes() + b"\0")
         for name in sorted(self.modules):
@@ -154,6 +174,71 @@ def collect_bundle(model: str, root: Path = REPO_ROOT) -> Bundle:
     return Bundle(model, script, modules, frozenset(third_party - ignored))
 
 
+def c_compiler() -> tuple[str, str]:
+    """The system C compiler (``$CC``, else ``cc``, else ``gcc`` from PATH) and its version line."""
+    for name in (os.environ.get("CC"), "cc", "gcc"):
+        path = shutil.which(name) if name else None
+        if path:
+            try:
+                version = subprocess.run([path, "--version"], capture_output=True, text=True, check=True)
+            except (OSError, subprocess.CalledProcessError) as error:
+                raise BuildError(f"C compiler {path} does not run: {error}") from error
+            return path, version.stdout.partition("\n")[0]
+    raise BuildError(
+        "no C compiler (CC, cc or gcc on PATH) to build the FMI shim binaries/linux64/<model>.so; "
+        "install one, e.g. apt-get install gcc"
+    )
+
+
+def python_env_record() -> str:
+    """``binaries/linux64/python_env.txt``: the Python the shim loads when the host has none
+    (this interpreter's shared libpython, its home and its site-packages, where the packages of
+    requirements.txt are installed)."""
+    lines = [
+        "# The Python that binaries/linux64/<model>.so (fmu_src/shim/fmi2_shim.c) loads when the",
+        "# host process has none: recorded from the interpreter that built the FMU.",
+        "# Overrides: FTC_PYTHON_LIBRARY (libpython), FTC_PYTHON_PATH (site dirs, ':'-separated),",
+        "# PYTHONHOME.",
+        f"version={sys.version_info.major}.{sys.version_info.minor}",
+    ]
+    libdir, soname = sysconfig.get_config_var("LIBDIR"), sysconfig.get_config_var("INSTSONAME")
+    if sysconfig.get_config_var("Py_ENABLE_SHARED") and libdir and soname and Path(libdir, soname).is_file():
+        lines.append(f"library={Path(libdir, soname)}")
+    else:
+        lines.append("# no library: the building Python has no shared libpython (not --enable-shared)")
+    home = sys.base_prefix
+    if sys.base_exec_prefix != sys.base_prefix:  # PYTHONHOME's prefix:exec_prefix form
+        home += f":{sys.base_exec_prefix}"
+    lines.append(f"home={home}")
+    paths = sysconfig.get_paths()
+    lines += [f"path={p}" for p in dict.fromkeys((paths["purelib"], paths["platlib"]))]
+    return "\n".join(lines) + "\n"
+
+
+def compile_shim(source: Path, where: Path) -> bytes:
+    """Compile the FMI shim; returns the shared object's bytes (the same for the same inputs)."""
+    compiler, _ = c_compiler()
+    if not source.is_file():
+        raise BuildError(f"FMI shim source not found: {source}")
+    work = where / "shim"
+    work.mkdir(parents=True)
+    shutil.copyfile(source, work / source.name)
+    command = [compiler, *SHIM_FLAGS, "-o", "shim.so", source.name, *SHIM_LIBS]
+    result = subprocess.run(command, cwd=work, capture_output=True, text=True)
+    if result.returncode != 0:
+        raise BuildError(f"{source}: {compiler} failed:\n{result.stderr.strip()}")
+    return (work / "shim.so").read_bytes()
+
+
+def native_identity(root: Path = REPO_ROOT) -> str:
+    """What makes the linux64 binaries and python_env.txt: shim source, compiler, flags, record."""
+    source = root / SHIM_SOURCE
+    if not source.is_file():
+        raise BuildError(f"FMI shim source not found: {source}")
+    text = hashlib.sha256(source.read_bytes()).hexdigest()
+    return "\0".join((text, c_compiler()[1], repr(SHIM_FLAGS + SHIM_LIBS), python_env_record()))
+
+
 def requirements(bundle: Bundle) -> str:
     """``resources/requirements.txt``: the pinned distributions the FMU imports at run time."""
     distributions = importlib.metadata.packages_distributions()
@@ -232,10 +317,17 @@ def _normalized_description(xml: bytes, digest: str, model: str) -> bytes:
     return ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True) + b"\n"
 
 
-def _write_normalized(raw_fmu: Path, target: Path, bundle: Bundle, digest: str) -> None:
-    """Copy the archive with a deterministic description, fixed timestamps and sorted entries."""
+def _write_normalized(raw_fmu: Path, target: Path, bundle: Bundle, digest: str, shim: bytes) -> None:
+    """Copy the archive with the shim in front of pythonfmu's linux64 binary, a deterministic
+    description, fixed timestamps and sorted entries."""
     with zipfile.ZipFile(raw_fmu) as archive:
         entries = {name: archive.read(name) for name in archive.namelist() if not name.endswith("/")}
+    binary = f"binaries/linux64/{bundle.model}.so"
+    if binary not in entries:
+        raise BuildError(f"pythonfmu's archive for {bundle.model} has no {binary}")
+    entries[f"binaries/linux64/{bundle.model}_pythonfmu.so"] = entries[binary]
+    entries[binary] = shim
+    entries[PYTHON_ENV] = python_env_record().encode()
     entries["modelDescription.xml"] = _normalized_description(
         entries["modelDescription.xml"], digest, bundle.model
     )
@@ -251,7 +343,7 @@ def _write_normalized(raw_fmu: Path, target: Path, bundle: Bundle, digest: str) 
 def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT) -> Path:
     """Build one FMU into ``dest/<model>.fmu`` from the sources under ``root``."""
     bundle = collect_bundle(model, root)
-    digest = bundle.digest()
+    digest = bundle.digest(native_identity(root))
     dest = Path(dest)
     dest.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=f"ftc_build_{model}_") as tmp:
@@ -265,8 +357,9 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT) -> Path:
                 raise BuildError(
                     f"pythonfmu could not build {model} from {bundle.script}: {error}"
                 ) from error
+        shim = compile_shim(root / SHIM_SOURCE, Path(tmp))
         target = dest / f"{model}.fmu"
-        _write_normalized(Path(raw), target, bundle, digest)
+        _write_normalized(Path(raw), target, bundle, digest, shim)
     return target
 
 

@@ -1,0 +1,434 @@
+/* FMI 2.0 Co-Simulation shim in front of pythonfmu's binary, so that any FMI host loads the FMU.
+
+   pythonfmu 0.7.0's binaries/linux64/<model>.so does not link libpython: a host without Python
+   in its process cannot dlopen it (undefined symbol: _Py_NoneStruct). The build installs this
+   shim as binaries/linux64/<model>.so and keeps pythonfmu's binary beside it as
+   <model>_pythonfmu.so. At the first fmi2Instantiate the shim:
+
+   1. looks for Python in the process: dlsym(RTLD_DEFAULT, "Py_IsInitialized");
+   2. if there is none, loads libpython with RTLD_NOW | RTLD_GLOBAL (so pythonfmu's undefined
+      Python symbols resolve): FTC_PYTHON_LIBRARY if set, else the path recorded at build time in
+      python_env.txt beside the shim;
+   3. if Python is not initialized, initializes it (without signal handlers: the host keeps
+      SIGINT), with PYTHONHOME set to the recorded home while initializing when the recorded
+      libpython is used and PYTHONHOME is unset, adds the site directories (FTC_PYTHON_PATH,
+      colon-separated, else the recorded ones) with site.addsitedir ahead of the interpreter's
+      own site-packages, and releases the GIL. pythonfmu then finds Python initialized, so it
+      neither initializes nor finalizes it, and takes the GIL with PyGILState_Ensure as it does
+      in a Python host;
+   4. opens <model>_pythonfmu.so with RTLD_NOW | RTLD_LOCAL and forwards every FMI call to it.
+
+   When Python is already initialized in the process (fmpy, libcosimpy, OMSimulator's Python
+   API), steps 2-3 do nothing. When something is missing, fmi2Instantiate logs one message
+   naming the model and everything it tried (host logger and stderr) and returns NULL.
+
+   Needs only a C compiler and libc: the Python C-API functions used are looked up with dlsym,
+   so the shim does not depend on Python headers or on one Python version. */
+
+#define _GNU_SOURCE
+#include <dlfcn.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#define EXPORT __attribute__((visibility("default")))
+#define ENV_FILE "python_env.txt"
+#define INNER_SUFFIX "_pythonfmu.so"
+#define MAX_DIRS 16
+#define TEXT 4096
+
+/* FMI 2.0 types (fmi2TypesPlatform.h, fmi2FunctionTypes.h), so that no header is needed. */
+typedef void *fmi2Component;
+typedef void *fmi2ComponentEnvironment;
+typedef void *fmi2FMUstate;
+typedef unsigned int fmi2ValueReference;
+typedef double fmi2Real;
+typedef int fmi2Integer;
+typedef int fmi2Boolean;
+typedef char fmi2Char;
+typedef const fmi2Char *fmi2String;
+typedef char fmi2Byte;
+typedef enum { fmi2OK, fmi2Warning, fmi2Discard, fmi2Error, fmi2Fatal, fmi2Pending } fmi2Status;
+typedef enum { fmi2ModelExchange, fmi2CoSimulation } fmi2Type;
+typedef enum { fmi2DoStepStatus, fmi2PendingStatus, fmi2LastSuccessfulTime, fmi2Terminated } fmi2StatusKind;
+typedef void (*fmi2CallbackLogger)(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String, ...);
+typedef struct {
+    fmi2CallbackLogger logger;
+    void *(*allocateMemory)(size_t, size_t);
+    void (*freeMemory)(void *);
+    void (*stepFinished)(fmi2ComponentEnvironment, fmi2Status);
+    fmi2ComponentEnvironment componentEnvironment;
+} fmi2CallbackFunctions;
+
+/* Every FMI 2.0 function that takes a component and returns a status: name, parameters, call. */
+#define FMI2_FORWARDED(X)                                                                                    \
+    X(fmi2SetDebugLogging, (fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[]),     \
+      (c, on, n, categories))                                                                                \
+    X(fmi2SetupExperiment,                                                                                   \
+      (fmi2Component c, fmi2Boolean tolDefined, fmi2Real tol, fmi2Real start, fmi2Boolean stopDefined,       \
+       fmi2Real stop),                                                                                       \
+      (c, tolDefined, tol, start, stopDefined, stop))                                                        \
+    X(fmi2EnterInitializationMode, (fmi2Component c), (c))                                                   \
+    X(fmi2ExitInitializationMode, (fmi2Component c), (c))                                                    \
+    X(fmi2Terminate, (fmi2Component c), (c))                                                                 \
+    X(fmi2Reset, (fmi2Component c), (c))                                                                     \
+    X(fmi2GetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[]), (c, vr, n, v))  \
+    X(fmi2GetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[]),          \
+      (c, vr, n, v))                                                                                         \
+    X(fmi2GetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[]),          \
+      (c, vr, n, v))                                                                                         \
+    X(fmi2GetString, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[]),            \
+      (c, vr, n, v))                                                                                         \
+    X(fmi2SetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]),          \
+      (c, vr, n, v))                                                                                         \
+    X(fmi2SetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer v[]),    \
+      (c, vr, n, v))                                                                                         \
+    X(fmi2SetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[]),    \
+      (c, vr, n, v))                                                                                         \
+    X(fmi2SetString, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[]),      \
+      (c, vr, n, v))                                                                                         \
+    X(fmi2GetFMUstate, (fmi2Component c, fmi2FMUstate * state), (c, state))                                  \
+    X(fmi2SetFMUstate, (fmi2Component c, fmi2FMUstate state), (c, state))                                    \
+    X(fmi2FreeFMUstate, (fmi2Component c, fmi2FMUstate * state), (c, state))                                 \
+    X(fmi2SerializedFMUstateSize, (fmi2Component c, fmi2FMUstate state, size_t * size), (c, state, size))    \
+    X(fmi2SerializeFMUstate, (fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size),          \
+      (c, state, bytes, size))                                                                               \
+    X(fmi2DeSerializeFMUstate, (fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate * state), \
+      (c, bytes, size, state))                                                                               \
+    X(fmi2GetDirectionalDerivative,                                                                          \
+      (fmi2Component c, const fmi2ValueReference unknown[], size_t nUnknown, const fmi2ValueReference known[], \
+       size_t nKnown, const fmi2Real dvKnown[], fmi2Real dvUnknown[]),                                       \
+      (c, unknown, nUnknown, known, nKnown, dvKnown, dvUnknown))                                             \
+    X(fmi2SetRealInputDerivatives,                                                                           \
+      (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[],                 \
+       const fmi2Real value[]),                                                                              \
+      (c, vr, n, order, value))                                                                              \
+    X(fmi2GetRealOutputDerivatives,                                                                          \
+      (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[], fmi2Real value[]), \
+      (c, vr, n, order, value))                                                                              \
+    X(fmi2DoStep, (fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior), (c, t, h, noSetPrior))  \
+    X(fmi2CancelStep, (fmi2Component c), (c))                                                                \
+    X(fmi2GetStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Status * value), (c, s, value))          \
+    X(fmi2GetRealStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Real * value), (c, s, value))        \
+    X(fmi2GetIntegerStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Integer * value), (c, s, value))  \
+    X(fmi2GetBooleanStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Boolean * value), (c, s, value))  \
+    X(fmi2GetStringStatus, (fmi2Component c, const fmi2StatusKind s, fmi2String * value), (c, s, value))
+
+/* pythonfmu's functions, resolved once by load() before the first instance exists. */
+#define DECLARE_POINTER(name, params, args) static fmi2Status(*inner_##name) params;
+FMI2_FORWARDED(DECLARE_POINTER)
+static fmi2Component (*inner_fmi2Instantiate)(fmi2String, fmi2Type, fmi2String, fmi2String,
+                                              const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean);
+static void (*inner_fmi2FreeInstance)(fmi2Component);
+
+static pthread_mutex_t load_lock = PTHREAD_MUTEX_INITIALIZER;
+static int loaded;            /* 0: not tried, 1: pythonfmu's binary is ready, -1: failed */
+static void *inner;           /* handle of <model>_pythonfmu.so */
+static int started_python;    /* 1 if this shim initialized Python */
+static char model[256];       /* model identifier: the shim's file name without .so */
+static char failure[TEXT];    /* the one message of a failed load() */
+static char warnings[TEXT];   /* non-fatal findings of load(), logged at every instantiate */
+static char python_info[TEXT]; /* "Python X from LIB, site dirs ..." when this shim started Python */
+
+/* What the build recorded in python_env.txt. */
+struct record {
+    char file[TEXT];
+    int found;
+    char version[32];
+    char library[TEXT];
+    char home[TEXT];
+    char paths[MAX_DIRS][TEXT];
+    int n_paths;
+};
+
+static void append(char *buffer, const char *format, ...) __attribute__((format(printf, 2, 3)));
+static void append(char *buffer, const char *format, ...) {
+    size_t used = strlen(buffer);
+    if (used + 1 >= TEXT) return;
+    va_list args;
+    va_start(args, format);
+    vsnprintf(buffer + used, TEXT - used, format, args);
+    va_end(args);
+}
+
+static int is_file(const char *path) {
+    struct stat info;
+    return stat(path, &info) == 0 && S_ISREG(info.st_mode);
+}
+
+static int is_dir(const char *path) {
+    struct stat info;
+    return stat(path, &info) == 0 && S_ISDIR(info.st_mode);
+}
+
+/* dlerror() without a leading "<path>: " (the message names the path already). */
+static const char *dl_reason(const char *path) {
+    const char *error = dlerror();
+    size_t n = strlen(path);
+    if (!error) return "unknown error";
+    if (strncmp(error, path, n) == 0 && strncmp(error + n, ": ", 2) == 0) return error + n + 2;
+    return error;
+}
+
+/* Reads key=value lines ('#' starts a comment; "path" may repeat). */
+static void read_record(const char *dir, struct record *r) {
+    snprintf(r->file, sizeof r->file, "%s/%s", dir, ENV_FILE);
+    FILE *file = fopen(r->file, "r");
+    if (!file) return;
+    r->found = 1;
+    char line[TEXT];
+    while (fgets(line, sizeof line, file)) {
+        line[strcspn(line, "\r\n")] = '\0';
+        char *value = strchr(line, '=');
+        if (line[0] == '#' || !value) continue;
+        *value++ = '\0';
+        if (strcmp(line, "version") == 0) snprintf(r->version, sizeof r->version, "%s", value);
+        else if (strcmp(line, "library") == 0) snprintf(r->library, sizeof r->library, "%s", value);
+        else if (strcmp(line, "home") == 0) snprintf(r->home, sizeof r->home, "%s", value);
+        else if (strcmp(line, "path") == 0 && r->n_paths < MAX_DIRS)
+            snprintf(r->paths[r->n_paths++], TEXT, "%s", value);
+    }
+    fclose(file);
+}
+
+/* Python source that adds the site directories ahead of the interpreter's own site-packages
+   (as a virtual environment's come first), processing their .pth files. The paths travel as hex
+   so that no quoting can break the source. */
+static int site_code(char *code, size_t size, char dirs[][TEXT], int n) {
+    static const char head[] =
+        "def _ftc_add_site_dirs(dirs):\n"
+        "    import os, site, sys\n"
+        "    n = len(sys.path)\n"
+        "    for d in dirs:\n"
+        "        site.addsitedir(os.fsdecode(bytes.fromhex(d)))\n"
+        "    added = sys.path[n:]\n"
+        "    del sys.path[n:]\n"
+        "    base = set(site.getsitepackages())\n"
+        "    i = next((k for k, p in enumerate(sys.path) if p in base), len(sys.path))\n"
+        "    sys.path[i:i] = added\n"
+        "_ftc_add_site_dirs([";
+    static const char tail[] = "])\ndel _ftc_add_site_dirs\n";
+    size_t used = (size_t)snprintf(code, size, "%s", head);
+    for (int i = 0; i < n; i++) {
+        if (used + 2 * strlen(dirs[i]) + 4 + sizeof tail >= size) return -1;
+        code[used++] = '\'';
+        for (const unsigned char *p = (const unsigned char *)dirs[i]; *p; p++)
+            used += (size_t)snprintf(code + used, size - used, "%02x", *p);
+        code[used++] = '\'';
+        code[used++] = ',';
+    }
+    if (used + sizeof tail >= size) return -1;
+    snprintf(code + used, size - used, "%s", tail);
+    return 0;
+}
+
+/* Initializes Python in this process (libpython already loaded globally) and releases the GIL. */
+static int start_python(void *python, const struct record *r, const char *library, int recorded_library) {
+    void (*initialize)(int) = (void (*)(int))dlsym(python, "Py_InitializeEx");
+    int (*is_initialized)(void) = (int (*)(void))dlsym(python, "Py_IsInitialized");
+    int (*run)(const char *) = (int (*)(const char *))dlsym(python, "PyRun_SimpleString");
+    void *(*save_thread)(void) = (void *(*)(void))dlsym(python, "PyEval_SaveThread");
+    const char *(*get_version)(void) = (const char *(*)(void))dlsym(python, "Py_GetVersion");
+    if (!initialize || !is_initialized || !run || !save_thread || !get_version) {
+        snprintf(failure, TEXT, "%s: %s is not a usable libpython (Py_InitializeEx, PyRun_SimpleString, "
+                 "PyEval_SaveThread or Py_GetVersion missing)", model, library);
+        return -1;
+    }
+
+    /* Dirs to add: FTC_PYTHON_PATH replaces the recorded ones. */
+    char dirs[MAX_DIRS][TEXT];
+    int n = 0;
+    const char *env_path = getenv("FTC_PYTHON_PATH");
+    if (env_path && *env_path) {
+        const char *p = env_path;
+        while (*p && n < MAX_DIRS) {
+            size_t len = strcspn(p, ":");
+            if (len && len < TEXT) snprintf(dirs[n++], TEXT, "%.*s", (int)len, p);
+            p += len + (p[len] == ':');
+        }
+    } else {
+        for (int i = 0; i < r->n_paths; i++) snprintf(dirs[n++], TEXT, "%s", r->paths[i]);
+    }
+    for (int i = 0; i < n; i++)
+        if (!is_dir(dirs[i]))
+            append(warnings, "%s: site directory %s (%s) does not exist; packages of "
+                   "resources/requirements.txt may not import; ", model, dirs[i],
+                   env_path && *env_path ? "from FTC_PYTHON_PATH" : "recorded at build");
+
+    /* The recorded home belongs to the recorded libpython only; PYTHONHOME, if set, wins. */
+    const char *home = NULL;
+    if (recorded_library && !getenv("PYTHONHOME") && r->home[0]) {
+        char landmark[TEXT + 64];
+        snprintf(landmark, sizeof landmark, "%s/lib/python%s/os.py", r->home, r->version);
+        if (is_file(landmark)) home = r->home;
+    }
+    if (home) setenv("PYTHONHOME", home, 1);
+    initialize(0); /* 0: keep the host's signal handlers */
+    if (home) unsetenv("PYTHONHOME");
+    if (!is_initialized()) {
+        snprintf(failure, TEXT, "%s: Py_InitializeEx of %s failed", model, library);
+        return -1;
+    }
+
+    static char code[MAX_DIRS * 2 * TEXT + 1024];
+    if (site_code(code, sizeof code, dirs, n) != 0 || run(code) != 0) {
+        snprintf(failure, TEXT, "%s: could not add the site directories to sys.path in %s "
+                 "(traceback on stderr)", model, library);
+        save_thread();
+        return -1;
+    }
+    const char *version = get_version();
+    if (r->version[0] && (strncmp(version, r->version, strlen(r->version)) != 0 ||
+                          version[strlen(r->version)] != '.'))
+        append(warnings, "%s: Python %.*s from %s differs from the build's %s; compiled packages "
+               "(numpy) of another version do not import; ", model, (int)strcspn(version, " "), version,
+               library, r->version);
+    snprintf(python_info, TEXT, "Python %.*s from %s", (int)strcspn(version, " "), version, library);
+    for (int i = 0; i < n; i++) append(python_info, "%s%s", i ? ":" : ", site directories ", dirs[i]);
+    save_thread(); /* release the GIL: pythonfmu takes it with PyGILState_Ensure */
+    started_python = 1;
+    return 0;
+}
+
+/* Makes Python available if needed, then opens pythonfmu's binary. Called once, under load_lock. */
+static int load(void) {
+    Dl_info self;
+    if (!dladdr((void *)&load, &self) || !self.dli_fname) {
+        snprintf(failure, TEXT, "fmi2 shim: cannot find its own file (dladdr failed)");
+        return -1;
+    }
+    char dir[TEXT];
+    snprintf(dir, sizeof dir, "%s", self.dli_fname);
+    char *slash = strrchr(dir, '/');
+    const char *base = slash ? slash + 1 : dir;
+    snprintf(model, sizeof model, "%s", base);
+    char *dot = strrchr(model, '.');
+    if (dot && strcmp(dot, ".so") == 0) *dot = '\0';
+    if (slash) *slash = '\0';
+    else snprintf(dir, sizeof dir, ".");
+
+    struct record r;
+    memset(&r, 0, sizeof r);
+    read_record(dir, &r);
+
+    void *python = NULL;
+    const char *library = "the process";
+    int recorded_library = 0;
+    if (!dlsym(RTLD_DEFAULT, "Py_IsInitialized")) {
+        const char *env_library = getenv("FTC_PYTHON_LIBRARY");
+        char tried[TEXT] = "";
+        if (env_library && *env_library) {
+            library = env_library;
+            python = dlopen(library, RTLD_NOW | RTLD_GLOBAL);
+            if (!python)
+                snprintf(tried, TEXT, "FTC_PYTHON_LIBRARY=%s (%s); not tried: %s (recorded at build in %s, "
+                         "overridden)", library, dl_reason(library), r.library[0] ? r.library : "none",
+                         r.file);
+        } else if (!r.found) {
+            snprintf(tried, TEXT, "FTC_PYTHON_LIBRARY (unset), %s (missing: no recorded libpython)", r.file);
+        } else if (!r.library[0]) {
+            snprintf(tried, TEXT, "FTC_PYTHON_LIBRARY (unset), %s (no library= line)", r.file);
+        } else {
+            library = r.library;
+            recorded_library = 1;
+            python = dlopen(library, RTLD_NOW | RTLD_GLOBAL);
+            if (!python)
+                snprintf(tried, TEXT, "FTC_PYTHON_LIBRARY (unset), %s (recorded at build in %s: %s)", library,
+                         r.file, dl_reason(library));
+        }
+        if (!python) {
+            snprintf(failure, TEXT, "%s: cannot load libpython: tried %s; set FTC_PYTHON_LIBRARY to a shared "
+                     "libpython%s and FTC_PYTHON_PATH to the site-packages holding the packages of "
+                     "resources/requirements.txt", model, tried, r.version[0] ? r.version : "3");
+            return -1;
+        }
+    } else {
+        python = RTLD_DEFAULT;
+    }
+    int (*is_initialized)(void) = (int (*)(void))dlsym(python, "Py_IsInitialized");
+    if (!is_initialized) {
+        snprintf(failure, TEXT, "%s: %s has no Py_IsInitialized: not a libpython", model, library);
+        return -1;
+    }
+    if (!is_initialized() && start_python(python, &r, library, recorded_library) != 0) return -1;
+
+    char path[TEXT + 300];
+    snprintf(path, sizeof path, "%s/%s%s", dir, model, INNER_SUFFIX);
+    inner = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!inner) {
+        snprintf(failure, TEXT, "%s: cannot load pythonfmu's binary %s: %s", model, path, dl_reason(path));
+        return -1;
+    }
+    inner_fmi2Instantiate = (fmi2Component(*)(fmi2String, fmi2Type, fmi2String, fmi2String,
+                                               const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean))
+        dlsym(inner, "fmi2Instantiate");
+    inner_fmi2FreeInstance = (void (*)(fmi2Component))dlsym(inner, "fmi2FreeInstance");
+    if (!inner_fmi2Instantiate || !inner_fmi2FreeInstance) {
+        snprintf(failure, TEXT, "%s: %s lacks fmi2Instantiate or fmi2FreeInstance", model, path);
+        return -1;
+    }
+#define RESOLVE(name, params, args) *(void **)(&inner_##name) = dlsym(inner, #name);
+    FMI2_FORWARDED(RESOLVE)
+    return 0;
+}
+
+/* One message to the host's logger (if any) and to stderr; '%' escaped for the printf-style logger. */
+static void report(const fmi2CallbackFunctions *functions, fmi2String instanceName, fmi2Status status,
+                   const char *message) {
+    fprintf(stderr, "%s\n", message);
+    if (!functions || !functions->logger) return;
+    char escaped[2 * TEXT];
+    size_t j = 0;
+    for (const char *p = message; *p && j + 2 < sizeof escaped; p++) {
+        if (*p == '%') escaped[j++] = '%';
+        escaped[j++] = *p;
+    }
+    escaped[j] = '\0';
+    functions->logger(functions->componentEnvironment, instanceName ? instanceName : model, status,
+                      status == fmi2Warning ? "logStatusWarning" : "logStatusError", escaped);
+}
+
+EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
+
+EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
+
+EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                                     fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
+                                     fmi2Boolean visible, fmi2Boolean loggingOn) {
+    pthread_mutex_lock(&load_lock);
+    if (loaded == 0) loaded = load() == 0 ? 1 : -1;
+    pthread_mutex_unlock(&load_lock);
+    if (warnings[0]) report(functions, instanceName, fmi2Warning, warnings);
+    if (loaded < 0) {
+        report(functions, instanceName, fmi2Error, failure);
+        return NULL;
+    }
+    fmi2Component c = inner_fmi2Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation, functions,
+                                            visible, loggingOn);
+    if (!c && started_python) {
+        char message[2 * TEXT];
+        snprintf(message, sizeof message, "%s: pythonfmu could not instantiate %s in %s; instantiate with "
+                 "logging on for its reason (e.g. a package of resources/requirements.txt that does not "
+                 "import)", model, instanceName ? instanceName : "the model", python_info);
+        report(functions, instanceName, fmi2Error, message);
+    }
+    return c;
+}
+
+EXPORT void fmi2FreeInstance(fmi2Component c) {
+    if (c && inner_fmi2FreeInstance) inner_fmi2FreeInstance(c);
+}
+
+#define FORWARD(name, params, args)                                                                          \
+    EXPORT fmi2Status name params { return inner_##name ? inner_##name args : fmi2Error; }
+FMI2_FORWARDED(FORWARD)
+
+/* Unloading the shim unloads pythonfmu's binary too, as a host unloading it directly would. Python
+   itself stays: an interpreter cannot be unloaded. */
+__attribute__((destructor)) static void unload(void) {
+    if (inner) dlclose(inner);
+}
