@@ -42,12 +42,16 @@ __all__ = [
     "Parameter",
     "ParameterSet",
     "PortRef",
+    "Reading",
     "SystemStructure",
     "component",
     "open_scenario",
     "pack_ssp",
     "read_parameter_set",
     "read_scenario",
+    "scan_parameter_set",
+    "scan_scenario",
+    "unpack_scenario",
     "write_ssd",
     "write_ssv",
 ]
@@ -177,43 +181,52 @@ class SystemStructure:
 def open_scenario(scenario: str | os.PathLike, stack: ExitStack) -> Path:
     """Return the folder holding ``SystemStructure.ssd``; an archive is unpacked into a temporary
     folder that ``stack`` removes. Hostile or broken archives raise ScenarioError."""
+    folder, problems = unpack_scenario(scenario, stack)
+    if problems:
+        raise ScenarioError(problems)
+    return folder
+
+
+def unpack_scenario(scenario: str | os.PathLike, stack: ExitStack) -> tuple[Path | None, list[str]]:
+    """:func:`open_scenario` that returns its problems instead of raising, for checks that go on:
+    unsafe members of an archive are reported and left out, the others extracted. The folder is
+    None when there is no SSD to read."""
     path = Path(scenario)
+    problems: list[str] = []
     if path.is_dir():
         folder = path
     elif path.is_file():
         folder = Path(tempfile.mkdtemp(prefix="ssp-"))
         stack.callback(shutil.rmtree, folder, ignore_errors=True)
-        _safe_extract(path, folder)
+        try:
+            problems = _safe_extract(path, folder)
+        except zipfile.BadZipFile as exc:
+            return None, [f"{path}: not a valid SSP (zip) archive: {exc}"]
     else:
-        raise ScenarioError(f"{path}: no such scenario (expected a .ssp archive or a folder)")
+        return None, [f"{path}: no such scenario (expected a .ssp archive or a folder)"]
     if not (folder / SSD_NAME).is_file():
-        raise ScenarioError(f"{path}: no {SSD_NAME} at the root of the scenario")
-    return folder
+        return None, [*problems, f"{path}: no {SSD_NAME} at the root of the scenario"]
+    return folder, problems
 
 
-def _safe_extract(archive: Path, dest: Path) -> None:
-    """Extract every member, refusing absolute paths, '..', symbolic links and duplicates."""
-    try:
-        with zipfile.ZipFile(archive) as zf:
-            members = zf.infolist()
-            problems = []
-            for info in members:
-                name = info.filename
-                parts = PurePosixPath(name.replace("\\", "/")).parts
-                mode = info.external_attr >> 16
-                if name.startswith(("/", "\\")) or (len(name) > 1 and name[1] == ":") or ".." in parts:
-                    problems.append(f"{archive.name}: member '{name}' points outside the archive folder")
-                elif stat.S_ISLNK(mode):
-                    problems.append(f"{archive.name}: member '{name}' is a symbolic link")
-            if problems:
-                raise ScenarioError(problems)
-            for info in members:
-                target = dest.joinpath(*PurePosixPath(info.filename).parts)
-                if not target.resolve().is_relative_to(dest.resolve()):
-                    raise ScenarioError(f"{archive.name}: member '{info.filename}' points outside the folder")
+def _safe_extract(archive: Path, dest: Path) -> list[str]:
+    """Extract every member but those with an absolute path, '..' or a symbolic link, which are
+    returned as problems (nothing is ever written outside ``dest``). Raises BadZipFile when the
+    file is not a zip archive."""
+    problems = []
+    with zipfile.ZipFile(archive) as zf:
+        for info in zf.infolist():
+            name = info.filename
+            parts = PurePosixPath(name.replace("\\", "/")).parts
+            target = dest.joinpath(*PurePosixPath(name).parts)
+            if (name.startswith(("/", "\\")) or (len(name) > 1 and name[1] == ":") or ".." in parts
+                    or not target.resolve().is_relative_to(dest.resolve())):
+                problems.append(f"{archive.name}: member '{name}' points outside the archive folder")
+            elif stat.S_ISLNK(info.external_attr >> 16):
+                problems.append(f"{archive.name}: member '{name}' is a symbolic link")
+            else:
                 zf.extract(info, dest)
-    except zipfile.BadZipFile as exc:
-        raise ScenarioError(f"{archive}: not a valid SSP (zip) archive: {exc}") from exc
+    return problems
 
 
 @functools.cache
@@ -221,38 +234,42 @@ def _schema(name: str) -> etree.XMLSchema:
     return etree.XMLSchema(file=str(Path(fmpy_ssd.__file__).parent / "schema" / name))
 
 
-def _parse(path: Path, schema: str, label: str) -> etree._Element:
-    """Parse and schema-validate one XML file; errors name ``label`` (the file) and the line."""
+def _load(path: Path, schema: str, label: str) -> tuple[etree._Element | None, list[str]]:
+    """Parse one XML file and validate it against ``schema``; problems name ``label`` (the file)
+    and the line. The root is None when the file is missing or not XML; a root that breaks the
+    schema is still returned, so the checks after it can go on."""
     if not path.is_file():
-        raise ScenarioError(f"{label}: file is missing")
+        return None, [f"{label}: file is missing"]
     try:
         root = etree.parse(str(path)).getroot()
     except etree.XMLSyntaxError as exc:
-        raise ScenarioError(f"{label}: broken XML: {exc}") from exc
+        return None, [f"{label}: broken XML: {exc}"]
     validator = _schema(schema)
-    if not validator.validate(root):
-        raise ScenarioError([f"{label} line {e.line}: {e.message}" for e in validator.error_log])
-    return root
+    if validator.validate(root):
+        return root, []
+    return root, [f"{label} line {e.line}: {e.message}" for e in validator.error_log]
 
 
-def _convert(type_: str, text: str | None, where: str) -> float | int | bool | str:
-    try:
-        if type_ == "Real":
-            return float(text)
-        if type_ in ("Integer", "Enumeration"):
-            return int(text)
-        if type_ == "Boolean":
-            if text not in ("true", "false", "1", "0"):
-                raise ValueError(text)
-            return text in ("true", "1")
-        return "" if text is None else text
-    except (TypeError, ValueError) as exc:
-        raise ScenarioError(f"{where}: value {text!r} is not a valid {type_}") from exc
+def _convert(type_: str, text: str | None) -> float | int | bool | str:
+    """The Python value of an SSV value attribute; ValueError when it is not one of ``type_``."""
+    if text is None and type_ != "String":
+        raise ValueError(text)
+    if type_ == "Real":
+        return float(text)
+    if type_ in ("Integer", "Enumeration"):
+        return int(text)
+    if type_ == "Boolean":
+        if text not in ("true", "false", "1", "0"):
+            raise ValueError(text)
+        return text in ("true", "1")
+    return "" if text is None else text
 
 
-def _parameter_set(fmpy_set: fmpy_ssd.ParameterSet, origin: str, prefix: str) -> ParameterSet:
-    """Convert fmpy's parameter set, stripping the binding's prefix from every name."""
-    problems, parameters = [], []
+def _parameter_set(fmpy_set: fmpy_ssd.ParameterSet, origin: str, prefix: str,
+                   problems: list[str]) -> ParameterSet:
+    """Convert fmpy's parameter set, stripping the binding's prefix from every name; parameters
+    that cannot be used are left out and reported in ``problems``."""
+    parameters = []
     for p in fmpy_set.parameters:
         name = p.name
         if prefix:
@@ -263,89 +280,152 @@ def _parameter_set(fmpy_set: fmpy_ssd.ParameterSet, origin: str, prefix: str) ->
         if p.type is None:
             problems.append(f"{origin}: parameter '{name}' has no value element")
             continue
-        parameters.append(Parameter(name, p.type, _convert(p.type, p.value, f"{origin}: parameter '{name}'")))
-    if problems:
-        raise ScenarioError(problems)
+        try:
+            parameters.append(Parameter(name, p.type, _convert(p.type, p.value)))
+        except ValueError:
+            problems.append(f"{origin}: parameter '{name}': value {p.value!r} is not a valid {p.type}")
     return ParameterSet(origin, tuple(parameters))
+
+
+def _read_ssv(path: Path, label: str, origin: str, prefix: str) -> tuple[ParameterSet | None, list[str]]:
+    """One ``.ssv`` file: the parameters that can be used (None when the file breaks its schema,
+    which fmpy's reader needs) and the problems."""
+    root, problems = _load(path, "SystemStructureParameterValues.xsd", label)
+    if root is None or problems:
+        return None, problems
+    return _parameter_set(fmpy_ssd.read_ssv(str(path), validate=False), origin, prefix, problems), problems
 
 
 def read_parameter_set(path: str | os.PathLike, prefix: str = "") -> ParameterSet:
     """Read and validate one ``.ssv`` file (fmpy's reader, after our own schema check)."""
+    parameter_set, problems = scan_parameter_set(path, prefix)
+    if problems:
+        raise ScenarioError(problems)
+    return parameter_set
+
+
+def scan_parameter_set(path: str | os.PathLike, prefix: str = "") -> tuple[ParameterSet | None, list[str]]:
+    """:func:`read_parameter_set` that returns its problems instead of raising: the parameters that
+    can be used (None when the file cannot be read) and every problem."""
     path = Path(path)
-    _parse(path, "SystemStructureParameterValues.xsd", str(path))
-    return _parameter_set(fmpy_ssd.read_ssv(str(path), validate=False), path.name, prefix)
+    return _read_ssv(path, str(path), path.name, prefix)
+
+
+@dataclass(frozen=True)
+class Reading:
+    """What could be read of a scenario, with every problem found on the way.
+
+    ``structure`` is None when the SSD cannot be read at all. The checks that follow must treat
+    two kinds of components as unknown: ``no_fmu``, whose FMU is missing or not an FMU, and
+    ``partial``, some of whose parameter values could not be read (their start values are not all
+    known)."""
+
+    structure: SystemStructure | None
+    problems: tuple[str, ...] = ()
+    no_fmu: frozenset[str] = frozenset()
+    partial: frozenset[str] = frozenset()
 
 
 def read_scenario(folder: Path, label: str | None = None) -> SystemStructure:
-    """Read the SSD in ``folder``; ``label`` is how messages name the SSD (default: its path)."""
+    """Read the SSD in ``folder``; ``label`` is how messages name the SSD (default: its path).
+    Raises ScenarioError listing every problem."""
+    reading = scan_scenario(folder, label)
+    if reading.problems:
+        raise ScenarioError(list(reading.problems))
+    return reading.structure
+
+
+def scan_scenario(folder: Path, label: str | None = None) -> Reading:
+    """:func:`read_scenario` that returns its problems instead of raising and reads as much as it
+    can: an SSD that breaks the schema is still read (elements lacking what the schema requires
+    are left out), a component keeps its connectors when its FMU or a parameter file is bad."""
     label = label or str(folder / SSD_NAME)
-    root = _parse(folder / SSD_NAME, "SystemStructureDescription.xsd", label)
-    problems: list[str] = []
+    root, problems = _load(folder / SSD_NAME, "SystemStructureDescription.xsd", label)
+    system = root.find("ssd:System", NS) if root is not None else None
+    if system is None:
+        return Reading(None, tuple(problems))
     if root.get("version") != "1.0":
         problems.append(f"{label}: version must be \"1.0\" (got {root.get('version')!r})")
-    system = root.find("ssd:System", NS)
     if system.find("ssd:Elements/ssd:System", NS) is not None:
         problems.append(f"{label}: nested systems are not supported")
     if system.find("ssd:ParameterBindings", NS) is not None:
         problems.append(f"{label}: parameter bindings on the system are not supported (other tools ignore "
                         "them); bind parameters on the components")
 
-    components = []
+    components, no_fmu, partial = [], set(), set()
     for element in system.findall("ssd:Elements/ssd:Component", NS):
-        try:
-            components.append(_read_component(element, folder, label))
-        except ScenarioError as exc:
-            problems.extend(exc.problems)
+        if element.get("name") is None or element.get("source") is None:
+            continue  # the schema requires both and has reported it
+        c, has_fmu, complete = _read_component(element, folder, label, problems)
+        components.append(c)
+        if not has_fmu:
+            no_fmu.add(c.name)
+        if not complete:
+            partial.add(c.name)
     connections = []
     for element in system.findall("ssd:Connections/ssd:Connection", NS):
+        ends = [element.get(a) for a in ("startElement", "startConnector", "endElement", "endConnector")]
+        if None in ends:
+            continue  # the schema requires all four and has reported it
         transformation = element.find("ssc:LinearTransformation", NS)
         if element.find("ssc:*", NS) is not None and transformation is None:
-            start = f"{element.get('startElement')}.{element.get('startConnector')}"
-            problems.append(f"{label}: connection from {start}"
+            problems.append(f"{label}: connection from {ends[0]}.{ends[1]}"
                             " has a transformation other than LinearTransformation (not supported)")
-        factor = offset = None
+        factor, offset = 1.0, 0.0
         if transformation is not None:
-            factor = float(transformation.get("factor", "1"))
-            offset = float(transformation.get("offset", "0"))
-        connections.append(Connection(PortRef(element.get("startElement"), element.get("startConnector")),
-                                      PortRef(element.get("endElement"), element.get("endConnector")),
-                                      1.0 if factor is None else factor, 0.0 if offset is None else offset))
-    if problems:
-        raise ScenarioError(problems)
-    return SystemStructure(system.get("name"), tuple(components), tuple(connections),
-                           _read_experiment(root, system), system.get("description", ""), label)
+            factor = _number(transformation.get("factor"), 1.0)
+            offset = _number(transformation.get("offset"), 0.0)
+        connections.append(Connection(PortRef(ends[0], ends[1]), PortRef(ends[2], ends[3]), factor, offset))
+    structure = SystemStructure(system.get("name", ""), tuple(components), tuple(connections),
+                                _read_experiment(root, system), system.get("description", ""), label)
+    return Reading(structure, tuple(problems), frozenset(no_fmu), frozenset(partial))
 
 
-def _read_component(element: etree._Element, folder: Path, label: str) -> Component:
+def _number(text: str | None, default: float | None) -> float | None:
+    """A double attribute; ``default`` when absent or not a number (the schema reports the latter)."""
+    try:
+        return default if text is None else float(text)
+    except ValueError:
+        return default
+
+
+def _read_component(element: etree._Element, folder: Path, label: str,
+                    problems: list[str]) -> tuple[Component, bool, bool]:
+    """The component with every parameter value that could be read; whether its FMU is there, and
+    whether all its parameter values could be read. Problems go to ``problems``."""
     name = element.get("name")
-    problems = []
     where = f"{label}: component '{name}'"
     source = folder / element.get("source")
+    has_fmu = False
     if element.get("type", "application/x-fmu-sharedlibrary") != "application/x-fmu-sharedlibrary":
         problems.append(f"{where}: only FMU components are supported (type {element.get('type')!r})")
     elif not source.is_file():
         problems.append(f"{where}: FMU '{element.get('source')}' is missing")
+    else:
+        has_fmu = True
     connectors = []
     for c in element.findall("ssd:Connectors/ssd:Connector", NS):
+        if c.get("name") is None or c.get("kind") is None:
+            continue  # the schema requires both and has reported it
         type_ = next((t for t in TYPES if c.find(f"ssc:{t}", NS) is not None), None)
         connectors.append(Connector(c.get("name"), c.get("kind"), type_))
-    parameter_sets = []
+    parameter_sets, complete = [], True
     for binding in element.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
         prefix = binding.get("prefix", "")
-        try:
-            if binding.get("source") is not None:
-                ssv = folder / binding.get("source")
-                _parse(ssv, "SystemStructureParameterValues.xsd", f"{label}: {binding.get('source')}")
-                parameter_sets.append(_parameter_set(fmpy_ssd.read_ssv(str(ssv), validate=False),
-                                                     binding.get("source"), prefix))
-            for inline in binding.findall("ssd:ParameterValues/ssv:ParameterSet", NS):
-                parameter_sets.append(_parameter_set(fmpy_ssd._get_parameter_set(inline),
-                                                     f"{label} (inline values of '{name}')", prefix))
-        except ScenarioError as exc:
-            problems.extend(exc.problems)
-    if problems:
-        raise ScenarioError(problems)
-    return Component(name, source, tuple(connectors), tuple(parameter_sets))
+        found = []
+        if binding.get("source") is not None:
+            origin = binding.get("source")
+            found.append(_read_ssv(folder / origin, f"{label}: {origin}", origin, prefix))
+        for inline in binding.findall("ssd:ParameterValues/ssv:ParameterSet", NS):
+            inline_problems: list[str] = []
+            found.append((_parameter_set(fmpy_ssd._get_parameter_set(inline), f"{label} (inline values of "
+                                         f"'{name}')", prefix, inline_problems), inline_problems))
+        for parameter_set, set_problems in found:
+            problems.extend(set_problems)
+            complete = complete and not set_problems
+            if parameter_set is not None:
+                parameter_sets.append(parameter_set)
+    return Component(name, source, tuple(connectors), tuple(parameter_sets)), has_fmu, complete
 
 
 def _read_experiment(root: etree._Element, system: etree._Element) -> Experiment:
@@ -353,17 +433,17 @@ def _read_experiment(root: etree._Element, system: etree._Element) -> Experiment
     experiment = root.find("ssd:DefaultExperiment", NS)
     start, stop, step = 0.0, None, None
     if experiment is not None:
-        start = float(experiment.get("startTime", "0"))
-        stop = float(experiment.get("stopTime")) if experiment.get("stopTime") is not None else None
+        start = _number(experiment.get("startTime"), 0.0)
+        stop = _number(experiment.get("stopTime"), None)
         osp = experiment.find(f"ssd:Annotations/ssc:Annotation[@type='{OSP_ANNOTATION}']"
                               "/osp:Algorithm/osp:FixedStepAlgorithm", NS)
         if osp is not None:
-            step = float(osp.get("baseStepSize"))
+            step = _number(osp.get("baseStepSize"), None)
     if step is None:
         oms = system.find(f"ssd:Annotations/ssc:Annotation[@type='{OMS_ANNOTATION}']"
                           "/oms:Annotations/oms:SimulationInformation/oms:FixedStepMaster", NS)
         if oms is not None:
-            step = float(oms.get("stepSize"))
+            step = _number(oms.get("stepSize"), None)
     return Experiment(start, stop, step)
 
 

@@ -10,16 +10,19 @@ ports on the loop.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Mapping
+from collections.abc import Collection, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 from fmpy import read_model_description
-from fmpy.model_description import ModelDescription
-from fmpy.validation import validate_model_description
+from fmpy.model_description import BaseUnit, ModelDescription, ModelVariable, Unit
+from fmpy.validation import validate_fmu, validate_model_description
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
 
 from .errors import ScenarioError
-from .ssp import Connection, Parameter, ParameterSet, PortRef, SystemStructure
+from .ssp import Component, Connection, Parameter, ParameterSet, PortRef, SystemStructure
 
 __all__ = ["ComponentModel", "Operation", "PortRef", "System"]
 
@@ -62,51 +65,85 @@ class System:
 
     ``parameter_sets`` name parameters ``<component>.<variable>`` and apply after the SSD's own
     bindings; ``overrides`` (``"component.variable" -> value``) apply last.
+
+    Every check runs, each as far as what is known allows, and every problem is collected in
+    ``problems``; with ``strict`` (the default) they raise one ScenarioError. Components named in
+    ``no_fmu`` (FMU missing, already reported) are checked only as far as the SSD goes; those in
+    ``partial`` (some parameter values unreadable, already reported) are not checked for inputs
+    without a value. ``fmu_warnings`` adds fmpy's full FMU validation (``validate_fmu``): what it
+    finds beyond the checks a run needs goes to ``warnings``. ``schedule`` is None when there are
+    problems.
     """
 
     def __init__(self, structure: SystemStructure,
                  parameter_sets: Iterable[ParameterSet] = (),
                  overrides: Mapping[str, object] | None = None,
-                 model_descriptions: Mapping[Path, ModelDescription] | None = None) -> None:
+                 model_descriptions: Mapping[Path, ModelDescription] | None = None, *,
+                 strict: bool = True, no_fmu: Collection[str] = (), partial: Collection[str] = (),
+                 fmu_warnings: bool = False) -> None:
         self.structure = structure
         self.ssd = structure.ssd_file
-        problems: list[str] = []
+        self.problems: list[str] = []
+        self.warnings: list[str] = []
+        problems = self.problems
         self.components: dict[str, ComponentModel] = {}
+        names: set[str] = set()
         for c in structure.components:
-            if c.name in self.components:
+            if c.name in names:
                 problems.append(f"{self.ssd}: component name '{c.name}' is used twice")
                 continue
-            where = f"{self.ssd}: component '{c.name}': FMU '{os.path.basename(c.source)}'"
-            try:
-                md = (model_descriptions or {}).get(c.source) or read_model_description(str(c.source),
-                                                                                         validate=False)
-            except Exception as exc:  # fmpy raises plain Exception for unreadable FMUs
-                problems.append(f"{where}: cannot read modelDescription.xml: {exc}")
-                continue
-            # fmpy's checks, except a missing input start, which _check_inputs reports in context
-            invalid = [p for p in validate_model_description(md) if not _is_input_start(p, md)]
-            if invalid:
-                problems.extend(f"{where}: {p}" for p in invalid)
-                continue
-            if md.coSimulation is None:
-                problems.append(f"{self.ssd}: component '{c.name}': FMU is not a Co-Simulation FMU")
-                continue
-            self.components[c.name] = self._component(c, md, problems)
+            names.add(c.name)
+            if c.name not in no_fmu:
+                md = self._model_description(c, (model_descriptions or {}).get(c.source), fmu_warnings)
+                if md is not None:
+                    self.components[c.name] = self._component(c, md, problems)
         self.links: dict[PortRef, Connection] = {}
         self._check_connections(problems)
+        self._check_units(problems)
+        parameter_sets = list(parameter_sets)
         for ps in structure_sets(structure):
             self._apply(ps[0], ps[1], problems)
         for ps in parameter_sets:
             self._apply_prefixed(ps, problems)
         for key, value in (overrides or {}).items():
             self._override(key, value, problems)
-        self._check_inputs(problems)
+        self.values_checked = (sum(len(ps.parameters) for _, ps in structure_sets(structure))
+                               + sum(len(ps.parameters) for ps in parameter_sets) + len(overrides or {}))
+        self._check_inputs(problems, partial)
+        problems.extend(self._algebraic_loops())
+        self.schedule: list[Operation] | None = None
         if problems:
-            raise ScenarioError(problems)
+            if strict:
+                raise ScenarioError(problems)
+            return
         self.schedule = self._schedule()
 
     # -- construction -----------------------------------------------------------------------
-    def _component(self, c, md: ModelDescription, problems: list[str]) -> ComponentModel:
+    def _model_description(self, c: Component, md: ModelDescription | None,
+                           fmu_warnings: bool) -> ModelDescription | None:
+        """The FMU's model description when it passes the checks a run needs (else None, with the
+        problems recorded); with ``fmu_warnings`` also fmpy's full validation, as warnings."""
+        where = f"{self.ssd}: component '{c.name}': FMU '{os.path.basename(c.source)}'"
+        try:
+            md = md or read_model_description(str(c.source), validate=False)
+        except Exception as exc:  # fmpy raises plain Exception for unreadable FMUs
+            self.problems.append(f"{where}: cannot read modelDescription.xml: {exc}")
+            return None
+        # fmpy's checks, except a missing input start, which _check_inputs reports in context
+        found = validate_model_description(md)
+        invalid = [p for p in found if not _is_input_start(p, md)]
+        if fmu_warnings:
+            self.warnings.extend(f"{where}: {p}" for p in validate_fmu(str(c.source))
+                                 if p not in found and not _is_input_start(p, md))
+        if invalid:
+            self.problems.extend(f"{where}: {p}" for p in invalid)
+            return None
+        if md.coSimulation is None:
+            self.problems.append(f"{self.ssd}: component '{c.name}': FMU is not a Co-Simulation FMU")
+            return None
+        return md
+
+    def _component(self, c: Component, md: ModelDescription, problems: list[str]) -> ComponentModel:
         variables = {v.name: v for v in md.modelVariables}
         outputs, inputs = [], []
         for k in c.connectors:
@@ -163,6 +200,31 @@ class System:
             else:
                 self.links[end] = con
 
+    def _check_units(self, problems: list[str]) -> None:
+        """A connection without transformation joins equal units where both FMU variables declare
+        one: the same name, or definitions with the same SI base units, factor and offset."""
+        for con in self.links.values():
+            if con.transformed:
+                continue  # the transformation is the user's conversion; not ours to judge
+            start, end = self._unit(con.start), self._unit(con.end)
+            if start is None or end is None or start.name == end.name:
+                continue
+            if not (start.baseUnit is not None and end.baseUnit is not None
+                    and _base(start.baseUnit) == _base(end.baseUnit)):
+                problems.append(f"{self.ssd}: connection {con}: unit mismatch ({con.start} is in "
+                                f"{start.name}, {con.end} in {end.name})")
+
+    def _unit(self, ref: PortRef) -> Unit | None:
+        """The unit definition of a Real variable (a name without definition: a Unit of that name)."""
+        comp = self.components.get(ref.component)
+        var = comp.variables.get(ref.connector) if comp else None
+        if var is None or var.type != "Real":
+            return None
+        name = var.unit or (var.declaredType.unit if var.declaredType is not None else None)
+        if name is None:
+            return None
+        return next((u for u in comp.model.unitDefinitions if u.name == name), Unit(name))
+
     def _apply(self, component: str, ps: ParameterSet, problems: list[str]) -> None:
         for p in ps.parameters:
             self._set_start(PortRef(component, p.name), p, ps.origin, problems)
@@ -206,10 +268,17 @@ class System:
         elif var.type != p.type and not (var.type == "Real" and p.type == "Integer"):
             problems.append(f"{origin}: {ref} is {var.type} but the value given is {p.type}")
         else:
-            comp.start_values[ref.connector] = float(p.value) if var.type == "Real" else p.value
+            value = float(p.value) if var.type == "Real" else p.value
+            outside = _outside(var, value)
+            if outside:
+                problems.append(f"{origin}: {ref} = {value!r} {outside}")
+            else:
+                comp.start_values[ref.connector] = value
 
-    def _check_inputs(self, problems: list[str]) -> None:
+    def _check_inputs(self, problems: list[str], partial: Collection[str]) -> None:
         for comp in self.components.values():
+            if comp.name in partial:
+                continue
             for v in comp.model.modelVariables:
                 ref = PortRef(comp.name, v.name)
                 if (v.causality == "input" and ref not in self.links and v.start is None
@@ -224,7 +293,6 @@ class System:
     def _schedule(self) -> list[Operation]:
         """Order of 'get outputs' / 'set inputs' at a communication point (one set per component
         when possible, else the inputs that feed no output are set last)."""
-        self._check_algebraic_loops()
         order = self._toposort(split=False)
         return order if order is not None else self._toposort(split=True)
 
@@ -257,32 +325,73 @@ class System:
             done.add(ready[0])
         return order
 
-    def _check_algebraic_loops(self) -> None:
-        """Port graph: output -> connected input -> outputs depending on it. A cycle is a loop."""
+    def _algebraic_loops(self) -> list[str]:
+        """Port graph: output -> connected input -> outputs depending on it. Every strongly
+        connected part with an edge inside is an algebraic loop, reported as one cycle through it
+        from its first port. Components whose FMU is unknown add no edges."""
         succ: dict[PortRef, list[PortRef]] = {}
         for link in self.links.values():
             succ.setdefault(link.start, []).append(link.end)
-            comp = self.components[link.end.component]
-            succ.setdefault(link.end, []).extend(
-                PortRef(comp.name, o) for o in sorted(comp.feedthrough.get(link.end.connector, ())))
-        state: dict[PortRef, int] = {}
-        stack: list[PortRef] = []
+            comp = self.components.get(link.end.component)
+            if comp is not None:
+                succ.setdefault(link.end, []).extend(
+                    PortRef(comp.name, o) for o in sorted(comp.feedthrough.get(link.end.connector, ())))
+        ports = sorted(set(succ) | {q for qs in succ.values() for q in qs})
+        index = {p: i for i, p in enumerate(ports)}
+        edges = np.array([(index[p], index[q]) for p, qs in succ.items() for q in qs], dtype=int)
+        edges = edges.reshape(-1, 2)
+        graph = csr_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(ports), len(ports)))
+        _, labels = connected_components(graph, directed=True, connection="strong")
+        loops = []
+        for label in dict.fromkeys(labels):
+            members = {p for p in ports if labels[index[p]] == label}
+            first = min(members)
+            if len(members) > 1 or first in succ.get(first, ()):
+                cycle = _cycle(first, {p: [q for q in succ.get(p, ()) if q in members] for p in members})
+                loops.append(f"{self.ssd}: algebraic loop: " + " -> ".join(map(str, cycle)))
+        return loops
 
-        def visit(p: PortRef) -> list[PortRef] | None:
-            state[p] = 1
-            stack.append(p)
-            for q in succ.get(p, ()):
-                if state.get(q) == 1:
-                    return stack[stack.index(q):] + [q]
-                if q not in state and (cycle := visit(q)):
-                    return cycle
+
+def _cycle(first: PortRef, succ: Mapping[PortRef, list[PortRef]]) -> list[PortRef]:
+    """A cycle from ``first`` back to it, inside one strongly connected part (depth first, the
+    first successors first)."""
+    path, seen = [first], {first}
+    stack = [iter(succ[first])]
+    while stack:
+        q = next(stack[-1], None)
+        if q is None:
             stack.pop()
-            state[p] = 2
-            return None
+            path.pop()
+        elif q == first:
+            return [*path, first]
+        elif q not in seen:
+            seen.add(q)
+            path.append(q)
+            stack.append(iter(succ[q]))
+    raise AssertionError("a strongly connected part has a cycle through each of its ports")
 
-        for p in sorted(succ):
-            if p not in state and (cycle := visit(p)):
-                raise ScenarioError(f"{self.ssd}: algebraic loop: " + " -> ".join(map(str, cycle)))
+
+def _base(unit: BaseUnit) -> tuple[float, ...]:
+    return tuple(getattr(unit, a) for a in ("kg", "m", "s", "A", "K", "mol", "cd", "rad", "factor", "offset"))
+
+
+def _outside(var: ModelVariable, value: object) -> str:
+    """Why ``value`` does not fit the variable's declared range or enumeration items ('' if it does)."""
+    declared = var.declaredType
+    if var.type == "Enumeration" and declared is not None and declared.items:
+        items = {int(i.value): i.name for i in declared.items}
+        if value not in items:
+            return f"is not an item of {declared.name} ({', '.join(f'{k}={n}' for k, n in items.items())})"
+        return ""
+    if var.type not in ("Real", "Integer", "Enumeration"):
+        return ""
+    low = var.min if var.min is not None else getattr(declared, "min", None)
+    high = var.max if var.max is not None else getattr(declared, "max", None)
+    if low is not None and not value >= float(low):
+        return f"is below the FMU's min {low}"
+    if high is not None and not value <= float(high):
+        return f"is above the FMU's max {high}"
+    return ""
 
 
 def _is_input_start(problem: str, md: ModelDescription) -> bool:

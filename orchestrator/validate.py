@@ -1,0 +1,131 @@
+"""Every check that can be made before a simulation, without simulating: ``orchestrate validate``.
+
+One code path for ``run`` and ``validate``: :func:`check_scenario` unpacks the archive (unsafe
+members left out), reads the SSD and its parameter files against the SSP schemas, and builds the
+:class:`~orchestrator.system.System` (FMU model descriptions, connections, units, parameters,
+unconnected inputs, algebraic loops). Each stage goes as far as what is known allows, so one broken
+FMU or a schema error still leaves the other components, connections and parameters checked.
+``run`` refuses a scenario with any error; :func:`validate` reports them all, plus warnings.
+
+Severity: an *error* is what makes ``orchestrate run`` refuse the scenario (or fail at once); a
+*warning* is what fmpy's full FMU validation (``fmpy.validation.validate_fmu``: schema, variable
+names, ModelStructure) finds beyond that, i.e. FMI non-compliance that this engine tolerates but
+another importer might not, and a scenario without a stop time (``run`` then needs one).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Mapping
+from contextlib import ExitStack
+from dataclasses import dataclass
+from pathlib import Path
+
+from .errors import ScenarioError
+from .master import time_grid
+from .ssp import SSD_NAME, SystemStructure, scan_parameter_set, scan_scenario, unpack_scenario
+from .system import System
+
+__all__ = ["DEFAULT_STEP", "Problem", "Validation", "check_scenario", "timing", "validate"]
+
+DEFAULT_STEP = 1e-3
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One finding, on one line naming the file, component and connector or variable."""
+
+    message: str
+    severity: str = "error"
+
+    def __str__(self) -> str:
+        return f"{self.severity}: {self.message}"
+
+
+@dataclass(frozen=True)
+class Validation:
+    """What :func:`validate` found, and how much it checked."""
+
+    scenario: str
+    problems: tuple[Problem, ...]
+    components: int = 0
+    connections: int = 0
+    parameters: int = 0
+
+    @property
+    def errors(self) -> list[Problem]:
+        """The problems that make ``run`` refuse the scenario."""
+        return [p for p in self.problems if p.severity == "error"]
+
+    @property
+    def ok(self) -> bool:
+        """True when there is no error (warnings allowed)."""
+        return not self.errors
+
+
+def check_scenario(scenario: str | os.PathLike, stack: ExitStack, *,
+                   parameter_sets: Iterable[str | os.PathLike] = (),
+                   overrides: Mapping[str, object] | None = None,
+                   fmu_warnings: bool = False) -> tuple[System | None, list[str], list[str]]:
+    """Unpack (into a folder ``stack`` removes), read and check a scenario, every stage as far as it
+    can go. Returns the system (None when no SSD could be read; its ``schedule`` is None when there
+    are errors), the errors and the warnings (``fmu_warnings``: add fmpy's full FMU validation)."""
+    folder, errors = unpack_scenario(scenario, stack)
+    if folder is None:
+        return None, errors, []
+    path = Path(scenario)
+    reading = scan_scenario(folder, f"{path}:{SSD_NAME}" if path.is_file() else str(folder / SSD_NAME))
+    errors += reading.problems
+    sets, unreadable = [], False
+    for file in parameter_sets:
+        parameter_set, problems = scan_parameter_set(file)
+        errors += problems
+        unreadable = unreadable or bool(problems)
+        if parameter_set is not None:
+            sets.append(parameter_set)
+    structure = reading.structure
+    if structure is None:
+        return None, errors, []
+    # a value lost from a --parameter-set may have been meant for any input of any component
+    partial = {c.name for c in structure.components} if unreadable else reading.partial
+    system = System(structure, sets, overrides, strict=False, no_fmu=reading.no_fmu, partial=partial,
+                    fmu_warnings=fmu_warnings)
+    return system, errors + system.problems, system.warnings
+
+
+def timing(structure: SystemStructure, stop_time: float | None = None,
+           step: float | None = None) -> tuple[float, float, float]:
+    """Start, stop and step of a run: the arguments, else the SSD's DefaultExperiment and step
+    annotation (1 ms if none). Raises ScenarioError when there is no stop time or no time grid."""
+    experiment = structure.experiment
+    stop = stop_time if stop_time is not None else experiment.stop_time
+    if stop is None:
+        raise ScenarioError(f"{structure.ssd_file}: no stopTime in DefaultExperiment; give a stop time")
+    h = step if step is not None else experiment.step or DEFAULT_STEP
+    try:
+        time_grid(experiment.start_time, stop, h)
+    except ValueError as exc:
+        raise ScenarioError(f"{structure.ssd_file}: {exc}") from exc
+    return experiment.start_time, stop, h
+
+
+def validate(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.PathLike] = (),
+             overrides: Mapping[str, object] | None = None) -> Validation:
+    """Check a scenario (``.ssp`` archive or folder, with the same parameter files and overrides as
+    ``run``) without simulating and report every problem found. Nothing is written next to it."""
+    with ExitStack() as stack:
+        system, errors, warnings = check_scenario(scenario, stack, parameter_sets=parameter_sets,
+                                                  overrides=overrides, fmu_warnings=True)
+    if system is None:
+        return Validation(str(scenario), tuple(Problem(e) for e in errors))
+    structure = system.structure
+    if structure.experiment.stop_time is None:
+        warnings.append(f"{system.ssd}: no stopTime in DefaultExperiment; 'run' needs --stop-time")
+    else:
+        try:
+            timing(structure)
+        except ScenarioError as exc:
+            errors += exc.problems
+    problems = [Problem(e) for e in errors] + [Problem(w, "warning") for w in warnings]
+    return Validation(str(scenario), tuple(problems), len(structure.components), len(structure.connections),
+                      system.values_checked)
