@@ -1,0 +1,282 @@
+"""The campaign report: the figures a design asks for (``[[plots]]``) and a Markdown summary that
+names the worst runs and every failure.
+
+Plot kinds (keys of a ``[[plots]]`` entry):
+
+* ``heatmap``: ``x``, ``y`` (parameters), ``metric``; optional ``facet`` (a column or a list of
+  columns: one panel per value) and ``log`` (log colour scale). A cell shows the largest (worst)
+  value of the runs on it; a failed run is marked with a red cross, a finished run whose metric is
+  infinite (e.g. never settled) with a white circle.
+* ``scatter``: ``x`` (parameter), ``metric``; optional ``facet`` (one series per value), ``log``.
+* ``histogram``: ``metric``; optional ``facet``, ``bins``.
+
+Without ``[[plots]]`` every metric gets a histogram. Campaigns over several scenarios are split by
+scenario as well. ``labels`` in the campaign metadata (``[labels."controller.mode"] "0" = "..."``)
+name the values of a column in titles.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from .table import read_table
+
+__all__ = ["SUMMARY_NAME", "write_report"]
+
+SUMMARY_NAME = "summary.md"
+WORST_COUNT = 5
+FAILURES_LISTED = 20
+
+Row = Mapping[str, object]
+
+
+def _value(row: Row, column: str) -> float:
+    v = row.get(column)
+    return math.nan if v is None else float(v)
+
+
+def _label(meta: Mapping, column: str, value: object) -> str:
+    labels = meta.get("labels", {}).get(column, {})
+    key = f"{value:g}" if isinstance(value, float) else str(value)
+    return labels.get(key, f"{column} = {key}" if column != "scenario" else key)
+
+
+def _facets(spec: Mapping, rows: Sequence[Row], meta: Mapping) -> list[tuple[str, list[Row]]]:
+    """(title, rows) per combination of the facet columns' values (and of the scenario)."""
+    facet = spec.get("facet", [])
+    columns = [facet] if isinstance(facet, str) else list(facet)
+    if len({r["scenario"] for r in rows}) > 1 and "scenario" not in columns:
+        columns.insert(0, "scenario")
+    groups: dict[tuple, list[Row]] = {}
+    for r in rows:
+        groups.setdefault(tuple(r.get(c) for c in columns), []).append(r)
+    return [
+        (", ".join(_label(meta, c, v) for c, v in zip(columns, key, strict=True)), group)
+        for key, group in sorted(groups.items(), key=lambda kv: tuple(str(k) for k in kv[0]))
+    ]
+
+
+def _file_name(spec: Mapping, index: int) -> str:
+    parts = [spec["kind"], spec.get("metric", ""), spec.get("x", ""), spec.get("y", "")]
+    return (
+        f"{index:02d}-" + re.sub(r"[^A-Za-z0-9]+", "_", "-".join(p for p in parts if p)).strip("_") + ".png"
+    )
+
+
+def _heatmap(ax, spec: Mapping, rows: Sequence[Row], fig, title: str) -> None:
+    from matplotlib.colors import LogNorm
+
+    x, y, metric = spec["x"], spec["y"], spec["metric"]
+    xs = sorted({_value(r, x) for r in rows})
+    ys = sorted({_value(r, y) for r in rows})
+    grid = np.full((len(ys), len(xs)), np.nan)
+    failed, infinite = [], []
+    for r in rows:
+        i, j = ys.index(_value(r, y)), xs.index(_value(r, x))
+        if r["status"] != "ok":
+            failed.append((xs[j], ys[i]))
+            continue
+        v = _value(r, metric)
+        if math.isinf(v):
+            infinite.append((xs[j], ys[i]))
+        elif not math.isnan(v) and not v <= grid[i, j]:
+            grid[i, j] = v  # the worst run on this cell
+    finite = grid[np.isfinite(grid)]
+    norm = None
+    if spec.get("log") and finite.size and finite.max() > 0:
+        positive = finite[finite > 0]
+        norm = LogNorm(vmin=positive.min(), vmax=positive.max())
+    mesh = ax.pcolormesh(xs, ys, np.ma.masked_invalid(grid), shading="nearest", cmap="viridis", norm=norm)
+    fig.colorbar(mesh, ax=ax, label=metric)
+    if failed:
+        ax.plot(*zip(*failed, strict=True), "x", color="red", markersize=5, label=f"failed ({len(failed)})")
+    if infinite:
+        ax.plot(
+            *zip(*infinite, strict=True),
+            "o",
+            mfc="none",
+            color="white",
+            markersize=5,
+            label=f"{metric} infinite ({len(infinite)})",
+        )
+    if failed or infinite:
+        ax.legend(loc="upper right", fontsize="x-small", framealpha=0.7)
+    ax.set_xlabel(x)
+    ax.set_ylabel(y)
+    ax.set_title(title, fontsize="small")
+
+
+def _scatter(ax, spec: Mapping, panels: list[tuple[str, list[Row]]]) -> None:
+    x, metric = spec["x"], spec["metric"]
+    for title, rows in panels:
+        ok = [r for r in rows if r["status"] == "ok" and math.isfinite(_value(r, metric))]
+        ax.plot(
+            [_value(r, x) for r in ok],
+            [_value(r, metric) for r in ok],
+            ".",
+            alpha=0.7,
+            label=f"{title or 'runs'} ({len(rows) - len(ok)} failed/infinite)",
+        )
+    if spec.get("log"):
+        ax.set_yscale("log")
+    ax.set_xlabel(x)
+    ax.set_ylabel(metric)
+    ax.legend(fontsize="x-small")
+
+
+def _histogram(ax, spec: Mapping, panels: list[tuple[str, list[Row]]]) -> None:
+    metric = spec["metric"]
+    for title, rows in panels:
+        values = [_value(r, metric) for r in rows if r["status"] == "ok"]
+        values = [v for v in values if math.isfinite(v)]
+        if values:
+            ax.hist(
+                values, bins=int(spec.get("bins", 30)), alpha=0.6, label=f"{title or 'runs'} ({len(values)})"
+            )
+    ax.set_xlabel(metric)
+    ax.set_ylabel("runs")
+    ax.legend(fontsize="x-small")
+
+
+def _draw(spec: Mapping, rows: Sequence[Row], meta: Mapping, target: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = _facets(spec, rows, meta)
+    if spec["kind"] == "heatmap":
+        columns = min(len(panels), 2)
+        lines = math.ceil(len(panels) / columns)
+        fig, axes = plt.subplots(lines, columns, figsize=(5.2 * columns, 4.2 * lines), squeeze=False)
+        for ax, (title, group) in zip(axes.flat, panels, strict=False):
+            _heatmap(ax, spec, group, fig, f"{spec['metric']}: {title}" if title else spec["metric"])
+        for ax in list(axes.flat)[len(panels) :]:
+            ax.set_visible(False)
+    else:
+        fig, ax = plt.subplots(figsize=(7, 4))
+        (_scatter if spec["kind"] == "scatter" else _histogram)(ax, spec, panels)
+        ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(target, dpi=100)
+    plt.close(fig)
+
+
+def _fmt(value: object) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        return "inf" if math.isinf(value) else "nan" if math.isnan(value) else f"{value:.4g}"
+    return str(value).replace("|", "\\|")
+
+
+def _worst(rows: Sequence[Row], metric: str) -> list[Row]:
+    """Finished runs by ``metric``, largest first (infinite first of all)."""
+    done = [r for r in rows if r["status"] == "ok" and not math.isnan(_value(r, metric))]
+    return sorted(done, key=lambda r: -_value(r, metric))[:WORST_COUNT]
+
+
+def _summary(rows: Sequence[Row], meta: Mapping, figures: Sequence[tuple[str, str]], table: Path) -> str:
+    params = [c for c in meta.get("columns", []) if c not in ("stop_time", "step")]
+    metrics = list(meta.get("metrics", []))
+    status = {s: sum(r["status"] == s for r in rows) for s in ("ok", "failed", "timeout")}
+    wall = sum(_value(r, "wall_time") for r in rows if math.isfinite(_value(r, "wall_time")))
+    expected = meta.get("runs", len(rows))
+    lines = [
+        f"# Campaign: {meta.get('description') or Path(str(meta.get('design', table))).stem}",
+        "",
+        f"Design `{meta.get('design', '?')}`, scenarios "
+        + ", ".join(f"`{s}`" for s in meta.get("scenarios", {}))
+        + f", table `{table}`.",
+        "",
+        f"{len(rows)} of {expected} runs in the table: {status['ok']} ok, {status['failed']} failed, "
+        f"{status['timeout']} timed out; {wall:.0f} s of run time in total.",
+        "",
+    ]
+    finite_metrics = [
+        m for m in metrics if any(math.isfinite(_value(r, m)) for r in rows if r["status"] == "ok")
+    ]
+    if finite_metrics:
+        lines += [
+            "## Metrics over the finished runs",
+            "",
+            "| metric | min | median | max | infinite |",
+            "|---|---|---|---|---|",
+        ]
+        for m in finite_metrics:
+            values = np.array([_value(r, m) for r in rows if r["status"] == "ok"])
+            values = values[~np.isnan(values)]
+            ok = values[np.isfinite(values)]
+            lines.append(
+                f"| {m} | {ok.min():.4g} | {np.median(ok):.4g} | {ok.max():.4g} | "
+                f"{int(np.isinf(values).sum())} |"
+            )
+        lines.append("")
+    worst_by = list(dict.fromkeys(str(p["metric"]) for p in meta.get("plots", []) if p.get("metric")))
+    worst_by = [m for m in worst_by if m in metrics] or finite_metrics[:1]
+    for m in worst_by:
+        worst = _worst(rows, m)
+        if not worst:
+            continue
+        lines += [
+            f"## Worst runs by {m}",
+            "",
+            "| run | scenario | " + " | ".join(params) + f" | {m} |",
+            "|---" * (len(params) + 3) + "|",
+        ]
+        lines += [
+            f"| {r['run']} | {r['scenario']} | "
+            + " | ".join(_fmt(r.get(p)) for p in params)
+            + f" | {_fmt(r.get(m))} |"
+            for r in worst
+        ]
+        lines.append("")
+    bad = [r for r in rows if r["status"] != "ok"]
+    if bad:
+        lines += [
+            f"## Failed and timed-out runs ({len(bad)})",
+            "",
+            "| run | scenario | " + " | ".join(params) + " | status | reason |",
+            "|---" * (len(params) + 4) + "|",
+        ]
+        lines += [
+            f"| {r['run']} | {r['scenario']} | "
+            + " | ".join(_fmt(r.get(p)) for p in params)
+            + f" | {r['status']} | {_fmt(r['reason'])} |"
+            for r in bad[:FAILURES_LISTED]
+        ]
+        if len(bad) > FAILURES_LISTED:
+            lines.append(f"\nand {len(bad) - FAILURES_LISTED} more (see the table).")
+        lines.append("")
+    if figures:
+        lines += ["## Figures", ""] + [f"![{title}]({name})" for title, name in figures] + [""]
+    return "\n".join(lines)
+
+
+def write_report(table: str | os.PathLike, out: str | os.PathLike) -> Path:
+    """Draw the design's figures from a campaign table into ``out`` and write ``out/summary.md``;
+    returns the summary's path."""
+    table, out = Path(table), Path(out)
+    rows, meta = read_table(table)
+    out.mkdir(parents=True, exist_ok=True)
+    specs = list(meta.get("plots", [])) or [
+        {"kind": "histogram", "metric": m} for m in meta.get("metrics", [])
+    ]
+    figures = []
+    for i, spec in enumerate(specs):
+        name = _file_name(spec, i)
+        if rows:
+            _draw(spec, rows, meta, out / name)
+            title = f"{spec['kind']} of {spec.get('metric', '')}" + (
+                f" over {spec['x']}" + (f" and {spec['y']}" if spec.get("y") else "") if spec.get("x") else ""
+            )
+            figures.append((title, name))
+    path = out / SUMMARY_NAME
+    path.write_text(_summary(rows, meta, figures, table), encoding="utf-8")
+    return path

@@ -1,0 +1,346 @@
+"""Run a campaign on Dask: every variant of a design on one or more scenarios, one task per run.
+
+By default an embedded ``distributed.LocalCluster`` with one worker process per core and one
+thread per worker (pythonfmu FMUs share one interpreter per process, so processes, not threads);
+``scheduler="tcp://HOST:PORT"`` (or the environment variable ``ORCHESTRATE_SCHEDULER``) uses an
+existing cluster instead, unchanged. The scenario archives go to each worker once, through a
+worker plugin; tasks carry only their overrides.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import logging
+import os
+import sys
+import time
+import zipfile
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+from .. import DEFAULT_STEP, MASTERS, open_system
+from ..errors import OrchestratorError, ScenarioError, UsageError
+from .design import EXPERIMENT_KEYS, Design
+from .table import CSV_NAME, Journal, read_rows
+from .worker import FAILED, OK, TIMEOUT, Metrics, RunOutcome, RunSpec, run_variant
+
+__all__ = ["SCHEDULER_ENV", "CampaignInterrupted", "CampaignSummary", "connect", "plan", "sweep"]
+
+SCHEDULER_ENV = "ORCHESTRATE_SCHEDULER"
+META_NAME = "campaign.json"
+TRAJECTORY_DIR = "trajectories"
+
+
+@dataclass
+class CampaignSummary:
+    """What a sweep did: counts of this campaign's rows, and where the table is."""
+
+    table: Path
+    parquet: Path
+    total: int
+    skipped: int
+    ok: int
+    failed: int
+    timed_out: int
+    wall_time: float
+    workers: int
+
+
+class CampaignInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a sweep, after every finished row was written; ``summary`` says how many."""
+
+    def __init__(self, summary: CampaignSummary) -> None:
+        super().__init__()
+        self.summary = summary
+
+
+def _archive_bytes(scenario: Path) -> bytes:
+    """The scenario as .ssp bytes (a folder is zipped in memory)."""
+    if scenario.is_file():
+        return scenario.read_bytes()
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as zf:
+        for path in sorted(scenario.rglob("*")):
+            if path.is_file():
+                zf.write(path, path.relative_to(scenario).as_posix())
+    return buffer.getvalue()
+
+
+def _run_id(digest: str, overrides: dict, stop: float, step: float, master: str) -> str:
+    key = json.dumps(
+        [digest, sorted((k, repr(v)) for k, v in overrides.items()), repr(stop), repr(step), master]
+    )
+    return hashlib.sha256(key.encode()).hexdigest()[:16]
+
+
+def plan(
+    scenarios: Sequence[str | os.PathLike],
+    design: Design,
+    *,
+    timeout: float | None = None,
+    keep_every: int | None = None,
+) -> tuple[dict[str, bytes], list[RunSpec]]:
+    """Check the design against every scenario (unknown names fail here, all at once, before
+    anything runs) and list the runs: scenario-major, design order within. Returns the archives by
+    digest and the run specs."""
+    if design.master not in MASTERS:
+        raise UsageError(
+            f"{design.source}: unknown master '{design.master}' (choose from {', '.join(MASTERS)})"
+        )
+    names = [Path(s).stem if Path(s).is_file() else Path(s).resolve().name for s in scenarios]
+    if len(set(names)) != len(names):
+        raise UsageError(
+            f"two scenarios share the name {sorted(n for n in names if names.count(n) > 1)[0]!r}"
+        )
+    archives: dict[str, bytes] = {}
+    specs: list[RunSpec] = []
+    variants = design.variants()
+    limit = timeout if timeout is not None else design.timeout
+    for scenario, name in zip(scenarios, names, strict=True):
+        data = _archive_bytes(Path(scenario))
+        digest = hashlib.sha256(data).hexdigest()
+        archives[digest] = data
+        first = {k: v for k, v in variants[0].items() if k not in EXPERIMENT_KEYS} if variants else {}
+        with open_system(scenario, overrides={**design.fixed, **first}) as system:
+            ex = system.structure.experiment
+            default_stop = design.stop_time if design.stop_time is not None else ex.stop_time
+            default_step = design.step if design.step is not None else ex.step or DEFAULT_STEP
+        for variant in variants:
+            stop = variant.get("stop_time", default_stop)
+            if stop is None:
+                raise ScenarioError(
+                    f"{system.ssd}: no stopTime in DefaultExperiment; give stop_time in {design.source}"
+                )
+            step = variant.get("step", default_step)
+            overrides = {**design.fixed, **{k: v for k, v in variant.items() if k not in EXPERIMENT_KEYS}}
+            specs.append(
+                RunSpec(
+                    index=len(specs),
+                    run_id=_run_id(digest, overrides, stop, step, design.master),
+                    scenario=name,
+                    digest=digest,
+                    overrides=overrides,
+                    stop_time=float(stop),
+                    step=float(step),
+                    master=design.master,
+                    timeout=limit,
+                    keep_every=keep_every,
+                )
+            )
+    return archives, specs
+
+
+@contextmanager
+def connect(
+    scheduler: str | None = None, workers: int | None = None, processes: bool = True
+) -> Iterator[object]:
+    """A ``distributed.Client``: to ``scheduler`` (or $ORCHESTRATE_SCHEDULER) if given, else to an
+    embedded LocalCluster of ``workers`` (default: one per core) single-threaded worker processes."""
+    from distributed import Client, LocalCluster
+
+    address = scheduler or os.environ.get(SCHEDULER_ENV) or None
+    if address:
+        try:
+            client = Client(address, timeout="20s")
+        except (OSError, TimeoutError) as exc:
+            raise OrchestratorError(f"cannot connect to the Dask scheduler at {address}: {exc}") from exc
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    n = workers or os.cpu_count() or 1
+    cluster = LocalCluster(
+        n_workers=n,
+        threads_per_worker=1,
+        processes=processes,
+        dashboard_address=None,
+        silence_logs=logging.ERROR,
+    )
+    client = Client(cluster)
+    try:
+        yield client
+    finally:
+        client.close()
+        cluster.close()
+
+
+def _resume(folder: Path, columns: list[str], specs: list[RunSpec], resume: bool, force: bool) -> list[dict]:
+    """Rows of an earlier run of this campaign to keep (ok and failed; timeouts run again)."""
+    path = folder / CSV_NAME
+    if not path.is_file() or force:
+        return []
+    header, rows = read_rows(path)
+    if not resume:
+        if not rows:
+            return []
+        raise UsageError(
+            f"{path} already holds {len(rows)} rows: pass --resume to continue the campaign, "
+            "or --force to start it again"
+        )
+    if header != columns:
+        raise UsageError(
+            f"{path}: its columns differ from this campaign's (another design?); use another "
+            "--out, or --force to start again"
+        )
+    ids = {s.run_id: s.index for s in specs}
+    foreign = [r for r in rows if r["run_id"] not in ids or ids[r["run_id"]] != r["run"]]
+    if foreign:
+        raise UsageError(
+            f"{path}: {len(foreign)} rows are not runs of this campaign (run {foreign[0]['run']}: "
+            "scenario, design or master changed); use another --out, or --force to start again"
+        )
+    return [r for r in rows if r["status"] in (OK, FAILED)]
+
+
+def _row(spec: RunSpec, outcome: RunOutcome, params: Sequence[str]) -> dict[str, object]:
+    row: dict[str, object] = {"run": spec.index, "run_id": spec.run_id, "scenario": spec.scenario}
+    row.update({p: float(spec.overrides[p]) for p in params})
+    row.update(
+        stop_time=spec.stop_time,
+        step=spec.step,
+        status=outcome.status,
+        reason=outcome.reason,
+        wall_time=outcome.wall_time,
+    )
+    row.update(outcome.metrics)
+    return row
+
+
+def _write_trajectory(folder: Path, spec: RunSpec, outcome: RunOutcome) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    data = outcome.trajectory
+    folder.mkdir(parents=True, exist_ok=True)
+    table = pa.table({name: data[name] for name in data.dtype.names})
+    pq.write_table(table, folder / f"run-{spec.index:05d}-{spec.run_id}.parquet")
+
+
+def sweep(
+    scenarios: Sequence[str | os.PathLike],
+    design: Design,
+    out: str | os.PathLike,
+    *,
+    metrics: Metrics | None = None,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    processes: bool = True,
+    resume: bool = False,
+    force: bool = False,
+    timeout: float | None = None,
+    keep_every: int | None = None,
+    progress: bool = True,
+) -> CampaignSummary:
+    """Run every variant of ``design`` on each scenario and write ``out/runs.csv``, ``out/runs.parquet``
+    and ``out/campaign.json`` (plus ``out/trajectories/`` with ``keep_every``: every n-th row of each
+    run). A failed or timed-out run is a row; ``resume`` skips runs already in the table; Ctrl-C
+    raises :class:`CampaignInterrupted` after writing every finished row."""
+    started = time.perf_counter()
+    out = Path(out)
+    archives, specs = plan(scenarios, design, timeout=timeout, keep_every=keep_every)
+    params = [c for c in design.columns if c not in EXPERIMENT_KEYS]
+    names = list(metrics.names) if metrics is not None else []
+    columns = [
+        "run",
+        "run_id",
+        "scenario",
+        *params,
+        "stop_time",
+        "step",
+        "status",
+        "reason",
+        "wall_time",
+        *names,
+    ]
+    meta = {
+        "design": design.source,
+        "description": design.description,
+        "columns": list(design.columns),
+        "fixed": dict(design.fixed),
+        "master": design.master,
+        "plots": list(design.plots),
+        "labels": dict(design.labels),
+        "metrics": names,
+        "scenarios": {s.scenario: s.digest for s in specs},
+        "runs": len(specs),
+    }
+    kept = _resume(out, columns, specs, resume, force)
+    journal = Journal(out, columns, meta)
+    journal.start(kept)
+    (out / META_NAME).write_text(json.dumps(meta, indent=2, default=str) + "\n", encoding="utf-8")
+    done = {r["run_id"] for r in kept}
+    todo = [s for s in specs if s.run_id not in done]
+    counts = {OK: 0, FAILED: 0, TIMEOUT: 0}
+    for r in kept:
+        counts[r["status"]] += 1
+    n_workers = 0
+
+    def summary() -> CampaignSummary:
+        return CampaignSummary(
+            journal.csv_path,
+            journal.parquet_path,
+            len(specs),
+            len(kept),
+            counts[OK],
+            counts[FAILED],
+            counts[TIMEOUT],
+            time.perf_counter() - started,
+            n_workers,
+        )
+
+    if not todo:
+        journal.finish()
+        return summary()
+    from distributed import as_completed
+    from tqdm import tqdm
+
+    from .plugin import ScenarioPlugin
+
+    bar = tqdm(
+        total=len(specs),
+        initial=len(kept),
+        unit="run",
+        file=sys.stderr,
+        disable=not progress,
+        smoothing=0.1,
+        dynamic_ncols=True,
+    )
+    futures = []
+    try:
+        with connect(scheduler, workers, processes) as client:
+            plugin = hashlib.sha256("".join(sorted(archives)).encode()).hexdigest()[:16]
+            client.register_plugin(ScenarioPlugin(archives), name=f"orchestrate-campaign-{plugin}")
+            n_workers = len(client.scheduler_info(n_workers=-1)["workers"])
+            by_key = {}
+            for spec in todo:
+                future = client.submit(
+                    run_variant, spec, metrics, key=f"run-{spec.index}-{spec.run_id}", pure=False
+                )
+                by_key[future.key] = spec
+                futures.append(future)
+            for future in as_completed(futures):
+                spec = by_key[future.key]
+                try:
+                    outcome = future.result()
+                except Exception as exc:  # the worker died (e.g. an FMU crashed its process)
+                    reason = " ".join(f"worker lost: {type(exc).__name__}: {exc}".split())
+                    outcome = RunOutcome(spec.index, FAILED, reason, float("nan"))
+                future.release()
+                if outcome.trajectory is not None:
+                    _write_trajectory(out / TRAJECTORY_DIR, spec, outcome)
+                journal.append(_row(spec, outcome, params))
+                counts[outcome.status] += 1
+                bar.set_postfix(failed=counts[FAILED] + counts[TIMEOUT], refresh=False)
+                bar.update()
+    except KeyboardInterrupt:
+        bar.close()
+        journal.finish()
+        raise CampaignInterrupted(summary()) from None
+    bar.close()
+    journal.finish()
+    return summary()

@@ -1,0 +1,141 @@
+"""The campaign table: one row per run, appended to ``runs.csv`` as each run finishes (so Ctrl-C or a
+crash keeps every finished row), then rewritten in design order as ``runs.csv`` and ``runs.parquet``.
+
+Columns: ``run`` (index in design order), ``run_id`` (digest of everything that determines the
+run: scenario bytes, overrides, stop time, step, master), ``scenario``, one column per varied
+parameter, ``stop_time``, ``step``, ``status`` (ok / failed / timeout), ``reason`` (one line),
+``wall_time`` (s), then the metric columns. A metric is empty (null) when the run did not finish.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+__all__ = [
+    "CSV_NAME",
+    "META_KEY",
+    "PARQUET_NAME",
+    "STRING_COLUMNS",
+    "Journal",
+    "read_rows",
+    "read_table",
+    "write_parquet",
+]
+
+CSV_NAME = "runs.csv"
+PARQUET_NAME = "runs.parquet"
+META_KEY = b"orchestrate.campaign"
+STRING_COLUMNS = ("run_id", "scenario", "status", "reason")
+
+
+def _cell(value: object) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
+
+def _parse(column: str, text: str) -> object:
+    if column in STRING_COLUMNS:
+        return text
+    if text == "":
+        return None
+    return int(text) if column == "run" else float(text)
+
+
+def read_rows(path: Path) -> tuple[list[str], list[dict[str, object]]]:
+    """Header and typed rows of a campaign CSV (empty cells are None)."""
+    with open(path, newline="", encoding="utf-8") as f:
+        reader = csv.reader(f)
+        header = next(reader, [])
+        rows = [
+            {c: _parse(c, v) for c, v in zip(header, line, strict=True)}
+            for line in reader
+            if len(line) == len(header)
+        ]  # a torn last line is dropped
+    return header, rows
+
+
+class Journal:
+    """Appends rows to ``runs.csv`` as they arrive; :meth:`finish` rewrites it sorted, plus Parquet."""
+
+    def __init__(self, folder: Path, columns: Sequence[str], metadata: Mapping[str, object]) -> None:
+        self.folder = folder
+        self.columns = list(columns)
+        self.metadata = dict(metadata)
+        self.csv_path = folder / CSV_NAME
+        self.parquet_path = folder / PARQUET_NAME
+        self.rows: list[dict[str, object]] = []
+        self._file = None
+        self._writer = None
+
+    def start(self, kept: Sequence[dict[str, object]]) -> None:
+        """Begin the journal with the rows kept from an earlier run of the campaign."""
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.rows = list(kept)
+        self._write_sorted()
+        self._file = open(self.csv_path, "a", newline="", encoding="utf-8")  # noqa: SIM115 (closed in finish)
+        self._writer = csv.writer(self._file)
+
+    def append(self, row: Mapping[str, object]) -> None:
+        """Record one finished run (flushed at once)."""
+        self.rows.append(dict(row))
+        self._writer.writerow([_cell(row.get(c)) for c in self.columns])
+        self._file.flush()
+
+    def finish(self) -> None:
+        """Close the journal; write ``runs.csv`` in design order and ``runs.parquet``."""
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+        self._write_sorted()
+        write_parquet(self.parquet_path, self.columns, self.rows, self.metadata)
+
+    def _write_sorted(self) -> None:
+        self.rows.sort(key=lambda r: r["run"])
+        partial = self.csv_path.with_name(self.csv_path.name + ".part")
+        with open(partial, "w", newline="", encoding="utf-8") as f:
+            writer = csv.writer(f)
+            writer.writerow(self.columns)
+            writer.writerows([_cell(r.get(c)) for c in self.columns] for r in self.rows)
+        os.replace(partial, self.csv_path)
+
+
+def write_parquet(
+    path: Path, columns: Sequence[str], rows: Sequence[Mapping[str, object]], metadata: Mapping[str, object]
+) -> None:
+    """The table as Parquet; the campaign's description (JSON) goes into the schema metadata."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    def kind(c: str) -> pa.DataType:
+        return pa.string() if c in STRING_COLUMNS else pa.int64() if c == "run" else pa.float64()
+
+    schema = pa.schema(
+        [pa.field(c, kind(c)) for c in columns],
+        metadata={META_KEY: json.dumps(metadata, default=str).encode()},
+    )
+    arrays = {c: [r.get(c) for r in rows] for c in columns}
+    partial = path.with_name(path.name + ".part")
+    pq.write_table(pa.table(arrays, schema=schema), partial)
+    os.replace(partial, path)
+
+
+def read_table(path: str | os.PathLike) -> tuple[list[dict[str, object]], dict[str, object]]:
+    """Rows and campaign metadata of a campaign table (``runs.parquet``, or ``runs.csv`` with the
+    metadata read from ``campaign.json`` beside it)."""
+    path = Path(path)
+    if path.suffix == ".parquet":
+        import pyarrow.parquet as pq
+
+        table = pq.read_table(path)
+        raw = (table.schema.metadata or {}).get(META_KEY, b"{}")
+        return table.to_pylist(), json.loads(raw)
+    _, rows = read_rows(path)
+    meta = path.with_name("campaign.json")
+    return rows, json.loads(meta.read_text(encoding="utf-8")) if meta.is_file() else {}

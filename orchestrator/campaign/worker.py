@@ -1,0 +1,151 @@
+"""What runs inside a Dask worker: every task simulates one variant in the scenario folder that
+:class:`~orchestrator.campaign.plugin.ScenarioPlugin` unpacked once per worker, and returns one
+table row -- a failure or a timeout is a row too, never an exception."""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .. import run
+from ..errors import OrchestratorError, SimulationError
+
+__all__ = ["Metrics", "RunOutcome", "RunSpec", "run_variant", "scenario_folder"]
+
+# Status of a row in the campaign table.
+OK, FAILED, TIMEOUT = "ok", "failed", "timeout"
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """Metric columns of a campaign: ``function(result, params)`` returns ``{name: value}`` for
+    ``names``; ``params`` are the run's overrides plus ``stop_time`` and ``step``. The function must
+    be importable on the workers (a module-level function), e.g. the paper's tracking metrics that
+    ``orchestrator.experiments.campaigns`` plugs in."""
+
+    names: tuple[str, ...]
+    function: Callable[[np.ndarray, Mapping[str, object]], Mapping[str, float]]
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One variant: which archive (by digest), its overrides and experiment."""
+
+    index: int
+    run_id: str
+    scenario: str
+    digest: str
+    overrides: Mapping[str, object]
+    stop_time: float
+    step: float
+    master: str = "gauss-seidel"
+    timeout: float | None = None
+    keep_every: int | None = None  # keep every n-th row of the trajectory (None: none)
+
+
+@dataclass
+class RunOutcome:
+    """The row of one run, and its (decimated) trajectory if asked for."""
+
+    index: int
+    status: str
+    reason: str
+    wall_time: float
+    metrics: dict[str, float] = field(default_factory=dict)
+    trajectory: np.ndarray | None = None
+
+
+class RunTimeoutError(Exception):
+    """A run exceeded its wall-time limit (checked about every 1 % of its steps)."""
+
+
+def scenario_folder(digest: str, local_directory: Path | None = None) -> Path:
+    """Where the unpacked scenario with this digest lives on the current worker."""
+    if local_directory is None:
+        from distributed import get_worker
+
+        local_directory = Path(get_worker().local_directory)
+    return local_directory / f"campaign-{digest[:16]}"
+
+
+class _LastMessage(logging.Handler):
+    """The last warning or error logged during a run (FMUs written in Python log in this process),
+    so a failure's one-line reason carries the FMU's own explanation."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.last = ""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        text = record.getMessage().strip()
+        if text:
+            self.last = text.splitlines()[-1]
+
+
+def _one_line(text: str) -> str:
+    return " ".join(text.split())
+
+
+def run_variant(spec: RunSpec, metrics: Metrics | None = None) -> RunOutcome:
+    """Simulate one variant on this worker; every failure becomes a row with a one-line reason."""
+    folder = scenario_folder(spec.digest) / "scenario"
+    started = time.perf_counter()
+    reached = [0.0]
+
+    def watch(done: int, total: int) -> None:
+        reached[0] = spec.stop_time * done / total
+        if spec.timeout is not None and time.perf_counter() - started > spec.timeout:
+            raise RunTimeoutError
+
+    messages = _LastMessage()
+    root = logging.getLogger()
+    root.addHandler(messages)
+    try:
+        result = run(
+            folder,
+            stop_time=spec.stop_time,
+            step=spec.step,
+            overrides=spec.overrides,
+            master=spec.master,
+            progress=watch,
+        )
+    except RunTimeoutError:
+        return RunOutcome(
+            spec.index,
+            TIMEOUT,
+            f"wall-time limit of {spec.timeout:g} s reached at about t={reached[0]:.3f} s",
+            time.perf_counter() - started,
+        )
+    except SimulationError as exc:
+        reason = str(exc) if "(" in str(exc) or not messages.last else f"{exc} ({messages.last})"
+        rows = len(getattr(exc, "result", ()))
+        return RunOutcome(
+            spec.index, FAILED, _one_line(f"{reason}; {rows} rows computed"), time.perf_counter() - started
+        )
+    except OrchestratorError as exc:
+        return RunOutcome(spec.index, FAILED, _one_line(str(exc)), time.perf_counter() - started)
+    except Exception as exc:  # a failed run never stops the campaign: any error becomes its row
+        return RunOutcome(
+            spec.index, FAILED, _one_line(f"{type(exc).__name__}: {exc}"), time.perf_counter() - started
+        )
+    finally:
+        root.removeHandler(messages)
+    wall = time.perf_counter() - started
+    values: dict[str, float] = {}
+    status, reason = OK, ""
+    if metrics is not None:
+        params = {**spec.overrides, "stop_time": spec.stop_time, "step": spec.step}
+        try:
+            values = {k: float(v) for k, v in metrics.function(result, params).items()}
+        except (ValueError, ArithmeticError) as exc:
+            status, reason = FAILED, _one_line(f"metrics: {exc}")
+            values = {}
+    trajectory = result[:: spec.keep_every] if spec.keep_every else None
+    if trajectory is not None and spec.keep_every > 1 and (len(result) - 1) % spec.keep_every:
+        trajectory = np.concatenate([trajectory, result[-1:]])  # always keep the last row
+    return RunOutcome(spec.index, status, reason, wall, values, trajectory)
