@@ -255,8 +255,8 @@ static int start_python(void *python, const struct record *r, const char *librar
     }
     for (int i = 0; i < n; i++)
         if (!is_dir(dirs[i]))
-            append(warnings, "%s: site directory %s (%s) does not exist; packages of "
-                   "resources/requirements.txt may not import; ", model, dirs[i],
+            append(warnings, "%s%s: site directory %s (%s) does not exist; packages of "
+                   "resources/requirements.txt may not import", warnings[0] ? "; " : "", model, dirs[i],
                    env_path && *env_path ? "from FTC_PYTHON_PATH" : "recorded at build");
 
     /* The recorded home belongs to the recorded libpython only; PYTHONHOME, if set, wins. */
@@ -284,8 +284,8 @@ static int start_python(void *python, const struct record *r, const char *librar
     const char *version = get_version();
     if (r->version[0] && (strncmp(version, r->version, strlen(r->version)) != 0 ||
                           version[strlen(r->version)] != '.'))
-        append(warnings, "%s: Python %.*s from %s differs from the build's %s; compiled packages "
-               "(numpy) of another version do not import; ", model, (int)strcspn(version, " "), version,
+        append(warnings, "%s%s: Python %.*s from %s is not the build's %s; compiled packages (numpy) "
+               "of another version do not import", warnings[0] ? "; " : "", model, (int)strcspn(version, " "), version,
                library, r->version);
     snprintf(python_info, TEXT, "Python %.*s from %s", (int)strcspn(version, " "), version, library);
     for (int i = 0; i < n; i++) append(python_info, "%s%s", i ? ":" : ", site directories ", dirs[i]);
