@@ -1,4 +1,4 @@
-"""The ``orchestrate`` command: the engine's own subcommands (run, plot) and those of every
+"""The ``orchestrate`` command: the engine's own subcommands (run, validate, plot) and those of every
 application (experiments, crosscheck, campaigns, ...), which register themselves.
 
 An application lists a ``register(subparsers)`` function under the entry-point group
@@ -21,6 +21,7 @@ from pathlib import Path
 from . import MASTERS, run
 from .errors import OrchestratorError, ScenarioError, SimulationError, UsageError
 from .results import plot_result, read_result
+from .validate import validate
 
 __all__ = ["COMMAND_GROUP", "add_command", "main", "resolve_scenario"]
 
@@ -31,6 +32,7 @@ Run SSP co-simulation scenarios (controller + actuator + plant FMUs) with fmpy.
 
   orchestrate build                    build the FMUs and pack ssp/<name>/ into build/ssp/<name>.ssp
   orchestrate run example1             simulate; writes results/example1.csv and .png
+  orchestrate validate example1        every check before a simulation, all problems at once
   orchestrate metrics results/example1.csv   tracking metrics (RAE, MSE, RMSE, MAE, ...)
   orchestrate plot results/example1.csv      plot a result file
   orchestrate compare RESULT.csv BASELINE.csv  regression check against a baseline
@@ -50,6 +52,17 @@ masters:
   jacobi        libcosim's algorithm: every connection delays its value by one step.
 
 exit status: 0 success, 1 scenario error or simulation failure, 2 usage error, 130 interrupted.
+"""
+VALIDATE_HELP = """\
+Check SCENARIO (as for 'run') without simulating: the archive, the SSD and SSV files against the
+SSP schemas, every FMU (fmpy's validate_fmu), connections (components, connectors, direction,
+types, units), parameter values (names, types, ranges), unconnected inputs and algebraic loops.
+Each stage goes as far as it can, and every problem is printed on its own line naming the file,
+component and connector or variable:
+  error:   'run' would refuse the scenario
+  warning: FMI non-compliance that 'run' tolerates (fmpy's full FMU validation), or no stop time
+
+exit status: 0 no error (warnings allowed), 1 errors found, 2 usage error.
 """
 
 
@@ -71,19 +84,19 @@ def _parser() -> argparse.ArgumentParser:
 
     p = add_command(sub, "run", _run, help="simulate a scenario", description=RUN_HELP,
                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("scenario", metavar="SCENARIO", help=".ssp file, scenario folder or built scenario name")
+    _scenario_arguments(p)
     p.add_argument("--stop-time", type=float, metavar="T", help="stop time in s (default: from the SSD)")
     p.add_argument("--step", type=float, metavar="H", help="communication step in s (default: from the SSD)")
-    p.add_argument("--parameter-set", action="append", default=[], metavar="FILE.ssv",
-                   help="parameter values named COMPONENT.VARIABLE, applied after the SSD's own (repeatable)")
-    p.add_argument("--set", action="append", default=[], metavar="COMPONENT.VARIABLE=VALUE",
-                   help="set one parameter or start value, applied last (repeatable)")
     p.add_argument("--output", type=Path, metavar="FILE.csv", help="result CSV (default: results/<name>.csv)")
     p.add_argument("--plot", type=Path, metavar="FILE.png", help="plot file (default: results/<name>.png)")
     p.add_argument("--no-plot", action="store_true", help="do not plot")
     p.add_argument("--master", choices=list(MASTERS), default="gauss-seidel", help="master algorithm")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
     p.add_argument("--verbose", action="store_true", help="show the FMUs' log messages as they come")
+
+    p = add_command(sub, "validate", _validate, help="check a scenario without simulating",
+                    description=VALIDATE_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    _scenario_arguments(p)
 
     p = add_command(sub, "plot", _plot, help="plot a result file")
     p.add_argument("result", type=Path, metavar="RESULT.csv")
@@ -92,6 +105,26 @@ def _parser() -> argparse.ArgumentParser:
     for entry in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
         entry.load()(sub)
     return parser
+
+
+def _scenario_arguments(p: argparse.ArgumentParser) -> None:
+    """SCENARIO, --parameter-set and --set, as 'run' and 'validate' take them."""
+    p.add_argument("scenario", metavar="SCENARIO", help=".ssp file, scenario folder or built scenario name")
+    p.add_argument("--parameter-set", action="append", default=[], metavar="FILE.ssv",
+                   help="parameter values named COMPONENT.VARIABLE, applied after the SSD's own (repeatable)")
+    p.add_argument("--set", action="append", default=[], metavar="COMPONENT.VARIABLE=VALUE",
+                   help="set one parameter or start value, applied last (repeatable)")
+
+
+def _overrides(items: Sequence[str]) -> dict[str, str]:
+    """``--set COMPONENT.VARIABLE=VALUE`` options as a mapping (values converted by the engine)."""
+    overrides = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or "." not in key:
+            raise UsageError(f"--set expects COMPONENT.VARIABLE=VALUE (got '{item}')")
+        overrides[key.strip()] = value.strip()
+    return overrides
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -152,12 +185,7 @@ class _LastMessage(logging.Handler):
 
 
 def _run(args: argparse.Namespace) -> int:
-    overrides = {}
-    for item in args.set:
-        key, sep, value = item.partition("=")
-        if not sep or "." not in key:
-            raise UsageError(f"--set expects COMPONENT.VARIABLE=VALUE (got '{item}')")
-        overrides[key.strip()] = value.strip()
+    overrides = _overrides(args.set)
     if args.step is not None and not (math.isfinite(args.step) and args.step > 0):
         raise UsageError(f"--step must be positive and finite (got {args.step!r})")
     if args.stop_time is not None and not math.isfinite(args.stop_time):
@@ -198,6 +226,21 @@ def _run(args: argparse.Namespace) -> int:
         extra = f" and {plot}" if plot is not None else ""
         span = f"t = {result['time'][0]:g} .. {result['time'][-1]:g} s"
         print(f"{name}: {len(result)} rows, {span} -> {output}{extra}")
+    return 0
+
+
+def _validate(args: argparse.Namespace) -> int:
+    overrides = _overrides(args.set)
+    scenario = resolve_scenario(args.scenario)
+    report = validate(scenario, parameter_sets=args.parameter_set, overrides=overrides)
+    for problem in report.problems:
+        print(problem)
+    if not report.ok:
+        warnings = len(report.problems) - len(report.errors)
+        print(f"failed: {scenario}: {len(report.errors)} error(s), {warnings} warning(s)")
+        return 1
+    print(f"ok: {scenario}: {report.components} components, {report.connections} connections, "
+          f"{report.parameters} parameters checked")
     return 0
 
 
