@@ -1,0 +1,86 @@
+"""``orchestrate crosscheck``: the conformance matrix of the built scenarios in every SSP tool."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from ..cli import add_command
+from ..errors import ScenarioError, UsageError
+from . import TOOLS, tools
+from .matrix import run_matrix, write_csv, write_markdown
+from .tools import Scenario
+
+__all__ = ["DEFAULT_OUTPUT", "register"]
+
+DEFAULT_OUTPUT = Path("results") / "crosscheck"
+BUILT = Path("build") / "ssp"
+
+DESCRIPTION = """\
+Run every scenario, unchanged, in every installed SSP tool and in both of our masters, and write
+the conformance matrix (matrix.md, matrix.csv). Each tool is compared with our master of the same
+semantics: jacobi for delayed (Jacobi-like) masters, gauss-seidel for delay-free ones.
+
+exit status: 0 every cell ok (tools not installed are listed, not failed), 1 a red cell,
+2 usage error.
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add ``crosscheck`` to ``orchestrate``."""
+    p = add_command(sub, "crosscheck", _crosscheck,
+                    help="run the scenarios in other SSP tools: conformance matrix", description=DESCRIPTION,
+                    formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("scenarios", nargs="*", metavar="SCENARIO",
+                   help=f"built scenario names or .ssp files (default: every {BUILT}/*.ssp)")
+    p.add_argument("--tools", nargs="+", choices=list(TOOLS), metavar="TOOL",
+                   help=f"tools to run (default: all installed; choose from {', '.join(TOOLS)})")
+    p.add_argument("--output", type=Path, default=DEFAULT_OUTPUT, metavar="DIR",
+                   help=f"folder of matrix.md and matrix.csv (default: {DEFAULT_OUTPUT}/)")
+
+
+def _archives(names: list[str]) -> list[Path]:
+    if not names:
+        found = sorted(BUILT.glob("*.ssp"))
+        if not found:
+            raise UsageError(f"no scenarios in {BUILT}/ (run 'orchestrate build' first)")
+        return found
+    paths = []
+    for name in names:
+        path = Path(name)
+        if not path.is_file():
+            path = BUILT / f"{name}.ssp"
+        if not path.is_file():
+            raise UsageError(f"no scenario '{name}': not a file, and {path} does not exist "
+                             "(run 'orchestrate build' first)")
+        paths.append(path)
+    return paths
+
+
+def _progress(line: str) -> None:
+    print(f"crosscheck: {line}", file=sys.stderr, flush=True)
+
+
+def _crosscheck(args: argparse.Namespace) -> int:
+    scenarios = []
+    for path in _archives(args.scenarios):
+        try:
+            scenarios.append(Scenario.read(path))
+        except ValueError as exc:
+            raise ScenarioError(str(exc)) from exc
+    selected = tools(args.tools)
+    for tool in selected:
+        reason = tool.missing()
+        if reason:
+            print(f"crosscheck: {tool.key}: {reason}", file=sys.stderr)
+    cells = run_matrix(scenarios, selected, _progress)
+    md = write_markdown(cells, args.output / "matrix.md", selected)
+    table = write_csv(cells, args.output / "matrix.csv")
+    red = [c for c in cells if c.red]
+    print(f"{md}\n{table}")
+    if red:
+        print(f"orchestrate: crosscheck: {len(red)} red cell(s): "
+              + ", ".join(f"{c.scenario} in {c.tool}" for c in red), file=sys.stderr)
+        return 1
+    return 0

@@ -1,0 +1,317 @@
+"""The conformance matrix: every scenario in every tool, checked against our master of the same
+semantics, written as Markdown and CSV.
+
+A cell (tool x scenario) is red when any check fails:
+
+* **loads**: the tool accepted the archive unchanged and recorded the initial point;
+* **parameters**: every parameter of the archive's ``.ssv`` files has its value in the tool (read
+  back from the tool after the run), and the plant's initial state ``x1_0``, ``x2_0`` shows up as
+  ``plant.x1``, ``plant.x2`` at t0;
+* **stop time**: the tool reported no failure and recorded the stop time of the DefaultExperiment;
+* **plant.y**: max |plant.y - ours| over the run and after 1 s within the tool's stated tolerance,
+  where "ours" is ``orchestrate run`` with the master of the tool's semantics (``jacobi`` for a
+  delayed master, ``gauss-seidel`` for a delay-free one), compared at the communication points both
+  recorded. A non-finite sample counts as an infinite difference.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import shutil
+import tempfile
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .. import run as run_orchestrator
+from ..errors import SimulationError
+from .tools import Scenario, Tolerance, Tool, ToolRun
+
+__all__ = ["AFTER", "COLUMN", "Cell", "Check", "Deviation", "Tolerance", "evaluate", "deviation",
+           "parameter_check", "run_matrix", "write_csv", "write_markdown"]
+
+COLUMN = "plant.y"
+AFTER = 1.0  # s: the stiff start (|v(0)| up to 15 218) is over; tolerances differ before and after
+PARAMETER_RTOL = 1e-6  # read back through CSVs of 6 decimals (Ecos) or 12 digits (OMSimulator)
+PARAMETER_ATOL = 1e-6
+
+
+@dataclass(frozen=True)
+class Check:
+    """One check of a cell: ``ok`` and a short text of what was found."""
+
+    name: str
+    ok: bool
+    detail: str
+
+
+@dataclass(frozen=True)
+class Deviation:
+    """max |theirs - ours| of one column at the communication points both recorded."""
+
+    max: float
+    at: float
+    after: float
+    compared: int
+
+
+@dataclass
+class Cell:
+    """One tool on one scenario: its checks (empty when the tool is not installed)."""
+
+    tool: str
+    title: str
+    scenario: str
+    delayed: bool
+    reference: str
+    missing: str | None = None
+    checks: list[Check] = field(default_factory=list)
+    wall: float | None = None
+    deviation: Deviation | None = None
+    tolerance: Tolerance | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def red(self) -> bool:
+        """True when a check failed (a tool that is not installed is not red)."""
+        return any(not c.ok for c in self.checks)
+
+    @property
+    def status(self) -> str:
+        return "not installed" if self.missing else ("red" if self.red else "ok")
+
+
+def reference_master(delayed: bool) -> str:
+    """Our master of the same semantics: jacobi for a delayed (Jacobi-like) tool, else gauss-seidel."""
+    return "jacobi" if delayed else "gauss-seidel"
+
+
+def deviation(theirs: np.ndarray, ours: np.ndarray, start: float, step: float, column: str = COLUMN,
+              after: float = AFTER) -> Deviation:
+    """Compare ``column`` at the communication points (t0 + k step) both results hold."""
+    k_theirs = np.rint((theirs["time"] - start) / step).astype(np.int64)
+    k_ours = np.rint((ours["time"] - start) / step).astype(np.int64)
+    _, i, j = np.intersect1d(k_theirs, k_ours, assume_unique=False, return_indices=True)
+    if not len(i):
+        return Deviation(math.inf, math.nan, math.inf, 0)
+    d = np.abs(theirs[column][i] - ours[column][j])
+    d = np.where(np.isfinite(d), d, np.inf)
+    t = ours["time"][j]
+    late = d[t >= after]
+    worst = int(np.argmax(d))
+    return Deviation(float(d[worst]), float(t[worst]), float(late.max()) if len(late) else 0.0, len(i))
+
+
+def parameter_check(scenario: Scenario, result: np.ndarray, read_back: dict[str, float] | None) -> Check:
+    """Parameters applied: values read back from the tool, and the initial plant state at t0."""
+    problems = []
+    detail = []
+    if read_back is not None:
+        wrong = [f"{k} = {read_back.get(k, math.nan):g} (archive: {v:g})"
+                 for k, v in scenario.parameters.items() if isinstance(v, (int, float))
+                 and not math.isclose(read_back.get(k, math.nan), float(v), rel_tol=PARAMETER_RTOL,
+                                      abs_tol=PARAMETER_ATOL)]
+        numeric = sum(isinstance(v, (int, float)) for v in scenario.parameters.values())
+        detail.append(f"{numeric - len(wrong)}/{numeric} read back")
+        problems += wrong
+    names = result.dtype.names or ()
+    for state in ("x1", "x2"):
+        expected = scenario.parameters.get(f"plant.{state}_0")
+        if expected is None or f"plant.{state}" not in names:
+            continue
+        if not len(result):
+            problems.append(f"no plant.{state} at t0")
+        elif not math.isclose(float(result[f"plant.{state}"][0]), float(expected), rel_tol=PARAMETER_RTOL,
+                              abs_tol=PARAMETER_ATOL):
+            problems.append(f"plant.{state}(t0) = {float(result[f'plant.{state}'][0]):g} "
+                            f"(plant.{state}_0 = {float(expected):g})")
+        else:
+            detail.append(f"{state}(t0) = {float(expected):g}")
+    if problems:
+        shown = "; ".join(problems[:3]) + (f"; and {len(problems) - 3} more" if len(problems) > 3 else "")
+        return Check("parameters", False, shown)
+    return Check("parameters", True, ", ".join(detail) or "nothing to check")
+
+
+def evaluate(tool: Tool, scenario: Scenario, run: ToolRun, ours: np.ndarray) -> Cell:
+    """The checks of one tool's run against our result of the same semantics."""
+    tolerance = tool.tolerance
+    cell = Cell(tool.key, tool.title, scenario.name, tool.delayed, reference_master(tool.delayed),
+                wall=run.wall, tolerance=tolerance, notes=list(run.notes))
+    result = run.result
+    loads = len(result) > 0
+    cell.checks.append(Check("loads", loads,
+                             "initial point recorded" if loads else (run.error or "no samples")))
+    if not loads:
+        return cell
+    cell.checks.append(parameter_check(scenario, result, run.parameters))
+    t_end = float(result["time"][-1])
+    reached = run.error is None and t_end >= scenario.stop - scenario.step / 2
+    failure = f"; {run.error}" if run.error else ""
+    cell.checks.append(Check("stop time", reached, f"t = {t_end:g} s{failure}"))
+    if COLUMN not in (result.dtype.names or ()):
+        cell.checks.append(Check(COLUMN, False, f"{COLUMN} not recorded"))
+        return cell
+    dev = deviation(result, ours, scenario.start, scenario.step)
+    cell.deviation = dev
+    cell.checks.append(Check(f"{COLUMN} over the run", dev.max <= tolerance.run,
+                             f"{dev.max:.2g} at t = {dev.at:g} s (tolerance {tolerance.run:g})"))
+    cell.checks.append(Check(f"{COLUMN} after {AFTER:g} s", dev.after <= tolerance.after,
+                             f"{dev.after:.2g} (tolerance {tolerance.after:g})"))
+    return cell
+
+
+def _ours(scenario: Scenario, master: str) -> tuple[np.ndarray, float, str | None]:
+    """``orchestrate run`` of the scenario with ``master``: (result, wall seconds, failure)."""
+    import time
+
+    start = time.perf_counter()
+    try:
+        result = run_orchestrator(scenario.path, master=master)
+        error = None
+    except SimulationError as exc:
+        result, error = exc.result, str(exc)
+    return result, time.perf_counter() - start, error
+
+
+class OurMaster(Tool):
+    """``orchestrate run --master <name>``: the reference of its semantics."""
+
+    def __init__(self, master: str) -> None:
+        self.master = master
+        self.key = f"orchestrate-{master}"
+        self.title = f"orchestrate run --master {master}"
+        self.delayed = master == "jacobi"
+        self.tolerance = Tolerance(0.0, 0.0, "the reference itself")
+
+    def missing(self) -> str | None:
+        return None
+
+    def run(self, scenario: Scenario, workdir: Path) -> ToolRun:
+        result, wall, error = _ours(scenario, self.master)
+        return ToolRun(result, wall, error, None)
+
+
+def run_matrix(scenarios: Sequence[Scenario], tools: Sequence[Tool],
+               progress: Callable[[str], None] | None = None) -> list[Cell]:
+    """Run every tool on every scenario once (our two masters first: they are the references)."""
+    masters = {m: OurMaster(m) for m in ("gauss-seidel", "jacobi")}
+    cells = []
+    total = len(scenarios) * (len(tools) + len(masters))
+    done = 0
+    for scenario in scenarios:
+        ours: dict[str, np.ndarray] = {}
+        for tool in [*masters.values(), *tools]:
+            done += 1
+            reason = tool.missing()
+            if reason:
+                cell = Cell(tool.key, tool.title, scenario.name, tool.delayed,
+                            reference_master(tool.delayed), missing=reason)
+            else:
+                workdir = Path(tempfile.mkdtemp(prefix=f"crosscheck-{tool.key}-"))
+                try:
+                    run = tool.run(scenario, workdir)
+                finally:
+                    shutil.rmtree(workdir, ignore_errors=True)
+                if isinstance(tool, OurMaster):
+                    ours[tool.master] = run.result
+                cell = evaluate(tool, scenario, run, ours[reference_master(tool.delayed)])
+            cells.append(cell)
+            if progress is not None:
+                wall = f" {cell.wall:.1f} s" if cell.wall is not None else ""
+                failed = "; ".join(f"{c.name}: {c.detail}" for c in cell.checks if not c.ok)
+                progress(f"[{done}/{total}] {scenario.name} in {tool.key}: {cell.status}{wall}"
+                         + (f" ({failed})" if failed else ""))
+    return cells
+
+
+def _fmt(x: float | None) -> str:
+    if x is None:
+        return ""
+    return "0" if x == 0 else f"{x:.2g}"
+
+
+def write_markdown(cells: Iterable[Cell], path: Path, tools: Sequence[Tool]) -> Path:
+    """The matrix (tool x scenario) and the detail of every cell as Markdown."""
+    cells = list(cells)
+    scenarios = list(dict.fromkeys(c.scenario for c in cells))
+    keys = list(dict.fromkeys(c.tool for c in cells))
+    by = {(c.tool, c.scenario): c for c in cells}
+    lines = ["# SSP tools: conformance matrix", "",
+             "Every built scenario (`build/ssp/<name>.ssp`, unchanged: its own step, stop time and "
+             "parameter sets) in every tool, written by `orchestrate crosscheck`. A cell is red when the "
+             "archive does not load, a parameter of its `.ssv` files is not applied, the run stops before "
+             f"the stop time, or max |{COLUMN} - ours| exceeds the tool's tolerance, over the run or after "
+             f"{AFTER:g} s; \"ours\" is `orchestrate run` with the master of the tool's semantics. Cells: "
+             f"status, wall time, max |delta {COLUMN}| over the run / after {AFTER:g} s.", "",
+             "| tool | master | " + " | ".join(f"`{s}`" for s in scenarios) + " |",
+             "|---|---|" + "---|" * len(scenarios)]
+    for key in keys:
+        first = next(c for c in cells if c.tool == key)
+        row = [first.title, "delayed (= `jacobi`)" if first.delayed else "delay-free (= `gauss-seidel`)"]
+        for s in scenarios:
+            c = by.get((key, s))
+            if c is None:
+                row.append("")
+            elif c.missing:
+                row.append("not installed")
+            else:
+                mark = "🟥" if c.red else "🟩"
+                dev = (f", {_fmt(c.deviation.max)} / {_fmt(c.deviation.after)}"
+                       if c.deviation is not None and not key.startswith("orchestrate-") else "")
+                row.append(f"{mark} {c.wall:.1f} s{dev}")
+        lines.append("| " + " | ".join(row) + " |")
+    lines += ["", "## Details", "",
+              "| tool | scenario | status | loads | parameters | stop time | plant.y over the run | "
+              f"plant.y after {AFTER:g} s | notes |", "|---|---|---|---|---|---|---|---|---|"]
+    for c in cells:
+        if c.missing:
+            lines.append(f"| {c.title} | `{c.scenario}` | not installed | | | | | | {c.missing} |")
+            continue
+        checks = {k.name.split(" ")[0] if not k.name.startswith(COLUMN) else k.name: k for k in c.checks}
+
+        def show(name: str, checks: dict[str, Check] = checks) -> str:
+            k = checks.get(name)
+            return "" if k is None else (k.detail if k.ok else f"**{k.detail}**")
+
+        lines.append(f"| {c.title} | `{c.scenario}` | {'🟥 red' if c.red else '🟩 ok'} | {show('loads')} | "
+                     f"{show('parameters')} | {show('stop')} | {show(f'{COLUMN} over the run')} | "
+                     f"{show(f'{COLUMN} after {AFTER:g} s')} | {'; '.join(c.notes)} |")
+    lines += ["", "## Tolerances", "", "| tool | compared with | over the run | after 1 s | why |",
+              "|---|---|---|---|---|"]
+    for tool in tools:
+        t = tool.tolerance
+        lines.append(f"| {tool.title} | `orchestrate run --master {reference_master(tool.delayed)}` | "
+                     f"{t.run:g} | {t.after:g} | {t.reason} |")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+CSV_FIELDS = ("tool", "scenario", "master", "reference", "status", "loads", "parameters", "stop_time",
+              "wall_s", "dy_max", "dy_max_at_s", "dy_after_1s", "tol_run", "tol_after_1s", "failures",
+              "notes")
+
+
+def write_csv(cells: Iterable[Cell], path: Path) -> Path:
+    """One row per cell (tool, scenario) with every check's outcome."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        writer = csv.writer(f)
+        writer.writerow(CSV_FIELDS)
+        for c in cells:
+            ok = {k.name.split(" ")[0]: k.ok for k in c.checks}
+            d, t = c.deviation, c.tolerance
+            writer.writerow([
+                c.tool, c.scenario, "delayed" if c.delayed else "delay-free", c.reference, c.status,
+                ok.get("loads", ""), ok.get("parameters", ""), ok.get("stop", ""),
+                "" if c.wall is None else f"{c.wall:.3f}",
+                "" if d is None else repr(d.max), "" if d is None else repr(d.at),
+                "" if d is None else repr(d.after),
+                "" if t is None else repr(t.run), "" if t is None else repr(t.after),
+                "; ".join(f"{k.name}: {k.detail}" for k in c.checks if not k.ok) or (c.missing or ""),
+                "; ".join(c.notes)])
+    return path
