@@ -63,9 +63,9 @@ BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 BUILD_FORMAT = "2"
 SHIM_SOURCE = Path("fmu_src", "shim", "fmi2_shim.c")  # relative to the source root
 # No debug info, build id or symbol table, so the bytes depend only on source, compiler and flags.
-SHIM_FLAGS = (
-    "-std=c11", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-g0", "-Wall", "-Wextra",
-    "-Wno-format-truncation", "-Wl,--build-id=none", "-s",
+SHIM_FLAGS = tuple(
+    "-std=c11 -O2 -fPIC -shared -fvisibility=hidden -g0 -Wall -Wextra -Wno-format-truncation "
+    "-Wl,--build-id=none -s".split()
 )
 SHIM_LIBS = ("-ldl", "-pthread")
 PYTHON_ENV = "binaries/linux64/python_env.txt"

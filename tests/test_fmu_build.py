@@ -5,11 +5,14 @@ from __future__ import annotations
 import ast
 import importlib.metadata
 import shutil
+import sys
+import sysconfig
 import zipfile
 from pathlib import Path
 
 import fmpy
 import pytest
+import pythonfmu
 from fmu_helpers import MODELS
 
 from fmu_src.build import CLASS_LINE, REPO_ROOT, BuildError, build_all, build_fmu, main
@@ -101,3 +104,45 @@ def test_command_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
     assert main([str(tmp_path), "--model", "Actuator"]) == 0
     assert capsys.readouterr().out.strip() == str(tmp_path / "Actuator.fmu")
     assert (tmp_path / "Actuator.fmu").is_file()
+
+
+def test_linux64_binary_is_the_shim_with_pythonfmus_binary_beside_it(fmus: dict) -> None:
+    """linux64: the shim, pythonfmu's own binary unchanged under <model>_pythonfmu.so and the
+    building interpreter's Python; win64: pythonfmu's DLL unchanged."""
+    shipped = Path(pythonfmu.__file__).parent / "resources" / "binaries"
+    libdir, soname = sysconfig.get_config_var("LIBDIR"), sysconfig.get_config_var("INSTSONAME")
+    paths = sysconfig.get_paths()
+    for model, fmu in fmus.items():
+        with zipfile.ZipFile(fmu) as archive:
+            linux = {n for n in archive.namelist() if n.startswith("binaries/linux64/")}
+            expected = (f"{model}.so", f"{model}_pythonfmu.so", "python_env.txt")
+            assert linux == {f"binaries/linux64/{name}" for name in expected}
+            inner = archive.read(f"binaries/linux64/{model}_pythonfmu.so")
+            assert inner == (shipped / "linux64" / "libpythonfmu-export.so").read_bytes()
+            assert archive.read(f"binaries/linux64/{model}.so") != inner
+            dll = (shipped / "win64" / "pythonfmu-export.dll").read_bytes()
+            assert archive.read(f"binaries/win64/{model}.dll") == dll
+            record = archive.read("binaries/linux64/python_env.txt").decode().splitlines()
+        values = [line.split("=", 1) for line in record if not line.startswith("#")]
+        assert ["version", f"{sys.version_info.major}.{sys.version_info.minor}"] in values
+        assert ["library", str(Path(libdir, soname))] in values and Path(libdir, soname).is_file()
+        assert ["home", sys.base_prefix] in values
+        site = list(dict.fromkeys((paths["purelib"], paths["platlib"])))
+        assert [v for k, v in values if k == "path"] == site
+
+
+def test_shim_source_is_part_of_the_guid(fmus: dict, tmp_path: Path) -> None:
+    root = source_copy(tmp_path)
+    shim = root / "fmu_src" / "shim" / "fmi2_shim.c"
+    shim.write_text(shim.read_text() + "\n/* changed */\n")
+    changed = build_fmu("Reference", tmp_path / "out", root=root)
+    guid = fmpy.read_model_description(str(fmus["Reference"])).guid
+    assert fmpy.read_model_description(str(changed)).guid != guid
+
+
+def test_no_c_compiler_is_a_build_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("CC", raising=False)
+    monkeypatch.setenv("PATH", str(tmp_path))  # an empty folder: no cc, no gcc
+    with pytest.raises(BuildError, match=r"no C compiler \(CC, cc or gcc on PATH\) to build the FMI shim"):
+        build_fmu("Reference", tmp_path / "out")
+    assert not (tmp_path / "out" / "Reference.fmu").exists()
