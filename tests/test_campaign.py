@@ -55,8 +55,25 @@ def embedded(scenario: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The small grid on the embedded cluster (2 worker processes), trajectories every 10th row."""
     folder = tmp_path_factory.mktemp("embedded")
     path = design(folder, GRID)
-    assert main(["sweep", str(scenario), "--design", str(path), "--out", str(folder / "out"), "--quiet",
-                 "--workers", "2", "--keep-trajectories", "--trajectory-every", "10"]) == 0
+    assert (
+        main(
+            [
+                "sweep",
+                str(scenario),
+                "--design",
+                str(path),
+                "--out",
+                str(folder / "out"),
+                "--quiet",
+                "--workers",
+                "2",
+                "--keep-trajectories",
+                "--trajectory-every",
+                "10",
+            ]
+        )
+        == 0
+    )
     return folder / "out"
 
 
@@ -69,10 +86,21 @@ def test_embedded_grid_matches_bare_runs(embedded: Path, scenario: Path) -> None
         assert row["status"] == "ok" and row["reason"] == "" and row["wall_time"] > 0
         overrides = {"plant.x1_0": row["plant.x1_0"], "controller.mode": int(row["controller.mode"])}
         bare = orchestrator.run(scenario, stop_time=STOP, overrides=overrides)
-        m = tracking_metrics(bare["time"], bare["plant.y"], bare["reference.yd"], bare["controller.v"],
-                             bare["actuator.uf"], band=0.05)
+        m = tracking_metrics(
+            bare["time"],
+            bare["plant.y"],
+            bare["reference.yd"],
+            bare["controller.v"],
+            bare["actuator.uf"],
+            band=0.05,
+        )
         assert (row["rae"], row["mse"], row["mae"], row["settling_time"], row["peak_v"]) == (
-            m.rae, m.mse, m.mae, m.settling_time, m.peak_v)
+            m.rae,
+            m.mse,
+            m.mae,
+            m.settling_time,
+            m.peak_v,
+        )
         assert row["final_error"] == abs(bare["plant.y"][-1] - bare["reference.yd"][-1])
         assert math.isnan(row["mae_after_fault"])  # no actuator.t_fault among the parameters
         trajectory = pq.read_table(next((embedded / "trajectories").glob(f"run-{row['run']:05d}-*.parquet")))
@@ -99,16 +127,45 @@ def external_cluster(tmp_path: Path):
     scheduler_file = tmp_path / "scheduler.json"
     dask = str(VENV_BIN / "dask")
     logs = open(tmp_path / "dask.log", "w")  # noqa: SIM115 (closed below)
-    procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                               "--scheduler-file", str(scheduler_file)], stdout=logs, stderr=logs)]
+    procs = [
+        subprocess.Popen(
+            [
+                dask,
+                "scheduler",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                "0",
+                "--no-dashboard",
+                "--scheduler-file",
+                str(scheduler_file),
+            ],
+            stdout=logs,
+            stderr=logs,
+        )
+    ]
     try:
         deadline = time.monotonic() + 60
         while not scheduler_file.is_file() and time.monotonic() < deadline:
             time.sleep(0.2)
         address = json.loads(scheduler_file.read_text())["address"]
         for i in range(2):
-            procs.append(subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--no-dashboard",
-                                           "--local-directory", str(tmp_path / f"w{i}")], stdout=logs, stderr=logs))
+            procs.append(
+                subprocess.Popen(
+                    [
+                        dask,
+                        "worker",
+                        address,
+                        "--nthreads",
+                        "1",
+                        "--no-dashboard",
+                        "--local-directory",
+                        str(tmp_path / f"w{i}"),
+                    ],
+                    stdout=logs,
+                    stderr=logs,
+                )
+            )
         from distributed import Client
 
         with Client(address, timeout="30s") as client:
@@ -125,13 +182,27 @@ def external_cluster(tmp_path: Path):
         logs.close()
 
 
-def test_external_scheduler_gives_the_same_table(embedded: Path, scenario: Path, external_cluster: str,
-                                                  tmp_path: Path) -> None:
+def test_external_scheduler_gives_the_same_table(
+    embedded: Path, scenario: Path, external_cluster: str, tmp_path: Path
+) -> None:
     path = design(tmp_path, GRID)
     env = {**os.environ, "ORCHESTRATE_SCHEDULER": external_cluster}
-    done = subprocess.run([str(VENV_BIN / "orchestrate"), "sweep", str(scenario), "--design", str(path),
-                           "--out", str(tmp_path / "out"), "--quiet"], env=env, capture_output=True, text=True,
-                          timeout=120)
+    done = subprocess.run(
+        [
+            str(VENV_BIN / "orchestrate"),
+            "sweep",
+            str(scenario),
+            "--design",
+            str(path),
+            "--out",
+            str(tmp_path / "out"),
+            "--quiet",
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 0, done.stderr
     assert "on 2 workers" in done.stdout
     _, ours = read_rows(tmp_path / "out" / "runs.csv")
@@ -141,8 +212,22 @@ def test_external_scheduler_gives_the_same_table(embedded: Path, scenario: Path,
 
 def test_failing_variant_is_a_row_and_the_rest_finish(scenario: Path, tmp_path: Path) -> None:
     path = design(tmp_path, {"controller.beta": [0.75, 1.2], "plant.x1_0": [0.0, 1.0]})
-    assert main(["sweep", str(scenario), "--design", str(path), "--out", str(tmp_path / "out"), "--quiet",
-                 "--workers", "2"]) == 1
+    assert (
+        main(
+            [
+                "sweep",
+                str(scenario),
+                "--design",
+                str(path),
+                "--out",
+                str(tmp_path / "out"),
+                "--quiet",
+                "--workers",
+                "2",
+            ]
+        )
+        == 1
+    )
     _, rows = read_rows(tmp_path / "out" / "runs.csv")
     assert len(rows) == 4
     for row in rows:
@@ -156,10 +241,28 @@ def test_failing_variant_is_a_row_and_the_rest_finish(scenario: Path, tmp_path: 
 
 def test_timeout_is_a_row(scenario: Path, tmp_path: Path) -> None:
     path = design(tmp_path, {"plant.x1_0": [0.5]}, timeout=0.05)
-    assert main(["sweep", str(scenario), "--design", str(path), "--out", str(tmp_path / "out"), "--quiet",
-                 "--workers", "1", "--stop-time", "5"]) == 1
+    assert (
+        main(
+            [
+                "sweep",
+                str(scenario),
+                "--design",
+                str(path),
+                "--out",
+                str(tmp_path / "out"),
+                "--quiet",
+                "--workers",
+                "1",
+                "--stop-time",
+                "5",
+            ]
+        )
+        == 1
+    )
     _, [row] = read_rows(tmp_path / "out" / "runs.csv")
-    assert row["status"] == "timeout" and row["reason"].startswith("wall-time limit of 0.05 s reached at about t=")
+    assert row["status"] == "timeout" and row["reason"].startswith(
+        "wall-time limit of 0.05 s reached at about t="
+    )
     assert row["stop_time"] == 5.0
 
 
@@ -167,10 +270,20 @@ def test_ctrl_c_keeps_finished_rows_and_resume_skips_them(scenario: Path, tmp_pa
     values = [round(-2 + 0.25 * i, 2) for i in range(12)]
     path = design(tmp_path, {"plant.x1_0": values, "controller.mode": [0, 1]})
     out = tmp_path / "out"
-    command = [str(VENV_BIN / "orchestrate"), "sweep", str(scenario), "--design", str(path), "--out", str(out),
-               "--workers", "1"]
-    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+    command = [
+        str(VENV_BIN / "orchestrate"),
+        "sweep",
+        str(scenario),
+        "--design",
+        str(path),
+        "--out",
+        str(out),
+        "--workers",
+        "1",
+    ]
+    proc = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+    )
     try:
         deadline = time.monotonic() + 90
         seen = 0

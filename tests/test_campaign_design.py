@@ -34,7 +34,9 @@ def write(tmp: Path, data: dict, name: str = "design.json") -> Path:
 
 @settings(max_examples=40, deadline=None)
 @given(axes=st.lists(st.lists(finite, min_size=1, max_size=4, unique=True), min_size=1, max_size=3))
-def test_grid_is_the_full_factorial(tmp_path_factory: pytest.TempPathFactory, axes: list[list[float]]) -> None:
+def test_grid_is_the_full_factorial(
+    tmp_path_factory: pytest.TempPathFactory, axes: list[list[float]]
+) -> None:
     names = [f"c{i}.p" for i in range(len(axes))]
     design = read_design(write(tmp_path_factory.mktemp("g"), {"grid": dict(zip(names, axes, strict=True))}))
     assert design.columns == tuple(names)
@@ -47,10 +49,12 @@ def test_grid_is_the_full_factorial(tmp_path_factory: pytest.TempPathFactory, ax
 
 @settings(max_examples=40, deadline=None)
 @given(start=finite, stop=finite, num=st.integers(1, 12))
-def test_range_with_count_is_inclusive_and_evenly_spaced(tmp_path_factory: pytest.TempPathFactory, start: float,
-                                                         stop: float, num: int) -> None:
-    design = read_design(write(tmp_path_factory.mktemp("r"), {"grid": {"a.b": {"start": start, "stop": stop,
-                                                                                "num": num}}}))
+def test_range_with_count_is_inclusive_and_evenly_spaced(
+    tmp_path_factory: pytest.TempPathFactory, start: float, stop: float, num: int
+) -> None:
+    design = read_design(
+        write(tmp_path_factory.mktemp("r"), {"grid": {"a.b": {"start": start, "stop": stop, "num": num}}})
+    )
     values = [p[0] for p in design.points]
     expected = [start] if num == 1 else [start + i * (stop - start) / (num - 1) for i in range(num)]
     assert values == pytest.approx(expected, abs=1e-9 * (1 + abs(start) + abs(stop)))
@@ -91,7 +95,9 @@ def test_sections_combine_as_a_cross_product_and_toml_reads_like_json(tmp_path: 
         'stop_time = 2.5\ntimeout = 10\n[fixed]\n"actuator.t_fault" = 5.0\n'
         '[grid]\n"controller.mode" = [0, 1]\n'
         '[sample]\nmethod = "lhs"\nn = 4\nseed = 7\nranges = { "actuator.K_inf" = [0.1, 1.0] }\n'
-        '[labels."controller.mode"]\n"0" = "fixed-time"\n', encoding="utf-8")
+        '[labels."controller.mode"]\n"0" = "fixed-time"\n',
+        encoding="utf-8",
+    )
     design = read_design(tmp_path / "design.toml")
     assert design.columns == ("controller.mode", "actuator.K_inf")
     assert len(design) == 8
@@ -109,26 +115,37 @@ def test_explicit_table(tmp_path: Path, kind: str) -> None:
         with open(tmp_path / "points.csv", "w", newline="") as f:
             csv.writer(f).writerows([names, *rows])
     else:
-        pq.write_table(pa.table({n: [r[i] for r in rows] for i, n in enumerate(names)}), tmp_path / "points.parquet")
+        pq.write_table(
+            pa.table({n: [r[i] for r in rows] for i, n in enumerate(names)}), tmp_path / "points.parquet"
+        )
     design = read_design(write(tmp_path, {"table": {"file": f"points.{kind}"}}))
     assert design.columns == tuple(names)
     assert design.points == tuple(tuple(float(v) for v in r) for r in rows)
 
 
-@pytest.mark.parametrize(("data", "message"), [
-    ({"grids": {}}, "unknown key(s) grids"),
-    ({"grid": {"x1_0": [1, 2]}}, "'x1_0' is not COMPONENT.VARIABLE"),
-    ({"grid": {"a.b": {"start": 0, "stop": 1}}}, "grid 'a.b': a range needs exactly start, stop and num"),
-    ({"grid": {"a.b": [1, "x"]}}, "grid 'a.b'[1]: expected a finite number"),
-    ({"grid": {"a.b": [1]}, "sample": {"n": 3, "seed": 1, "ranges": {"a.b": [0, 1]}}}, "'a.b' varies in two"),
-    ({"sample": {"n": 3, "ranges": {"a.b": [0, 1]}}}, "seed must be a non-negative integer"),
-    ({"sample": {"n": 3, "seed": 1, "ranges": {"a.b": [1, 0]}}}, "low must be below high"),
-    ({"sample": {"method": "sobol", "n": 3, "seed": 1, "ranges": {"a.b": [0, 1]}}}, "method must be 'lhs'"),
-    ({"fixed": {"a.b": 1}, "grid": {"a.b": [1]}}, "'a.b' is both fixed and varied"),
-    ({"step": 0}, "step must be positive"),
-    ({"plots": [{"kind": "pie"}]}, "plots[0].kind must be one of"),
-    ({"table": {"file": "missing.csv"}}, "[table]: cannot read"),
-])
+@pytest.mark.parametrize(
+    ("data", "message"),
+    [
+        ({"grids": {}}, "unknown key(s) grids"),
+        ({"grid": {"x1_0": [1, 2]}}, "'x1_0' is not COMPONENT.VARIABLE"),
+        ({"grid": {"a.b": {"start": 0, "stop": 1}}}, "grid 'a.b': a range needs exactly start, stop and num"),
+        ({"grid": {"a.b": [1, "x"]}}, "grid 'a.b'[1]: expected a finite number"),
+        (
+            {"grid": {"a.b": [1]}, "sample": {"n": 3, "seed": 1, "ranges": {"a.b": [0, 1]}}},
+            "'a.b' varies in two",
+        ),
+        ({"sample": {"n": 3, "ranges": {"a.b": [0, 1]}}}, "seed must be a non-negative integer"),
+        ({"sample": {"n": 3, "seed": 1, "ranges": {"a.b": [1, 0]}}}, "low must be below high"),
+        (
+            {"sample": {"method": "sobol", "n": 3, "seed": 1, "ranges": {"a.b": [0, 1]}}},
+            "method must be 'lhs'",
+        ),
+        ({"fixed": {"a.b": 1}, "grid": {"a.b": [1]}}, "'a.b' is both fixed and varied"),
+        ({"step": 0}, "step must be positive"),
+        ({"plots": [{"kind": "pie"}]}, "plots[0].kind must be one of"),
+        ({"table": {"file": "missing.csv"}}, "[table]: cannot read"),
+    ],
+)
 def test_bad_designs_fail_with_one_line_naming_the_file(tmp_path: Path, data: dict, message: str) -> None:
     path = write(tmp_path, data)
     with pytest.raises(DesignError) as info:
