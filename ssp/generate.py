@@ -44,8 +44,8 @@ def parameters(example: Example, mode: Mode, t_fault: float | None) -> dict[str,
 
 
 def scenario(dest: Path, name: str, example: Example, mode: Mode, description: str,
-             t_fault: float | None = None) -> None:
-    """Write the scenario folder ``dest/name``."""
+             t_fault: float | None = None, step: float = 1e-3) -> None:
+    """Write the scenario folder ``dest/name`` (communication step ``step`` in seconds)."""
     values = parameters(example, mode, t_fault)
     components = (
         component("reference", "Reference.fmu", REFERENCE, values["reference"]),
@@ -53,7 +53,7 @@ def scenario(dest: Path, name: str, example: Example, mode: Mode, description: s
         component("actuator", "Actuator.fmu", ACTUATOR, values["actuator"]),
         component("plant", f"{example.plant_fmu}.fmu", PLANT, values["plant"]),
     )
-    experiment = Experiment(0.0, example.stop_time, 1e-3)
+    experiment = Experiment(0.0, example.stop_time, step)
     write_ssd(dest / name, SystemStructure(name, components, CONNECTIONS, experiment, description))
 
 
@@ -65,8 +65,12 @@ def main(dest: Path = HERE) -> None:
              "Example 1, finite-time baseline controller [36], actuator fault from t = 10 s")
     scenario(dest, "example1_no_fault", EXAMPLE1, Mode.FIXED_TIME,
              "Example 1, fixed-time controller, fault never occurs (t_fault = 1e9 s)", t_fault=1e9)
+    # 0.5 ms, not 1 ms: masters that delay every connection by one step (libcosim, Ecos, our
+    # jacobi) put two steps of delay in the loop, and with |v(0)| = 15 218 the plant diverges at
+    # t = 0.031 s at 1 ms; at 0.5 ms every tool runs it (README, "In other tools").
     scenario(dest, "pendulum", EXAMPLE2, Mode.FIXED_TIME,
-             "Example 2 pendulum (eq. 99), fixed-time controller, actuator fault from t = 5 s")
+             "Example 2 pendulum (eq. 99), fixed-time controller, actuator fault from t = 5 s",
+             step=5e-4)
     scenario(dest, "pendulum_finite_time", EXAMPLE2, Mode.FINITE_TIME,
              "Example 2 pendulum, finite-time baseline controller [36], actuator fault from t = 5 s")
 

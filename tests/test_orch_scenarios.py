@@ -3,6 +3,7 @@ each other and with libcosim on the same archives."""
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +16,9 @@ from orchestrator.cli import main
 from orchestrator.crosscheck import LibcosimError, run_libcosim
 
 REPO = Path(__file__).resolve().parent.parent
-SCENARIOS = ["example1", "example1_finite_time", "example1_no_fault", "pendulum", "pendulum_finite_time"]
+# scenario -> the communication step it ships with
+SCENARIOS = {"example1": 1e-3, "example1_finite_time": 1e-3, "example1_no_fault": 1e-3, "pendulum": 5e-4,
+             "pendulum_finite_time": 1e-3}
 OUTPUTS = ["reference.yd", "reference.yd_dot", "reference.yd_ddot", "controller.v", "controller.z1",
            "controller.z2", "controller.zeta1", "controller.eta1_hat", "controller.eta2_hat", "controller.r",
            "actuator.uf", "actuator.u_dz", "plant.x1", "plant.x2", "plant.z", "plant.y"]
@@ -36,7 +39,7 @@ def test_build_packs_ssd_ssv_and_fmus(built):
 @pytest.mark.parametrize("name", SCENARIOS)
 def test_every_scenario_runs(built, name):
     r = orchestrator.run(built / "ssp" / f"{name}.ssp", stop_time=0.5)
-    assert len(r) == 501 and r["time"][-1] == 0.5
+    assert len(r) == round(0.5 / SCENARIOS[name]) + 1 and r["time"][-1] == 0.5
     assert set(OUTPUTS) <= set(r.dtype.names)
     assert all(np.isfinite(r[c]).all() for c in r.dtype.names)
     x1_0 = 0.5 if name.startswith("example1") else 0.6
@@ -90,10 +93,27 @@ def test_jacobi_equals_libcosim_example1(built):
     assert worst <= 1e-12
 
 
-def test_jacobi_and_libcosim_fail_alike_on_the_pendulum(built):
-    """With two steps of coupling delay the pendulum's stiff start (|v| ~ 15000) diverges within
-    30 ms; both tools stop at the same step with the same trajectory up to there."""
-    ssp = built / "ssp" / "pendulum.ssp"
+def pendulum_at(step: str, built: Path, tmp_path: Path) -> Path:
+    """The shipped pendulum scenario with its communication step replaced by ``step`` (both tool
+    annotations), packed into ``tmp_path``."""
+    from orchestrator.ssp import pack_ssp
+
+    folder = tmp_path / f"pendulum_{step}"
+    shutil.copytree(REPO / "ssp" / "pendulum", folder)
+    ssd = folder / "SystemStructure.ssd"
+    text = ssd.read_text()
+    assert text.count('"0.0005"') == 2, "the shipped pendulum step moved: update this test"
+    ssd.write_text(text.replace('"0.0005"', f'"{step}"'))
+    fmus = {p.name: p for p in (built / "fmus").glob("*.fmu")}
+    names = ("Reference.fmu", "FixedTimeController.fmu", "Actuator.fmu", "PendulumPlant.fmu")
+    return pack_ssp(folder, {n: fmus[n] for n in names}, tmp_path / f"pendulum_{step}.ssp")
+
+
+def test_jacobi_and_libcosim_fail_alike_on_the_pendulum_at_1_ms(built, tmp_path):
+    """Why the pendulum ships with a 0.5 ms step: at 1 ms the two steps of coupling delay of a
+    delayed master make its stiff start (|v| ~ 15000) diverge within 30 ms; both tools stop at
+    the same step with the same trajectory up to there, while the delay-free master runs it."""
+    ssp = pendulum_at("0.001", built, tmp_path)
     expected = r"^plant: fmi2DoStep returned fmi2Discard at t=0\.031 s"
     with pytest.raises(SimulationError, match=expected) as ours:
         orchestrator.run(ssp, stop_time=0.1, master="jacobi")
@@ -129,30 +149,20 @@ def test_fault_and_override_through_cli(built, tmp_path):
     assert main(["metrics", str(out)]) == 0
 
 
-def test_pendulum_runs_in_libcosim_at_half_a_millisecond(built, tmp_path):
-    """At 1 ms libcosim's one-step delays destabilise the pendulum's stiff start (test above);
-    with the step halved in both tool annotations it runs, and its plant.y stays close to the
-    delay-free default master on the same archive (measured over 3 s: 0.071 during the stiff
-    start, 9.4e-4 after 1 s)."""
-    import shutil
-
-    from orchestrator.ssp import pack_ssp
-
-    folder = tmp_path / "pendulum_half_ms"
-    shutil.copytree(REPO / "ssp" / "pendulum", folder)
-    ssd = folder / "SystemStructure.ssd"
-    ssd.write_text(ssd.read_text().replace('"0.001"', '"0.0005"'))
-    fmus = {p.name: p for p in (built / "fmus").glob("*.fmu")}
-    names = ("Reference.fmu", "FixedTimeController.fmu", "Actuator.fmu", "PendulumPlant.fmu")
-    archive = pack_ssp(folder, {n: fmus[n] for n in names}, tmp_path / "pendulum_half_ms.ssp")
-    theirs, _ = run_libcosim(archive, 3.0, ["time", "plant.y"])
+def test_pendulum_as_shipped_runs_in_libcosim(built):
+    """At its 0.5 ms step the shipped pendulum runs in libcosim, equal to our jacobi master, and
+    close to the delay-free default master (measured over 30 s: 0.071 during the stiff start,
+    1.6e-3 after 1 s; over 3 s: 9.4e-4 after 1 s)."""
+    archive = built / "ssp" / "pendulum.ssp"
+    theirs, _ = run_libcosim(archive, 3.0, ["time"] + OUTPUTS)
     ours = orchestrator.run(archive, stop_time=3.0)
-    assert theirs["time"].tolist() == ours["time"].tolist()
+    jacobi = orchestrator.run(archive, stop_time=3.0, master="jacobi")
+    assert theirs["time"].tolist() == ours["time"].tolist() == jacobi["time"].tolist()
+    assert max(np.max(np.abs(jacobi[c] - theirs[c])) for c in OUTPUTS) == 0.0
     deviation = np.abs(ours["plant.y"] - theirs["plant.y"])
     late = ours["time"] >= 1.0
     print(f"pendulum at 0.5 ms, libcosim vs gauss-seidel: max |delta plant.y| {deviation.max():.2e}, "
           f"after 1 s {deviation[late].max():.2e}")
-    assert np.isfinite(theirs["plant.y"]).all()
     assert deviation.max() <= 0.1
     assert deviation[late].max() <= 2e-3
 
