@@ -31,7 +31,7 @@ def open_system(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | o
     with ExitStack() as stack:
         system, errors, _ = check_scenario(scenario, stack, parameter_sets=parameter_sets,
                                            overrides=overrides)
-        if errors:
+        if system is None or errors:
             raise ScenarioError(errors)
         yield system
 

@@ -26,6 +26,7 @@ from collections.abc import Iterable, Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
+from typing import overload
 
 from fmpy.ssp import ssd as fmpy_ssd
 from lxml import etree
@@ -182,7 +183,7 @@ def open_scenario(scenario: str | os.PathLike, stack: ExitStack) -> Path:
     """Return the folder holding ``SystemStructure.ssd``; an archive is unpacked into a temporary
     folder that ``stack`` removes. Hostile or broken archives raise ScenarioError."""
     folder, problems = unpack_scenario(scenario, stack)
-    if problems:
+    if folder is None or problems:
         raise ScenarioError(problems)
     return folder
 
@@ -252,7 +253,9 @@ def _load(path: Path, schema: str, label: str) -> tuple[etree._Element | None, l
 
 def _convert(type_: str, text: str | None) -> float | int | bool | str:
     """The Python value of an SSV value attribute; ValueError when it is not one of ``type_``."""
-    if text is None and type_ != "String":
+    if text is None:
+        if type_ == "String":
+            return ""
         raise ValueError(text)
     if type_ == "Real":
         return float(text)
@@ -262,7 +265,7 @@ def _convert(type_: str, text: str | None) -> float | int | bool | str:
         if text not in ("true", "false", "1", "0"):
             raise ValueError(text)
         return text in ("true", "1")
-    return "" if text is None else text
+    return text
 
 
 def _parameter_set(fmpy_set: fmpy_ssd.ParameterSet, origin: str, prefix: str,
@@ -299,7 +302,7 @@ def _read_ssv(path: Path, label: str, origin: str, prefix: str) -> tuple[Paramet
 def read_parameter_set(path: str | os.PathLike, prefix: str = "") -> ParameterSet:
     """Read and validate one ``.ssv`` file (fmpy's reader, after our own schema check)."""
     parameter_set, problems = scan_parameter_set(path, prefix)
-    if problems:
+    if parameter_set is None or problems:
         raise ScenarioError(problems)
     return parameter_set
 
@@ -330,7 +333,7 @@ def read_scenario(folder: Path, label: str | None = None) -> SystemStructure:
     """Read the SSD in ``folder``; ``label`` is how messages name the SSD (default: its path).
     Raises ScenarioError listing every problem."""
     reading = scan_scenario(folder, label)
-    if reading.problems:
+    if reading.structure is None or reading.problems:
         raise ScenarioError(list(reading.problems))
     return reading.structure
 
@@ -341,8 +344,7 @@ def scan_scenario(folder: Path, label: str | None = None) -> Reading:
     are left out), a component keeps its connectors when its FMU or a parameter file is bad."""
     label = label or str(folder / SSD_NAME)
     root, problems = _load(folder / SSD_NAME, "SystemStructureDescription.xsd", label)
-    system = root.find("ssd:System", NS) if root is not None else None
-    if system is None:
+    if root is None or (system := root.find("ssd:System", NS)) is None:
         return Reading(None, tuple(problems))
     if root.get("version") != "1.0":
         problems.append(f"{label}: version must be \"1.0\" (got {root.get('version')!r})")
@@ -381,6 +383,10 @@ def scan_scenario(folder: Path, label: str | None = None) -> Reading:
     return Reading(structure, tuple(problems), frozenset(no_fmu), frozenset(partial))
 
 
+@overload
+def _number(text: str | None, default: float) -> float: ...
+@overload
+def _number(text: str | None, default: None) -> float | None: ...
 def _number(text: str | None, default: float | None) -> float | None:
     """A double attribute; ``default`` when absent or not a number (the schema reports the latter)."""
     try:

@@ -71,7 +71,7 @@ class System:
     ``no_fmu`` (FMU missing, already reported) are checked only as far as the SSD goes; those in
     ``partial`` (some parameter values unreadable, already reported) are not checked for inputs
     without a value. ``fmu_warnings`` adds fmpy's full FMU validation (``validate_fmu``): what it
-    finds beyond the checks a run needs goes to ``warnings``. ``schedule`` is None when there are
+    finds beyond the checks a run needs goes to ``warnings``. ``schedule`` is empty when there are
     problems.
     """
 
@@ -101,8 +101,8 @@ class System:
         self._check_connections(problems)
         self._check_units(problems)
         parameter_sets = list(parameter_sets)
-        for ps in structure_sets(structure):
-            self._apply(ps[0], ps[1], problems)
+        for name, ps in structure_sets(structure):
+            self._apply(name, ps, problems)
         for ps in parameter_sets:
             self._apply_prefixed(ps, problems)
         for key, value in (overrides or {}).items():
@@ -111,7 +111,7 @@ class System:
                                + sum(len(ps.parameters) for ps in parameter_sets) + len(overrides or {}))
         self._check_inputs(problems, partial)
         problems.extend(self._algebraic_loops())
-        self.schedule: list[Operation] | None = None
+        self.schedule: list[Operation] = []
         if problems:
             if strict:
                 raise ScenarioError(problems)
@@ -217,8 +217,8 @@ class System:
     def _unit(self, ref: PortRef) -> Unit | None:
         """The unit definition of a Real variable (a name without definition: a Unit of that name)."""
         comp = self.components.get(ref.component)
-        var = comp.variables.get(ref.connector) if comp else None
-        if var is None or var.type != "Real":
+        var = comp.variables.get(ref.connector) if comp is not None else None
+        if comp is None or var is None or var.type != "Real":
             return None
         name = var.unit or (var.declaredType.unit if var.declaredType is not None else None)
         if name is None:
@@ -375,7 +375,7 @@ def _base(unit: BaseUnit) -> tuple[float, ...]:
     return tuple(getattr(unit, a) for a in ("kg", "m", "s", "A", "K", "mol", "cd", "rad", "factor", "offset"))
 
 
-def _outside(var: ModelVariable, value: object) -> str:
+def _outside(var: ModelVariable, value: float | int | bool | str) -> str:
     """Why ``value`` does not fit the variable's declared range or enumeration items ('' if it does)."""
     declared = var.declaredType
     if var.type == "Enumeration" and declared is not None and declared.items:
@@ -385,11 +385,12 @@ def _outside(var: ModelVariable, value: object) -> str:
         return ""
     if var.type not in ("Real", "Integer", "Enumeration"):
         return ""
+    number = float(value)  # a Real, Integer or Enumeration value
     low = var.min if var.min is not None else getattr(declared, "min", None)
     high = var.max if var.max is not None else getattr(declared, "max", None)
-    if low is not None and not value >= float(low):
+    if low is not None and not number >= float(low):  # written so that NaN is outside
         return f"is below the FMU's min {low}"
-    if high is not None and not value <= float(high):
+    if high is not None and not number <= float(high):
         return f"is above the FMU's max {high}"
     return ""
 

@@ -68,8 +68,8 @@ def check_scenario(scenario: str | os.PathLike, stack: ExitStack, *,
                    overrides: Mapping[str, object] | None = None,
                    fmu_warnings: bool = False) -> tuple[System | None, list[str], list[str]]:
     """Unpack (into a folder ``stack`` removes), read and check a scenario, every stage as far as it
-    can go. Returns the system (None when no SSD could be read; its ``schedule`` is None when there
-    are errors), the errors and the warnings (``fmu_warnings``: add fmpy's full FMU validation)."""
+    can go. Returns the system (None when no SSD could be read; its ``schedule`` is empty when
+    there are errors), the errors and the warnings (``fmu_warnings``: add fmpy's full FMU validation)."""
     folder, errors = unpack_scenario(scenario, stack)
     if folder is None:
         return None, errors, []

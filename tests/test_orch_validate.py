@@ -309,3 +309,18 @@ def test_parameter_files_and_overrides_as_for_run(tmp_path, test_fmus, built, mo
         main(["validate", "example1", "--set", "k1"])
     assert exit_info.value.code == 2
     assert main(["validate", "no_such_scenario"]) == 1
+
+
+def test_experiment_times(tmp_path, test_fmus):
+    """A stop time before the start time is an error; no stop time at all is a warning (run then
+    needs --stop-time)."""
+    fmus = {"Gain.fmu": test_fmus["Gain"]}
+    pair = [component("g", "Gain.fmu", GAIN), component("h", "Gain.fmu", GAIN)]
+    backwards = scenario(tmp_path / "b", fmus, pair, [("g.y", "h.u")], stop=-1.0)
+    label = str(backwards / SSD_NAME)
+    assert errors(validate(backwards)) == [f"{label}: the stop time -1.0 s is before the start time 0.0 s"]
+    open_ended = scenario(tmp_path / "o", fmus, pair, [("g.y", "h.u")], stop=None)
+    report = validate(open_ended)
+    assert report.ok
+    assert f"{open_ended / SSD_NAME}: no stopTime in DefaultExperiment; 'run' needs --stop-time" in [
+        p.message for p in report.problems if p.severity == "warning"]
