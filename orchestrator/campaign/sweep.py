@@ -48,6 +48,7 @@ class CampaignSummary:
     timed_out: int
     wall_time: float
     workers: int
+    run_time: float = 0.0  # s from the first task submitted to the last row written (no cluster start-up)
 
 
 class CampaignInterrupted(KeyboardInterrupt):
@@ -279,6 +280,7 @@ def sweep(
     for r in kept:
         counts[r["status"]] += 1
     n_workers = 0
+    phase = [0.0, 0.0]  # perf_counter at the first submission and at the last row
 
     def summary() -> CampaignSummary:
         return CampaignSummary(
@@ -291,6 +293,7 @@ def sweep(
             counts[TIMEOUT],
             time.perf_counter() - started,
             n_workers,
+            phase[1] - phase[0],
         )
 
     if not todo:
@@ -317,6 +320,7 @@ def sweep(
             client.register_plugin(ScenarioPlugin(archives), name=f"orchestrate-campaign-{plugin}")
             n_workers = len(client.scheduler_info(n_workers=-1)["workers"])
             by_key = {}
+            phase[0] = phase[1] = time.perf_counter()
             for spec in todo:
                 future = client.submit(
                     run_variant, spec, metrics, key=f"run-{spec.index}-{spec.run_id}", pure=False
@@ -337,6 +341,7 @@ def sweep(
                 counts[outcome.status] += 1
                 bar.set_postfix(failed=counts[FAILED] + counts[TIMEOUT], refresh=False)
                 bar.update()
+                phase[1] = time.perf_counter()
     except KeyboardInterrupt:
         bar.close()
         journal.finish()

@@ -1,0 +1,161 @@
+"""Campaign throughput: runs per minute with 1 and 2 workers on the embedded Dask cluster, 2 workers
+as threads of one process, and 2 workers behind an external ``dask scheduler``; and the per-run
+overhead of the campaign layer against a bare ``orchestrator.run`` measured in this process.
+
+    python benchmarks/campaign_scaling.py [--scenario build/ssp/example1.ssp] [--stop-time 30] [--runs 8]
+
+Throughput counts from the first task submitted to the last row written (cluster start-up is
+reported apart). Overhead per run = (run phase x workers / runs) - bare run time, with 1 worker.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import orchestrator
+from orchestrator.campaign import read_design, sweep
+from orchestrator.experiments.campaigns import TRACKING
+
+VENV_BIN = Path(sys.executable).parent
+
+
+@contextmanager
+def external_cluster(folder: Path, workers: int) -> Iterator[str]:
+    """A ``dask scheduler`` and ``workers`` single-threaded ``dask worker`` processes on localhost."""
+    dask = str(VENV_BIN / "dask")
+    file = folder / "scheduler.json"
+    log = open(folder / "dask.log", "w")  # noqa: SIM115 (closed below)
+    procs = [
+        subprocess.Popen(
+            [
+                dask,
+                "scheduler",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                "0",
+                "--no-dashboard",
+                "--scheduler-file",
+                str(file),
+            ],
+            stdout=log,
+            stderr=log,
+        )
+    ]
+    try:
+        while not file.is_file():
+            time.sleep(0.2)
+        address = json.loads(file.read_text())["address"]
+        procs += [
+            subprocess.Popen(
+                [
+                    dask,
+                    "worker",
+                    address,
+                    "--nthreads",
+                    "1",
+                    "--no-dashboard",
+                    "--local-directory",
+                    str(folder / f"w{i}"),
+                ],
+                stdout=log,
+                stderr=log,
+            )
+            for i in range(workers)
+        ]
+        from distributed import Client
+
+        with Client(address) as client:
+            client.wait_for_workers(workers, timeout=120)
+        yield address
+    finally:
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            p.wait(timeout=30)
+        log.close()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scenario", type=Path, help="default: build example1_no_fault into a temp folder")
+    parser.add_argument("--stop-time", type=float, default=30.0)
+    parser.add_argument("--runs", type=int, default=8)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory(prefix="campaign-bench-") as tmp:
+        tmp = Path(tmp)
+        scenario = args.scenario
+        if scenario is None:
+            from orchestrator.experiments.scenarios import build_scenarios
+
+            scenario = build_scenarios(["example1_no_fault"], tmp / "build")["example1_no_fault"]
+        values = [round(-1 + 2 * i / max(args.runs - 1, 1), 6) for i in range(args.runs)]
+        (tmp / "design.json").write_text(
+            json.dumps({"stop_time": args.stop_time, "grid": {"plant.x1_0": values}})
+        )
+        design = read_design(tmp / "design.json")
+
+        bare = []
+        for x in values[:3]:
+            started = time.perf_counter()
+            orchestrator.run(scenario, stop_time=args.stop_time, overrides={"plant.x1_0": x})
+            bare.append(time.perf_counter() - started)
+        t_bare = statistics.median(bare)
+        print(f"bare orchestrator.run, {args.stop_time:g} s: {t_bare:.3f} s (median of {len(bare)})")
+
+        results = {}
+        cases = [
+            ("embedded, 1 worker process", {"workers": 1}),
+            ("embedded, 2 worker processes", {"workers": 2}),
+            ("embedded, 2 worker threads in one process", {"workers": 2, "processes": False}),
+        ]
+        for label, options in cases:
+            try:
+                s = sweep(
+                    [scenario],
+                    design,
+                    tmp / label.replace(" ", "_"),
+                    metrics=TRACKING,
+                    progress=False,
+                    **options,
+                )
+            except Exception as exc:  # the threads case may not survive: report it
+                print(f"{label}: failed ({type(exc).__name__}: {exc})")
+                continue
+            results[label] = s
+        with external_cluster(tmp, 2) as address:
+            results["external scheduler, 2 workers"] = sweep(
+                [scenario], design, tmp / "external", metrics=TRACKING, scheduler=address, progress=False
+            )
+        for label, s in results.items():
+            rate = 60 * args.runs / s.run_time
+            print(
+                f"{label}: {rate:.1f} runs/min ({s.ok}/{s.total} ok; run phase {s.run_time:.1f} s, "
+                f"start-up and shut-down {s.wall_time - s.run_time:.1f} s)"
+            )
+        one = results["embedded, 1 worker process"]
+        per_run = one.run_time / args.runs
+        overhead = per_run - t_bare
+        print(
+            f"per-run overhead of the campaign layer (1 worker): {overhead * 1e3:.0f} ms "
+            f"= {100 * overhead / t_bare:.1f} % of a bare {args.stop_time:g} s run"
+        )
+        two = results.get("embedded, 2 worker processes")
+        if two is not None:
+            print(
+                f"scaling 1 -> 2 worker processes: {one.run_time / two.run_time:.2f}x "
+                f"({100 * (one.run_time / two.run_time - 1):.0f} % per added core)"
+            )
+
+
+if __name__ == "__main__":
+    main()
