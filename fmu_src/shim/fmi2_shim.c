@@ -33,7 +33,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #define EXPORT __attribute__((visibility("default")))
 #define ENV_FILE "python_env.txt"
@@ -165,6 +168,13 @@ static int is_dir(const char *path) {
     return stat(path, &info) == 0 && S_ISDIR(info.st_mode);
 }
 
+/* Whether two paths name one file (symbolic links followed). */
+static int same_file(const char *a, const char *b) {
+    struct stat sa, sb;
+    return a[0] && b[0] && stat(a, &sa) == 0 && stat(b, &sb) == 0 && sa.st_dev == sb.st_dev &&
+           sa.st_ino == sb.st_ino;
+}
+
 /* dlerror() without a leading "<path>: " (the message names the path already). */
 static const char *dl_reason(const char *path) {
     const char *error = dlerror();
@@ -198,10 +208,12 @@ static void read_record(const char *dir, struct record *r) {
 /* Python source that adds the site directories ahead of the interpreter's own site-packages
    (as a virtual environment's come first), processing their .pth files. The paths travel as hex
    so that no quoting can break the source. */
-static int site_code(char *code, size_t size, char dirs[][TEXT], int n) {
+static int site_code(char *code, size_t size, char dirs[][TEXT], int n, int set_home) {
     static const char head[] =
-        "def _ftc_add_site_dirs(dirs):\n"
+        "def _ftc_add_site_dirs(dirs, set_home):\n"
         "    import os, site, sys\n"
+        "    if set_home:\n"
+        "        os.environ.pop('PYTHONHOME', None)  # set only for the initialization\n"
         "    n = len(sys.path)\n"
         "    for d in dirs:\n"
         "        site.addsitedir(os.fsdecode(bytes.fromhex(d)))\n"
@@ -211,7 +223,8 @@ static int site_code(char *code, size_t size, char dirs[][TEXT], int n) {
         "    i = next((k for k, p in enumerate(sys.path) if p in base), len(sys.path))\n"
         "    sys.path[i:i] = added\n"
         "_ftc_add_site_dirs([";
-    static const char tail[] = "])\ndel _ftc_add_site_dirs\n";
+    char tail[64];
+    snprintf(tail, sizeof tail, "], %s)\ndel _ftc_add_site_dirs\n", set_home ? "True" : "False");
     size_t used = (size_t)snprintf(code, size, "%s", head);
     for (int i = 0; i < n; i++) {
         if (used + 2 * strlen(dirs[i]) + 4 + sizeof tail >= size) return -1;
@@ -263,7 +276,8 @@ static int start_python(void *python, const struct record *r, const char *librar
     const char *home = NULL;
     if (recorded_library && !getenv("PYTHONHOME") && r->home[0]) {
         char landmark[TEXT + 64];
-        snprintf(landmark, sizeof landmark, "%s/lib/python%s/os.py", r->home, r->version);
+        snprintf(landmark, sizeof landmark, "%.*s/lib/python%s/os.py", (int)strcspn(r->home, ":"), r->home,
+                 r->version); /* home may be PYTHONHOME's prefix:exec_prefix */
         if (is_file(landmark)) home = r->home;
     }
     if (home) setenv("PYTHONHOME", home, 1);
@@ -275,7 +289,7 @@ static int start_python(void *python, const struct record *r, const char *librar
     }
 
     static char code[MAX_DIRS * 2 * TEXT + 1024];
-    if (site_code(code, sizeof code, dirs, n) != 0 || run(code) != 0) {
+    if (site_code(code, sizeof code, dirs, n, home != NULL) != 0 || run(code) != 0) {
         snprintf(failure, TEXT, "%s: could not add the site directories to sys.path in %s "
                  "(traceback on stderr)", model, library);
         save_thread();
@@ -317,7 +331,6 @@ static int load(void) {
 
     void *python = NULL;
     const char *library = "the process";
-    int recorded_library = 0;
     if (!dlsym(RTLD_DEFAULT, "Py_IsInitialized")) {
         const char *env_library = getenv("FTC_PYTHON_LIBRARY");
         char tried[TEXT] = "";
@@ -334,7 +347,6 @@ static int load(void) {
             snprintf(tried, TEXT, "FTC_PYTHON_LIBRARY (unset), %s (no library= line)", r.file);
         } else {
             library = r.library;
-            recorded_library = 1;
             python = dlopen(library, RTLD_NOW | RTLD_GLOBAL);
             if (!python)
                 snprintf(tried, TEXT, "FTC_PYTHON_LIBRARY (unset), %s (recorded at build in %s: %s)", library,
@@ -354,7 +366,17 @@ static int load(void) {
         snprintf(failure, TEXT, "%s: %s has no Py_IsInitialized: not a libpython", model, library);
         return -1;
     }
-    if (!is_initialized() && start_python(python, &r, library, recorded_library) != 0) return -1;
+    /* The shims of two FMUs may start at once in different threads, and the second may already see
+       the libpython the first loaded: a lock on the file that defines Py_IsInitialized makes the
+       first initialize Python completely (site directories included) before the other looks. */
+    Dl_info defining;
+    if (dladdr((void *)is_initialized, &defining) && defining.dli_fname && defining.dli_fname[0])
+        library = defining.dli_fname;
+    int lock = open(library, O_RDONLY | O_CLOEXEC);
+    if (lock >= 0) flock(lock, LOCK_EX);
+    int status = is_initialized() ? 0 : start_python(python, &r, library, same_file(library, r.library));
+    if (lock >= 0) close(lock); /* releases the lock */
+    if (status != 0) return -1;
 
     char path[TEXT + 300];
     snprintf(path, sizeof path, "%s/%s%s", dir, model, INNER_SUFFIX);
