@@ -58,7 +58,8 @@ typedef char fmi2Byte;
 typedef enum { fmi2OK, fmi2Warning, fmi2Discard, fmi2Error, fmi2Fatal, fmi2Pending } fmi2Status;
 typedef enum { fmi2ModelExchange, fmi2CoSimulation } fmi2Type;
 typedef enum { fmi2DoStepStatus, fmi2PendingStatus, fmi2LastSuccessfulTime, fmi2Terminated } fmi2StatusKind;
-typedef void (*fmi2CallbackLogger)(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String, ...);
+typedef void (*fmi2CallbackLogger)(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String,
+                                   ...);
 typedef struct {
     fmi2CallbackLogger logger;
     void *(*allocateMemory)(size_t, size_t);
@@ -252,8 +253,9 @@ static int start_python(void *python, const struct record *r, const char *librar
         return -1;
     }
 
-    /* Dirs to add: FTC_PYTHON_PATH replaces the recorded ones. */
-    char dirs[MAX_DIRS][TEXT];
+    /* Dirs to add: FTC_PYTHON_PATH replaces the recorded ones. Static (as the record): called once,
+       under load_lock, and kept off the stack of host threads that may be small. */
+    static char dirs[MAX_DIRS][TEXT];
     int n = 0;
     const char *env_path = getenv("FTC_PYTHON_PATH");
     if (env_path && *env_path) {
@@ -299,8 +301,8 @@ static int start_python(void *python, const struct record *r, const char *librar
     if (r->version[0] && (strncmp(version, r->version, strlen(r->version)) != 0 ||
                           version[strlen(r->version)] != '.'))
         append(warnings, "%s%s: Python %.*s from %s is not the build's %s; compiled packages (numpy) "
-               "of another version do not import", warnings[0] ? "; " : "", model, (int)strcspn(version, " "), version,
-               library, r->version);
+               "of another version do not import", warnings[0] ? "; " : "", model,
+               (int)strcspn(version, " "), version, library, r->version);
     snprintf(python_info, TEXT, "Python %.*s from %s", (int)strcspn(version, " "), version, library);
     for (int i = 0; i < n; i++) append(python_info, "%s%s", i ? ":" : ", site directories ", dirs[i]);
     save_thread(); /* release the GIL: pythonfmu takes it with PyGILState_Ensure */
@@ -325,8 +327,7 @@ static int load(void) {
     if (slash) *slash = '\0';
     else snprintf(dir, sizeof dir, ".");
 
-    struct record r;
-    memset(&r, 0, sizeof r);
+    static struct record r;
     read_record(dir, &r);
 
     void *python = NULL;
