@@ -172,13 +172,17 @@ def external_cluster(tmp_path: Path):
             client.wait_for_workers(2, timeout=60)
         yield address
     finally:
-        for p in reversed(procs):
-            p.terminate()
+        if len(procs) > 1:
+            from distributed import Client
+
+            with Client(address, timeout="10s") as client:
+                client.shutdown()  # scheduler and workers close at once (SIGTERM takes seconds)
         for p in reversed(procs):
             try:
-                p.wait(timeout=20)
+                p.wait(timeout=10)
             except subprocess.TimeoutExpired:
-                p.kill()
+                p.terminate()
+                p.wait(timeout=10)
         logs.close()
 
 

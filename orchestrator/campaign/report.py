@@ -141,7 +141,8 @@ def _histogram(ax, spec: Mapping, panels: list[tuple[str, list[Row]]]) -> None:
             )
     ax.set_xlabel(metric)
     ax.set_ylabel("runs")
-    ax.legend(fontsize="x-small")
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize="x-small")
 
 
 def _draw(spec: Mapping, rows: Sequence[Row], meta: Mapping, target: Path) -> None:
@@ -266,7 +267,9 @@ def write_report(table: str | os.PathLike, out: str | os.PathLike) -> Path:
     rows, meta = read_table(table)
     out.mkdir(parents=True, exist_ok=True)
     specs = list(meta.get("plots", [])) or [
-        {"kind": "histogram", "metric": m} for m in meta.get("metrics", [])
+        {"kind": "histogram", "metric": m}
+        for m in meta.get("metrics", [])
+        if any(r["status"] == "ok" and math.isfinite(_value(r, m)) for r in rows)
     ]
     figures = []
     for i, spec in enumerate(specs):
