@@ -12,13 +12,14 @@ from .libcosim import LibcosimError, LibcosimTool, run_libcosim
 from .omsimulator import OMSimulatorCliTool, OMSimulatorPythonTool
 from .tools import Scenario, Tolerance, Tool, ToolRun
 
-__all__ = ["TOOLS", "LibcosimError", "Scenario", "Tolerance", "Tool", "ToolRun", "run_libcosim", "tools"]
+__all__ = ["TOOLS", "LibcosimError", "Scenario", "Tolerance", "Tool", "ToolRun", "run_libcosim",
+           "select_tools"]
 
 # Every supported tool, in the matrix's order (key -> adapter class).
 TOOLS: dict[str, type[Tool]] = {t.key: t for t in (LibcosimTool, EcospyTool, EcosCliTool, OMSimulatorCliTool,
                                                    OMSimulatorPythonTool)}
 
 
-def tools(keys: list[str] | None = None) -> list[Tool]:
+def select_tools(keys: list[str] | None = None) -> list[Tool]:
     """Adapters for ``keys`` (default: every supported tool), in the matrix's order."""
     return [cls() for key, cls in TOOLS.items() if keys is None or key in keys]

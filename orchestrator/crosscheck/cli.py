@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..cli import add_command
 from ..errors import ScenarioError, UsageError
-from . import TOOLS, tools
+from . import TOOLS, select_tools
 from .matrix import run_matrix, write_csv, write_markdown
 from .tools import Scenario
 
@@ -69,7 +69,7 @@ def _crosscheck(args: argparse.Namespace) -> int:
             scenarios.append(Scenario.read(path))
         except ValueError as exc:
             raise ScenarioError(str(exc)) from exc
-    selected = tools(args.tools)
+    selected = select_tools(args.tools)
     for tool in selected:
         reason = tool.missing()
         if reason:

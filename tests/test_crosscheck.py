@@ -1,0 +1,223 @@
+"""Unit tests of the conformance matrix's logic (orchestrate crosscheck) on hand-made signals: the
+alignment and difference of two results, each check of a cell and when a cell is red, the
+result-file helpers of the adapters, and the written matrix. The tools themselves run in
+tests/test_crosscheck_system.py."""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from orchestrator.cli import main
+from orchestrator.crosscheck import TOOLS, Scenario, ToolRun, select_tools
+from orchestrator.crosscheck.ecos import EcosCliTool, EcospyTool, parameter_set_name
+from orchestrator.crosscheck.libcosim import LibcosimTool
+from orchestrator.crosscheck.matrix import (
+    AFTER,
+    Cell,
+    deviation,
+    evaluate,
+    parameter_check,
+    reference_master,
+    write_csv,
+    write_markdown,
+)
+from orchestrator.crosscheck.omsimulator import OMSimulatorCliTool
+from orchestrator.crosscheck.tools import clean_environment, elf_interpreter, last_per_step
+from orchestrator.results import structured
+
+H = 1e-3
+STOP = 3.0
+PARAMETERS = {"plant.x1_0": 0.5, "plant.x2_0": -0.25, "controller.k1": 10.0, "controller.mode": 1}
+
+
+def scenario(set_names: dict[str, tuple[str, ...]] | None = None) -> Scenario:
+    """A scenario as an archive would state it (nothing is read: only the matrix logic runs)."""
+    return Scenario("made_up", Path("made_up.ssp"), "made_up", 0.0, STOP, H,
+                    ("plant.y", "plant.x1", "plant.x2"), dict(PARAMETERS),
+                    {k: "Integer" if k.endswith("mode") else "Real" for k in PARAMETERS},
+                    set_names or {"controller": ("controller",), "plant": ("plant",)})
+
+
+def signals(stop: float = STOP, dy: float = 0.0, t_bump: float | None = None, bump: float = 0.0,
+            times: np.ndarray | None = None) -> np.ndarray:
+    """plant.y = sin(t) + dy (+ bump at t_bump) on the grid; x1, x2 start at the initial state."""
+    t = np.arange(int(round(stop / H)) + 1) * H if times is None else times
+    y = np.sin(t) + dy
+    if t_bump is not None:
+        y[np.argmin(np.abs(t - t_bump))] += bump
+    x1 = np.full_like(t, PARAMETERS["plant.x1_0"])
+    x2 = np.full_like(t, PARAMETERS["plant.x2_0"])
+    return structured(np.column_stack([t, y, x1, x2]), ["time", "plant.y", "plant.x1", "plant.x2"])
+
+
+def good_run(result: np.ndarray | None = None, **overrides: object) -> ToolRun:
+    read_back = {k: float(v) for k, v in PARAMETERS.items()}
+    run = ToolRun(signals() if result is None else result, 1.5, None, read_back)
+    for key, value in overrides.items():
+        setattr(run, key, value)
+    return run
+
+
+def failed(cell: Cell) -> set[str]:
+    return {c.name for c in cell.checks if not c.ok}
+
+
+# -- deviation ----------------------------------------------------------------------------------------
+
+def test_deviation_finds_the_largest_difference_and_the_one_after_the_first_second() -> None:
+    ours = signals()
+    theirs = signals(dy=2e-4, t_bump=0.25, bump=0.05)
+    d = deviation(theirs, ours, 0.0, H)
+    assert d.max == pytest.approx(0.05 + 2e-4, rel=1e-12)
+    assert d.at == pytest.approx(0.25)
+    assert d.after == pytest.approx(2e-4, rel=1e-9)
+    assert d.compared == len(ours)
+
+
+def test_deviation_aligns_accumulated_times_and_rows_written_twice() -> None:
+    """Ecos passes t += h (t drifts by ulps); OMSimulator writes each point twice (before and after
+    the exchange): the comparison is by communication point, the last row of each kept."""
+    ours = signals()
+    accumulated = np.cumsum(np.r_[0.0, np.full(len(ours) - 1, H)])
+    assert not np.array_equal(accumulated, ours["time"])  # the drift is real
+    theirs = signals(times=accumulated)
+    assert deviation(theirs, ours, 0.0, H).max < 1e-12
+
+    doubled_t = np.repeat(ours["time"], 2)
+    doubled = signals(times=doubled_t)
+    doubled["plant.y"][0::2] += 1.0  # the row before the exchange: stale, must be dropped
+    keep = last_per_step(doubled["time"], 0.0, H)
+    assert len(keep) == len(ours)
+    assert deviation(doubled[keep], ours, 0.0, H).max == 0.0
+
+
+def test_deviation_of_a_run_that_stopped_early_uses_the_common_points() -> None:
+    ours = signals()
+    theirs = signals(stop=0.5, dy=1e-3)
+    d = deviation(theirs, ours, 0.0, H)
+    assert d.compared == 501
+    assert d.max == pytest.approx(1e-3)
+    assert d.after == 0.0  # nothing after 1 s to compare
+
+
+def test_a_non_finite_sample_is_an_infinite_difference() -> None:
+    theirs = signals()
+    theirs["plant.y"][2000] = np.nan
+    d = deviation(theirs, signals(), 0.0, H)
+    assert d.max == math.inf and d.after == math.inf and d.at == pytest.approx(2.0)
+
+
+# -- the checks of a cell and the red-cell rule --------------------------------------------------------
+
+def test_a_cell_is_ok_when_every_check_passes() -> None:
+    tool = EcosCliTool()
+    cell = evaluate(tool, scenario(), good_run(signals(dy=0.5 * tool.tolerance.run)), signals())
+    assert not cell.red and cell.status == "ok"
+    assert [c.name for c in cell.checks] == ["loads", "parameters", "stop time", "plant.y over the run",
+                                             f"plant.y after {AFTER:g} s"]
+    assert cell.reference == "jacobi"
+
+
+@pytest.mark.parametrize(("run", "expected"), [
+    (good_run(signals()[:0]), {"loads"}),
+    (good_run(parameters={**{k: float(v) for k, v in PARAMETERS.items()}, "controller.k1": 25.0}),
+     {"parameters"}),
+    (good_run(parameters={k: float(v) for k, v in PARAMETERS.items() if k != "controller.mode"}),
+     {"parameters"}),
+    (good_run(signals(stop=STOP - H)), {"stop time"}),
+    (good_run(error="plant: fmi2DoStep returned fmi2Discard"), {"stop time"}),
+    (good_run(signals(t_bump=0.03, bump=1e-3)), {"plant.y over the run"}),
+    (good_run(signals(t_bump=2.0, bump=1e-3)), {"plant.y over the run", f"plant.y after {AFTER:g} s"}),
+])
+def test_a_cell_is_red_when_one_check_fails(run: ToolRun, expected: set[str]) -> None:
+    cell = evaluate(EcosCliTool(), scenario(), run, signals())
+    assert cell.red and cell.status == "red"
+    assert failed(cell) == expected
+
+
+def test_the_plant_initial_state_must_show_up_at_t0() -> None:
+    """Without a read-back (our own masters) the initial state is the evidence: x1(t0) = x1_0."""
+    moved = signals()
+    moved["plant.x1"][0] = 0.0
+    check = parameter_check(scenario(), moved, None)
+    assert not check.ok and "plant.x1(t0) = 0 (plant.x1_0 = 0.5)" in check.detail
+    assert parameter_check(scenario(), signals(), None).ok
+
+
+def test_each_tool_is_compared_with_our_master_of_its_semantics() -> None:
+    """Delayed tools (libcosim, Ecos) with jacobi, delay-free ones (OMSimulator) with gauss-seidel."""
+    assert {k: reference_master(t.delayed) for k, t in TOOLS.items()} == {
+        "libcosim": "jacobi", "ecospy": "jacobi", "ecos": "jacobi", "omsimulator": "gauss-seidel",
+        "omsimulator-py": "gauss-seidel"}
+    assert [t.key for t in select_tools(["ecos", "libcosim"])] == ["libcosim", "ecos"]
+
+
+def test_a_tool_that_is_not_installed_is_listed_but_not_red(tmp_path: Path) -> None:
+    cells = [Cell("omsimulator", "OMSimulator 3 (CLI)", "made_up", False, "gauss-seidel",
+                  missing="not installed (/nowhere/bin/OMSimulator not found)"),
+             evaluate(LibcosimTool(), scenario(), good_run(signals(dy=1.0)), signals())]
+    assert not cells[0].red and cells[0].status == "not installed"
+    assert cells[1].red
+    md = write_markdown(cells, tmp_path / "matrix.md", [OMSimulatorCliTool(), LibcosimTool()]).read_text()
+    assert "not installed" in md and "🟥" in md
+    with open(write_csv(cells, tmp_path / "matrix.csv"), newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [(r["tool"], r["status"]) for r in rows] == [("omsimulator", "not installed"), ("libcosim", "red")]
+    assert float(rows[1]["dy_max"]) == pytest.approx(1.0)
+    assert rows[1]["reference"] == "jacobi"
+
+
+# -- adapters' helpers ----------------------------------------------------------------------------------
+
+def test_ecos_gets_the_parameter_set_name_only_when_every_ssv_shares_it() -> None:
+    """Ecos applies ONE named parameter set (the .ssv files of that name, over all components)."""
+    assert parameter_set_name(scenario({"controller": ("tuned",), "plant": ("tuned",)})) == ("tuned", None)
+    name, note = parameter_set_name(scenario())
+    assert name is None and "2 different names (controller, plant): none applied" in note
+
+
+def test_the_c_api_tools_get_no_python_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("LD_PRELOAD", "/some/libpython3.11.so")
+    monkeypatch.setenv("PYTHONPATH", "/some/site-packages")
+    monkeypatch.setenv("PYTHONHOME", "/some")
+    env = clean_environment()
+    assert not {"LD_PRELOAD", "PYTHONPATH", "PYTHONHOME"} & set(env)
+    assert env["PATH"] == os.environ["PATH"]
+
+
+def test_elf_interpreter_names_the_dynamic_loader() -> None:
+    """Read from the ELF header of this interpreter; the oracle is the loader actually mapped into
+    this process (/proc/self/maps)."""
+    loader = elf_interpreter(Path(sys.executable).resolve())
+    mapped = {line.split()[-1] for line in Path("/proc/self/maps").read_text().splitlines()
+              if "/ld-linux" in line}
+    assert {os.path.realpath(p) for p in mapped} == {os.path.realpath(loader)}
+    with pytest.raises(ValueError, match="not a 64-bit ELF"):
+        elf_interpreter(Path(__file__))
+
+
+def test_the_ecos_command_passes_the_archive_step_and_half_a_step_more_stop_time() -> None:
+    """ecos steps while t + h <= stop with t accumulated: the exact stop time loses the last step."""
+    if EcospyTool().missing():
+        pytest.skip(EcospyTool().missing())
+    cmd = EcosCliTool().command(scenario())
+    assert cmd[cmd.index("--stepSize") + 1] == repr(H)
+    assert float(cmd[cmd.index("--stopTime") + 1]) == pytest.approx(STOP + H / 2)
+    assert "--parameterSet" not in cmd  # the made-up sets have two names
+
+
+def test_crosscheck_usage_errors_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["crosscheck", str(tmp_path / "missing_scenario"), "--output", str(tmp_path)])
+    assert exc.value.code == 2
+    assert "no scenario" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["crosscheck", "--tools", "simulink"])
+    assert exc.value.code == 2
