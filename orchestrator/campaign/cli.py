@@ -135,6 +135,8 @@ def _sweep(args: argparse.Namespace, metrics: Metrics | None) -> int:
         design = replace(design, **changes)
     if args.workers is not None and args.workers < 1:
         raise UsageError("--workers must be at least 1")
+    if args.workers is not None and args.scheduler:
+        raise UsageError("--workers sizes the embedded cluster; an external one (--scheduler) has its own")
     if args.trajectory_every < 1:
         raise UsageError("--trajectory-every must be at least 1")
     scenarios = [resolve_scenario(s) for s in args.scenarios]

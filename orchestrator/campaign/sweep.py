@@ -24,7 +24,7 @@ from pathlib import Path
 
 from .. import DEFAULT_STEP, MASTERS, open_system
 from ..errors import OrchestratorError, ScenarioError, UsageError
-from .design import EXPERIMENT_KEYS, Design
+from .design import EXPERIMENT_KEYS, Design, read_design
 from .table import CSV_NAME, Journal, read_rows
 from .worker import FAILED, OK, TIMEOUT, Metrics, RunOutcome, RunSpec, run_variant
 
@@ -224,7 +224,7 @@ def _write_trajectory(folder: Path, spec: RunSpec, outcome: RunOutcome) -> None:
 
 def sweep(
     scenarios: Sequence[str | os.PathLike],
-    design: Design,
+    design: Design | str | os.PathLike,
     out: str | os.PathLike,
     *,
     metrics: Metrics | None = None,
@@ -239,10 +239,13 @@ def sweep(
 ) -> CampaignSummary:
     """Run every variant of ``design`` on each scenario and write ``out/runs.csv``, ``out/runs.parquet``
     and ``out/campaign.json`` (plus ``out/trajectories/`` with ``keep_every``: every n-th row of each
-    run). A failed or timed-out run is a row; ``resume`` skips runs already in the table; Ctrl-C
-    raises :class:`CampaignInterrupted` after writing every finished row."""
+    run). ``design`` is a :class:`Design` or the path of a design file. A failed or timed-out run is
+    a row; ``resume`` skips runs already in the table; Ctrl-C raises :class:`CampaignInterrupted`
+    after writing every finished row."""
     started = time.perf_counter()
     out = Path(out)
+    if not isinstance(design, Design):
+        design = read_design(design)
     archives, specs = plan(scenarios, design, timeout=timeout, keep_every=keep_every)
     params = [c for c in design.columns if c not in EXPERIMENT_KEYS]
     names = list(metrics.names) if metrics is not None else []
