@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
-from fmu_src.fmu_support import declare, fmu_model, raise_problems
+from fmu_src.fmu_support import declare, fmu_model, mark_stale, raise_problems
 from fmu_src.models.actuator import ActuatorParameters, actuator_output, actuator_problems
 
 PARAMETER = Fmi2Causality.parameter
@@ -35,6 +35,7 @@ class Actuator(Fmi2Slave):
         self.x1 = 0.0
         self.x2 = 0.0
         self.time = 0.0
+        self.uf = self.u_dz = 0.0  # written by refresh_outputs
         self._params: ActuatorParameters | None = None  # frozen at exit_initialization_mode
         declare(self, "v", INPUT, "Commanded control v from the controller")
         declare(self, "x1", INPUT, "Plant state x1 (enters the bias fault L(t))")
@@ -45,11 +46,8 @@ class Actuator(Fmi2Slave):
             OUTPUT,
             "Control applied to the plant: v before t_fault, K(t) u(v) + L(t) after",
             depends_on=("v", "x1", "x2"),
-            getter=lambda: self._output()[0],
         )
-        declare(
-            self, "u_dz", OUTPUT, "Dead-zone output u(v)", depends_on=("v",), getter=lambda: self._output()[1]
-        )
+        declare(self, "u_dz", OUTPUT, "Dead-zone output u(v)", depends_on=("v",))
         declare(self, "m_r", PARAMETER, "Dead-zone slope for v >= b_r")
         declare(self, "m_l", PARAMETER, "Dead-zone slope for v <= -b_l")
         declare(self, "b_r", PARAMETER, "Right dead-zone break point")
@@ -66,26 +64,30 @@ class Actuator(Fmi2Slave):
             **{name: getattr(self, name) for name in ActuatorParameters.__dataclass_fields__}
         )
 
-    def _output(self) -> tuple[float, float]:
+    def refresh_outputs(self) -> None:
+        """uf and u_dz for the inputs set at the current communication point."""
         p = self._params or self._parameters()
         t = self.time
         if abs(t - p.t_fault) <= FAULT_TIME_TOLERANCE * max(1.0, abs(p.t_fault)):
             t = p.t_fault
-        return actuator_output(t, self.v, self.x1, self.x2, p)
+        self.uf, self.u_dz = actuator_output(t, self.v, self.x1, self.x2, p)
 
     def setup_experiment(
         self, start_time: float, stop_time: float | None = None, tolerance: float | None = None
     ) -> None:
         """Remember the start time: the outputs at the first communication point use it."""
         self.time = start_time
+        mark_stale(self)
 
     def exit_initialization_mode(self) -> None:
         """Validate the parameters (raises, naming them) and freeze them for the run."""
         params = self._parameters()
         raise_problems(self.modelName, actuator_problems(params))
         self._params = params
+        mark_stale(self)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         """Move to the next communication point (the actuator has no state)."""
         self.time = current_time + step_size
+        mark_stale(self)
         return True

@@ -9,8 +9,15 @@ from __future__ import annotations
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from fmu_src.fmu_support import declare, fmu_model, raise_problems
-from fmu_src.models.plants import State, example1_rhs, integration_problems
-from fmu_src.plant_core import DEFAULT_MAX_STEP, declare_plant_outputs, step_plant
+from fmu_src.models.plants import example1_rhs
+from fmu_src.plant_core import (
+    declare_integrator,
+    declare_plant_outputs,
+    plant_problems,
+    refresh_plant_outputs,
+    start_plant,
+    step_plant,
+)
 
 PARAMETER = Fmi2Causality.parameter
 
@@ -27,26 +34,21 @@ class Example1Plant(Fmi2Slave):
         self.x1_0 = 0.5
         self.x2_0 = 0.5
         self.z_0 = 0.0
-        self.max_step = DEFAULT_MAX_STEP
-        self.state: State | None = None
         declare(self, "uf", Fmi2Causality.input, "Control applied by the actuator, held over each step")
         declare_plant_outputs(self, None, None)
         declare(self, "x1_0", PARAMETER, "Initial value of x1")
         declare(self, "x2_0", PARAMETER, "Initial value of x2")
         declare(self, "z_0", PARAMETER, "Initial value of z")
-        declare(
-            self,
-            "max_step",
-            PARAMETER,
-            "Largest RK4 sub-step inside a communication step (accuracy)",
-            unit="s",
-        )
+        declare_integrator(self)  # last: max_step, method, rtol, atol
 
     def exit_initialization_mode(self) -> None:
         """Validate the parameters (raises, naming them) and start at the initial states."""
-        initial = {"x1_0": self.x1_0, "x2_0": self.x2_0, "z_0": self.z_0}
-        raise_problems(self.modelName, integration_problems(initial, self.max_step))
-        self.state = (self.x1_0, self.x2_0, self.z_0)
+        raise_problems(self.modelName, plant_problems(self))
+        start_plant(self)
+
+    def refresh_outputs(self) -> None:
+        """The states now (the initial values until initialization has finished)."""
+        refresh_plant_outputs(self)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         """Integrate the plant over the step with uf held."""

@@ -1,9 +1,11 @@
 """FMU ``FixedTimeController``: the adaptive fixed-time (or finite-time) NN controller of the
-paper for a plant of order n = 2, wrapping :class:`controller.stepping.AdaptiveController`.
+paper for a plant of order n = 2, wrapping :class:`controller.order2.Order2Controller` (the
+library's :class:`~controller.stepping.AdaptiveController` specialised to n = 2, equal to it).
 
 ``v``, ``z1``, ``z2`` and ``zeta1`` are direct feedthrough: computed when read, for the inputs
-set at the current communication point (cached per input set and state). The states r and
-eta_hat advance in do_step with the inputs held over the step (RK4, ``substeps`` sub-steps).
+set at the current communication point (once per input set and state). The states r and
+eta_hat advance in do_step with the inputs held over the step (RK4, ``substeps`` sub-steps); the
+law evaluated for the outputs is the first RK4 stage.
 """
 
 from __future__ import annotations
@@ -13,10 +15,9 @@ import re
 
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
-from controller.law import ControlTerms
+from controller.order2 import LawValues, Order2Controller
 from controller.params import DEFAULT_CENTERS, ControllerParameters, ParameterError
-from controller.stepping import AdaptiveController
-from fmu_src.fmu_support import declare, fmu_model, raise_problems, rename_indexed, report
+from fmu_src.fmu_support import declare, fmu_model, mark_stale, raise_problems, rename_indexed, report
 
 PARAMETER = Fmi2Causality.parameter
 INPUT = Fmi2Causality.input
@@ -63,8 +64,10 @@ class FixedTimeController(Fmi2Slave):
             setattr(self, f"mu{j}", center)
         self.tau = 2.0
         self.substeps = 1
-        self._controller: AdaptiveController | None = None  # built at exit_initialization_mode
-        self._cache: tuple[tuple[float, ...], ControlTerms] | None = None
+        # Outputs, written by refresh_outputs.
+        self.v = self.z1 = self.z2 = self.zeta1 = self.eta1_hat = self.eta2_hat = self.r = 0.0
+        self._controller: Order2Controller | None = None  # built at exit_initialization_mode
+        self._law: LawValues | None = None  # the law behind the outputs (current unless stale)
 
         descriptions = {
             "x1": "Plant state x1 (the output y)",
@@ -75,57 +78,13 @@ class FixedTimeController(Fmi2Slave):
         }
         for name in INPUTS:
             declare(self, name, INPUT, descriptions[name])
-        declare(
-            self,
-            "v",
-            OUTPUT,
-            "Control v = zeta_2 (to the actuator)",
-            depends_on=INPUTS,
-            getter=lambda: self._terms().v,
-        )
-        declare(
-            self,
-            "z1",
-            OUTPUT,
-            "Tracking error z1 = x1 - yd",
-            depends_on=("x1", "yd"),
-            getter=lambda: self._terms().z[0],
-        )
-        declare(
-            self, "z2", OUTPUT, "Error z2 = x2 - zeta1", depends_on=INPUTS, getter=lambda: self._terms().z[1]
-        )
-        declare(
-            self,
-            "zeta1",
-            OUTPUT,
-            "Virtual control zeta1",
-            depends_on=("x1", "yd", "yd_dot"),
-            getter=lambda: self._terms().zeta[0],
-        )
-        declare(
-            self,
-            "eta1_hat",
-            OUTPUT,
-            "Adaptive estimate eta_hat_1",
-            depends_on=(),
-            getter=lambda: self._state()[1],
-        )
-        declare(
-            self,
-            "eta2_hat",
-            OUTPUT,
-            "Adaptive estimate eta_hat_2",
-            depends_on=(),
-            getter=lambda: self._state()[2],
-        )
-        declare(
-            self,
-            "r",
-            OUTPUT,
-            "Dynamic signal r of the unmodeled dynamics",
-            depends_on=(),
-            getter=lambda: self._state()[0],
-        )
+        declare(self, "v", OUTPUT, "Control v = zeta_2 (to the actuator)", depends_on=INPUTS)
+        declare(self, "z1", OUTPUT, "Tracking error z1 = x1 - yd", depends_on=("x1", "yd"))
+        declare(self, "z2", OUTPUT, "Error z2 = x2 - zeta1", depends_on=INPUTS)
+        declare(self, "zeta1", OUTPUT, "Virtual control zeta1", depends_on=("x1", "yd", "yd_dot"))
+        declare(self, "eta1_hat", OUTPUT, "Adaptive estimate eta_hat_1", depends_on=())
+        declare(self, "eta2_hat", OUTPUT, "Adaptive estimate eta_hat_2", depends_on=())
+        declare(self, "r", OUTPUT, "Dynamic signal r of the unmodeled dynamics", depends_on=())
         for name in ("k", "q", "a", "kappa", "rho", "rho_bar"):
             for i in (1, 2):
                 declare(self, f"{name}{i}", PARAMETER, GAIN_DESCRIPTIONS[name].format(i=i))
@@ -179,30 +138,20 @@ class FixedTimeController(Fmi2Slave):
         raise_problems(self.modelName, problems)
         return params
 
-    def _current(self) -> AdaptiveController:
-        if self._controller is not None:
-            return self._controller
-        return AdaptiveController(self._parameters(), self.substeps)  # initialization mode: as set so far
-
-    def _state(self) -> list[float]:
-        return self._current().state
-
-    def _inputs(self) -> tuple[tuple[float, float], tuple[float, float, float]]:
-        return (self.x1, self.x2), (self.yd, self.yd_dot, self.yd_ddot)
-
-    def _terms(self) -> ControlTerms:
-        """The law for the inputs set now; cached per (inputs, state) so reading v, z1, ... is cheap."""
-        controller = self._current()
-        key = (self.x1, self.x2, self.yd, self.yd_dot, self.yd_ddot, *controller.state)
-        if self._cache is None or self._cache[0] != key:
-            x, yd = self._inputs()
-            self._cache = (key, controller.output(x, yd))
-        return self._cache[1]
+    def refresh_outputs(self) -> None:
+        """The law for the inputs set now and the current states (in initialization mode: the
+        parameters set so far, validated)."""
+        c = self._controller
+        if c is None:
+            c = Order2Controller(self._parameters(), self.substeps)
+        self._law = law = c.law(c.r, c.eta1, c.eta2, self.x1, self.x2, self.yd, self.yd_dot, self.yd_ddot)
+        self.v, self.z1, self.z2, self.zeta1 = law[0], law[1], law[2], law[3]
+        self.r, self.eta1_hat, self.eta2_hat = c.r, c.eta1, c.eta2
 
     def exit_initialization_mode(self) -> None:
         """Validate the parameters (raises, naming them) and start at r0, eta0."""
-        self._controller = AdaptiveController(self._parameters(), self.substeps)
-        self._cache = None
+        self._controller = Order2Controller(self._parameters(), self.substeps)
+        mark_stale(self)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         """Integrate r and eta_hat over the step with the inputs held.
@@ -210,15 +159,19 @@ class FixedTimeController(Fmi2Slave):
         Returns False (fmi2Discard, with a logged reason, state unchanged) if the states stop
         being finite.
         """
-        x, yd = self._inputs()
-        before = self._controller.state
-        self._controller.advance(x, yd, step_size)
-        if not all(math.isfinite(value) for value in self._controller.state):
+        c = self._controller
+        # The law behind the outputs is the first RK4 stage, unless something changed since.
+        first = None if self._fmu_stale else self._law
+        before = (c.r, c.eta1, c.eta2)
+        c.advance(self.x1, self.x2, self.yd, self.yd_dot, self.yd_ddot, step_size, first)
+        mark_stale(self)
+        if not (math.isfinite(c.r) and math.isfinite(c.eta1) and math.isfinite(c.eta2)):
             report(
                 self,
-                f"non-finite state {self._controller.state} at t = "
-                f"{current_time + step_size!r} with inputs x = {x}, yd = {yd}; step rejected (fmi2Discard)",
+                f"non-finite state {c.state} at t = {current_time + step_size!r} with inputs "
+                f"x = {(self.x1, self.x2)}, yd = {(self.yd, self.yd_dot, self.yd_ddot)}; "
+                "step rejected (fmi2Discard)",
             )
-            self._controller.state = before
+            c.r, c.eta1, c.eta2 = before
             return False
         return True

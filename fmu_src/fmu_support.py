@@ -2,6 +2,12 @@
 
 pythonfmu 0.7 writes neither units nor output dependencies, keeps the very object returned by
 ``_get_fmu_state`` and snapshots only registered variables. This module adds what is missing.
+
+It also replaces pythonfmu's ``get_real``/``set_real`` (and the Integer pair), which call one
+getter or setter lambda per variable: a slave keeps every variable in the attribute of the same
+name, value references map straight to those names, and outputs computed from inputs and states
+are refreshed once, by the slave's ``refresh_outputs()``, when one is read after anything changed
+(see :func:`declare`).
 It cannot be a base class: the pythonfmu loader finds the slave with the regex
 ``^class (\\w+)\\(\\s*Fmi2Slave\\s*\\)\\s*:`` on the script text, so every script declares
 ``class Name(Fmi2Slave):`` and applies the :func:`fmu_model` decorator instead.
@@ -12,7 +18,7 @@ from __future__ import annotations
 import copy
 import logging
 import re
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from typing import Any, TypeVar
 from xml.etree.ElementTree import Element, SubElement
 
@@ -22,9 +28,11 @@ from pythonfmu.enums import Fmi2Status
 __all__ = [
     "UNITS",
     "FmuParameterError",
+    "assigned",
     "declare",
     "fmu_model",
     "LOGGER_NAME",
+    "mark_stale",
     "raise_problems",
     "rename_indexed",
     "report",
@@ -47,7 +55,9 @@ UNITS: dict[str, dict[str, int]] = {
 DEFAULT_EXPERIMENT = DefaultExperiment(start_time=0.0, stop_time=30.0, step_size=0.001)
 
 # Instance attributes that belong to pythonfmu's machinery, not to the simulation state.
-_NOT_STATE = frozenset({"vars", "log_queue", "instance_name", "resources", "visible", "guid", "_fmu_meta"})
+_NOT_STATE = frozenset(
+    {"vars", "log_queue", "instance_name", "resources", "visible", "guid", "_fmu_meta", "_fmu_io"}
+)
 
 # pythonfmu's binary forwards FMU log messages (even fmi2Fatal ones) to the importer only when
 # logging is on (fmi2Instantiate loggingOn / fmi2SetDebugLogging). Every problem therefore also
@@ -82,6 +92,23 @@ def raise_problems(model: str, problems: Sequence[str]) -> None:
         raise FmuParameterError(message)
 
 
+class _ValueReferences:
+    """Value reference -> attribute name, per type and per use (``_fmu_io`` of a slave)."""
+
+    __slots__ = (
+        "computed", "feedthrough", "integer", "integer_parameters", "real", "real_inputs", "real_parameters"
+    )
+
+    def __init__(self) -> None:
+        self.real: dict[int, str] = {}  # every Real variable (read)
+        self.real_inputs: dict[int, str] = {}  # Real inputs (set every step)
+        self.real_parameters: dict[int, str] = {}  # Real parameters (set before initialization)
+        self.integer: dict[int, str] = {}
+        self.integer_parameters: dict[int, str] = {}
+        self.computed: set[int] = set()  # outputs that refresh_outputs() computes
+        self.feedthrough = False  # some output depends directly on an input
+
+
 def declare(
     slave: Fmi2Slave,
     name: str,
@@ -91,11 +118,13 @@ def declare(
     unit: str | None = None,
     depends_on: Iterable[str] | None = None,
     integer: bool = False,
-    getter: Callable[[], Any] | None = None,
 ) -> None:
     """Register one variable with its description, unit and (for outputs) input dependencies.
 
-    Parameters and inputs live in the slave attribute of the same name, which must exist.
+    Every variable lives in the slave attribute of the same name. Parameters and inputs must
+    exist when declared; outputs are written by the slave's ``refresh_outputs()``, which
+    ``fmi2GetReal`` calls before reading an output whenever an input, a parameter or the state
+    has changed since (``fmi2SetReal``, ``do_step`` and initialization mark the outputs stale).
     Parameters are ``fixed``: changed only before initialization. ``depends_on`` lists the input
     names an output depends on directly (empty: none); ``None`` keeps the FMI default (all).
     """
@@ -105,16 +134,99 @@ def declare(
     if integer:
         if causality == Fmi2Causality.output:
             variability = Fmi2Variability.discrete
-        variable = Integer(
-            name, causality=causality, description=description, variability=variability, getter=getter
-        )
+        variable = Integer(name, causality=causality, description=description, variability=variability)
     else:
-        variable = Real(
-            name, causality=causality, description=description, variability=variability, getter=getter
-        )
+        variable = Real(name, causality=causality, description=description, variability=variability)
     slave.register_variable(variable)
+    io = slave.__dict__.setdefault("_fmu_io", _ValueReferences())
+    slave.__dict__.setdefault("_fmu_stale", True)
+    slave.__dict__.setdefault("_fmu_assigned", frozenset())
+    vr = variable.value_reference
+    if integer:
+        io.integer[vr] = name
+    else:
+        io.real[vr] = name
+    if causality == Fmi2Causality.parameter:
+        (io.integer_parameters if integer else io.real_parameters)[vr] = name
+    elif causality == Fmi2Causality.input and not integer:
+        io.real_inputs[vr] = name
+    elif causality == Fmi2Causality.output:
+        io.computed.add(vr)
+        io.feedthrough = io.feedthrough or depends_on is None or bool(tuple(depends_on))
     meta = slave.__dict__.setdefault("_fmu_meta", {})
     meta[name] = (unit, None if depends_on is None else tuple(depends_on))
+
+
+def assigned(slave: Fmi2Slave) -> frozenset[str]:
+    """Names of the parameters the importer has set (fmi2SetReal/fmi2SetInteger) so far."""
+    return slave.__dict__.get("_fmu_assigned", frozenset())
+
+
+def _not_of_type(vrs: Iterable[int], known: dict[int, str], kind: str) -> TypeError:
+    bad = next((vr for vr in vrs if vr not in known), None)
+    return TypeError(f"Variable with valueReference={bad} is not {kind}!")
+
+
+def _get_real(self: Fmi2Slave, vrs: list[int]) -> list[float]:
+    """fmi2GetReal: outputs refreshed once if stale, then one dict lookup per variable."""
+    d = self.__dict__
+    io = d["_fmu_io"]
+    if d["_fmu_stale"] and not io.computed.isdisjoint(vrs):
+        self.refresh_outputs()
+        d["_fmu_stale"] = False
+    names = io.real
+    try:
+        return [d[names[vr]] for vr in vrs]
+    except KeyError:
+        raise _not_of_type(vrs, names, "of type Real") from None
+
+
+def _set_real(self: Fmi2Slave, vrs: list[int], values: list[float]) -> None:
+    """fmi2SetReal: inputs and parameters straight into their attributes; the outputs become stale
+    (after an input only if some output depends on an input directly)."""
+    d = self.__dict__
+    io = d["_fmu_io"]
+    inputs = io.real_inputs
+    stale = io.feedthrough
+    for vr, value in zip(vrs, values, strict=True):
+        name = inputs.get(vr)
+        if name is None:
+            name = io.real_parameters.get(vr)
+            if name is None:
+                raise _not_of_type([vr], {}, "a Real input or parameter")
+            d["_fmu_assigned"] = d["_fmu_assigned"] | {name}
+            stale = True
+        d[name] = value
+    if stale:
+        d["_fmu_stale"] = True
+
+
+def _get_integer(self: Fmi2Slave, vrs: list[int]) -> list[int]:
+    """fmi2GetInteger: the attributes of Integer variables."""
+    d = self.__dict__
+    names = d["_fmu_io"].integer
+    try:
+        return [int(d[names[vr]]) for vr in vrs]
+    except KeyError:
+        raise _not_of_type(vrs, names, "of type Integer") from None
+
+
+def _set_integer(self: Fmi2Slave, vrs: list[int], values: list[int]) -> None:
+    """fmi2SetInteger: Integer parameters (the only Integer variables that can be set)."""
+    d = self.__dict__
+    names = d["_fmu_io"].integer_parameters
+    for vr, value in zip(vrs, values, strict=True):
+        name = names.get(vr)
+        if name is None:
+            raise _not_of_type([vr], {}, "an Integer parameter")
+        d[name] = value
+        d["_fmu_assigned"] = d["_fmu_assigned"] | {name}
+    d["_fmu_stale"] = True
+
+
+def mark_stale(slave: Fmi2Slave) -> None:
+    """The state or time has changed: recompute the outputs at their next read."""
+    slave.__dict__["_fmu_stale"] = True
 
 
 def _extend_model_description(slave: Fmi2Slave, root: Element) -> Element:
@@ -179,10 +291,14 @@ def _get_fmu_state(self: Fmi2Slave) -> dict[str, Any]:
 def _set_fmu_state(self: Fmi2Slave, state: dict[str, Any]) -> None:
     """Restore a snapshot; copies again so one snapshot can be restored many times."""
     vars(self).update(copy.deepcopy(state))
+    mark_stale(self)
 
 
 def fmu_model(cls: SlaveClass) -> SlaveClass:
-    """Class decorator: DefaultExperiment, extended model description and full state snapshots."""
+    """Class decorator: DefaultExperiment, extended model description, full state snapshots and
+    attribute-based get/set (the class defines ``refresh_outputs()``, see :func:`declare`)."""
+    if not callable(getattr(cls, "refresh_outputs", None)):
+        raise TypeError(f"{cls.__name__} must define refresh_outputs()")
     base_to_xml = cls.to_xml
 
     def to_xml(self: Fmi2Slave, model_options: dict[str, str] | None = None) -> Element:
@@ -192,6 +308,10 @@ def fmu_model(cls: SlaveClass) -> SlaveClass:
     cls.to_xml = to_xml
     cls._get_fmu_state = _get_fmu_state
     cls._set_fmu_state = _set_fmu_state
+    cls.get_real = _get_real
+    cls.set_real = _set_real
+    cls.get_integer = _get_integer
+    cls.set_integer = _set_integer
     cls.default_experiment = DEFAULT_EXPERIMENT
     return cls
 

@@ -7,20 +7,20 @@ absolute time inside the step); outputs depend on no input directly.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import fields
 
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from fmu_src.fmu_support import declare, fmu_model, raise_problems
-from fmu_src.models.plants import (
-    PendulumParameters,
-    State,
-    integration_problems,
-    pendulum_problems,
-    pendulum_rhs,
+from fmu_src.models.plants import PendulumParameters, pendulum_problems, pendulum_rhs_for
+from fmu_src.plant_core import (
+    declare_integrator,
+    declare_plant_outputs,
+    plant_problems,
+    refresh_plant_outputs,
+    start_plant,
+    step_plant,
 )
-from fmu_src.plant_core import DEFAULT_MAX_STEP, declare_plant_outputs, step_plant
 
 PARAMETER = Fmi2Causality.parameter
 
@@ -40,9 +40,7 @@ class PendulumPlant(Fmi2Slave):
         self.x1_0 = 0.6
         self.x2_0 = 0.1
         self.z_0 = 0.0
-        self.max_step = DEFAULT_MAX_STEP
-        self._params = defaults
-        self.state: State | None = None
+        self._rhs = pendulum_rhs_for(defaults)  # with the parameters of exit_initialization_mode
         declare(
             self, "uf", Fmi2Causality.input, "Control applied by the actuator, held over each step", unit="N"
         )
@@ -56,26 +54,18 @@ class PendulumPlant(Fmi2Slave):
         declare(self, "x1_0", PARAMETER, "Initial angle x1", unit="rad")
         declare(self, "x2_0", PARAMETER, "Initial angular velocity x2", unit="rad/s")
         declare(self, "z_0", PARAMETER, "Initial value of z")
-        declare(
-            self,
-            "max_step",
-            PARAMETER,
-            "Largest RK4 sub-step inside a communication step (accuracy)",
-            unit="s",
-        )
-
-    def _rhs(self, t: float, state: Sequence[float], uf: float) -> State:
-        return pendulum_rhs(t, state, uf, self._params)
+        declare_integrator(self)  # last: max_step, method, rtol, atol
 
     def exit_initialization_mode(self) -> None:
         """Validate the parameters (raises, naming them) and start at the initial states."""
         params = PendulumParameters(**{f.name: getattr(self, f.name) for f in fields(PendulumParameters)})
-        initial = {"x1_0": self.x1_0, "x2_0": self.x2_0, "z_0": self.z_0}
-        raise_problems(
-            self.modelName, pendulum_problems(params) + integration_problems(initial, self.max_step)
-        )
-        self._params = params
-        self.state = (self.x1_0, self.x2_0, self.z_0)
+        raise_problems(self.modelName, pendulum_problems(params) + plant_problems(self))
+        self._rhs = pendulum_rhs_for(params)
+        start_plant(self)
+
+    def refresh_outputs(self) -> None:
+        """The states now (the initial values until initialization has finished)."""
+        refresh_plant_outputs(self)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         """Integrate the pendulum over the step with uf held."""

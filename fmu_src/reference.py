@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
-from fmu_src.fmu_support import declare, fmu_model, raise_problems
+from fmu_src.fmu_support import declare, fmu_model, mark_stale, raise_problems
 from fmu_src.models.reference import ReferenceParameters, reference_problems, reference_signal
 
 PARAMETER = Fmi2Causality.parameter
@@ -27,19 +27,11 @@ class Reference(Fmi2Slave):
         self.phase = 0.0
         self.offset = 0.0
         self.time = 0.0
+        self.yd = self.yd_dot = self.yd_ddot = 0.0  # written by refresh_outputs
         self._params: ReferenceParameters | None = None  # frozen at exit_initialization_mode
-        declare(self, "yd", OUTPUT, "Reference yd(t)", depends_on=(), getter=lambda: self._signal()[0])
-        declare(
-            self, "yd_dot", OUTPUT, "First derivative yd'(t)", depends_on=(), getter=lambda: self._signal()[1]
-        )
-        declare(
-            self,
-            "yd_ddot",
-            OUTPUT,
-            "Second derivative yd''(t)",
-            depends_on=(),
-            getter=lambda: self._signal()[2],
-        )
+        declare(self, "yd", OUTPUT, "Reference yd(t)", depends_on=())
+        declare(self, "yd_dot", OUTPUT, "First derivative yd'(t)", depends_on=())
+        declare(self, "yd_ddot", OUTPUT, "Second derivative yd''(t)", depends_on=())
         declare(self, "amplitude", PARAMETER, "Amplitude of the sine")
         declare(self, "omega", PARAMETER, "Angular frequency", unit="rad/s")
         declare(self, "phase", PARAMETER, "Phase at t = 0", unit="rad")
@@ -48,22 +40,26 @@ class Reference(Fmi2Slave):
     def _parameters(self) -> ReferenceParameters:
         return ReferenceParameters(self.amplitude, self.omega, self.phase, self.offset)
 
-    def _signal(self) -> tuple[float, float, float]:
-        return reference_signal(self.time, self._params or self._parameters())
+    def refresh_outputs(self) -> None:
+        """yd, yd', yd'' at the current communication point."""
+        self.yd, self.yd_dot, self.yd_ddot = reference_signal(self.time, self._params or self._parameters())
 
     def setup_experiment(
         self, start_time: float, stop_time: float | None = None, tolerance: float | None = None
     ) -> None:
         """Remember the start time: the outputs at the first communication point use it."""
         self.time = start_time
+        mark_stale(self)
 
     def exit_initialization_mode(self) -> None:
         """Validate the parameters (raises, naming them) and freeze them for the run."""
         params = self._parameters()
         raise_problems(self.modelName, reference_problems(params))
         self._params = params
+        mark_stale(self)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         """Move to the next communication point."""
         self.time = current_time + step_size
+        mark_stale(self)
         return True

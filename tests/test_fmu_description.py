@@ -87,6 +87,8 @@ PARAMETERS = {  # model -> parameter -> (default, unit)
         "z_0": (0.0, None),
     },
 }
+# plant integrator parameters, in declaration order (Integer method: 0 Dormand-Prince, 1 RK4)
+INTEGRATOR = ("max_step", "method", "rtol", "atol")
 # output -> the inputs it depends on directly (SPEC section 5; z1 and zeta1 use fewer inputs)
 DEPENDENCIES = {
     "Reference": {"yd": (), "yd_dot": (), "yd_ddot": ()},
@@ -134,7 +136,7 @@ def test_interface_descriptions_and_experiment(fmus: dict, model: str) -> None:
     assert tuple(v.name for v in md.modelVariables if v.causality == "input") == inputs
     assert tuple(v.name for v in md.modelVariables if v.causality == "output") == outputs
     parameters = [v.name for v in md.modelVariables if v.causality == "parameter"]
-    expected = list(PARAMETERS[model]) + (["max_step"] if "Plant" in model else [])
+    expected = list(PARAMETERS[model]) + (list(INTEGRATOR) if "Plant" in model else [])
     assert sorted(parameters) == sorted(expected)
     if model == "FixedTimeController":
         assert sorted(parameters) == sorted(CONTROLLER_PARAMETERS)
@@ -159,6 +161,12 @@ def test_parameter_defaults_and_units(fmus: dict, model: str) -> None:
     if "Plant" in model:
         assert variables["max_step"].unit == "s"
         assert 0 < float(variables["max_step"].start) <= 1e-4
+        assert variables["method"].type == "Integer" and int(variables["method"].start) == 0
+        for name in ("rtol", "atol"):  # tight enough for the 2.5e-8 of tests/test_fmu_plants.py
+            assert variables[name].unit is None and variables[name].variability == "fixed", name
+            assert 0 < float(variables[name].start) <= 1e-9, name
+        # added after every earlier variable: the value references of those do not move
+        assert [v.name for v in md.modelVariables][-len(INTEGRATOR):] == list(INTEGRATOR)
     if model == "PendulumPlant":
         assert (variables["x1"].unit, variables["x2"].unit, variables["y"].unit) == ("rad", "rad/s", "rad")
         assert variables["uf"].unit == "N"

@@ -31,6 +31,10 @@ CASES = [
     ("Example1Plant", {"x1_0": float("nan")}, "x1_0 must be a finite number"),
     ("PendulumPlant", {"M": 0.0}, "M must satisfy M > 0 (got 0.0)"),
     ("PendulumPlant", {"max_step": -1e-3}, "max_step must satisfy max_step > 0"),
+    ("Example1Plant", {"method": 2}, "method must be 0 (Dormand-Prince) or 1 (RK4) (got 2)"),
+    ("Example1Plant", {"rtol": 0.0}, "rtol must satisfy 0 < rtol < 1 (got 0.0)"),
+    ("PendulumPlant", {"atol": -1e-9}, "atol must satisfy atol > 0 (got -1e-09)"),
+    ("PendulumPlant", {"rtol": float("nan")}, "rtol must satisfy 0 < rtol < 1 (got nan)"),
 ]
 
 

@@ -1,7 +1,13 @@
-"""The paper's plants (SPEC section 3) and their integrator over a communication step.
+"""The paper's plants (SPEC section 3) and their integrators over a communication step.
 
 Plant states are ordered ``(x1, x2, z)``; right-hand sides take ``(t, state, uf)``. Pure Python
-floats: these run inside every FMU step.
+floats: these run inside every FMU step, and with three states NumPy's per-call overhead would
+cost more than the arithmetic.
+
+Two integrators advance a plant over one communication step with the input held:
+:func:`dopri_hold_step` (Dormand-Prince 5(4) with error control, the default) and
+:func:`hold_step` (classical RK4 with fixed sub-steps, kept for comparison and for importers that
+set ``max_step``).
 """
 
 from __future__ import annotations
@@ -9,18 +15,25 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from .checks import bound_problems, finite_problems
 
 __all__ = [
+    "DOPRI",
+    "METHODS",
+    "RK4",
+    "AdaptiveStep",
     "PendulumParameters",
     "RightHandSide",
     "State",
+    "dopri_hold_step",
     "example1_rhs",
     "hold_step",
     "integration_problems",
     "pendulum_problems",
     "pendulum_rhs",
+    "pendulum_rhs_for",
 ]
 
 State = tuple[float, float, float]
@@ -62,6 +75,23 @@ def pendulum_rhs(t: float, state: Sequence[float], uf: float, p: PendulumParamet
     )
 
 
+def pendulum_rhs_for(p: PendulumParameters) -> RightHandSide:
+    """:func:`pendulum_rhs` with the parameters bound as local constants (the FMU's hot path: no
+    attribute lookups per evaluation; the same operations, so the same values)."""
+    d1, d2, ml, damping = p.d1, p.d2, p.M * p.L, p.g / p.L + p.B / p.M
+    sin, cos = math.sin, math.cos
+
+    def rhs(t: float, state: Sequence[float], uf: float) -> State:
+        x1, x2, z = state
+        return (
+            x2 + z * x1 + d1 * sin(t),
+            uf / ml - damping * sin(x1 * x2) + z * x2 * sin(x1) + d2 * cos(t),
+            -2.0 * z + 0.25 * x1 * x1,
+        )
+
+    return rhs
+
+
 def hold_step(
     rhs: RightHandSide, t: float, state: Sequence[float], uf: float, h: float, max_step: float
 ) -> State:
@@ -83,6 +113,126 @@ def hold_step(
         x2 += dt / 6.0 * (a2 + 2.0 * b2 + 2.0 * c2 + d2)
         z += dt / 6.0 * (a3 + 2.0 * b3 + 2.0 * c3 + d3)
     return x1, x2, z
+
+
+# Values of the plant FMUs' Integer parameter ``method``.
+DOPRI = 0  # Dormand-Prince 5(4), step size from rtol/atol
+RK4 = 1  # classical RK4, fixed sub-steps of at most max_step
+METHODS = {DOPRI: "Dormand-Prince 5(4) with error control", RK4: "RK4 with fixed sub-steps"}
+
+# Dormand & Prince (1980), "A family of embedded Runge-Kutta formulae", J. Comput. Appl. Math. 6;
+# coefficients as in Hairer, Norsett & Wanner, Solving ODEs I, Table II.5.2. The 7th stage is the
+# function value at the new point; E = b - b_hat gives the error estimate of the 4th-order solution.
+_C2, _C3, _C4, _C5 = 1 / 5, 3 / 10, 4 / 5, 8 / 9
+_A21 = 1 / 5
+_A31, _A32 = 3 / 40, 9 / 40
+_A41, _A42, _A43 = 44 / 45, -56 / 15, 32 / 9
+_A51, _A52, _A53, _A54 = 19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729
+_A61, _A62, _A63, _A64, _A65 = 9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656
+_B1, _B3, _B4, _B5, _B6 = 35 / 384, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84
+_E1, _E3, _E4, _E5, _E6, _E7 = 71 / 57600, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40
+_SAFETY, _FAC_MIN, _FAC_MAX = 0.9, 0.2, 10.0
+_MAX_STEPS = 100_000  # per communication step: beyond this the states have left the model
+
+
+class AdaptiveStep(NamedTuple):
+    """Result of :func:`dopri_hold_step`: the new states, the step size to try next, and how many
+    steps were accepted and rejected (rejected steps cost the same 6 evaluations as accepted ones)."""
+
+    state: State
+    next_step: float
+    accepted: int
+    rejected: int
+
+
+def dopri_hold_step(
+    rhs: RightHandSide,
+    t: float,
+    state: Sequence[float],
+    uf: float,
+    h: float,
+    rtol: float,
+    atol: float,
+    first_step: float,
+) -> AdaptiveStep:
+    """Advance a plant over [t, t + h] with uf held, by Dormand-Prince 5(4) with step-size control.
+
+    A step is accepted when the RMS over the states of err_i / (atol + rtol max(|y_i|, |y_new_i|))
+    is at most 1 (Hairer's norm); the next size is 0.9 err^(-1/5) times this one, within
+    [0.2, 10] (no growth right after a rejection). Local extrapolation: the 5th-order solution
+    is kept. The step lands exactly on t + h.
+
+    ``first_step`` is the size to try first: the ``next_step`` of the previous communication step.
+    The input uf jumps at every communication point, but the solution is smooth within the step
+    (uf is held), so the carried size stays a good guess; when the jump changes the local error
+    scale, the first step is rejected and shrunk. A step that was shortened to land on t + h does
+    not shrink the guess passed on. Raises ``ValueError``/``OverflowError`` when the states
+    overflow the math functions, and ``ValueError`` when no step size meets the tolerances.
+    """
+    t_end = t + h
+    y1, y2, y3 = state
+    k11, k12, k13 = rhs(t, (y1, y2, y3), uf)
+    dt = min(first_step, h) if first_step > 0.0 else h
+    accepted = rejected = 0
+    grow = _FAC_MAX
+    while True:
+        remaining = t_end - t
+        wanted = dt
+        last = dt >= remaining * (1.0 - 1e-12)
+        if last:
+            dt = remaining
+        try:
+            k21, k22, k23 = rhs(t + _C2 * dt, (
+                y1 + dt * _A21 * k11, y2 + dt * _A21 * k12, y3 + dt * _A21 * k13), uf)
+            k31, k32, k33 = rhs(t + _C3 * dt, (
+                y1 + dt * (_A31 * k11 + _A32 * k21),
+                y2 + dt * (_A31 * k12 + _A32 * k22),
+                y3 + dt * (_A31 * k13 + _A32 * k23)), uf)
+            k41, k42, k43 = rhs(t + _C4 * dt, (
+                y1 + dt * (_A41 * k11 + _A42 * k21 + _A43 * k31),
+                y2 + dt * (_A41 * k12 + _A42 * k22 + _A43 * k32),
+                y3 + dt * (_A41 * k13 + _A42 * k23 + _A43 * k33)), uf)
+            k51, k52, k53 = rhs(t + _C5 * dt, (
+                y1 + dt * (_A51 * k11 + _A52 * k21 + _A53 * k31 + _A54 * k41),
+                y2 + dt * (_A51 * k12 + _A52 * k22 + _A53 * k32 + _A54 * k42),
+                y3 + dt * (_A51 * k13 + _A52 * k23 + _A53 * k33 + _A54 * k43)), uf)
+            t_new = t_end if last else t + dt
+            k61, k62, k63 = rhs(t_new, (
+                y1 + dt * (_A61 * k11 + _A62 * k21 + _A63 * k31 + _A64 * k41 + _A65 * k51),
+                y2 + dt * (_A61 * k12 + _A62 * k22 + _A63 * k32 + _A64 * k42 + _A65 * k52),
+                y3 + dt * (_A61 * k13 + _A62 * k23 + _A63 * k33 + _A64 * k43 + _A65 * k53)), uf)
+            n1 = y1 + dt * (_B1 * k11 + _B3 * k31 + _B4 * k41 + _B5 * k51 + _B6 * k61)
+            n2 = y2 + dt * (_B1 * k12 + _B3 * k32 + _B4 * k42 + _B5 * k52 + _B6 * k62)
+            n3 = y3 + dt * (_B1 * k13 + _B3 * k33 + _B4 * k43 + _B5 * k53 + _B6 * k63)
+            k71, k72, k73 = rhs(t_new, (n1, n2, n3), uf)
+            e1 = dt * (_E1 * k11 + _E3 * k31 + _E4 * k41 + _E5 * k51 + _E6 * k61 + _E7 * k71)
+            e2 = dt * (_E1 * k12 + _E3 * k32 + _E4 * k42 + _E5 * k52 + _E6 * k62 + _E7 * k72)
+            e3 = dt * (_E1 * k13 + _E3 * k33 + _E4 * k43 + _E5 * k53 + _E6 * k63 + _E7 * k73)
+            s1 = e1 / (atol + rtol * max(abs(y1), abs(n1)))
+            s2 = e2 / (atol + rtol * max(abs(y2), abs(n2)))
+            s3 = e3 / (atol + rtol * max(abs(y3), abs(n3)))
+            err = math.sqrt((s1 * s1 + s2 * s2 + s3 * s3) / 3.0)
+        except (ValueError, OverflowError):  # a trial step too long for an overflowing transient
+            err = math.inf
+        if err <= 1.0:  # accepted (False for nan)
+            accepted += 1
+            fac = min(grow, _SAFETY * err**-0.2) if err > 0.0 else grow
+            proposal = dt * max(_FAC_MIN, fac)
+            if last:
+                return AdaptiveStep((n1, n2, n3), max(proposal, wanted), accepted, rejected)
+            t, y1, y2, y3 = t_new, n1, n2, n3
+            k11, k12, k13 = k71, k72, k73  # first same as last
+            dt = proposal
+            grow = _FAC_MAX
+        else:
+            rejected += 1
+            if dt <= 1e-12 * h or accepted + rejected >= _MAX_STEPS:
+                raise ValueError(
+                    f"no step size meets rtol = {rtol!r}, atol = {atol!r} at t = {t!r} "
+                    f"({accepted} steps accepted, {rejected} rejected in this communication step)"
+                )
+            dt *= max(_FAC_MIN, _SAFETY * err**-0.2) if math.isfinite(err) else _FAC_MIN
+            grow = 1.0
 
 
 def pendulum_problems(p: PendulumParameters) -> list[str]:

@@ -1,0 +1,187 @@
+"""The controller of :mod:`controller.stepping` specialised to a plant of order n = 2, in scalars.
+
+The general-n path (:func:`controller.law.evaluate` building :class:`~controller.law.ControlTerms`,
+lists for the RK4 stages, :func:`controller.rbf.rbf_energy` per step) costs about 4 us per law
+evaluation, and a communication step evaluates the law four times. Here the same arithmetic is
+written out for n = 2 with local floats: every constant of the law is unpacked once, the two RBF
+energies are summed without temporaries, and no object is allocated per evaluation but the result
+tuple. The operations are those of the general path in the same order, so the two agree to
+round-off (``tests/test_controller_order2.py`` checks 1e-12 over many random states and steps).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from .law import ControlTerms
+from .params import ControllerParameters
+
+__all__ = ["LawValues", "Order2Controller"]
+
+# (v, z1, z2, zeta1, ptp1, ptp2, r', eta_hat_1', eta_hat_2')
+LawValues = tuple[float, float, float, float, float, float, float, float, float]
+
+
+class Order2Controller:
+    """:class:`controller.stepping.AdaptiveController` for n = 2: same states, law and RK4 stepping.
+
+    The states are the floats ``r``, ``eta1``, ``eta2``. :meth:`law` evaluates the control and the
+    state derivative for explicit states and inputs; :meth:`advance` integrates over one step with
+    the inputs held, reusing a law evaluation at the current state when given one.
+    """
+
+    def __init__(self, params: ControllerParameters, substeps: int = 1) -> None:
+        if params.n != 2:
+            raise ValueError(f"Order2Controller needs a plant of order n = 2 (got n = {params.n})")
+        if substeps < 1:
+            raise ValueError(f"substeps must be >= 1 (got {substeps})")
+        self.params = params
+        self.substeps = substeps
+        self._k1, self._k2 = params.k_effective
+        self._q1, self._q2 = params.q
+        self._two_a2_1, self._two_a2_2 = (2.0 * a * a for a in params.a)
+        self._kappa1, self._kappa2 = params.kappa
+        self._leak1, self._leak2 = (rho + bar for rho, bar in zip(params.rho, params.rho_bar, strict=True))
+        self._p_alpha = 2.0 * params.alpha - 1.0
+        self._p_beta = 2.0 * params.beta - 1.0
+        self._r_const = (params.a_bar, params.gamma_gain, params.gamma_power, params.d_r)
+        self._scale = -2.0 / (params.width * params.width)
+        # Per neuron (2 mu, dim mu^2) for X_1 (dim 4) and X_2 (dim 7), in rbf_energy's rounding order.
+        self._neurons1 = tuple((2.0 * mu, 4 * mu * mu) for mu in params.centers)
+        self._neurons2 = tuple((2.0 * mu, 7 * mu * mu) for mu in params.centers)
+        # The FMU's seven neurons, flattened for one unpacking and an unrolled sum (no loop).
+        self._seven = len(params.centers) == 7
+        self._flat1 = tuple(c for neuron in self._neurons1 for c in neuron)
+        self._flat2 = tuple(c for neuron in self._neurons2 for c in neuron)
+        self.r = self.eta1 = self.eta2 = 0.0
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the initial values r0 and eta0."""
+        self.r = self.params.r0
+        self.eta1, self.eta2 = self.params.eta0
+
+    @property
+    def state(self) -> list[float]:
+        """``[r, eta_hat_1, eta_hat_2]`` as in :class:`~controller.stepping.AdaptiveController`."""
+        return [self.r, self.eta1, self.eta2]
+
+    @state.setter
+    def state(self, value: Sequence[float]) -> None:
+        self.r, self.eta1, self.eta2 = value
+
+    def law(
+        self, r: float, eta1: float, eta2: float, x1: float, x2: float, yd: float, yd1: float, yd2: float
+    ) -> LawValues:
+        """The law of :func:`controller.law.evaluate` for n = 2 at states (r, eta1, eta2), plant states
+        (x1, x2) and reference (yd, yd', yd''): (v, z1, z2, zeta1, ptp1, ptp2, r', eta1', eta2')."""
+        exp = math.exp
+        scale = self._scale
+        p_alpha = self._p_alpha
+        p_beta = self._p_beta
+        # X_1 = [x1, yd, yd', r]: P^T P from its sum and sum of squares (controller.rbf.rbf_energy).
+        s1 = x1 + yd + yd1 + r
+        s2 = x1 * x1 + yd * yd + yd1 * yd1 + r * r
+        if self._seven:
+            m1, c1, m2, c2, m3, c3, m4, c4, m5, c5, m6, c6, m7, c7 = self._flat1
+            ptp1 = (  # left to right, as rbf_energy's loop
+                exp(scale * (s2 - m1 * s1 + c1))
+                + exp(scale * (s2 - m2 * s1 + c2))
+                + exp(scale * (s2 - m3 * s1 + c3))
+                + exp(scale * (s2 - m4 * s1 + c4))
+                + exp(scale * (s2 - m5 * s1 + c5))
+                + exp(scale * (s2 - m6 * s1 + c6))
+                + exp(scale * (s2 - m7 * s1 + c7))
+            )
+        else:
+            ptp1 = 0.0
+            for two_mu, dim_mu2 in self._neurons1:
+                ptp1 += exp(scale * (s2 - two_mu * s1 + dim_mu2))
+        # X_2 adds x2, eta_hat_1 and yd''.
+        s1 += x2 + eta1 + yd2
+        s2 += x2 * x2 + eta1 * eta1 + yd2 * yd2
+        if self._seven:
+            m1, c1, m2, c2, m3, c3, m4, c4, m5, c5, m6, c6, m7, c7 = self._flat2
+            ptp2 = (  # left to right, as rbf_energy's loop
+                exp(scale * (s2 - m1 * s1 + c1))
+                + exp(scale * (s2 - m2 * s1 + c2))
+                + exp(scale * (s2 - m3 * s1 + c3))
+                + exp(scale * (s2 - m4 * s1 + c4))
+                + exp(scale * (s2 - m5 * s1 + c5))
+                + exp(scale * (s2 - m6 * s1 + c6))
+                + exp(scale * (s2 - m7 * s1 + c7))
+            )
+        else:
+            ptp2 = 0.0
+            for two_mu, dim_mu2 in self._neurons2:
+                ptp2 += exp(scale * (s2 - two_mu * s1 + dim_mu2))
+
+        z1 = x1 - yd
+        a = abs(z1)
+        weight1 = ptp1 / self._two_a2_1
+        if z1 != 0.0:
+            zeta1 = -self._k1 * math.copysign(a**p_alpha, z1) - self._q1 * math.copysign(a**p_beta, z1)
+        else:
+            zeta1 = 0.0
+        zeta1 -= eta1 * z1 * weight1
+        z2 = x2 - zeta1
+        a = abs(z2)
+        weight2 = ptp2 / self._two_a2_2
+        if z2 != 0.0:
+            v = -self._k2 * math.copysign(a**p_alpha, z2) - self._q2 * math.copysign(a**p_beta, z2)
+        else:
+            v = 0.0
+        v -= eta2 * z2 * weight2
+        a_bar, gamma_gain, gamma_power, d_r = self._r_const
+        return (
+            v,
+            z1,
+            z2,
+            zeta1,
+            ptp1,
+            ptp2,
+            -a_bar * r + gamma_gain * abs(x1) ** gamma_power + d_r,
+            self._kappa1 * z1 * z1 * weight1 - self._leak1 * eta1,
+            self._kappa2 * z2 * z2 * weight2 - self._leak2 * eta2,
+        )
+
+    def output(self, x: Sequence[float], yd: Sequence[float]) -> ControlTerms:
+        """The control and its terms at the current state, as :meth:`AdaptiveController.output`."""
+        v, z1, z2, zeta1, ptp1, ptp2, dr, d1, d2 = self.law(self.r, self.eta1, self.eta2, *x, *yd)
+        return ControlTerms(v=v, z=(z1, z2), zeta=(zeta1, v), ptp=(ptp1, ptp2), derivative=(dr, d1, d2))
+
+    def advance(
+        self,
+        x1: float,
+        x2: float,
+        yd: float,
+        yd1: float,
+        yd2: float,
+        h: float,
+        first: LawValues | None = None,
+    ) -> None:
+        """Integrate r and eta_hat over a step of length h with the inputs held (RK4, ``substeps``).
+
+        ``first`` may be ``law(...)`` at the current state and these inputs (the output the
+        caller has just computed): it is the first RK4 stage and saves one evaluation.
+        """
+        law = self.law
+        dt = h / self.substeps
+        half = 0.5 * dt
+        r, e1, e2 = self.r, self.eta1, self.eta2
+        for _ in range(self.substeps):
+            if first is None:
+                first = law(r, e1, e2, x1, x2, yd, yd1, yd2)
+            a0, a1, a2 = first[6], first[7], first[8]
+            first = None
+            b = law(r + half * a0, e1 + half * a1, e2 + half * a2, x1, x2, yd, yd1, yd2)
+            b0, b1, b2 = b[6], b[7], b[8]
+            c = law(r + half * b0, e1 + half * b1, e2 + half * b2, x1, x2, yd, yd1, yd2)
+            c0, c1, c2 = c[6], c[7], c[8]
+            d = law(r + dt * c0, e1 + dt * c1, e2 + dt * c2, x1, x2, yd, yd1, yd2)
+            sixth = dt / 6.0
+            r = r + sixth * (a0 + 2.0 * b0 + 2.0 * c0 + d[6])
+            e1 = e1 + sixth * (a1 + 2.0 * b1 + 2.0 * c1 + d[7])
+            e2 = e2 + sixth * (a2 + 2.0 * b2 + 2.0 * c2 + d[8])
+        self.r, self.eta1, self.eta2 = r, e1, e2
