@@ -1,0 +1,99 @@
+"""The n = 2 scalar path (controller.order2, what the controller FMU runs) against the general-n
+library path (controller.law.evaluate, controller.stepping.AdaptiveController), its independent
+oracle: same law at random states, inputs and gains, and the same states over many steps."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from controller.law import evaluate
+from controller.order2 import Order2Controller
+from controller.params import DEFAULT_CENTERS, FINITE_TIME, FIXED_TIME, ControllerParameters
+from controller.stepping import AdaptiveController
+from fmu_src.models.examples import EXAMPLE1, EXAMPLE2
+
+TOLERANCE = 1e-12  # relative, with an absolute floor of the same size
+
+values = st.floats(-3.0, 3.0, allow_nan=False)
+positive = st.floats(0.0, 2.0, allow_nan=False)
+gain = st.floats(0.1, 30.0)
+
+
+@st.composite
+def parameters(draw: st.DrawFn) -> ControllerParameters:
+    """Valid gains of either mode; the FMU's seven centers, or another number (the loop path)."""
+    pair = st.tuples(gain, gain)
+    centers = draw(st.one_of(st.just(DEFAULT_CENTERS), st.lists(values, min_size=1, max_size=9)))
+    return ControllerParameters(
+        k=draw(pair), q=draw(pair), a=draw(pair), kappa=draw(pair), rho=draw(pair), rho_bar=draw(pair),
+        alpha=draw(st.floats(1.05, 3.0)), beta=draw(st.floats(0.55, 0.95)),
+        mode=draw(st.sampled_from([FIXED_TIME, FINITE_TIME])), r0=draw(positive),
+        eta0=(draw(positive), draw(positive)), centers=tuple(centers), width=draw(st.floats(0.5, 4.0)),
+    )
+
+
+def assert_close(fast: float, general: float) -> None:
+    assert abs(fast - general) <= TOLERANCE * max(1.0, abs(general)), (fast, general)
+
+
+@settings(max_examples=300, deadline=None)
+@given(params=parameters(), state=st.tuples(positive, positive, positive),
+       x=st.tuples(values, values), yd=st.tuples(values, values, values))
+def test_law_equals_the_general_law(params: ControllerParameters, state: tuple, x: tuple, yd: tuple) -> None:
+    general = evaluate(list(state), x, yd, params)
+    fast = Order2Controller(params).law(*state, *x, *yd)
+    expected = (general.v, *general.z, general.zeta[0], *general.ptp, *general.derivative)
+    for a, b in zip(fast, expected, strict=True):
+        assert_close(a, b)
+
+
+@settings(max_examples=40, deadline=None)
+@given(params=parameters(), seed=st.integers(0, 2**32 - 1), substeps=st.integers(1, 3))
+def test_many_steps_equal_the_general_controller(
+    params: ControllerParameters, seed: int, substeps: int
+) -> None:
+    """300 steps of 1 ms with inputs that jump every step (as a sampled loop's): the same states,
+    with the output's law reused as the first stage (as the FMU does) and without."""
+    rng = np.random.default_rng(seed)
+    general = AdaptiveController(params, substeps)
+    reused, fresh = Order2Controller(params, substeps), Order2Controller(params, substeps)
+    for _ in range(300):
+        x, yd = rng.uniform(-2, 2, 2).tolist(), rng.uniform(-1, 1, 3).tolist()
+        terms = general.output(x, yd)
+        general.advance(x, yd, 1e-3)
+        first = reused.law(reused.r, reused.eta1, reused.eta2, *x, *yd)
+        assert_close(first[0], terms.v)
+        reused.advance(*x, *yd, 1e-3, first)
+        fresh.advance(*x, *yd, 1e-3)
+        for a, b, c in zip(reused.state, fresh.state, general.state, strict=True):
+            assert_close(a, c)
+            assert a == b
+    assert all(math.isfinite(v) for v in general.state)
+
+
+@pytest.mark.parametrize("example", [EXAMPLE1, EXAMPLE2], ids=["example1", "pendulum"])
+def test_output_terms_and_reset(example) -> None:
+    params = example.controller
+    fast, general = Order2Controller(params), AdaptiveController(params)
+    x, yd = (0.5, 0.5), (0.0, 0.5, 0.0)
+    for _ in range(5):
+        fast.advance(*x, *yd, 1e-3)
+        general.advance(x, yd, 1e-3)
+    a, b = fast.output(x, yd), general.output(x, yd)
+    for name in ("v", "z", "zeta", "ptp", "derivative"):
+        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=TOLERANCE, atol=TOLERANCE)
+    fast.reset()
+    assert fast.state == [params.r0, *params.eta0]
+
+
+def test_only_order_two() -> None:
+    one = ControllerParameters(k=(1,), q=(1,), a=(1,), kappa=(1,), rho=(1,), rho_bar=(1,))
+    with pytest.raises(ValueError, match="n = 2"):
+        Order2Controller(one)
+    with pytest.raises(ValueError, match="substeps"):
+        Order2Controller(EXAMPLE1.controller, substeps=0)
