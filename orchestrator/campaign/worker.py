@@ -123,9 +123,14 @@ def run_variant(spec: RunSpec, metrics: Metrics | None = None) -> RunOutcome:
         )
     except SimulationError as exc:
         reason = str(exc) if "(" in str(exc) or not messages.last else f"{exc} ({messages.last})"
-        rows = len(getattr(exc, "result", ()))
+        partial = getattr(exc, "result", None)
+        rows = 0 if partial is None else len(partial)
         return RunOutcome(
-            spec.index, FAILED, _one_line(f"{reason}; {rows} rows computed"), time.perf_counter() - started
+            spec.index,
+            FAILED,
+            _one_line(f"{reason}; {rows} rows computed"),
+            time.perf_counter() - started,
+            trajectory=_decimate(partial, spec.keep_every) if rows else None,
         )
     except OrchestratorError as exc:
         return RunOutcome(spec.index, FAILED, _one_line(str(exc)), time.perf_counter() - started)
@@ -145,7 +150,12 @@ def run_variant(spec: RunSpec, metrics: Metrics | None = None) -> RunOutcome:
         except (ValueError, ArithmeticError) as exc:
             status, reason = FAILED, _one_line(f"metrics: {exc}")
             values = {}
-    trajectory = result[:: spec.keep_every] if spec.keep_every else None
-    if trajectory is not None and spec.keep_every > 1 and (len(result) - 1) % spec.keep_every:
-        trajectory = np.concatenate([trajectory, result[-1:]])  # always keep the last row
-    return RunOutcome(spec.index, status, reason, wall, values, trajectory)
+    return RunOutcome(spec.index, status, reason, wall, values, _decimate(result, spec.keep_every))
+
+
+def _decimate(result: np.ndarray, every: int | None) -> np.ndarray | None:
+    """Every ``every``-th row and the last one (None: no trajectory kept)."""
+    if not every:
+        return None
+    kept = result[::every]
+    return kept if (len(result) - 1) % every == 0 else np.concatenate([kept, result[-1:]])
