@@ -142,6 +142,11 @@ def test_a_cell_is_red_when_one_check_fails(run: ToolRun, expected: set[str]) ->
     assert failed(cell) == expected
 
 
+def test_a_tool_that_modifies_the_archive_fails_loads() -> None:
+    cell = evaluate(EcosCliTool(), scenario(), good_run(), signals(), unchanged=False)
+    assert failed(cell) == {"loads"} and "modified the archive" in cell.checks[0].detail
+
+
 def test_the_plant_initial_state_must_show_up_at_t0() -> None:
     """Without a read-back (our own masters) the initial state is the evidence: x1(t0) = x1_0."""
     moved = signals()

@@ -17,6 +17,7 @@ A cell (tool x scenario) is red when any check fails:
 from __future__ import annotations
 
 import csv
+import hashlib
 import math
 import shutil
 import tempfile
@@ -136,15 +137,16 @@ def parameter_check(scenario: Scenario, result: np.ndarray, read_back: dict[str,
     return Check("parameters", True, ", ".join(detail) or "nothing to check")
 
 
-def evaluate(tool: Tool, scenario: Scenario, run: ToolRun, ours: np.ndarray) -> Cell:
-    """The checks of one tool's run against our result of the same semantics."""
+def evaluate(tool: Tool, scenario: Scenario, run: ToolRun, ours: np.ndarray, unchanged: bool = True) -> Cell:
+    """The checks of one tool's run against our result of the same semantics; ``unchanged``: the
+    archive's bytes were the same after the run."""
     tolerance = tool.tolerance
     cell = Cell(tool.key, tool.title, scenario.name, tool.delayed, reference_master(tool.delayed),
                 wall=run.wall, tolerance=tolerance, notes=list(run.notes))
     result = run.result
-    loads = len(result) > 0
-    cell.checks.append(Check("loads", loads,
-                             "initial point recorded" if loads else (run.error or "no samples")))
+    loads = len(result) > 0 and unchanged
+    detail = "initial point recorded" if len(result) else (run.error or "no samples")
+    cell.checks.append(Check("loads", loads, detail if unchanged else "the tool modified the archive"))
     if not loads:
         return cell
     cell.checks.append(parameter_check(scenario, result, run.parameters))
@@ -175,6 +177,10 @@ def _ours(scenario: Scenario, master: str) -> tuple[np.ndarray, float, str | Non
     except SimulationError as exc:
         result, error = exc.result, str(exc)
     return result, time.perf_counter() - start, error
+
+
+def _digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 class OurMaster(Tool):
@@ -212,13 +218,15 @@ def run_matrix(scenarios: Sequence[Scenario], tools: Sequence[Tool],
                             reference_master(tool.delayed), missing=reason)
             else:
                 workdir = Path(tempfile.mkdtemp(prefix=f"crosscheck-{tool.key}-"))
+                before = _digest(scenario.path)
                 try:
                     run = tool.run(scenario, workdir)
                 finally:
                     shutil.rmtree(workdir, ignore_errors=True)
                 if isinstance(tool, OurMaster):
                     ours[tool.master] = run.result
-                cell = evaluate(tool, scenario, run, ours[reference_master(tool.delayed)])
+                cell = evaluate(tool, scenario, run, ours[reference_master(tool.delayed)],
+                                unchanged=_digest(scenario.path) == before)
             cells.append(cell)
             if progress is not None:
                 wall = f" {cell.wall:.1f} s" if cell.wall is not None else ""

@@ -101,6 +101,22 @@ class OMSimulatorCliTool(Tool):
 
 
 @contextlib.contextmanager
+def _stdout_silenced() -> Iterator[None]:
+    """Discard what the library prints on file descriptor 1 (closing a log file prints "info:
+    Logging information has been saved to ...")."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(devnull)
+
+
+@contextlib.contextmanager
 def _quiet_temp(folder: Path) -> Iterator[None]:
     """Make ``tempfile`` create its folders in ``folder`` (the package makes some it never
     removes) while OMSimulator runs."""
@@ -142,8 +158,9 @@ class OMSimulatorPythonTool(Tool):
         values: dict[str, float] = {}
         error = None
         start = time.perf_counter()
+        log = workdir / "omsimulator.log"
         with interpreter_guard(), _quiet_temp(workdir):
-            oms.Capi.setLogFile(str(workdir / "omsimulator.log"))
+            oms.Capi.setLogFile(str(log))
             model = None
             try:
                 model = oms.SSP(str(scenario.path), temp_dir=str(workdir)).instantiate()
@@ -157,6 +174,10 @@ class OMSimulatorPythonTool(Tool):
                     values[column] = float(model.getValue(oms.CRef(scenario.system, component, variable)))
             except Exception as exc:  # noqa: BLE001 -- the package raises RuntimeError, KeyError, ...
                 error = f"OMSimulator: {exc}"
+                logged = [ln.strip() for ln in log.read_text(errors="replace").splitlines()
+                          if ln.startswith("error:")] if log.is_file() else []
+                if logged:
+                    error += f" ({logged[0]})"
             finally:
                 wall = time.perf_counter() - start
                 if model is not None:
@@ -164,7 +185,8 @@ class OMSimulatorPythonTool(Tool):
                         model.terminate()
                     with contextlib.suppress(Exception):
                         model.delete()
-                oms.Capi.setLogFile("")
+                with _stdout_silenced():
+                    oms.Capi.setLogFile(os.devnull)
         if not csv.is_file() or csv.stat().st_size == 0:
             return ToolRun(empty_result(columns), wall, error or "OMSimulator wrote no result file")
         result, _ = _read_result(csv, scenario, columns)
