@@ -1,38 +1,60 @@
-"""Time of a co-simulation run, split into time inside FMU calls and the master's own overhead per
-communication step, and the same .ssp run by libcosim (numWorkerThreads="0") for a ratio.
+"""Cost of one communication step of a co-simulation, before and after the FMU speed-ups of issue 10,
+split per FMU call, and the same archives run by libcosim, all in one run.
 
-    orchestrate build && python benchmarks/cosim_step.py [--scenario build/ssp/example1.ssp]
-        [--stop-time 30] [--master gauss-seidel|jacobi] [--repeat 3]
+    python benchmarks/cosim_step.py [--scenarios example1 pendulum] [--stop-time 30] [--repeat 1]
+        [--before c566841] [--master gauss-seidel|jacobi]
 
-Method. Times are CPU times of this process (``time.process_time``), so that other processes on a
-shared machine do not distort them; wall times are printed beside them. (1) The stepping loop of
-``orchestrate run`` (results recorded in memory; once more with the CSV streamed to the writer
-process, whose own CPU time is not ours) gives the loop time. (2) A second run with every FMU call
-(fmi2DoStep/GetReal/SetReal through ctypes) wrapped in a CPU timer gives the time inside the FMUs,
-corrected for the part of the timer calls that falls inside the timed window (calibrated on a no-op
-call). Overhead per step = (loop - inside FMUs) / steps. (3) libcosim runs the same archive with a
-time-series observer on the same outputs; its ``simulate_until`` is the comparable loop. Every
-figure is the best of ``--repeat`` interleaved runs.
+Builds, into a temporary folder, the current FMUs and the FMUs of revision ``--before`` (default:
+the last commit before issue 10; sources taken with ``git archive``, built by the current
+``fmu_src.build``), and packs each scenario of ``ssp/`` with either set. Then, per scenario:
+
+* ``before``: the old FMUs (plants: RK4 with 40 sub-steps per 1 ms; controller: the general-n
+  law, four evaluations per step; pythonfmu's per-variable getter/setter lambdas);
+* ``now, plant method 1``: the current FMUs with the plant's old integrator (RK4, ``max_step``
+  25 us), everything else new: the difference to ``before`` is the controller and get/set work,
+  the difference to ``now`` the plant integrator;
+* ``now``: the current FMUs (Dormand-Prince 5(4) plants, n = 2 scalar controller, direct get/set);
+* libcosim (``simulate_until``, numWorkerThreads="0") on the ``before`` and ``now`` archives.
+
+Method. Times are CPU times of this process (``time.process_time``), so other processes on the
+shared machine do not distort them. The stepping loop of ``orchestrate``'s master runs with results
+in memory. A second run wraps every fmi2DoStep/GetReal/SetReal (ctypes) in a CPU timer, corrected
+for the timer's own cost inside the timed window (calibrated on a no-op call); it gives the FMU
+breakdown, and ``loop - inside FMU calls`` is the master's own overhead. Every figure is the best
+of ``--repeat`` runs. The in-process cost of the controller's two paths is in
+``benchmarks/controller_step.py``.
 """
 
 from __future__ import annotations
 
 import argparse
+import subprocess
+import tarfile
 import tempfile
 import time
+from collections import defaultdict
+from collections.abc import Callable, Mapping
 from contextlib import ExitStack
 from pathlib import Path
 
 import orchestrator
+from fmu_src.build import build_all
 from orchestrator.crosscheck import run_libcosim
+from orchestrator.experiments.scenarios import SCENARIO_DIR, build_scenarios, component_sources
 from orchestrator.master import MASTERS
+from orchestrator.ssp import pack_ssp
 
+REPO = Path(__file__).resolve().parent.parent
+BEFORE = "c566841"  # the last commit before issue 10 changed the FMUs
 clock = time.process_time_ns
+FUNCTIONS = ("do_step", "get_real", "set_real")
+FMI_NAMES = {"do_step": "fmi2DoStep", "get_real": "fmi2GetReal", "set_real": "fmi2SetReal"}
 
 
-def _timer_bias(calls: int = 20000) -> float:
+def timer_bias(calls: int = 20000) -> float:
     """CPU ns that one timed window adds around a call that does nothing."""
-    def noop(*args):
+
+    def noop(*args: object) -> int:
         return 0
 
     total = 0
@@ -43,108 +65,147 @@ def _timer_bias(calls: int = 20000) -> float:
     return total / calls
 
 
-def _loop(scenario: Path, stop: float, master: str, csv: Path | None,
-          instrument: bool) -> dict[str, float]:
-    """Run the stepping loop once; CPU and wall seconds of the loop, CPU seconds inside FMU calls
-    (instrumented runs only), number of steps and calls."""
-    inside = [0, 0]
+def loop(scenario: Path, stop: float, master: str, overrides: Mapping[str, object],
+         instrument: bool) -> dict[str, object]:
+    """Run the stepping loop once (results in memory). Returns its CPU ns, the number of steps, the
+    output columns and, for an instrumented run, CPU ns and calls per (component, FMI function)."""
+    inside: dict[tuple[str, str], list[int]] = defaultdict(lambda: [0, 0])
 
-    def timed(fn):
-        def call(*args):
+    def timed(key: tuple[str, str], fn: Callable[..., int]) -> Callable[..., int]:
+        cell = inside[key]
+
+        def call(*args: object) -> int:
             start = clock()
             status = fn(*args)
-            inside[0] += clock() - start
-            inside[1] += 1
+            cell[0] += clock() - start
+            cell[1] += 1
             return status
+
         return call
 
     with ExitStack() as stack:
-        system = stack.enter_context(orchestrator.open_system(scenario))
+        system = stack.enter_context(orchestrator.open_system(scenario, overrides=overrides))
         experiment = system.structure.experiment
-        m = MASTERS[master](system, experiment.start_time, stop, experiment.step or 1e-3, csv)
+        m = MASTERS[master](system, experiment.start_time, stop, experiment.step or 1e-3, None)
         m.setup(stack)
         stack.callback(m.recorder.close)
         if instrument:
             for inst in m.instances:
-                inst.do_step, inst.get_real, inst.set_real = (timed(inst.do_step), timed(inst.get_real),
-                                                              timed(inst.set_real))
+                for name in FUNCTIONS:
+                    setattr(inst, name, timed((inst.name, name), getattr(inst, name)))
             values = m.values
-            m._layout()
+            m._layout()  # rebuild the call table with the wrapped functions
             m.values[:] = values
         m.initialize()
-        inside[:] = [0, 0]
+        for cell in inside.values():
+            cell[:] = [0, 0]
         n = len(m.times) - 1
-        wall, cpu = time.perf_counter(), clock()
+        start = clock()
         for k in range(n):
             m.step(k)
-        m.recorder.flush()
-        cpu, wall = (clock() - cpu) / 1e9, time.perf_counter() - wall
+        cpu = clock() - start
         m.terminate()
         outputs = [f"{c.name}.{o}" for c in system.components.values() for o in c.outputs]
-    return {"cpu": cpu, "wall": wall, "inside": inside[0] / 1e9, "calls": inside[1], "steps": n,
-            "outputs": outputs}
+    return {"cpu": cpu, "steps": n, "outputs": outputs, "inside": {k: tuple(v) for k, v in inside.items()}}
 
 
-def main() -> None:
-    """Measure and print."""
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--scenario", type=Path, default=Path("build/ssp/example1.ssp"))
+def build_before(revision: str, names: list[str], dest: Path) -> dict[str, Path]:
+    """The FMUs of ``revision`` (its fmu_src/ and controller/, built by the current build code) packed
+    with today's scenario sources; returns scenario -> archive."""
+    source = dest / "src"
+    source.mkdir(parents=True)
+    archive = dest / "src.tar"
+    with archive.open("wb") as out:
+        subprocess.run(["git", "-C", str(REPO), "archive", revision, "fmu_src", "controller"], stdout=out,
+                       check=True)
+    with tarfile.open(archive) as tar:
+        tar.extractall(source, filter="data")
+    fmus = {p.name: p for p in build_all(dest / "fmus", root=source)}
+    return {name: pack_ssp(SCENARIO_DIR / name, {c: fmus[c] for c in component_sources(SCENARIO_DIR / name)},
+                           dest / "ssp" / f"{name}.ssp")
+            for name in names}
+
+
+def measure(scenario: str, archives: dict[str, Path], stop: float, master: str, repeat: int,
+            bias: float) -> None:
+    """Run every configuration of one scenario ``repeat`` times and print the best figures."""
+    configurations = {
+        "before": (archives["before"], {}),
+        "now, plant method 1 (RK4)": (archives["now"], {"plant.method": 1}),
+        "now": (archives["now"], {}),
+    }
+    best: dict[str, float] = {}
+    breakdown: dict[str, dict[tuple[str, str], float]] = {}
+    calls: dict[str, float] = {}
+
+    def keep(key: str, value: float) -> bool:
+        better = value < best.get(key, float("inf"))
+        if better:
+            best[key] = value
+        return better
+
+    steps, outputs = 0, []
+    for _ in range(repeat):
+        for label, (archive, overrides) in configurations.items():
+            plain = loop(archive, stop, master, overrides, instrument=False)
+            steps, outputs = plain["steps"], plain["outputs"]
+            keep(label, plain["cpu"])
+            timed = loop(archive, stop, master, overrides, instrument=True)
+            corrected = {k: ns - n * bias for k, (ns, n) in timed["inside"].items()}
+            if keep(label + " inside", sum(corrected.values())):
+                breakdown[label] = corrected
+                calls[label] = sum(n for _, n in timed["inside"].values())
+        for which in ("before", "now"):
+            _, timing = run_libcosim(archives[which], stop, ["time"] + outputs)
+            keep(f"libcosim {which}", timing["cpu"] * 1e9)
+
+    def us(ns: float) -> str:
+        return f"{ns / steps / 1e3:7.1f}"
+
+    step_ms = stop / steps * 1e3
+    print(f"\n{scenario}: {steps} steps of {step_ms:g} ms, master {master}, best of {repeat}, "
+          f"CPU us per communication step (timer bias {bias:.0f} ns/call corrected)")
+    print(f"  {'configuration':34s} {'loop':>7s} {'in FMUs':>7s} {'master':>7s} {'FMI calls/step':>15s}")
+    for label in configurations:
+        total, inside = best[label], best[label + " inside"]
+        print(f"  {label:34s} {us(total)} {us(inside)} {us(total - inside)} "
+              f"{calls[label] / steps:15.0f}")
+    for which in ("before", "now"):
+        lc = best[f"libcosim {which}"]
+        ours = best["before" if which == "before" else "now"]
+        print(f"  {'libcosim, ' + which + ' archive':34s} {us(lc)}   ratio ours / libcosim {ours / lc:.3f}")
+    print(f"  speed-up now vs before: {best['before'] / best['now']:.2f}x "
+          f"({us(best['before']).strip()} -> {us(best['now']).strip()} us/step)")
+    components = sorted({c for b in breakdown.values() for c, _ in b})
+    print(f"  FMU breakdown, CPU us per communication step: {' / '.join(configurations)}")
+    for component in components:
+        cells = []
+        for name in FUNCTIONS:
+            figures = [breakdown[label].get((component, name)) for label in configurations]
+            if any(f is not None for f in figures):
+                cells.append(f"{FMI_NAMES[name]} " + " / ".join(us(f).strip() if f is not None else "-"
+                                                               for f in figures))
+        print(f"    {component:11s} " + "   ".join(cells))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Build both FMU sets, measure every scenario and print."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scenarios", nargs="+", default=["example1", "pendulum"])
     parser.add_argument("--stop-time", type=float, default=30.0)
     parser.add_argument("--master", choices=list(MASTERS), default="gauss-seidel")
-    parser.add_argument("--repeat", type=int, default=3)
-    args = parser.parse_args()
-    best: dict[str, float] = {}
-
-    def keep(name: str, value: float) -> None:
-        best[name] = min(value, best.get(name, float("inf")))
-
-    bias = _timer_bias()
+    parser.add_argument("--repeat", type=int, default=1)
+    parser.add_argument("--before", default=BEFORE, help=f"git revision of the old FMUs (default {BEFORE})")
+    args = parser.parse_args(argv)
+    bias = timer_bias()
     with tempfile.TemporaryDirectory() as tmp:
-        csv = Path(tmp) / "result.csv"
-        for _ in range(args.repeat):
-            plain = _loop(args.scenario, args.stop_time, args.master, None, instrument=False)
-            keep("loop_cpu", plain["cpu"])
-            keep("loop_wall", plain["wall"])
-            streamed = _loop(args.scenario, args.stop_time, args.master, csv, instrument=False)
-            keep("csv_cpu", streamed["cpu"])
-            keep("csv_wall", streamed["wall"])
-            timed = _loop(args.scenario, args.stop_time, args.master, None, instrument=True)
-            keep("inside", timed["inside"] - timed["calls"] * bias / 1e9)
-            wall, cpu = time.perf_counter(), time.process_time()
-            orchestrator.run(args.scenario, stop_time=args.stop_time, master=args.master, output=csv)
-            keep("whole_cpu", time.process_time() - cpu)
-            keep("whole_wall", time.perf_counter() - wall)
-            cpu = time.process_time()
-            wall = time.perf_counter()
-            _, timing = run_libcosim(args.scenario, args.stop_time, ["time"] + plain["outputs"])
-            keep("lc_whole_cpu", time.process_time() - cpu)
-            keep("lc_whole_wall", time.perf_counter() - wall)
-            keep("lc_wall", timing["wall"])
-            keep("lc_cpu", timing["cpu"])
-    b, n = best, plain["steps"]
-    print(f"{args.scenario}: {n} steps of {args.stop_time / n * 1e3:g} ms, master {args.master}, "
-          f"best of {args.repeat}; timer bias {bias:.0f} ns/call corrected")
-
-    def row(label: str, cpu: float, wall: float | None = None, per_step: bool = True) -> None:
-        text = f"  {label:36s} cpu {cpu:6.2f} s"
-        if per_step:
-            text += f" = {cpu / n * 1e6:6.1f} us/step"
-        if wall is not None:
-            text += f"   (wall {wall:6.2f} s)"
-        print(text)
-
-    row("stepping loop, results in memory", b["loop_cpu"], b["loop_wall"])
-    row("  inside FMU calls", b["inside"])
-    row("  master overhead", b["loop_cpu"] - b["inside"])
-    row("stepping loop, CSV streamed", b["csv_cpu"], b["csv_wall"])
-    row("libcosim simulate_until", b["lc_cpu"], b["lc_wall"])
-    row("whole run, orchestrator.run + CSV", b["whole_cpu"], b["whole_wall"], per_step=False)
-    row("whole run, libcosim load+run+read", b["lc_whole_cpu"], b["lc_whole_wall"], per_step=False)
-    print(f"  ratio ours / libcosim: stepping loop cpu {b['loop_cpu'] / b['lc_cpu']:.3f} "
-          f"(CSV streamed {b['csv_cpu'] / b['lc_cpu']:.3f}); whole run cpu "
-          f"{b['whole_cpu'] / b['lc_whole_cpu']:.3f}, wall {b['whole_wall'] / b['lc_whole_wall']:.3f}")
+        now = build_scenarios(args.scenarios, Path(tmp) / "now")
+        before = build_before(args.before, args.scenarios, Path(tmp) / "before")
+        for name in args.scenarios:
+            measure(name, {"before": before[name], "now": now[name]}, args.stop_time, args.master,
+                    args.repeat, bias)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

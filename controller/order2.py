@@ -12,7 +12,7 @@ round-off (``tests/test_controller_order2.py`` checks 1e-12 over many random sta
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from .law import ControlTerms
 from .params import ControllerParameters
@@ -23,12 +23,103 @@ __all__ = ["LawValues", "Order2Controller"]
 LawValues = tuple[float, float, float, float, float, float, float, float, float]
 
 
+def _law_for(params: ControllerParameters) -> Callable[..., LawValues]:
+    """The law of :func:`controller.law.evaluate` for n = 2 with every constant of ``params`` bound
+    in the closure (no attribute lookups per evaluation), in the general path's order of operations."""
+    k1, k2 = params.k_effective
+    q1, q2 = params.q
+    two_a2_1, two_a2_2 = (2.0 * a * a for a in params.a)
+    kappa1, kappa2 = params.kappa
+    leak1, leak2 = (rho + bar for rho, bar in zip(params.rho, params.rho_bar, strict=True))
+    p_alpha = 2.0 * params.alpha - 1.0
+    p_beta = 2.0 * params.beta - 1.0
+    a_bar, gamma_gain, gamma_power, d_r = params.a_bar, params.gamma_gain, params.gamma_power, params.d_r
+    scale = -2.0 / (params.width * params.width)
+    # Per neuron (2 mu, dim mu^2) for X_1 (dim 4) and X_2 (dim 7), in rbf_energy's rounding order.
+    neurons1 = tuple((2.0 * mu, 4 * mu * mu) for mu in params.centers)
+    neurons2 = tuple((2.0 * mu, 7 * mu * mu) for mu in params.centers)
+    seven = len(params.centers) == 7  # the FMU's seven neurons: an unrolled sum, no loop
+    flat1 = tuple(c for neuron in neurons1 for c in neuron)
+    flat2 = tuple(c for neuron in neurons2 for c in neuron)
+    exp, copysign = math.exp, math.copysign
+
+    def law(r: float, eta1: float, eta2: float, x1: float, x2: float, yd: float, yd1: float, yd2: float
+            ) -> LawValues:
+        """(v, z1, z2, zeta1, ptp1, ptp2, r', eta1', eta2') at states (r, eta1, eta2), plant states
+        (x1, x2) and reference (yd, yd', yd'')."""
+        # X_1 = [x1, yd, yd', r]: P^T P from its sum and sum of squares (controller.rbf.rbf_energy).
+        s1 = x1 + yd + yd1 + r
+        s2 = x1 * x1 + yd * yd + yd1 * yd1 + r * r
+        if seven:
+            m1, c1, m2, c2, m3, c3, m4, c4, m5, c5, m6, c6, m7, c7 = flat1
+            ptp1 = (  # left to right, as rbf_energy's loop
+                exp(scale * (s2 - m1 * s1 + c1))
+                + exp(scale * (s2 - m2 * s1 + c2))
+                + exp(scale * (s2 - m3 * s1 + c3))
+                + exp(scale * (s2 - m4 * s1 + c4))
+                + exp(scale * (s2 - m5 * s1 + c5))
+                + exp(scale * (s2 - m6 * s1 + c6))
+                + exp(scale * (s2 - m7 * s1 + c7))
+            )
+        else:
+            ptp1 = 0.0
+            for two_mu, dim_mu2 in neurons1:
+                ptp1 += exp(scale * (s2 - two_mu * s1 + dim_mu2))
+        # X_2 adds x2, eta_hat_1 and yd''.
+        s1 += x2 + eta1 + yd2
+        s2 += x2 * x2 + eta1 * eta1 + yd2 * yd2
+        if seven:
+            m1, c1, m2, c2, m3, c3, m4, c4, m5, c5, m6, c6, m7, c7 = flat2
+            ptp2 = (
+                exp(scale * (s2 - m1 * s1 + c1))
+                + exp(scale * (s2 - m2 * s1 + c2))
+                + exp(scale * (s2 - m3 * s1 + c3))
+                + exp(scale * (s2 - m4 * s1 + c4))
+                + exp(scale * (s2 - m5 * s1 + c5))
+                + exp(scale * (s2 - m6 * s1 + c6))
+                + exp(scale * (s2 - m7 * s1 + c7))
+            )
+        else:
+            ptp2 = 0.0
+            for two_mu, dim_mu2 in neurons2:
+                ptp2 += exp(scale * (s2 - two_mu * s1 + dim_mu2))
+
+        z1 = x1 - yd
+        weight1 = ptp1 / two_a2_1
+        if z1 != 0.0:
+            a = abs(z1)
+            zeta1 = -k1 * copysign(a**p_alpha, z1) - q1 * copysign(a**p_beta, z1) - eta1 * z1 * weight1
+        else:
+            zeta1 = 0.0
+        z2 = x2 - zeta1
+        weight2 = ptp2 / two_a2_2
+        if z2 != 0.0:
+            a = abs(z2)
+            v = -k2 * copysign(a**p_alpha, z2) - q2 * copysign(a**p_beta, z2) - eta2 * z2 * weight2
+        else:
+            v = 0.0
+        return (
+            v,
+            z1,
+            z2,
+            zeta1,
+            ptp1,
+            ptp2,
+            -a_bar * r + gamma_gain * abs(x1) ** gamma_power + d_r,
+            kappa1 * z1 * z1 * weight1 - leak1 * eta1,
+            kappa2 * z2 * z2 * weight2 - leak2 * eta2,
+        )
+
+    return law
+
+
 class Order2Controller:
     """:class:`controller.stepping.AdaptiveController` for n = 2: same states, law and RK4 stepping.
 
-    The states are the floats ``r``, ``eta1``, ``eta2``. :meth:`law` evaluates the control and the
-    state derivative for explicit states and inputs; :meth:`advance` integrates over one step with
-    the inputs held, reusing a law evaluation at the current state when given one.
+    The states are the floats ``r``, ``eta1``, ``eta2``. ``law(r, eta1, eta2, x1, x2, yd, yd', yd'')``
+    (a closure over the parameters) evaluates the control and the state derivative for explicit
+    states and inputs; :meth:`advance` integrates over one step with the inputs held, reusing a
+    law evaluation at the current state when given one.
     """
 
     def __init__(self, params: ControllerParameters, substeps: int = 1) -> None:
@@ -38,22 +129,7 @@ class Order2Controller:
             raise ValueError(f"substeps must be >= 1 (got {substeps})")
         self.params = params
         self.substeps = substeps
-        self._k1, self._k2 = params.k_effective
-        self._q1, self._q2 = params.q
-        self._two_a2_1, self._two_a2_2 = (2.0 * a * a for a in params.a)
-        self._kappa1, self._kappa2 = params.kappa
-        self._leak1, self._leak2 = (rho + bar for rho, bar in zip(params.rho, params.rho_bar, strict=True))
-        self._p_alpha = 2.0 * params.alpha - 1.0
-        self._p_beta = 2.0 * params.beta - 1.0
-        self._r_const = (params.a_bar, params.gamma_gain, params.gamma_power, params.d_r)
-        self._scale = -2.0 / (params.width * params.width)
-        # Per neuron (2 mu, dim mu^2) for X_1 (dim 4) and X_2 (dim 7), in rbf_energy's rounding order.
-        self._neurons1 = tuple((2.0 * mu, 4 * mu * mu) for mu in params.centers)
-        self._neurons2 = tuple((2.0 * mu, 7 * mu * mu) for mu in params.centers)
-        # The FMU's seven neurons, flattened for one unpacking and an unrolled sum (no loop).
-        self._seven = len(params.centers) == 7
-        self._flat1 = tuple(c for neuron in self._neurons1 for c in neuron)
-        self._flat2 = tuple(c for neuron in self._neurons2 for c in neuron)
+        self.law = _law_for(params)
         self.r = self.eta1 = self.eta2 = 0.0
         self.reset()
 
@@ -70,81 +146,6 @@ class Order2Controller:
     @state.setter
     def state(self, value: Sequence[float]) -> None:
         self.r, self.eta1, self.eta2 = value
-
-    def law(
-        self, r: float, eta1: float, eta2: float, x1: float, x2: float, yd: float, yd1: float, yd2: float
-    ) -> LawValues:
-        """The law of :func:`controller.law.evaluate` for n = 2 at states (r, eta1, eta2), plant states
-        (x1, x2) and reference (yd, yd', yd''): (v, z1, z2, zeta1, ptp1, ptp2, r', eta1', eta2')."""
-        exp = math.exp
-        scale = self._scale
-        p_alpha = self._p_alpha
-        p_beta = self._p_beta
-        # X_1 = [x1, yd, yd', r]: P^T P from its sum and sum of squares (controller.rbf.rbf_energy).
-        s1 = x1 + yd + yd1 + r
-        s2 = x1 * x1 + yd * yd + yd1 * yd1 + r * r
-        if self._seven:
-            m1, c1, m2, c2, m3, c3, m4, c4, m5, c5, m6, c6, m7, c7 = self._flat1
-            ptp1 = (  # left to right, as rbf_energy's loop
-                exp(scale * (s2 - m1 * s1 + c1))
-                + exp(scale * (s2 - m2 * s1 + c2))
-                + exp(scale * (s2 - m3 * s1 + c3))
-                + exp(scale * (s2 - m4 * s1 + c4))
-                + exp(scale * (s2 - m5 * s1 + c5))
-                + exp(scale * (s2 - m6 * s1 + c6))
-                + exp(scale * (s2 - m7 * s1 + c7))
-            )
-        else:
-            ptp1 = 0.0
-            for two_mu, dim_mu2 in self._neurons1:
-                ptp1 += exp(scale * (s2 - two_mu * s1 + dim_mu2))
-        # X_2 adds x2, eta_hat_1 and yd''.
-        s1 += x2 + eta1 + yd2
-        s2 += x2 * x2 + eta1 * eta1 + yd2 * yd2
-        if self._seven:
-            m1, c1, m2, c2, m3, c3, m4, c4, m5, c5, m6, c6, m7, c7 = self._flat2
-            ptp2 = (  # left to right, as rbf_energy's loop
-                exp(scale * (s2 - m1 * s1 + c1))
-                + exp(scale * (s2 - m2 * s1 + c2))
-                + exp(scale * (s2 - m3 * s1 + c3))
-                + exp(scale * (s2 - m4 * s1 + c4))
-                + exp(scale * (s2 - m5 * s1 + c5))
-                + exp(scale * (s2 - m6 * s1 + c6))
-                + exp(scale * (s2 - m7 * s1 + c7))
-            )
-        else:
-            ptp2 = 0.0
-            for two_mu, dim_mu2 in self._neurons2:
-                ptp2 += exp(scale * (s2 - two_mu * s1 + dim_mu2))
-
-        z1 = x1 - yd
-        a = abs(z1)
-        weight1 = ptp1 / self._two_a2_1
-        if z1 != 0.0:
-            zeta1 = -self._k1 * math.copysign(a**p_alpha, z1) - self._q1 * math.copysign(a**p_beta, z1)
-        else:
-            zeta1 = 0.0
-        zeta1 -= eta1 * z1 * weight1
-        z2 = x2 - zeta1
-        a = abs(z2)
-        weight2 = ptp2 / self._two_a2_2
-        if z2 != 0.0:
-            v = -self._k2 * math.copysign(a**p_alpha, z2) - self._q2 * math.copysign(a**p_beta, z2)
-        else:
-            v = 0.0
-        v -= eta2 * z2 * weight2
-        a_bar, gamma_gain, gamma_power, d_r = self._r_const
-        return (
-            v,
-            z1,
-            z2,
-            zeta1,
-            ptp1,
-            ptp2,
-            -a_bar * r + gamma_gain * abs(x1) ** gamma_power + d_r,
-            self._kappa1 * z1 * z1 * weight1 - self._leak1 * eta1,
-            self._kappa2 * z2 * z2 * weight2 - self._leak2 * eta2,
-        )
 
     def output(self, x: Sequence[float], yd: Sequence[float]) -> ControlTerms:
         """The control and its terms at the current state, as :meth:`AdaptiveController.output`."""
@@ -170,18 +171,17 @@ class Order2Controller:
         dt = h / self.substeps
         half = 0.5 * dt
         r, e1, e2 = self.r, self.eta1, self.eta2
+        inputs = (x1, x2, yd, yd1, yd2)
         for _ in range(self.substeps):
             if first is None:
                 first = law(r, e1, e2, x1, x2, yd, yd1, yd2)
-            a0, a1, a2 = first[6], first[7], first[8]
+            _, _, _, _, _, _, a0, a1, a2 = first
             first = None
-            b = law(r + half * a0, e1 + half * a1, e2 + half * a2, x1, x2, yd, yd1, yd2)
-            b0, b1, b2 = b[6], b[7], b[8]
-            c = law(r + half * b0, e1 + half * b1, e2 + half * b2, x1, x2, yd, yd1, yd2)
-            c0, c1, c2 = c[6], c[7], c[8]
-            d = law(r + dt * c0, e1 + dt * c1, e2 + dt * c2, x1, x2, yd, yd1, yd2)
+            _, _, _, _, _, _, b0, b1, b2 = law(r + half * a0, e1 + half * a1, e2 + half * a2, *inputs)
+            _, _, _, _, _, _, c0, c1, c2 = law(r + half * b0, e1 + half * b1, e2 + half * b2, *inputs)
+            _, _, _, _, _, _, d0, d1, d2 = law(r + dt * c0, e1 + dt * c1, e2 + dt * c2, *inputs)
             sixth = dt / 6.0
-            r = r + sixth * (a0 + 2.0 * b0 + 2.0 * c0 + d[6])
-            e1 = e1 + sixth * (a1 + 2.0 * b1 + 2.0 * c1 + d[7])
-            e2 = e2 + sixth * (a2 + 2.0 * b2 + 2.0 * c2 + d[8])
+            r = r + sixth * (a0 + 2.0 * b0 + 2.0 * c0 + d0)
+            e1 = e1 + sixth * (a1 + 2.0 * b1 + 2.0 * c1 + d1)
+            e2 = e2 + sixth * (a2 + 2.0 * b2 + 2.0 * c2 + d2)
         self.r, self.eta1, self.eta2 = r, e1, e2
