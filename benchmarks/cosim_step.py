@@ -151,7 +151,7 @@ def measure(scenario: str, archives: dict[str, Path], stop: float, master: str, 
             steps, outputs = plain["steps"], plain["outputs"]
             keep(label, plain["cpu"])
             timed = loop(archive, stop, master, overrides, instrument=True)
-            corrected = {k: ns - n * bias for k, (ns, n) in timed["inside"].items()}
+            corrected = {k: ns - n * bias for k, (ns, n) in timed["inside"].items() if n}
             if keep(label + " inside", sum(corrected.values())):
                 breakdown[label] = corrected
                 calls[label] = sum(n for _, n in timed["inside"].values())

@@ -1,6 +1,8 @@
 """Cost of one fmi2DoStep of each FMU called from fmpy, in microseconds (median of many).
 
-Also the cost of reading the outputs after new inputs (the direct-feedthrough getters).
+Also the cost of reading the outputs after new inputs (the direct-feedthrough getters). The
+plants are measured with their default integrator (Dormand-Prince 5(4), ``method`` 0) and with
+the fixed-step RK4 (``method`` 1, 40 sub-steps per 1 ms).
 Usage: ``python benchmarks/fmu_step.py [--steps N] [--fmus DIR]`` (builds into a temp dir by default).
 """
 
@@ -40,8 +42,9 @@ def inputs_at(model: str, k: int, out: dict[str, float]) -> dict[str, float]:
     }[model]
 
 
-def measure(path: Path, steps: int) -> tuple[float, float]:
-    """(median doStep, median get-outputs/set-inputs/get-outputs) in microseconds."""
+def measure(path: Path, steps: int, method: int | None = None) -> tuple[float, float]:
+    """(median doStep, median get-outputs/set-inputs/get-outputs) in microseconds; ``method`` sets
+    a plant's integrator."""
     md = read_model_description(str(path))
     vr = {v.name: v.valueReference for v in md.modelVariables}
     outputs = [v.name for v in md.modelVariables if v.causality == "output"]
@@ -52,6 +55,8 @@ def measure(path: Path, steps: int) -> tuple[float, float]:
     try:
         fmu.setupExperiment(startTime=0.0)
         fmu.enterInitializationMode()
+        if method is not None:
+            fmu.setInteger([vr["method"]], [method])
         fmu.exitInitializationMode()
         step_times, io_times = [], []
         for k in range(steps):
@@ -86,8 +91,10 @@ def main(argv: list[str] | None = None) -> int:
             f"{'FMU':<22}{'doStep [us]':>14}{'get+set+get [us]':>19}   (median of {options.steps}, h = 1 ms)"
         )
         for model in FMU_SCRIPTS:
-            step, io = measure(folder / f"{model}.fmu", options.steps)
-            print(f"{model:<22}{step:>14.1f}{io:>19.1f}")
+            for method in (None, 1) if "Plant" in model else (None,):
+                step, io = measure(folder / f"{model}.fmu", options.steps, method)
+                label = model if method is None else f"{model} RK4"
+                print(f"{label:<22}{step:>14.1f}{io:>19.1f}")
     return 0
 
 
