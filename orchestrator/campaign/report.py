@@ -183,6 +183,30 @@ def _worst(rows: Sequence[Row], metric: str) -> list[Row]:
     return sorted(done, key=lambda r: -_value(r, metric))[:WORST_COUNT]
 
 
+def _by_group(rows: Sequence[Row], meta: Mapping, metrics: Sequence[str]) -> list[str]:
+    """Per group of the first plot's facet (and per scenario): counts, median and largest metric."""
+    spec = next((p for p in meta.get("plots", []) if p.get("facet")), {})
+    panels = _facets(spec, rows, meta)
+    if len(panels) < 2:
+        return []
+    head = "".join(f" median {m} | max {m} |" for m in metrics)
+    lines = [
+        "## By group",
+        "",
+        "| group | runs | ok | failed | timed out |" + head,
+        "|---" * (5 + 2 * len(metrics)) + "|",
+    ]
+    for title, group in panels:
+        cells = [title, str(len(group))] + [
+            str(sum(r["status"] == s for r in group)) for s in ("ok", "failed", "timeout")
+        ]
+        for m in metrics:
+            values = [_value(r, m) for r in group if r["status"] == "ok" and not math.isnan(_value(r, m))]
+            cells += [_fmt(float(np.median(values))), _fmt(max(values))] if values else ["-", "-"]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
 def _summary(rows: Sequence[Row], meta: Mapping, figures: Sequence[tuple[str, str]], table: Path) -> str:
     params = [c for c in meta.get("columns", []) if c not in ("stop_time", "step")]
     metrics = list(meta.get("metrics", []))
@@ -238,6 +262,7 @@ def _summary(rows: Sequence[Row], meta: Mapping, figures: Sequence[tuple[str, st
             for r in worst
         ]
         lines.append("")
+    lines += _by_group(rows, meta, worst_by)
     bad = [r for r in rows if r["status"] != "ok"]
     if bad:
         lines += [
