@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -18,7 +18,7 @@ from ..campaign import Metrics
 from ..campaign import cli as campaign_cli
 from .metrics import tracking_metrics
 
-__all__ = ["BAND", "TRACKING", "register", "tracking_row"]
+__all__ = ["BAND", "TRACKING", "claim_headlines", "fault_headlines", "register", "tracking_row"]
 
 BAND = 0.05
 
@@ -70,3 +70,79 @@ TRACKING = Metrics(
 def register(sub: argparse._SubParsersAction) -> None:
     """``orchestrate sweep`` and ``campaign-report`` with the tracking metrics as columns."""
     campaign_cli.register(sub, metrics=TRACKING)
+
+
+def _mode_name(value: object) -> str:
+    return "fixed-time" if int(float(value)) == 0 else "finite-time"
+
+
+def claim_headlines(rows: Sequence[Mapping[str, object]]) -> list[str]:
+    """Headline findings of the fixed-time claim campaign (``ssp/campaigns/fixed_time_claim.toml``):
+    per law, how many initial states diverge (the run fails), never enter the band within the
+    horizon, or settle, and by when; the largest square max(|x1(0)|, |x2(0)|) <= R from which every
+    run settles; and the states where one law settles and the other does not."""
+    by_state: dict[tuple[float, float], dict[str, Mapping[str, object]]] = {}
+    for r in rows:
+        by_state.setdefault((float(r["plant.x1_0"]), float(r["plant.x2_0"])), {})[
+            _mode_name(r["controller.mode"])
+        ] = r
+
+    def settled(r: Mapping[str, object] | None) -> bool:
+        return r is not None and r["status"] == "ok" and math.isfinite(float(r["settling_time"]))
+
+    lines = []
+    for mode in ("fixed-time", "finite-time"):
+        runs = [s[mode] for s in by_state.values() if mode in s]
+        failed = [r for r in runs if r["status"] != "ok"]
+        never = [r for r in runs if r["status"] == "ok" and not settled(r)]
+        times = [float(r["settling_time"]) for r in runs if settled(r)]
+        radius = [
+            max(abs(float(r["plant.x1_0"])), abs(float(r["plant.x2_0"]))) for r in runs if not settled(r)
+        ]
+        safe = min(radius) if radius else math.inf
+        inside = [max(abs(float(r["plant.x1_0"])), abs(float(r["plant.x2_0"]))) for r in runs]
+        largest = max((d for d in inside if d < safe), default=math.nan)
+        text = (
+            f"{mode}: {len(runs)} initial states, {len(failed)} diverge (run fails), {len(never)} never "
+            f"enter the band, {len(times)} settle"
+        )
+        if times:
+            text += f" within {min(times):.3f} .. {max(times):.3f} s"
+        text += f"; every state with max(|x1(0)|, |x2(0)|) <= {largest:g} settles."
+        lines.append(text)
+    only_fixed = sum(
+        settled(s.get("fixed-time")) and not settled(s.get("finite-time")) for s in by_state.values()
+    )
+    only_finite = sum(
+        settled(s.get("finite-time")) and not settled(s.get("fixed-time")) for s in by_state.values()
+    )
+    lines.append(
+        f"States where only the fixed-time law settles: {only_fixed}; only the finite-time law: "
+        f"{only_finite}."
+    )
+    return lines
+
+
+def fault_headlines(rows: Sequence[Mapping[str, object]]) -> list[str]:
+    """Headline findings of the fault-tolerance campaign: per scenario and law, failures and the
+    largest MAE and |y - yd| after the fault, with the worst run's fault."""
+    groups: dict[tuple[str, str], list[Mapping[str, object]]] = {}
+    for r in rows:
+        groups.setdefault((str(r["scenario"]), _mode_name(r["controller.mode"])), []).append(r)
+    lines = []
+    for (scenario, mode), runs in sorted(groups.items()):
+        ok = [r for r in runs if r["status"] == "ok"]
+        text = f"{scenario}, {mode}: {len(ok)} of {len(runs)} runs ok"
+        if ok:
+            worst = max(ok, key=lambda r: float(r["max_error_after_fault"]))
+            fault = ", ".join(
+                f"{k} = {float(worst[f'actuator.{k}']):.2f}"
+                for k in ("K_inf", "L_bias", "t_fault", "b_r", "b_l")
+            )
+            text += (
+                f"; MAE after the fault <= {max(float(r['mae_after_fault']) for r in ok):.2g}, "
+                f"|y - yd| after the fault <= {float(worst['max_error_after_fault']):.2g} "
+                f"(run {worst['run']}: {fault})"
+            )
+        lines.append(text + ".")
+    return lines
