@@ -159,7 +159,7 @@ def connect(
         n_workers=n,
         threads_per_worker=1,
         processes=processes,
-        dashboard_address=None,
+        dashboard_address=":0",  # a free port: several campaigns may run at once
         silence_logs=logging.ERROR,
     )
     client = Client(cluster)
