@@ -56,6 +56,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--study-values", type=float, nargs="+", default=list(report.STUDY_VALUES), metavar="V",
                    help="initial x1(0) and x2(0) values of the study (default: -2 -1 0 1 2)")
     p.add_argument("--processes", type=int, default=2, help="worker processes (default 2)")
+    p.add_argument("--campaigns", type=Path, metavar="DIR",
+                   help="also report the shipped campaigns whose tables are DIR/<name>/runs.parquet")
 
 
 def _build(args: argparse.Namespace) -> int:
@@ -111,5 +113,5 @@ def _report(args: argparse.Namespace) -> int:
     if args.processes < 1:
         raise UsageError("--processes must be at least 1")
     print(report.write_report(args.out, args.stop_time, args.study_values, args.study_horizon,
-                              args.processes))
+                              args.processes, args.campaigns))
     return 0

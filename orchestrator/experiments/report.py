@@ -24,7 +24,9 @@ import numpy as np
 from controller.params import Mode
 
 from .. import open_system, run
-from ..errors import SimulationError
+from ..campaign import Design, read_table, sweep
+from ..campaign import write_report as campaign_report
+from .campaigns import TRACKING, claim_headlines, fault_headlines
 from .metrics import TrackingMetrics, format_table, tracking_metrics
 from .scenarios import build_scenarios
 
@@ -79,24 +81,18 @@ class SettlingRow:
     finite_time: float
 
 
-def _settle(args: tuple[Path, float, dict]) -> float:
-    archive, horizon, overrides = args
-    try:
-        result = run(archive, stop_time=horizon, overrides=overrides)
-    except SimulationError:
-        return math.nan
-    return _metrics(result).settling_time
-
-
 def settling_study(archive: Path, values: Sequence[float] = STUDY_VALUES, horizon: float = STUDY_HORIZON,
                    processes: int = 2) -> list[SettlingRow]:
     """Settling time (band 0.05 on |y - yd|) of Example 1 from every (x1(0), x2(0)) in ``values``
-    squared, in both modes."""
+    squared, in both modes: a campaign (``orchestrator.campaign.sweep``) on an embedded Dask cluster
+    of ``processes`` workers."""
     states = [(a, b) for a in values for b in values]
-    jobs = [(archive, horizon, {"plant.x1_0": a, "plant.x2_0": b, "controller.mode": int(mode)})
-            for a, b in states for mode in Mode]
-    with ProcessPoolExecutor(processes) as pool:
-        times = list(pool.map(_settle, jobs))
+    design = Design(source="settling study", columns=("plant.x1_0", "plant.x2_0", "controller.mode"),
+                    points=tuple((a, b, float(mode)) for a, b in states for mode in Mode), stop_time=horizon)
+    with tempfile.TemporaryDirectory(prefix="settling-") as work:
+        summary = sweep([archive], design, work, metrics=TRACKING, workers=processes, progress=False)
+        rows, _ = read_table(summary.parquet)
+    times = [r["settling_time"] if r["status"] == "ok" else math.nan for r in rows]
     return [SettlingRow(a, b, times[2 * i], times[2 * i + 1]) for i, (a, b) in enumerate(states)]
 
 
@@ -166,8 +162,10 @@ def _fmt(value: float) -> str:
 
 def write_report(out: str | os.PathLike = DEFAULT_OUT, stop_time: float | None = None,
                  study_values: Sequence[float] = STUDY_VALUES, study_horizon: float = STUDY_HORIZON,
-                 processes: int = 2) -> Path:
-    """Run everything and write ``out/report.md`` with its figures; returns the report's path."""
+                 processes: int = 2, campaigns: str | os.PathLike | None = None) -> Path:
+    """Run everything and write ``out/report.md`` with its figures; returns the report's path.
+    ``campaigns``: a folder holding the shipped campaigns' tables (``<name>/runs.parquet``, written
+    by ``orchestrate sweep``), reported with their figures."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
@@ -216,6 +214,8 @@ def write_report(out: str | os.PathLike = DEFAULT_OUT, stop_time: float | None =
     lines.append("")
 
     lines += _study_section(study, study_values, study_horizon)
+    if campaigns is not None:
+        lines += _campaign_sections(Path(campaigns), out)
 
     for example, items in figures.items():
         lines += [f"## Figures, Example {example}", "",
@@ -226,6 +226,35 @@ def write_report(out: str | os.PathLike = DEFAULT_OUT, stop_time: float | None =
     path = out / "report.md"
     path.write_text("\n".join(lines), encoding="utf-8")
     return path
+
+
+# name -> (title, headline findings) of the campaigns shipped in ssp/campaigns/
+SHIPPED_CAMPAIGNS = {"fixed_time_claim": ("the fixed-time claim over [-10, 10]^2", claim_headlines),
+                     "fault_tolerance": ("fault tolerance", fault_headlines)}
+
+
+def _campaign_sections(folder: Path, out: Path) -> list[str]:
+    """A section per shipped campaign whose table is ``folder/<name>/runs.parquet``; its figures and
+    summary go to ``out/campaigns/<name>/``."""
+    lines = []
+    for name, (title, headlines) in SHIPPED_CAMPAIGNS.items():
+        table = folder / name / "runs.parquet"
+        lines += [f"## Campaign: {title}", ""]
+        if not table.is_file():
+            lines += [f"Not run: no {table} (`orchestrate sweep ... --design ssp/campaigns/{name}.toml "
+                      f"--out {folder / name}`).", ""]
+            continue
+        rows, meta = read_table(table)
+        summary = campaign_report(table, out / "campaigns" / name)
+        walls = [r["wall_time"] for r in rows if r["wall_time"] is not None]
+        run_time = sum(w for w in walls if math.isfinite(w))
+        lines += [f"{meta.get('description', '')}: {len(rows)} runs (`orchestrate sweep`, design "
+                  f"`ssp/campaigns/{name}.toml`), {run_time:.0f} s of run time; details in "
+                  f"[campaigns/{name}/summary.md](campaigns/{name}/summary.md).", ""]
+        lines += [f"* {h}" for h in headlines(rows)] + [""]
+        figures = sorted(summary.parent.glob("*.png"))
+        lines += [f"![{p.stem}](campaigns/{name}/{p.name})" for p in figures] + [""]
+    return lines
 
 
 def _study_section(study: list[SettlingRow], values: Sequence[float], horizon: float) -> list[str]:
