@@ -33,6 +33,7 @@ CLEAN_ENV = {"PATH": "/usr/bin:/bin"}
 STEPS, H = 100, 1e-3
 T = STEPS * H
 OTHER_LIBPYTHON = Path("/usr/lib/x86_64-linux-gnu/libpython3.11.so.1.0")  # Debian's, not the build's
+MALLOC_DEBUG = Path("/lib/x86_64-linux-gnu/libc_malloc_debug.so.0")  # glibc's checking allocator
 pytestmark = [pytest.mark.system, pytest.mark.skipif(CC is None, reason="needs a C compiler for the host")]
 
 
@@ -146,6 +147,19 @@ def test_five_fmus_instantiated_at_once_in_five_threads(parallel_host: Path, unz
         result = subprocess.run(command, env=CLEAN_ENV, capture_output=True, text=True, timeout=120)
         assert result.returncode == 0, f"exit {result.returncode}\n{result.stdout}\n{result.stderr}"
         assert result.stdout.split() == ["ok"] * len(unzipped)
+
+
+@pytest.mark.skipif(not MALLOC_DEBUG.is_file(), reason="needs glibc's libc_malloc_debug.so.0")
+def test_exit_leaves_the_heap_intact(host: Path, unzipped: dict) -> None:
+    """pythonfmu 0.7.0 frees its PyState twice at exit when its binary is still loaded (the host
+    never unloads it, or cannot: it is NODELETE); the shim releases it once before. Under glibc's
+    heap checks that double free aborts the process ("free(): corrupted unsorted chunks")."""
+    env = CLEAN_ENV | {"LD_PRELOAD": str(MALLOC_DEBUG), "MALLOC_CHECK_": "3"}
+    inputs = {"x1": 0.0, "x2": 0.0, "yd": 0.0, "yd_dot": 0.0, "yd_ddot": 0.0}
+    result, got = run_host(host, unzipped["FixedTimeController"], inputs, ["r"], env)
+    check_ok(result)
+    assert "corrupted" not in result.stderr
+    assert got["r"] == pytest.approx(0.625 * (1 - math.exp(-T)), rel=1e-12)
 
 
 def test_missing_libpython_is_one_message_and_no_instance(host: Path, unzipped: dict) -> None:

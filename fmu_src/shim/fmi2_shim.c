@@ -129,6 +129,8 @@ static fmi2Component (*inner_fmi2Instantiate)(fmi2String, fmi2Type, fmi2String, 
                                               const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean);
 static void (*inner_fmi2FreeInstance)(fmi2Component);
 
+static void unload(void);
+
 static pthread_mutex_t load_lock = PTHREAD_MUTEX_INITIALIZER;
 static int loaded;            /* 0: not tried, 1: pythonfmu's binary is ready, -1: failed */
 static void *inner;           /* handle of <model>_pythonfmu.so */
@@ -396,6 +398,7 @@ static int load(void) {
     }
 #define RESOLVE(name, params, args) *(void **)(&inner_##name) = dlsym(inner, #name);
     FMI2_FORWARDED(RESOLVE)
+    atexit(unload); /* after pythonfmu's static destructors were registered: runs before them */
     return 0;
 }
 
@@ -450,8 +453,23 @@ EXPORT void fmi2FreeInstance(fmi2Component c) {
     EXPORT fmi2Status name params { return inner_##name ? inner_##name args : fmi2Error; }
 FMI2_FORWARDED(FORWARD)
 
-/* Unloading the shim unloads pythonfmu's binary too, as a host unloading it directly would. Python
-   itself stays: an interpreter cannot be unloaded. */
-__attribute__((destructor)) static void unload(void) {
-    if (inner) dlclose(inner);
+/* Releases pythonfmu's binary when the shim is unloaded and at exit, whichever comes first.
+
+   pythonfmu 0.7.0 releases its global std::shared_ptr<PyState> twice when its binary is still
+   loaded at exit: the C++ static destructor (an exit handler) frees the PyState, then its ELF
+   destructor finalizePythonInterpreter() assigns nullptr to the destroyed pointer and frees it
+   again: heap corruption, "free(): corrupted unsorted chunks" (NTNU-IHB/PythonFMU#228, #229; seen
+   here in fmpy and C hosts alike). dlclose cannot unload that binary (its STB_GNU_UNIQUE symbols
+   make it NODELETE), so the shim calls finalizePythonInterpreter() itself while the pointer is
+   alive: the PyState is freed once, and the later destructors see nullptr. The exit handler is
+   registered after pythonfmu's static destructors (at load), so it runs before them. Python itself
+   stays: an interpreter cannot be unloaded. */
+static void unload(void) {
+    if (!inner) return;
+    void (*finalize)(void) = (void (*)(void))dlsym(inner, "finalizePythonInterpreter");
+    if (finalize) finalize();
+    dlclose(inner);
+    inner = NULL;
 }
+
+__attribute__((destructor)) static void unload_with_shim(void) { unload(); }
