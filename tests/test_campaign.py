@@ -54,7 +54,8 @@ def scenario(built: Path) -> Path:
 def embedded(scenario: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The small grid on the embedded cluster (2 worker processes), trajectories every 10th row."""
     folder = tmp_path_factory.mktemp("embedded")
-    path = design(folder, GRID)
+    heatmap = {"kind": "heatmap", "x": "plant.x1_0", "y": "controller.mode", "metric": "settling_time"}
+    path = design(folder, GRID, plots=[heatmap])
     assert (
         main(
             [
@@ -115,7 +116,7 @@ def test_report_names_the_worst_runs(embedded: Path, tmp_path: Path) -> None:
     _, rows = read_rows(embedded / "runs.csv")
     slowest = max(rows, key=lambda r: r["settling_time"])
     assert "4 of 4 runs in the table: 4 ok, 0 failed, 0 timed out" in summary
-    worst_table = summary.split("## Worst runs by")[1]
+    worst_table = summary.split("## Worst runs by settling_time")[1]
     assert worst_table.split("\n")[4].startswith(f"| {slowest['run']} | example1_no_fault |")
     assert list(tmp_path.glob("*.png"))
 
