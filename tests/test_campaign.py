@@ -272,7 +272,7 @@ def test_timeout_is_a_row(scenario: Path, tmp_path: Path) -> None:
 
 
 def test_ctrl_c_keeps_finished_rows_and_resume_skips_them(scenario: Path, tmp_path: Path) -> None:
-    values = [round(-2 + 0.25 * i, 2) for i in range(12)]
+    values = [round(-2 + 0.25 * i, 2) for i in range(8)]
     path = design(tmp_path, {"plant.x1_0": values, "controller.mode": [0, 1]})
     out = tmp_path / "out"
     command = [
@@ -296,7 +296,7 @@ def test_ctrl_c_keeps_finished_rows_and_resume_skips_them(scenario: Path, tmp_pa
             time.sleep(0.1)
             if (out / "runs.csv").is_file():
                 seen = len(read_rows(out / "runs.csv")[1])
-        assert 3 <= seen < 24, "the campaign did not run, or ran too fast to interrupt"
+        assert 3 <= seen < 16, "the campaign did not run, or ran too fast to interrupt"
         os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C in a terminal goes to the whole process group
         _, stderr = proc.communicate(timeout=60)
     finally:
@@ -304,8 +304,9 @@ def test_ctrl_c_keeps_finished_rows_and_resume_skips_them(scenario: Path, tmp_pa
             os.killpg(proc.pid, signal.SIGKILL)
     assert proc.returncode == 130, stderr
     assert "interrupted;" in stderr and "rerun with --resume" in stderr
+    assert "Traceback" not in stderr  # the workers leave Ctrl-C to the client
     _, kept = read_rows(out / "runs.csv")
-    assert seen <= len(kept) < 24
+    assert seen <= len(kept) < 16
     assert all(r["status"] == "ok" for r in kept)
     assert pq.read_table(out / "runs.parquet").num_rows == len(kept)
 
@@ -314,8 +315,8 @@ def test_ctrl_c_keeps_finished_rows_and_resume_skips_them(scenario: Path, tmp_pa
     assert usage.value.code == 2
     done = subprocess.run(command + ["--resume", "--quiet"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
-    assert f"24 runs ({len(kept)} kept from before)" in done.stdout
+    assert f"16 runs ({len(kept)} kept from before)" in done.stdout
     _, rows = read_rows(out / "runs.csv")
-    assert [r["run"] for r in rows] == list(range(24))
+    assert [r["run"] for r in rows] == list(range(16))
     before = {r["run_id"]: r["wall_time"] for r in kept}
     assert all(r["wall_time"] == before[r["run_id"]] for r in rows if r["run_id"] in before)  # not rerun

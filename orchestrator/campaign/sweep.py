@@ -14,6 +14,7 @@ import io
 import json
 import logging
 import os
+import signal
 import sys
 import time
 import zipfile
@@ -164,10 +165,19 @@ def connect(
     )
     client = Client(cluster)
     try:
+        if processes:
+            client.run(_ignore_interrupts)
         yield client
     finally:
         client.close()
         cluster.close()
+
+
+def _ignore_interrupts() -> None:
+    """In an embedded worker process: Ctrl-C reaches the whole process group, but only the client
+    should handle it (it keeps the finished rows and closes the cluster; the workers printed
+    tracebacks)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _resume(folder: Path, columns: list[str], specs: list[RunSpec], resume: bool, force: bool) -> list[dict]:
