@@ -9,31 +9,36 @@
    2. if there is none, loads libpython with RTLD_NOW | RTLD_GLOBAL (so pythonfmu's undefined
       Python symbols resolve): FTC_PYTHON_LIBRARY if set, else the path recorded at build time in
       python_env.txt beside the shim;
-   3. if Python is not initialized, initializes it (without signal handlers: the host keeps
-      SIGINT), with PYTHONHOME set to the recorded home while initializing when the recorded
-      libpython is used and PYTHONHOME is unset, adds the site directories (FTC_PYTHON_PATH,
-      colon-separated, else the recorded ones) with site.addsitedir ahead of the interpreter's
-      own site-packages, and releases the GIL. pythonfmu then finds Python initialized, so it
-      neither initializes nor finalizes it, and takes the GIL with PyGILState_Ensure as it does
-      in a Python host;
-   4. opens <model>_pythonfmu.so with RTLD_NOW | RTLD_LOCAL and forwards every FMI call to it.
+   3. if Python is not initialized, initializes it (Py_InitializeEx(0): no signal handlers, the
+      host keeps SIGINT), with PYTHONHOME set to the recorded home during initialization when the
+      libpython in use is the recorded one and PYTHONHOME is unset (else an embedded Python
+      takes the stdlib of whatever python3 is first on PATH), adds the site directories
+      (FTC_PYTHON_PATH, colon-separated, else the recorded ones) with site.addsitedir ahead of
+      the interpreter's own site-packages, as a virtual environment's come first, and releases
+      the GIL. pythonfmu then finds Python initialized, so it neither initializes nor finalizes
+      it, and takes the GIL with PyGILState_Ensure as it does in a Python host. A lock on the
+      libpython file keeps FMUs instantiated in parallel threads from starting Python twice;
+   4. opens <model>_pythonfmu.so with RTLD_NOW | RTLD_LOCAL and forwards every FMI call to it
+      (fmi2GetTypesPlatform and fmi2GetVersion it answers itself, "default" and "2.0", so that
+      a host may call them before anything is loaded).
 
    When Python is already initialized in the process (fmpy, libcosimpy, OMSimulator's Python
    API), steps 2-3 do nothing. When something is missing, fmi2Instantiate logs one message
-   naming the model and everything it tried (host logger and stderr) and returns NULL.
+   naming the model and everything it tried (host logger and stderr) and returns NULL. At unload
+   and at exit the shim works around a double free in pythonfmu's binary (see unload()).
 
    Needs only a C compiler and libc: the Python C-API functions used are looked up with dlsym,
    so the shim does not depend on Python headers or on one Python version. */
 
 #define _GNU_SOURCE
 #include <dlfcn.h>
+#include <fcntl.h>
 #include <pthread.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <fcntl.h>
 #include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
