@@ -66,3 +66,14 @@ def test_fault_headlines_name_the_worst_fault() -> None:
         "fault <= 0.002 (run 0: K_inf = 0.10, L_bias = 0.50, t_fault = 3.00, b_r = 0.25, b_l = 0.75)."
     )
     assert finite == "example1, finite-time: 0 of 1 runs ok."
+
+
+def test_claim_headlines_with_the_mode_fixed_by_the_design() -> None:
+    rows = [
+        {k: v for k, v in claim_row(x1, 0.0, 1, settling=0.2).items() if k != "controller.mode"}
+        for x1 in (-1.0, 0.0, 1.0)
+    ]
+    assert claim_headlines(rows, {"controller.mode": 1}) == [
+        "finite-time: 3 initial states, 0 diverge (run fails), 0 never enter the band, 3 settle within "
+        "0.200 .. 0.200 s; every state with max(|x1(0)|, |x2(0)|) <= 1 settles."
+    ]

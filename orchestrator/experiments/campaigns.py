@@ -76,15 +76,19 @@ def _mode_name(value: object) -> str:
     return "fixed-time" if int(float(value)) == 0 else "finite-time"
 
 
-def claim_headlines(rows: Sequence[Mapping[str, object]]) -> list[str]:
+def claim_headlines(
+    rows: Sequence[Mapping[str, object]], fixed: Mapping[str, object] | None = None
+) -> list[str]:
     """Headline findings of the fixed-time claim campaign (``ssp/campaigns/fixed_time_claim.toml``):
     per law, how many initial states diverge (the run fails), never enter the band within the
     horizon, or settle, and by when; the largest square max(|x1(0)|, |x2(0)|) <= R from which every
-    run settles; and the states where one law settles and the other does not."""
+    run settles; and the states where one law settles and the other does not. ``fixed``: the
+    design's fixed overrides (where ``controller.mode`` is when it does not vary)."""
+    default_mode = (fixed or {}).get("controller.mode", 0)
     by_state: dict[tuple[float, float], dict[str, Mapping[str, object]]] = {}
     for r in rows:
         by_state.setdefault((float(r["plant.x1_0"]), float(r["plant.x2_0"])), {})[
-            _mode_name(r["controller.mode"])
+            _mode_name(r.get("controller.mode", default_mode))
         ] = r
 
     def settled(r: Mapping[str, object] | None) -> bool:
@@ -93,6 +97,8 @@ def claim_headlines(rows: Sequence[Mapping[str, object]]) -> list[str]:
     lines = []
     for mode in ("fixed-time", "finite-time"):
         runs = [s[mode] for s in by_state.values() if mode in s]
+        if not runs:
+            continue
         failed = [r for r in runs if r["status"] != "ok"]
         never = [r for r in runs if r["status"] == "ok" and not settled(r)]
         times = [float(r["settling_time"]) for r in runs if settled(r)]
@@ -110,6 +116,8 @@ def claim_headlines(rows: Sequence[Mapping[str, object]]) -> list[str]:
             text += f" within {min(times):.3f} .. {max(times):.3f} s"
         text += f"; every state with max(|x1(0)|, |x2(0)|) <= {largest:g} settles."
         lines.append(text)
+    if len(lines) < 2:
+        return lines
     only_fixed = sum(
         settled(s.get("fixed-time")) and not settled(s.get("finite-time")) for s in by_state.values()
     )
@@ -123,12 +131,18 @@ def claim_headlines(rows: Sequence[Mapping[str, object]]) -> list[str]:
     return lines
 
 
-def fault_headlines(rows: Sequence[Mapping[str, object]]) -> list[str]:
+def fault_headlines(
+    rows: Sequence[Mapping[str, object]], fixed: Mapping[str, object] | None = None
+) -> list[str]:
     """Headline findings of the fault-tolerance campaign: per scenario and law, failures and the
-    largest MAE and |y - yd| after the fault, with the worst run's fault."""
+    largest MAE and |y - yd| after the fault, with the worst run's fault (``fixed``: as for
+    :func:`claim_headlines`)."""
+    default_mode = (fixed or {}).get("controller.mode", 0)
     groups: dict[tuple[str, str], list[Mapping[str, object]]] = {}
     for r in rows:
-        groups.setdefault((str(r["scenario"]), _mode_name(r["controller.mode"])), []).append(r)
+        groups.setdefault(
+            (str(r["scenario"]), _mode_name(r.get("controller.mode", default_mode))), []
+        ).append(r)
     lines = []
     for (scenario, mode), runs in sorted(groups.items()):
         ok = [r for r in runs if r["status"] == "ok"]

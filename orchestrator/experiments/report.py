@@ -230,6 +230,7 @@ def write_report(out: str | os.PathLike = DEFAULT_OUT, stop_time: float | None =
 
 # name -> (title, headline findings) of the campaigns shipped in ssp/campaigns/
 SHIPPED_CAMPAIGNS = {"fixed_time_claim": ("the fixed-time claim over [-10, 10]^2", claim_headlines),
+                     "fixed_time_claim_fine_step": ("the fixed-time claim at a 0.1 ms step", claim_headlines),
                      "fault_tolerance": ("fault tolerance", fault_headlines)}
 
 
@@ -251,7 +252,7 @@ def _campaign_sections(folder: Path, out: Path) -> list[str]:
         lines += [f"{meta.get('description', '')}: {len(rows)} runs (`orchestrate sweep`, design "
                   f"`ssp/campaigns/{name}.toml`), {run_time:.0f} s of run time; details in "
                   f"[campaigns/{name}/summary.md](campaigns/{name}/summary.md).", ""]
-        lines += [f"* {h}" for h in headlines(rows)] + [""]
+        lines += [f"* {h}" for h in headlines(rows, meta.get("fixed", {}))] + [""]
         figures = sorted(summary.parent.glob("*.png"))
         lines += [f"![{p.stem}](campaigns/{name}/{p.name})" for p in figures] + [""]
     return lines
