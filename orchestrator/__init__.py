@@ -39,11 +39,12 @@ def open_system(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | o
 def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: float | None = None,
         parameter_sets: Iterable[str | os.PathLike] = (), overrides: Mapping[str, object] | None = None,
         master: str = "gauss-seidel", output: str | os.PathLike | None = None,
-        progress: Callable[[int, int], None] | None = None) -> np.ndarray:
+        progress: Callable[[int, int], None] | None = None, start_time: float | None = None) -> np.ndarray:
     """Run a scenario (``.ssp`` archive or folder) and return the results as a structured array
     with a ``time`` field and one ``<component>.<connector>`` field per connector.
 
-    Stop time and step default to the SSD's DefaultExperiment and step annotation (1 ms if none).
+    Start time, stop time and step default to the SSD's DefaultExperiment and step annotation (1 ms
+    if none); the step must divide the run (:func:`orchestrator.validate.timing`).
     ``parameter_sets`` are ``.ssv`` files naming parameters ``<component>.<variable>``, applied after
     the SSD's bindings; ``overrides`` (``{"controller.k1": 12}``) apply last. ``output``: CSV file
     written as the run goes. Raises ScenarioError for a bad set-up and SimulationError (with the
@@ -52,5 +53,5 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
     if master not in MASTERS:
         raise ValueError(f"unknown master '{master}' (choose from {', '.join(MASTERS)})")
     with open_system(scenario, parameter_sets=parameter_sets, overrides=overrides) as system:
-        start, stop, h = timing(system.structure, stop_time, step)
+        start, stop, h = timing(system.structure, stop_time, step, start_time)
         return MASTERS[master](system, start, stop, h, output, progress).run()

@@ -13,9 +13,10 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import platform
 import sys
 from collections.abc import Callable, Sequence
-from importlib.metadata import entry_points
+from importlib.metadata import PackageNotFoundError, entry_points, version
 from pathlib import Path
 
 from . import MASTERS, run
@@ -23,7 +24,7 @@ from .errors import OrchestratorError, ScenarioError, SimulationError, UsageErro
 from .results import plot_result, read_result
 from .validate import validate
 
-__all__ = ["COMMAND_GROUP", "add_command", "main", "resolve_scenario"]
+__all__ = ["COMMAND_GROUP", "add_command", "main", "resolve_scenario", "version_line"]
 
 COMMAND_GROUP = "orchestrate.commands"
 
@@ -80,13 +81,16 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, handler: Hand
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="orchestrate", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=version_line())
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
     p = add_command(sub, "run", _run, help="simulate a scenario", description=RUN_HELP,
                     formatter_class=argparse.RawDescriptionHelpFormatter)
     _scenario_arguments(p)
+    p.add_argument("--start-time", type=float, metavar="T", help="start time in s (default: from the SSD)")
     p.add_argument("--stop-time", type=float, metavar="T", help="stop time in s (default: from the SSD)")
-    p.add_argument("--step", type=float, metavar="H", help="communication step in s (default: from the SSD)")
+    p.add_argument("--step", type=float, metavar="H",
+                   help="communication step in s (default: from the SSD); must divide the run")
     p.add_argument("--output", type=Path, metavar="FILE.csv", help="result CSV (default: results/<name>.csv)")
     p.add_argument("--plot", type=Path, metavar="FILE.png", help="plot file (default: results/<name>.png)")
     p.add_argument("--no-plot", action="store_true", help="do not plot")
@@ -125,6 +129,18 @@ def _overrides(items: Sequence[str]) -> dict[str, str]:
             raise UsageError(f"--set expects COMPONENT.VARIABLE=VALUE (got '{item}')")
         overrides[key.strip()] = value.strip()
     return overrides
+
+
+def version_line() -> str:
+    """``orchestrate X.Y.Z (fmpy A, numpy B, Python C)``: what ``--version`` prints."""
+    def installed(name: str) -> str:
+        try:
+            return version(name)
+        except PackageNotFoundError:
+            return "not installed"
+
+    return (f"orchestrate {installed('fixed-time-cosim')} (fmpy {installed('fmpy')}, "
+            f"numpy {installed('numpy')}, Python {platform.python_version()})")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -188,8 +204,9 @@ def _run(args: argparse.Namespace) -> int:
     overrides = _overrides(args.set)
     if args.step is not None and not (math.isfinite(args.step) and args.step > 0):
         raise UsageError(f"--step must be positive and finite (got {args.step!r})")
-    if args.stop_time is not None and not math.isfinite(args.stop_time):
-        raise UsageError(f"--stop-time must be finite (got {args.stop_time!r})")
+    for option, value in (("--stop-time", args.stop_time), ("--start-time", args.start_time)):
+        if value is not None and not math.isfinite(value):
+            raise UsageError(f"{option} must be finite (got {value!r})")
     scenario = resolve_scenario(args.scenario)
     name = scenario.stem if scenario.is_file() else scenario.resolve().name
     output = args.output or Path("results") / f"{name}.csv"
@@ -201,7 +218,8 @@ def _run(args: argparse.Namespace) -> int:
         logging.getLogger().setLevel(logging.INFO)
     try:
         result = run(scenario, stop_time=args.stop_time, step=args.step, parameter_sets=args.parameter_set,
-                     overrides=overrides, master=args.master, output=output, progress=progress)
+                     overrides=overrides, master=args.master, output=output, progress=progress,
+                     start_time=args.start_time)
     except SimulationError as exc:
         rows = len(getattr(exc, "result", ()))
         detail = f" ({messages.last})" if messages.last and "(" not in str(exc) else ""

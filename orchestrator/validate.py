@@ -21,8 +21,8 @@ from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import ScenarioError
-from .master import time_grid
+from .errors import ScenarioError, UsageError
+from .master import NS_PER_S, time_grid
 from .ssp import SSD_NAME, SystemStructure, scan_parameter_set, scan_scenario, unpack_scenario
 from .system import System
 
@@ -94,19 +94,38 @@ def check_scenario(scenario: str | os.PathLike, stack: ExitStack, *,
 
 
 def timing(structure: SystemStructure, stop_time: float | None = None,
-           step: float | None = None) -> tuple[float, float, float]:
+           step: float | None = None, start_time: float | None = None) -> tuple[float, float, float]:
     """Start, stop and step of a run: the arguments, else the SSD's DefaultExperiment and step
-    annotation (1 ms if none). Raises ScenarioError when there is no stop time or no time grid."""
+    annotation (1 ms if none).
+
+    The run must be a whole number of steps (in the integer nanoseconds the masters count in):
+    a stop time the step does not divide would end the run early without a word, and a step longer
+    than the run would run no step at all. Raises UsageError when a value given as an argument
+    makes the grid impossible, ScenarioError when the SSD's own values do (or there is no stop)."""
     experiment = structure.experiment
+    start = start_time if start_time is not None else experiment.start_time
     stop = stop_time if stop_time is not None else experiment.stop_time
     if stop is None:
         raise ScenarioError(f"{structure.ssd_file}: no stopTime in DefaultExperiment; give a stop time")
     h = step if step is not None else experiment.step or DEFAULT_STEP
+    given = [name for name, value in (("--start-time", start_time), ("--stop-time", stop_time),
+                                       ("--step", step)) if value is not None]
+    error = UsageError if given else ScenarioError
+    where = ", ".join(given) if given else structure.ssd_file
     try:
-        time_grid(experiment.start_time, stop, h)
+        grid = time_grid(start, stop, h)
     except ValueError as exc:
-        raise ScenarioError(f"{structure.ssd_file}: {exc}") from exc
-    return experiment.start_time, stop, h
+        raise error(f"{where}: {exc}") from exc
+    t0, t1, hn = (round(x * NS_PER_S) for x in (start, stop, h))
+    if len(grid) < 2:
+        raise error(f"{where}: the step {h:g} s is longer than the run ({start:g} .. {stop:g} s): "
+                    "no step would be taken")
+    if (t1 - t0) % hn:
+        n = (t1 - t0) // hn
+        raise error(f"{where}: the step {h:g} s does not divide the run {start:g} .. {stop:g} s "
+                    f"(the last step would end at {grid[-1]:.9g} s); stop at {start + n * h:.9g} or "
+                    f"{start + (n + 1) * h:.9g} s, or choose a step that divides {stop - start:.9g} s")
+    return start, stop, h
 
 
 def validate(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.PathLike] = (),

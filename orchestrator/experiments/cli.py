@@ -10,7 +10,7 @@ from ..errors import ScenarioError, UsageError
 from ..results import read_result
 from . import regression, report
 from .metrics import format_table, tracking_metrics
-from .scenarios import SCENARIO_DIR, build_scenarios
+from .scenarios import build_scenarios
 
 __all__ = ["register"]
 
@@ -37,11 +37,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="one signal's tube, e.g. plant.y=1e-3 or plant.y=atol:1e-3,quiet_atol:1e-6")
     p.add_argument("--plot-dir", type=Path, metavar="DIR", help="write DIR/<signal>.png per failing signal")
 
+    # relative to the working directory, as 'build' and 'run' resolve build/ and ssp/
     p = add_command(sub, "baseline", _baseline, help="run the scenarios and rewrite the regression baselines")
     p.add_argument("--scenario", action="append", default=[], metavar="NAME",
                    help="scenario folder name in --sources (repeatable; default: all)")
-    p.add_argument("--sources", type=Path, default=SCENARIO_DIR, help="scenario sources (default: ssp/)")
-    p.add_argument("--dest", type=Path, default=regression.BASELINE_DIR,
+    p.add_argument("--sources", type=Path, default=Path("ssp"), help="scenario sources (default: ssp/)")
+    p.add_argument("--dest", type=Path, default=Path("tests") / "baselines",
                    help="baselines (default: tests/baselines/)")
     p.add_argument("--grid", type=float, default=regression.BASELINE_GRID,
                    help=f"grid in s (default {regression.BASELINE_GRID})")
@@ -104,6 +105,9 @@ def _compare(args: argparse.Namespace) -> int:
 def _baseline(args: argparse.Namespace) -> int:
     if args.grid <= 0:
         raise UsageError("--grid must be positive")
+    if not list(args.sources.glob("*/SystemStructure.ssd")):
+        raise UsageError(f"no scenarios found in {args.sources}/ (run from the project folder or give "
+                         "--sources)")
     for path in regression.write_baselines(args.scenario, args.dest, args.sources, args.grid):
         print(path)
     return 0

@@ -1,0 +1,106 @@
+"""Issue 12: mistakes that used to pass silently with exit 0 now fail or warn.
+
+Each test reproduces one silent case of the issue and checks the one-line error or warning.
+Oracles: the time grid by exact fractions, the loop's closed form x_k = x0 (1 + h k)^k (see
+test_orch_master), package metadata, the files as written by hand.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+from fractions import Fraction
+from importlib.metadata import version
+from pathlib import Path
+
+import numpy as np
+import pytest
+from orch_helpers import loop_scenario
+
+import orchestrator
+from orchestrator.cli import _parser, main
+from orchestrator.errors import ScenarioError, UsageError
+from orchestrator.ssp import Experiment, SystemStructure
+from orchestrator.validate import timing
+
+H, K, X0 = 0.01, -2.0, 1.0
+
+
+@pytest.fixture(scope="module")
+def loop(test_fmus, tmp_path_factory) -> Path:
+    return loop_scenario(tmp_path_factory.mktemp("loop") / "loop", test_fmus, gain=K, x0=X0, stop=1.0, step=H)
+
+
+def _structure(start: float = 0.0, stop: float | None = 30.0, step: float | None = 1e-3) -> SystemStructure:
+    return SystemStructure("s", (), (), Experiment(start, stop, step), ssd_file="s/SystemStructure.ssd")
+
+
+# -- part 7: CLI consistency ----------------------------------------------------------------------
+def test_version(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0
+    expected = f"orchestrate {version('fixed-time-cosim')} (fmpy {version('fmpy')}"
+    assert capsys.readouterr().out.startswith(expected)
+
+
+def test_every_subcommand_help_is_under_the_orchestrate_name(capsys):
+    parser = _parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    assert {"run", "validate", "plot", "metrics", "compare", "baseline", "report"} <= set(sub.choices)
+    for name in sub.choices:
+        with pytest.raises(SystemExit) as info:
+            main([name, "--help"])
+        assert info.value.code == 0
+        assert capsys.readouterr().out.startswith(f"usage: orchestrate {name} "), name
+
+
+@pytest.mark.parametrize(("stop", "step"), [(30.0005, 1e-3), (1.0, 0.3), (0.105, 0.01)])
+def test_a_step_that_does_not_divide_the_run_is_refused(stop, step):
+    """Before: the run silently ended at the last whole step (e.g. 0.9 s of 1 s with h = 0.3)."""
+    last = Fraction(stop) // Fraction(step) * Fraction(step)
+    assert last < Fraction(stop)  # the oracle: the grid would have ended early
+    with pytest.raises(UsageError, match=r"--stop-time, --step: the step .* does not divide the run"):
+        timing(_structure(), stop, step)
+    with pytest.raises(ScenarioError, match=r"s/SystemStructure.ssd: the step .* does not divide"):
+        timing(_structure(stop=stop, step=step))
+
+
+def test_a_step_longer_than_the_run_is_a_usage_error():
+    """Before: '--step 40' with stop 30 ran zero steps and exited 0."""
+    with pytest.raises(UsageError, match=r"--step: the step 40 s is longer than the run \(0 .. 30 s\)"):
+        timing(_structure(), step=40.0)
+
+
+def test_timing_takes_start_and_defaults():
+    assert timing(_structure(start=2.0, stop=30.0, step=None)) == (2.0, 30.0, 1e-3)
+    assert timing(_structure(), start_time=0.5, stop_time=1.0, step=0.25) == (0.5, 1.0, 0.25)
+    with pytest.raises(UsageError, match="before the start time"):
+        timing(_structure(), start_time=5.0, stop_time=1.0)
+
+
+@pytest.mark.system
+def test_cli_refuses_bad_grids_and_honours_start_time(loop, tmp_path, capsys):
+    for argv in (["--stop-time", "0.105"], ["--step", "40"]):
+        with pytest.raises(SystemExit) as info:
+            main(["run", str(loop), "--quiet", "--no-plot", "--output", str(tmp_path / "r.csv"), *argv])
+        assert info.value.code == 2
+        assert "orchestrate: error: --" in capsys.readouterr().err
+    r = orchestrator.run(loop, start_time=0.5, stop_time=1.0)
+    k = np.arange(len(r))
+    assert r["time"].tolist() == [float(Fraction("0.5") + Fraction(int(i)) * Fraction("0.01")) for i in k]
+    np.testing.assert_allclose(r["integrator.x"], X0 * (1 + H * K) ** k, rtol=1e-13)
+    assert main(["run", str(loop), "--start-time", "0.5", "--quiet", "--no-plot",
+                 "--output", str(tmp_path / "s.csv")]) == 0
+
+
+def test_baseline_resolves_paths_from_the_working_directory(tmp_path):
+    """Before: 'baseline' read ssp/ and wrote tests/baselines/ beside the installed package while
+    'build' and 'run' used the working directory."""
+    done = subprocess.run([str(Path(sys.executable).with_name("orchestrate")), "baseline"], cwd=tmp_path,
+                          capture_output=True, text=True, env={**os.environ, "PYTHONWARNINGS": "ignore"})
+    assert done.returncode == 2
+    assert "no scenarios found in ssp/" in done.stderr
+    assert not (tmp_path / "tests").exists()
