@@ -8,18 +8,19 @@ validate runs ssp and system as far as they go and reports everything (``orchest
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import ExitStack, contextmanager
 
 import numpy as np
 
-from .errors import OrchestratorError, ScenarioError, SimulationError, UsageError
+from .errors import OrchestratorError, ScenarioError, ScenarioWarning, SimulationError, UsageError
 from .master import MASTERS
 from .system import PortRef, System
 from .validate import DEFAULT_STEP, check_scenario, timing
 
-__all__ = ["DEFAULT_STEP", "MASTERS", "OrchestratorError", "PortRef", "ScenarioError", "SimulationError",
-           "UsageError", "open_system", "run"]
+__all__ = ["DEFAULT_STEP", "MASTERS", "OrchestratorError", "PortRef", "ScenarioError", "ScenarioWarning",
+           "SimulationError", "UsageError", "open_system", "run"]
 
 
 @contextmanager
@@ -39,7 +40,8 @@ def open_system(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | o
 def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: float | None = None,
         parameter_sets: Iterable[str | os.PathLike] = (), overrides: Mapping[str, object] | None = None,
         master: str = "gauss-seidel", output: str | os.PathLike | None = None,
-        progress: Callable[[int, int], None] | None = None, start_time: float | None = None) -> np.ndarray:
+        progress: Callable[[int, int], None] | None = None, start_time: float | None = None,
+        strict: bool = False) -> np.ndarray:
     """Run a scenario (``.ssp`` archive or folder) and return the results as a structured array
     with a ``time`` field and one ``<component>.<connector>`` field per connector.
 
@@ -47,11 +49,16 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
     if none); the step must divide the run (:func:`orchestrator.validate.timing`).
     ``parameter_sets`` are ``.ssv`` files naming parameters ``<component>.<variable>``, applied after
     the SSD's bindings; ``overrides`` (``{"controller.k1": 12}``) apply last. ``output``: CSV file
-    written as the run goes. Raises ScenarioError for a bad set-up and SimulationError (with the
-    rows computed so far in ``.result``) when an FMU fails.
+    written as the run goes. An input that no connection feeds and no value was given for is a
+    ScenarioWarning (``strict``: a ScenarioError). Raises ScenarioError for a bad set-up and
+    SimulationError (with the rows computed so far in ``.result``) when an FMU fails.
     """
     if master not in MASTERS:
         raise ValueError(f"unknown master '{master}' (choose from {', '.join(MASTERS)})")
     with open_system(scenario, parameter_sets=parameter_sets, overrides=overrides) as system:
         start, stop, h = timing(system.structure, stop_time, step, start_time)
+        if strict and system.unconnected:
+            raise ScenarioError(system.unconnected)
+        for message in system.unconnected:
+            warnings.warn(message, ScenarioWarning, stacklevel=2)
         return MASTERS[master](system, start, stop, h, output, progress).run()

@@ -15,12 +15,13 @@ import logging
 import math
 import platform
 import sys
+import warnings
 from collections.abc import Callable, Sequence
 from importlib.metadata import PackageNotFoundError, entry_points, version
 from pathlib import Path
 
 from . import MASTERS, run
-from .errors import OrchestratorError, ScenarioError, SimulationError, UsageError
+from .errors import OrchestratorError, ScenarioError, ScenarioWarning, SimulationError, UsageError
 from .results import plot_result, read_result
 from .validate import validate
 
@@ -61,7 +62,8 @@ types, units), parameter values (names, types, ranges), unconnected inputs and a
 Each stage goes as far as it can, and every problem is printed on its own line naming the file,
 component and connector or variable:
   error:   'run' would refuse the scenario
-  warning: FMI non-compliance that 'run' tolerates (fmpy's full FMU validation), or no stop time
+  warning: FMI non-compliance that 'run' tolerates (fmpy's full FMU validation), no stop time, or
+           an input that no connection feeds (it keeps the FMU's start value; 'run --strict' refuses)
 
 exit status: 0 no error (warnings allowed), 1 errors found, 2 usage error.
 """
@@ -95,6 +97,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", type=Path, metavar="FILE.png", help="plot file (default: results/<name>.png)")
     p.add_argument("--no-plot", action="store_true", help="do not plot")
     p.add_argument("--master", choices=list(MASTERS), default="gauss-seidel", help="master algorithm")
+    p.add_argument("--strict", action="store_true",
+                   help="refuse the scenario when an input is not connected (default: a warning)")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
     p.add_argument("--verbose", action="store_true", help="show the FMUs' log messages as they come")
 
@@ -217,9 +221,12 @@ def _run(args: argparse.Namespace) -> int:
     if args.verbose:
         logging.getLogger().setLevel(logging.INFO)
     try:
-        result = run(scenario, stop_time=args.stop_time, step=args.step, parameter_sets=args.parameter_set,
-                     overrides=overrides, master=args.master, output=output, progress=progress,
-                     start_time=args.start_time)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ScenarioWarning)
+            result = run(scenario, stop_time=args.stop_time, step=args.step,
+                         parameter_sets=args.parameter_set, overrides=overrides, master=args.master,
+                         output=output, progress=progress, start_time=args.start_time, strict=args.strict)
+        _print_warnings(caught)
     except SimulationError as exc:
         rows = len(getattr(exc, "result", ()))
         detail = f" ({messages.last})" if messages.last and "(" not in str(exc) else ""
@@ -245,6 +252,15 @@ def _run(args: argparse.Namespace) -> int:
         span = f"t = {result['time'][0]:g} .. {result['time'][-1]:g} s"
         print(f"{name}: {len(result)} rows, {span} -> {output}{extra}")
     return 0
+
+
+def _print_warnings(caught: Sequence[warnings.WarningMessage]) -> None:
+    """Scenario warnings on stderr, one line each (every run, also with --quiet); others re-issued."""
+    for w in caught:
+        if issubclass(w.category, ScenarioWarning):
+            print(f"orchestrate: warning: {w.message}", file=sys.stderr)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
 def _validate(args: argparse.Namespace) -> int:

@@ -6,7 +6,7 @@ line returns after printing the one-line message.
 
 from __future__ import annotations
 
-__all__ = ["OrchestratorError", "ScenarioError", "SimulationError", "UsageError"]
+__all__ = ["OrchestratorError", "ScenarioError", "ScenarioWarning", "SimulationError", "UsageError"]
 
 
 class OrchestratorError(Exception):
@@ -56,3 +56,8 @@ class SimulationError(OrchestratorError, RuntimeError):
         if detail:
             message += f" ({detail})"
         super().__init__(message)
+
+
+class ScenarioWarning(UserWarning):
+    """A scenario that runs but is probably not what was meant (e.g. an input no connection feeds);
+    ``run(strict=True)`` (``orchestrate run --strict``) makes it a ScenarioError."""

@@ -70,9 +70,10 @@ class System:
     ``problems``; with ``strict`` (the default) they raise one ScenarioError. Components named in
     ``no_fmu`` (FMU missing, already reported) are checked only as far as the SSD goes; those in
     ``partial`` (some parameter values unreadable, already reported) are not checked for inputs
-    without a value. ``fmu_warnings`` adds fmpy's full FMU validation (``validate_fmu``): what it
-    finds beyond the checks a run needs goes to ``warnings``. ``schedule`` is empty when there are
-    problems.
+    without a value. Inputs left at the FMU's start value, with no connection and no value given,
+    are listed in ``unconnected`` (and ``warnings``). ``fmu_warnings`` adds fmpy's full FMU
+    validation (``validate_fmu``): what it finds beyond the checks a run needs goes to ``warnings``.
+    ``schedule`` is empty when there are problems.
     """
 
     def __init__(self, structure: SystemStructure,
@@ -276,15 +277,24 @@ class System:
                 comp.start_values[ref.connector] = value
 
     def _check_inputs(self, problems: list[str], partial: Collection[str]) -> None:
+        """An input that no connection feeds: an error without a start value; otherwise a warning
+        in ``unconnected`` (also in ``warnings``) unless a parameter set or override gave it a value,
+        since every pythonfmu input has a start value and a deleted connection would go unnoticed."""
+        self.unconnected: list[str] = []
         for comp in self.components.values():
             if comp.name in partial:
                 continue
             for v in comp.model.modelVariables:
                 ref = PortRef(comp.name, v.name)
-                if (v.causality == "input" and ref not in self.links and v.start is None
-                        and v.name not in comp.start_values):
-                    problems.append(f"{self.ssd}: component '{comp.name}', input '{v.name}' is neither "
-                                    "connected nor has a start value")
+                if v.causality != "input" or ref in self.links or v.name in comp.start_values:
+                    continue
+                where = f"{self.ssd}: component '{comp.name}', input '{v.name}'"
+                if v.start is None:
+                    problems.append(f"{where} is neither connected nor has a start value")
+                else:
+                    self.unconnected.append(f"{where} is not connected: it keeps the FMU's start "
+                                            f"value {v.start} for the whole run")
+        self.warnings.extend(self.unconnected)
 
     # -- propagation order --------------------------------------------------------------------
     def _feeds(self, comp: ComponentModel, inputs: Iterable[str]) -> bool:

@@ -11,18 +11,21 @@ import argparse
 import os
 import subprocess
 import sys
+import warnings
+import zipfile
 from fractions import Fraction
 from importlib.metadata import version
 from pathlib import Path
 
 import numpy as np
 import pytest
+from lxml import etree
 from orch_helpers import loop_scenario
 
 import orchestrator
 from orchestrator.cli import _parser, main
-from orchestrator.errors import ScenarioError, UsageError
-from orchestrator.ssp import Experiment, SystemStructure
+from orchestrator.errors import ScenarioError, ScenarioWarning, UsageError
+from orchestrator.ssp import NS, SSD_NAME, Experiment, SystemStructure
 from orchestrator.validate import timing
 
 H, K, X0 = 0.01, -2.0, 1.0
@@ -104,3 +107,44 @@ def test_baseline_resolves_paths_from_the_working_directory(tmp_path):
     assert done.returncode == 2
     assert "no scenarios found in ssp/" in done.stderr
     assert not (tmp_path / "tests").exists()
+
+
+# -- part 3: unconnected inputs -------------------------------------------------------------------
+def _without_connection(archive: Path, folder: Path, start: str, end: str) -> Path:
+    """The scenario of ``archive`` unpacked into ``folder`` with the connection start -> end deleted
+    by hand in the SSD's XML."""
+    with zipfile.ZipFile(archive) as zf:
+        zf.extractall(folder)
+    ssd = folder / SSD_NAME
+    tree = etree.parse(str(ssd))
+    (a, b), (c, d) = start.split("."), end.split(".")
+    found = tree.getroot().findall(
+        f"ssd:System/ssd:Connections/ssd:Connection[@startElement='{a}'][@startConnector='{b}']"
+        f"[@endElement='{c}'][@endConnector='{d}']", NS)
+    assert len(found) == 1
+    found[0].getparent().remove(found[0])
+    tree.write(str(ssd))
+    return folder
+
+
+@pytest.mark.system
+def test_an_unconnected_input_warns_on_run_and_validate_and_fails_with_strict(built, tmp_path, capsys):
+    """Before: deleting plant.x2 -> actuator.x2 ran to the end with no word (x2 stayed at its start 0)."""
+    folder = _without_connection(built / "ssp" / "pendulum.ssp", tmp_path / "p", "plant.x2", "actuator.x2")
+    expected = (f"{folder / SSD_NAME}: component 'actuator', input 'x2' is not connected: it keeps the "
+                "FMU's start value 0 for the whole run")
+    with pytest.warns(ScenarioWarning) as caught:
+        orchestrator.run(folder, stop_time=0.002)
+    assert [str(w.message) for w in caught] == [expected]
+    argv = ["run", str(folder), "--stop-time", "0.002", "--quiet", "--no-plot",
+            "--output", str(tmp_path / "r.csv")]
+    assert main(argv) == 0
+    assert capsys.readouterr().err.splitlines() == [f"orchestrate: warning: {expected}"]
+    assert main([*argv, "--strict"]) == 1
+    assert capsys.readouterr().err.splitlines() == [f"orchestrate: error: {expected}"]
+    assert main(["validate", str(folder)]) == 0
+    assert f"warning: {expected}" in capsys.readouterr().out.splitlines()
+    # a value given on purpose is not a mistake: no warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ScenarioWarning)
+        orchestrator.run(folder, stop_time=0.002, overrides={"actuator.x2": 0.0})
