@@ -25,13 +25,15 @@ __all__ = ["DEFAULT_STEP", "MASTERS", "OrchestratorError", "PortRef", "ScenarioE
 
 @contextmanager
 def open_system(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.PathLike] = (),
-                overrides: Mapping[str, object] | None = None) -> Iterator[System]:
+                overrides: Mapping[str, object] | None = None,
+                fmu_dirs: Iterable[str | os.PathLike] = ()) -> Iterator[System]:
     """Open, read and validate a scenario (``.ssp`` archive or folder); an archive stays unpacked
-    until the ``with`` block ends. Raises ScenarioError listing every problem found (the checks of
-    :func:`orchestrator.validate.validate`, without its warnings)."""
+    until the ``with`` block ends. FMUs missing from the scenario are looked up by file name in
+    ``fmu_dirs`` (a source folder with the built FMUs). Raises ScenarioError listing every problem
+    found (the checks of :func:`orchestrator.validate.validate`, without its warnings)."""
     with ExitStack() as stack:
         system, errors, _ = check_scenario(scenario, stack, parameter_sets=parameter_sets,
-                                           overrides=overrides)
+                                           overrides=overrides, fmu_dirs=fmu_dirs)
         if system is None or errors:
             raise ScenarioError(errors)
         yield system
@@ -41,7 +43,7 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
         parameter_sets: Iterable[str | os.PathLike] = (), overrides: Mapping[str, object] | None = None,
         master: str = "gauss-seidel", output: str | os.PathLike | None = None,
         progress: Callable[[int, int], None] | None = None, start_time: float | None = None,
-        strict: bool = False) -> np.ndarray:
+        strict: bool = False, fmu_dirs: Iterable[str | os.PathLike] = ()) -> np.ndarray:
     """Run a scenario (``.ssp`` archive or folder) and return the results as a structured array
     with a ``time`` field and one ``<component>.<connector>`` field per connector.
 
@@ -50,12 +52,14 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
     ``parameter_sets`` are ``.ssv`` files naming parameters ``<component>.<variable>``, applied after
     the SSD's bindings; ``overrides`` (``{"controller.k1": 12}``) apply last. ``output``: CSV file
     written as the run goes. An input that no connection feeds and no value was given for is a
-    ScenarioWarning (``strict``: a ScenarioError). Raises ScenarioError for a bad set-up and
-    SimulationError (with the rows computed so far in ``.result``) when an FMU fails.
+    ScenarioWarning (``strict``: a ScenarioError). ``fmu_dirs``: as for :func:`open_system`.
+    Raises ScenarioError for a bad set-up and SimulationError (with the rows computed so far in
+    ``.result``) when an FMU fails.
     """
     if master not in MASTERS:
         raise ValueError(f"unknown master '{master}' (choose from {', '.join(MASTERS)})")
-    with open_system(scenario, parameter_sets=parameter_sets, overrides=overrides) as system:
+    with open_system(scenario, parameter_sets=parameter_sets, overrides=overrides,
+                     fmu_dirs=fmu_dirs) as system:
         start, stop, h = timing(system.structure, stop_time, step, start_time)
         if strict and system.unconnected:
             raise ScenarioError(system.unconnected)

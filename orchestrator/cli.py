@@ -25,7 +25,8 @@ from .errors import OrchestratorError, ScenarioError, ScenarioWarning, Simulatio
 from .results import plot_result, read_result
 from .validate import validate
 
-__all__ = ["COMMAND_GROUP", "add_command", "main", "resolve_scenario", "version_line"]
+__all__ = ["COMMAND_GROUP", "add_command", "fmu_dirs", "main", "resolve_scenario", "stale_build",
+           "version_line"]
 
 COMMAND_GROUP = "orchestrate.commands"
 
@@ -44,7 +45,10 @@ Run 'orchestrate COMMAND --help' for the options of a command.
 """
 RUN_HELP = """\
 SCENARIO is a .ssp archive, a folder holding SystemStructure.ssd, or the name of a built
-scenario (build/ssp/NAME.ssp). Stop time and step come from the scenario unless given.
+scenario (build/ssp/NAME.ssp). A built scenario whose sources (ssp/NAME/, fmu_src/, controller/)
+changed after the build is refused, naming the changed file. A scenario source folder (ssp/NAME)
+runs directly, with the FMUs of build/fmus/. Start, stop time and step come from the scenario
+unless given; the step must divide the run. An input no connection feeds is a warning.
 Results go to results/<name>.csv (and .png), written as the run goes: a failed run keeps every
 row up to the failure.
 
@@ -97,6 +101,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", type=Path, metavar="FILE.png", help="plot file (default: results/<name>.png)")
     p.add_argument("--no-plot", action="store_true", help="do not plot")
     p.add_argument("--master", choices=list(MASTERS), default="gauss-seidel", help="master algorithm")
+    p.add_argument("--allow-stale", action="store_true",
+                   help="run a built scenario even when its sources changed after the build")
     p.add_argument("--strict", action="store_true",
                    help="refuse the scenario when an input is not connected (default: a warning)")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
@@ -160,16 +166,65 @@ def main(argv: Sequence[str] | None = None) -> int:
         return exc.exit_status
 
 
+BUILD_DIR = Path("build")
+SOURCE_DIR = Path("ssp")
+FMU_SOURCES = (Path("fmu_src"), Path("controller"))  # what 'orchestrate build' makes the FMUs from
+
+
 def resolve_scenario(scenario: str) -> Path:
     """A scenario given as a file, a folder, or the name of a built scenario (build/ssp/NAME.ssp)."""
     path = Path(scenario)
     if path.exists():
         return path
-    built = Path("build") / "ssp" / f"{scenario}.ssp"
+    built = BUILD_DIR / "ssp" / f"{scenario}.ssp"
     if built.is_file():
         return built
     raise ScenarioError(f"no scenario '{scenario}': not a file or folder, and {built} does not exist "
                         "(run 'orchestrate build' first)")
+
+
+def fmu_dirs(scenario: Path) -> list[Path]:
+    """Where a scenario source folder (no FMUs under resources/) takes its FMUs: build/fmus/."""
+    return [BUILD_DIR / "fmus"] if scenario.is_dir() and (BUILD_DIR / "fmus").is_dir() else []
+
+
+def _files(folder: Path) -> list[Path]:
+    return [f for f in folder.rglob("*") if f.is_file() and "__pycache__" not in f.parts
+            and not f.name.startswith(".")]
+
+
+def _newer(target: Path, sources: list[Path]) -> Path | None:
+    """The most recently modified file of ``sources`` (folders, walked) modified after ``target``."""
+    files = [f for folder in sources if folder.is_dir() for f in _files(folder)]
+    newest = max(files, key=lambda f: f.stat().st_mtime, default=None)
+    return newest if newest is not None and newest.stat().st_mtime > target.stat().st_mtime else None
+
+
+def stale_build(scenario: Path) -> str:
+    """Why the build that ``scenario`` runs from is older than its sources ('' when it is not): a
+    built archive build/ssp/NAME.ssp against ssp/NAME/ and the FMU sources, a source folder's
+    FMUs in build/fmus/ against the FMU sources (paths relative to the working directory, as
+    'orchestrate build' writes them)."""
+    if scenario.is_file() and scenario.suffix == ".ssp":
+        archive = BUILD_DIR / "ssp" / scenario.name
+        if not (archive.is_file() and archive.resolve() == scenario.resolve()):
+            return ""
+        folder = SOURCE_DIR / scenario.stem
+        changed = _newer(archive, [folder, *FMU_SOURCES])
+        if changed is None:
+            return ""
+        other = (f", or run the source folder {folder} (with the FMUs of {BUILD_DIR / 'fmus'})"
+                 if changed.is_relative_to(folder) else "")
+        return (f"{archive} is older than {changed} (changed after the build): run 'orchestrate build' "
+                f"again{other}, or give --allow-stale")
+    dirs = fmu_dirs(scenario)
+    if dirs and not any((scenario / "resources").glob("*.fmu")):
+        fmus = sorted(dirs[0].glob("*.fmu"), key=lambda f: f.stat().st_mtime)
+        changed = _newer(fmus[0], list(FMU_SOURCES)) if fmus else None
+        if changed is not None:
+            return (f"{fmus[0]} is older than {changed} (changed after the build): run 'orchestrate build' "
+                    "again, or give --allow-stale")
+    return ""
 
 
 class _Progress:
@@ -212,6 +267,9 @@ def _run(args: argparse.Namespace) -> int:
         if value is not None and not math.isfinite(value):
             raise UsageError(f"{option} must be finite (got {value!r})")
     scenario = resolve_scenario(args.scenario)
+    stale = stale_build(scenario)
+    if stale and not args.allow_stale:
+        raise ScenarioError(stale)
     name = scenario.stem if scenario.is_file() else scenario.resolve().name
     output = args.output or Path("results") / f"{name}.csv"
     plot = None if args.no_plot else args.plot or output.with_suffix(".png")
@@ -225,7 +283,8 @@ def _run(args: argparse.Namespace) -> int:
             warnings.simplefilter("always", ScenarioWarning)
             result = run(scenario, stop_time=args.stop_time, step=args.step,
                          parameter_sets=args.parameter_set, overrides=overrides, master=args.master,
-                         output=output, progress=progress, start_time=args.start_time, strict=args.strict)
+                         output=output, progress=progress, start_time=args.start_time, strict=args.strict,
+                         fmu_dirs=fmu_dirs(scenario))
         _print_warnings(caught)
     except SimulationError as exc:
         rows = len(getattr(exc, "result", ()))
@@ -266,7 +325,11 @@ def _print_warnings(caught: Sequence[warnings.WarningMessage]) -> None:
 def _validate(args: argparse.Namespace) -> int:
     overrides = _overrides(args.set)
     scenario = resolve_scenario(args.scenario)
-    report = validate(scenario, parameter_sets=args.parameter_set, overrides=overrides)
+    report = validate(scenario, parameter_sets=args.parameter_set, overrides=overrides,
+                      fmu_dirs=fmu_dirs(scenario))
+    stale = stale_build(scenario)
+    if stale:
+        print(f"warning: {stale}")
     for problem in report.problems:
         print(problem)
     if not report.ok:

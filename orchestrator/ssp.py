@@ -338,10 +338,12 @@ def read_scenario(folder: Path, label: str | None = None) -> SystemStructure:
     return reading.structure
 
 
-def scan_scenario(folder: Path, label: str | None = None) -> Reading:
+def scan_scenario(folder: Path, label: str | None = None, fmu_dirs: Iterable[Path] = ()) -> Reading:
     """:func:`read_scenario` that returns its problems instead of raising and reads as much as it
     can: an SSD that breaks the schema is still read (elements lacking what the schema requires
-    are left out), a component keeps its connectors when its FMU or a parameter file is bad."""
+    are left out), a component keeps its connectors when its FMU or a parameter file is bad.
+    An FMU missing from the folder is taken, by file name, from the first of ``fmu_dirs`` holding
+    it (a scenario source folder run with the built FMUs)."""
     label = label or str(folder / SSD_NAME)
     root, problems = _load(folder / SSD_NAME, "SystemStructureDescription.xsd", label)
     if root is None or (system := root.find("ssd:System", NS)) is None:
@@ -358,7 +360,7 @@ def scan_scenario(folder: Path, label: str | None = None) -> Reading:
     for element in system.findall("ssd:Elements/ssd:Component", NS):
         if element.get("name") is None or element.get("source") is None:
             continue  # the schema requires both and has reported it
-        c, has_fmu, complete = _read_component(element, folder, label, problems)
+        c, has_fmu, complete = _read_component(element, folder, label, problems, tuple(fmu_dirs))
         components.append(c)
         if not has_fmu:
             no_fmu.add(c.name)
@@ -395,13 +397,15 @@ def _number(text: str | None, default: float | None) -> float | None:
         return default
 
 
-def _read_component(element: etree._Element, folder: Path, label: str,
-                    problems: list[str]) -> tuple[Component, bool, bool]:
+def _read_component(element: etree._Element, folder: Path, label: str, problems: list[str],
+                    fmu_dirs: tuple[Path, ...] = ()) -> tuple[Component, bool, bool]:
     """The component with every parameter value that could be read; whether its FMU is there, and
     whether all its parameter values could be read. Problems go to ``problems``."""
     name = element.get("name")
     where = f"{label}: component '{name}'"
     source = folder / element.get("source")
+    if not source.is_file():
+        source = next((d / source.name for d in fmu_dirs if (d / source.name).is_file()), source)
     has_fmu = False
     if element.get("type", "application/x-fmu-sharedlibrary") != "application/x-fmu-sharedlibrary":
         problems.append(f"{where}: only FMU components are supported (type {element.get('type')!r})")

@@ -66,15 +66,18 @@ class Validation:
 def check_scenario(scenario: str | os.PathLike, stack: ExitStack, *,
                    parameter_sets: Iterable[str | os.PathLike] = (),
                    overrides: Mapping[str, object] | None = None,
-                   fmu_warnings: bool = False) -> tuple[System | None, list[str], list[str]]:
+                   fmu_warnings: bool = False,
+                   fmu_dirs: Iterable[str | os.PathLike] = ()) -> tuple[System | None, list[str], list[str]]:
     """Unpack (into a folder ``stack`` removes), read and check a scenario, every stage as far as it
     can go. Returns the system (None when no SSD could be read; its ``schedule`` is empty when
-    there are errors), the errors and the warnings (``fmu_warnings``: add fmpy's full FMU validation)."""
+    there are errors), the errors and the warnings (``fmu_warnings``: add fmpy's full FMU validation).
+    FMUs missing from the scenario are looked up by file name in ``fmu_dirs``."""
     folder, errors = unpack_scenario(scenario, stack)
     if folder is None:
         return None, errors, []
     path = Path(scenario)
-    reading = scan_scenario(folder, f"{path}:{SSD_NAME}" if path.is_file() else str(folder / SSD_NAME))
+    reading = scan_scenario(folder, f"{path}:{SSD_NAME}" if path.is_file() else str(folder / SSD_NAME),
+                            [Path(d) for d in fmu_dirs])
     errors += reading.problems
     sets, unreadable = [], False
     for file in parameter_sets:
@@ -129,12 +132,13 @@ def timing(structure: SystemStructure, stop_time: float | None = None,
 
 
 def validate(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.PathLike] = (),
-             overrides: Mapping[str, object] | None = None) -> Validation:
+             overrides: Mapping[str, object] | None = None,
+             fmu_dirs: Iterable[str | os.PathLike] = ()) -> Validation:
     """Check a scenario (``.ssp`` archive or folder, with the same parameter files and overrides as
     ``run``) without simulating and report every problem found. Nothing is written next to it."""
     with ExitStack() as stack:
         system, errors, warnings = check_scenario(scenario, stack, parameter_sets=parameter_sets,
-                                                  overrides=overrides, fmu_warnings=True)
+                                                  overrides=overrides, fmu_warnings=True, fmu_dirs=fmu_dirs)
     if system is None:
         return Validation(str(scenario), tuple(Problem(e) for e in errors))
     structure = system.structure
