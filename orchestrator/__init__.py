@@ -14,6 +14,7 @@ from contextlib import ExitStack, contextmanager
 
 import numpy as np
 
+from . import provenance
 from .errors import OrchestratorError, ScenarioError, ScenarioWarning, SimulationError, UsageError
 from .master import MASTERS
 from .system import PortRef, System
@@ -51,13 +52,15 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
     if none); the step must divide the run (:func:`orchestrator.validate.timing`).
     ``parameter_sets`` are ``.ssv`` files naming parameters ``<component>.<variable>``, applied after
     the SSD's bindings; ``overrides`` (``{"controller.k1": 12}``) apply last. ``output``: CSV file
-    written as the run goes. An input that no connection feeds and no value was given for is a
+    written as the run goes, with its provenance in ``<output>.json``
+    (:mod:`orchestrator.provenance`). An input that no connection feeds and no value was given for is a
     ScenarioWarning (``strict``: a ScenarioError). ``fmu_dirs``: as for :func:`open_system`.
     Raises ScenarioError for a bad set-up and SimulationError (with the rows computed so far in
     ``.result``) when an FMU fails.
     """
     if master not in MASTERS:
         raise ValueError(f"unknown master '{master}' (choose from {', '.join(MASTERS)})")
+    parameter_sets = list(parameter_sets)
     with open_system(scenario, parameter_sets=parameter_sets, overrides=overrides,
                      fmu_dirs=fmu_dirs) as system:
         start, stop, h = timing(system.structure, stop_time, step, start_time)
@@ -65,4 +68,20 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
             raise ScenarioError(system.unconnected)
         for message in system.unconnected:
             warnings.warn(message, ScenarioWarning, stacklevel=2)
-        return MASTERS[master](system, start, stop, h, output, progress).run()
+        if output is None:
+            return MASTERS[master](system, start, stop, h, output, progress).run()
+        record = provenance.describe(scenario, system, start=start, stop=stop, step=h, master=master,
+                                     parameter_sets=parameter_sets, overrides=overrides)
+        provenance.write_provenance(output, record)
+        try:
+            result = MASTERS[master](system, start, stop, h, output, progress).run()
+        except SimulationError as exc:
+            rows = getattr(exc, "result", np.empty(0, dtype=[("time", float)]))
+            provenance.finish(output, record, "failed", len(rows),
+                              float(rows["time"][-1]) if len(rows) else None, str(exc))
+            raise
+        except KeyboardInterrupt:
+            provenance.finish(output, record, "interrupted", -1, None)
+            raise
+        provenance.finish(output, record, "complete", len(result), float(result["time"][-1]))
+        return result

@@ -22,11 +22,12 @@ from pathlib import Path
 
 from . import MASTERS, run
 from .errors import OrchestratorError, ScenarioError, ScenarioWarning, SimulationError, UsageError
+from .provenance import overrides_text, read_provenance
 from .results import plot_result, read_result
 from .validate import validate
 
-__all__ = ["COMMAND_GROUP", "add_command", "fmu_dirs", "main", "resolve_scenario", "stale_build",
-           "version_line"]
+__all__ = ["COMMAND_GROUP", "add_command", "fmu_dirs", "main", "plot_title", "resolve_scenario",
+           "stale_build", "version_line"]
 
 COMMAND_GROUP = "orchestrate.commands"
 
@@ -301,7 +302,7 @@ def _run(args: argparse.Namespace) -> int:
         logging.getLogger().removeHandler(messages)
     if plot is not None:
         try:
-            plot_result(result, plot, f"{name} ({args.master})")
+            plot_result(result, plot, plot_title(name, read_provenance(output), args.master))
         except OSError as exc:
             print(f"orchestrate: error: cannot write the plot: {exc}; results kept in {output}",
                   file=sys.stderr)
@@ -320,6 +321,14 @@ def _print_warnings(caught: Sequence[warnings.WarningMessage]) -> None:
             print(f"orchestrate: warning: {w.message}", file=sys.stderr)
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+def plot_title(name: str, record: dict | None, master: object = None) -> str:
+    """``name (master)`` and, on a second line, the overrides and parameter sets of the run, so a
+    plot of a changed run never looks like the default one."""
+    title = f"{name} ({master})" if master else name
+    changed = overrides_text(record)
+    return f"{title}\n{changed}" if changed else title
 
 
 def _validate(args: argparse.Namespace) -> int:
@@ -344,6 +353,7 @@ def _validate(args: argparse.Namespace) -> int:
 def _plot(args: argparse.Namespace) -> int:
     data = read_result(args.result)
     target = args.output or args.result.with_suffix(".png")
-    plot_result(data, target, args.result.stem)
+    record = read_provenance(args.result)
+    plot_result(data, target, plot_title(args.result.stem, record, record.get("master") if record else None))
     print(target)
     return 0

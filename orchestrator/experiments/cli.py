@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from ..cli import add_command
 from ..errors import ScenarioError, UsageError
+from ..provenance import read_provenance, summary
 from ..results import read_result
 from . import regression, report
 from .metrics import format_table, tracking_metrics
@@ -70,7 +72,7 @@ def _build(args: argparse.Namespace) -> int:
 
 
 def _metrics(args: argparse.Namespace) -> int:
-    rows = []
+    rows, notes = [], []
     for path in args.results:
         data = read_result(path)
         names = data.dtype.names
@@ -84,7 +86,19 @@ def _metrics(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise ScenarioError(f"{path}: {exc}") from exc
         rows.append((path.stem, m))
+        record = read_provenance(path)
+        notes.append(f"{path.stem}: {summary(record)}")
+        if record is not None and record.get("status") != "complete":
+            span = f"{record.get('start_time')} .. {record.get('stop_time')} s"
+            print(f"orchestrate: warning: {path}: partial result ({record.get('status')} at t = "
+                  f"{record.get('last_time')} s of {span}): the metrics cover only the rows written",
+                  file=sys.stderr)
+        elif record is not None and float(data["time"][-1]) < float(record["stop_time"]):
+            print(f"orchestrate: warning: {path}: ends at t = {data['time'][-1]:g} s, before the run's stop "
+                  f"time {record['stop_time']} s: the metrics cover only the rows written", file=sys.stderr)
     print(format_table(rows))
+    print()
+    print("\n".join(notes))
     return 0
 
 
@@ -95,6 +109,8 @@ def _compare(args: argparse.Namespace) -> int:
         tolerances = regression.load_tolerances(beside) if beside.is_file() else regression.Tolerances()
     overrides = dict(regression.parse_tolerance(text, tolerances) for text in args.tol)
     comparison = regression.compare_files(args.result, args.baseline, tolerances.with_overrides(overrides))
+    print(f"result:   {args.result}: {summary(read_provenance(args.result))}")
+    print(f"baseline: {args.baseline}: {summary(read_provenance(args.baseline))}")
     print(regression.format_comparison(comparison))
     if args.plot_dir is not None:
         for path in regression.plot_failures(comparison, args.plot_dir):

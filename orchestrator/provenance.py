@@ -1,0 +1,160 @@
+"""Provenance of a result: the sidecar ``<result>.json`` written beside every result file.
+
+A result alone does not say what produced it. The sidecar records the scenario and its SHA-256
+digest, every FMU (GUID, model name, generation tool, digest), every parameter set and override,
+the start values finally applied, start/stop/step, the master, the package versions, the git
+commit of the code (when it runs from a checkout) and the date; and the run's ``status``
+(``running`` while it runs, then ``complete``, ``failed`` or ``interrupted``) with the time of the
+last row, so a partial result is recognisable. It is written atomically (temporary file, rename)
+before the first step and again when the run ends.
+"""
+
+from __future__ import annotations
+
+import datetime
+import hashlib
+import json
+import os
+import platform
+import subprocess
+from collections.abc import Iterable, Mapping
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+
+from .system import System
+
+__all__ = ["PACKAGES", "commit", "describe", "digest", "finish", "overrides_text", "read_provenance",
+           "sidecar", "summary", "versions", "write_provenance"]
+
+PACKAGES = ("fixed-time-cosim", "fmpy", "pythonfmu", "numpy", "scipy", "lxml", "pyarrow")
+CODE_ROOT = Path(__file__).resolve().parents[1]
+
+
+def sidecar(result: str | os.PathLike) -> Path:
+    """The provenance file of a result file: ``r.csv`` -> ``r.csv.json``."""
+    result = Path(result)
+    return result.with_name(result.name + ".json")
+
+
+def digest(path: str | os.PathLike) -> str:
+    """SHA-256 of a file, or of a folder's files (relative names and contents, in sorted order)."""
+    path = Path(path)
+    h = hashlib.sha256()
+    files = [path] if path.is_file() else sorted(f for f in path.rglob("*") if f.is_file())
+    for f in files:
+        if path.is_dir():
+            h.update(f.relative_to(path).as_posix().encode() + b"\0")
+        with f.open("rb") as stream:
+            for block in iter(lambda: stream.read(1 << 20), b""):
+                h.update(block)
+    return h.hexdigest()
+
+
+def versions() -> dict[str, str]:
+    """Versions of Python and of the packages a result depends on."""
+    found = {"python": platform.python_version()}
+    for name in PACKAGES:
+        try:
+            found[name] = version(name)
+        except PackageNotFoundError:
+            found[name] = "not installed"
+    return found
+
+
+def commit() -> dict[str, object] | None:
+    """The git commit of the code that runs (and whether the checkout has changes), if any."""
+    try:
+        head = subprocess.run(["git", "-C", str(CODE_ROOT), "rev-parse", "HEAD"], capture_output=True,
+                              text=True, timeout=10)
+        if head.returncode != 0:
+            return None
+        status = subprocess.run(["git", "-C", str(CODE_ROOT), "status", "--porcelain",
+                                 "--untracked-files=no"], capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return {"commit": head.stdout.strip(), "modified": bool(status.stdout.strip())}
+
+
+def describe(scenario: str | os.PathLike, system: System, *, start: float, stop: float, step: float,
+             master: str, parameter_sets: Iterable[str | os.PathLike] = (),
+             overrides: Mapping[str, object] | None = None) -> dict[str, object]:
+    """Everything that produced a run of ``system`` (status ``running``)."""
+    scenario = Path(scenario)
+    return {
+        "scenario": {"path": str(scenario.resolve()), "sha256": digest(scenario),
+                     "ssd": system.ssd, "name": system.structure.name},
+        "fmus": {name: {"file": comp.fmu.name, "guid": comp.model.guid, "model": comp.model.modelName,
+                        "generation_tool": comp.model.generationTool, "sha256": digest(comp.fmu)}
+                 for name, comp in system.components.items()},
+        "parameter_sets": [{"path": str(Path(p).resolve()), "sha256": digest(p)} for p in parameter_sets],
+        "ssd_parameter_sets": [f"{c.name}: {ps.origin}" for c in system.structure.components
+                               for ps in c.parameter_sets],
+        "overrides": {k: str(v) for k, v in (overrides or {}).items()},
+        "start_values": {f"{name}.{k}": v for name, comp in system.components.items()
+                         for k, v in comp.start_values.items()},
+        "start_time": start, "stop_time": stop, "step": step, "master": master,
+        "versions": versions(),
+        "git": commit(),
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "status": "running",
+    }
+
+
+def write_provenance(result: str | os.PathLike, record: Mapping[str, object]) -> Path:
+    """Write (atomically) the sidecar of ``result``; returns its path."""
+    path = sidecar(result)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(path.name + ".part")
+    partial.write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
+    partial.replace(path)
+    return path
+
+
+def finish(result: str | os.PathLike, record: dict[str, object], status: str, rows: int,
+           last_time: float | None, message: str = "") -> Path:
+    """Record how the run ended (``complete``, ``failed`` or ``interrupted``) in the sidecar."""
+    record.update(status=status, rows=rows, last_time=last_time)
+    if message:
+        record["message"] = message
+    return write_provenance(result, record)
+
+
+def read_provenance(result: str | os.PathLike) -> dict[str, object] | None:
+    """The sidecar of ``result`` (None when there is none or it is not readable JSON)."""
+    try:
+        record = json.loads(sidecar(result).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) else None
+
+
+def summary(record: Mapping[str, object] | None) -> str:
+    """One line: scenario, overrides, parameter sets, timing, master, status, commit and date."""
+    if record is None:
+        return "no provenance file"
+    scenario = record.get("scenario") or {}
+    parts = [f"{Path(str(scenario.get('path', '?'))).name} (sha256 {str(scenario.get('sha256', ''))[:12]})"]
+    overrides = record.get("overrides") or {}
+    parts.append("--set " + " ".join(f"{k}={v}" for k, v in overrides.items()) if overrides else "no --set")
+    sets = record.get("parameter_sets") or []
+    if sets:
+        parts.append("--parameter-set " + " ".join(Path(s["path"]).name for s in sets))
+    parts.append(f"t = {record.get('start_time')} .. {record.get('stop_time')} s, "
+                 f"step {record.get('step')} s, {record.get('master')}")
+    status = record.get("status")
+    if status != "complete":
+        parts.append(f"{status} at t = {record.get('last_time')} s")
+    git = record.get("git")
+    if isinstance(git, Mapping):
+        parts.append(f"commit {str(git.get('commit'))[:10]}{' (modified)' if git.get('modified') else ''}")
+    parts.append(str(record.get("date", "")))
+    return "; ".join(parts)
+
+
+def overrides_text(record: Mapping[str, object] | None) -> str:
+    """The overrides and parameter sets of a run, short, for a plot title ('' when none)."""
+    if record is None:
+        return ""
+    items = [f"{k}={v}" for k, v in (record.get("overrides") or {}).items()]
+    items += [Path(s["path"]).name for s in record.get("parameter_sets") or []]
+    return ", ".join(items)
