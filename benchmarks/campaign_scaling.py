@@ -5,13 +5,16 @@ overhead of the campaign layer against a bare ``orchestrator.run`` measured in t
     python benchmarks/campaign_scaling.py [--scenario build/ssp/example1.ssp] [--stop-time 30] [--runs 8]
 
 Throughput counts from the first task submitted to the last row written (cluster start-up is
-reported apart). Overhead per run = (run phase x workers / runs) - bare run time, with 1 worker.
+reported apart). Overhead per run, with 1 worker: run phase / runs minus the time each run spent
+inside ``orchestrator.run`` on the worker (both measured in the same minutes, so a load from other
+work on the machine cancels), and against the bare run measured here.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -22,7 +25,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import orchestrator
-from orchestrator.campaign import read_design, sweep
+from orchestrator.campaign import read_design, read_table, sweep
 from orchestrator.experiments.campaigns import TRACKING
 
 VENV_BIN = Path(sys.executable).parent
@@ -104,6 +107,7 @@ def main() -> None:
         )
         design = read_design(tmp / "design.json")
 
+        print(f"load average before: {os.getloadavg()[0]:.2f} (2 cores; other work shares them)")
         bare = []
         for x in values[:3]:
             started = time.perf_counter()
@@ -143,12 +147,20 @@ def main() -> None:
                 f"start-up and shut-down {s.wall_time - s.run_time:.1f} s)"
             )
         one = results["embedded, 1 worker process"]
+        rows, _ = read_table(one.parquet)
+        in_worker = statistics.mean(r["wall_time"] for r in rows)
         per_run = one.run_time / args.runs
-        overhead = per_run - t_bare
         print(
-            f"per-run overhead of the campaign layer (1 worker): {overhead * 1e3:.0f} ms "
-            f"= {100 * overhead / t_bare:.1f} % of a bare {args.stop_time:g} s run"
+            f"1 worker: {per_run:.3f} s per run in the campaign, of which {in_worker:.3f} s inside "
+            f"orchestrator.run on the worker (bare run here: {t_bare:.3f} s)"
         )
+        overhead = per_run - in_worker
+        print(
+            f"per-run overhead of the campaign layer (dispatch, transfer, table): {overhead * 1e3:.0f} ms "
+            f"= {100 * overhead / t_bare:.2f} % of a bare {args.stop_time:g} s run; "
+            f"against the bare run: {100 * (per_run - t_bare) / t_bare:+.1f} %"
+        )
+        print(f"load average after: {os.getloadavg()[0]:.2f}")
         two = results.get("embedded, 2 worker processes")
         if two is not None:
             print(
