@@ -130,6 +130,7 @@ def declare(
     """
     if unit is not None and unit not in UNITS:
         raise ValueError(f"{type(slave).__name__}.{name}: unknown unit {unit!r}")
+    depends = None if depends_on is None else tuple(depends_on)
     variability = Fmi2Variability.fixed if causality == Fmi2Causality.parameter else None
     if integer:
         if causality == Fmi2Causality.output:
@@ -152,9 +153,9 @@ def declare(
         io.real_inputs[vr] = name
     elif causality == Fmi2Causality.output:
         io.computed.add(vr)
-        io.feedthrough = io.feedthrough or depends_on is None or bool(tuple(depends_on))
+        io.feedthrough = io.feedthrough or depends is None or bool(depends)
     meta = slave.__dict__.setdefault("_fmu_meta", {})
-    meta[name] = (unit, None if depends_on is None else tuple(depends_on))
+    meta[name] = (unit, depends)
 
 
 def assigned(slave: Fmi2Slave) -> frozenset[str]:
