@@ -71,13 +71,16 @@ def failed(cell: Cell) -> set[str]:
 
 # -- deviation ----------------------------------------------------------------------------------------
 
-def test_deviation_finds_the_largest_difference_and_the_one_after_the_first_second() -> None:
+def test_deviation_finds_the_largest_difference_in_and_after_the_first_second() -> None:
     ours = signals()
     theirs = signals(dy=2e-4, t_bump=0.25, bump=0.05)
     d = deviation(theirs, ours, 0.0, H)
     assert d.max == pytest.approx(0.05 + 2e-4, rel=1e-12)
     assert d.at == pytest.approx(0.25)
+    assert d.until == d.max
     assert d.after == pytest.approx(2e-4, rel=1e-9)
+    late = deviation(signals(t_bump=2.5, bump=0.01), ours, 0.0, H)
+    assert (late.until, late.after, late.at) == (0.0, pytest.approx(0.01), pytest.approx(2.5))
     assert d.compared == len(ours)
 
 
@@ -103,7 +106,7 @@ def test_deviation_of_a_run_that_stopped_early_uses_the_common_points() -> None:
     theirs = signals(stop=0.5, dy=1e-3)
     d = deviation(theirs, ours, 0.0, H)
     assert d.compared == 501
-    assert d.max == pytest.approx(1e-3)
+    assert d.max == d.until == pytest.approx(1e-3)
     assert d.after == 0.0  # nothing after 1 s to compare
 
 
@@ -112,15 +115,17 @@ def test_a_non_finite_sample_is_an_infinite_difference() -> None:
     theirs["plant.y"][2000] = np.nan
     d = deviation(theirs, signals(), 0.0, H)
     assert d.max == math.inf and d.after == math.inf and d.at == pytest.approx(2.0)
+    assert d.until == 0.0
 
 
 # -- the checks of a cell and the red-cell rule --------------------------------------------------------
 
 def test_a_cell_is_ok_when_every_check_passes() -> None:
     tool = EcosCliTool()
-    cell = evaluate(tool, scenario(), good_run(signals(dy=0.5 * tool.tolerance.run)), signals())
+    theirs = signals(dy=0.5 * tool.tolerance.until, t_bump=20.0 * H + 2.0, bump=0.5 * tool.tolerance.after)
+    cell = evaluate(tool, scenario(), good_run(theirs), signals())
     assert not cell.red and cell.status == "ok"
-    assert [c.name for c in cell.checks] == ["loads", "parameters", "stop time", "plant.y over the run",
+    assert [c.name for c in cell.checks] == ["loads", "parameters", "stop time", f"plant.y until {AFTER:g} s",
                                              f"plant.y after {AFTER:g} s"]
     assert cell.reference == "jacobi"
 
@@ -133,8 +138,8 @@ def test_a_cell_is_ok_when_every_check_passes() -> None:
      {"parameters"}),
     (good_run(signals(stop=STOP - H)), {"stop time"}),
     (good_run(error="plant: fmi2DoStep returned fmi2Discard"), {"stop time"}),
-    (good_run(signals(t_bump=0.03, bump=1e-3)), {"plant.y over the run"}),
-    (good_run(signals(t_bump=2.0, bump=1e-3)), {"plant.y over the run", f"plant.y after {AFTER:g} s"}),
+    (good_run(signals(t_bump=0.03, bump=1e-3)), {f"plant.y until {AFTER:g} s"}),
+    (good_run(signals(t_bump=2.0, bump=0.1)), {f"plant.y after {AFTER:g} s"}),
 ])
 def test_a_cell_is_red_when_one_check_fails(run: ToolRun, expected: set[str]) -> None:
     cell = evaluate(EcosCliTool(), scenario(), run, signals())

@@ -8,10 +8,15 @@ A cell (tool x scenario) is red when any check fails:
   back from the tool after the run), and the plant's initial state ``x1_0``, ``x2_0`` shows up as
   ``plant.x1``, ``plant.x2`` at t0;
 * **stop time**: the tool reported no failure and recorded the stop time of the DefaultExperiment;
-* **plant.y**: max |plant.y - ours| over the run and after 1 s within the tool's stated tolerance,
-  where "ours" is ``orchestrate run`` with the master of the tool's semantics (``jacobi`` for a
-  delayed master, ``gauss-seidel`` for a delay-free one), compared at the communication points both
-  recorded. A non-finite sample counts as an infinite difference.
+* **plant.y**: max |plant.y - ours| in the first second and after it within the tool's stated
+  tolerances, where "ours" is ``orchestrate run`` with the master of the tool's semantics
+  (``jacobi`` for a delayed master, ``gauss-seidel`` for a delay-free one), compared at the
+  communication points both recorded. A non-finite sample counts as an infinite difference. The
+  first second is tight: that is where a different coupling (one step of delay or not) shows
+  (0.049 on ``example1``). After it, the sampled loop's chattering bursts and, in the finite-time
+  scenarios, the fault amplify differences in the last bits (e.g. of the time a tool passes to the
+  FMUs): a 1e-13 change of the reference's phase moves ``example1_finite_time``'s y by 7.9e-3 at
+  t = 27 s in our own ``jacobi`` master, so the tolerance there is loose.
 """
 
 from __future__ import annotations
@@ -29,9 +34,9 @@ import numpy as np
 
 from .. import run as run_orchestrator
 from ..errors import SimulationError
-from .tools import Scenario, Tolerance, Tool, ToolRun
+from .tools import AMPLIFIED, Scenario, Tolerance, Tool, ToolRun
 
-__all__ = ["AFTER", "COLUMN", "Cell", "Check", "Deviation", "Tolerance", "evaluate", "deviation",
+__all__ = ["AFTER", "AMPLIFIED", "COLUMN", "Cell", "Check", "Deviation", "Tolerance", "evaluate", "deviation",
            "parameter_check", "run_matrix", "write_csv", "write_markdown"]
 
 COLUMN = "plant.y"
@@ -51,10 +56,12 @@ class Check:
 
 @dataclass(frozen=True)
 class Deviation:
-    """max |theirs - ours| of one column at the communication points both recorded."""
+    """max |theirs - ours| of one column at the communication points both recorded: over the run
+    (``max``, at time ``at``), before ``AFTER`` (``until``) and from it on (``after``)."""
 
     max: float
     at: float
+    until: float
     after: float
     compared: int
 
@@ -97,13 +104,14 @@ def deviation(theirs: np.ndarray, ours: np.ndarray, start: float, step: float, c
     k_ours = np.rint((ours["time"] - start) / step).astype(np.int64)
     _, i, j = np.intersect1d(k_theirs, k_ours, assume_unique=False, return_indices=True)
     if not len(i):
-        return Deviation(math.inf, math.nan, math.inf, 0)
+        return Deviation(math.inf, math.nan, math.inf, math.inf, 0)
     d = np.abs(theirs[column][i] - ours[column][j])
     d = np.where(np.isfinite(d), d, np.inf)
     t = ours["time"][j]
-    late = d[t >= after]
+    early, late = d[t < after], d[t >= after]
     worst = int(np.argmax(d))
-    return Deviation(float(d[worst]), float(t[worst]), float(late.max()) if len(late) else 0.0, len(i))
+    return Deviation(float(d[worst]), float(t[worst]), float(early.max()) if len(early) else 0.0,
+                     float(late.max()) if len(late) else 0.0, len(i))
 
 
 def parameter_check(scenario: Scenario, result: np.ndarray, read_back: dict[str, float] | None) -> Check:
@@ -159,10 +167,10 @@ def evaluate(tool: Tool, scenario: Scenario, run: ToolRun, ours: np.ndarray, unc
         return cell
     dev = deviation(result, ours, scenario.start, scenario.step)
     cell.deviation = dev
-    cell.checks.append(Check(f"{COLUMN} over the run", dev.max <= tolerance.run,
-                             f"{dev.max:.2g} at t = {dev.at:g} s (tolerance {tolerance.run:g})"))
+    cell.checks.append(Check(f"{COLUMN} until {AFTER:g} s", dev.until <= tolerance.until,
+                             f"{dev.until:.2g} (tolerance {tolerance.until:g})"))
     cell.checks.append(Check(f"{COLUMN} after {AFTER:g} s", dev.after <= tolerance.after,
-                             f"{dev.after:.2g} (tolerance {tolerance.after:g})"))
+                             f"{dev.after:.2g}, max at t = {dev.at:g} s (tolerance {tolerance.after:g})"))
     return cell
 
 
@@ -252,9 +260,9 @@ def write_markdown(cells: Iterable[Cell], path: Path, tools: Sequence[Tool]) -> 
              "Every built scenario (`build/ssp/<name>.ssp`, unchanged: its own step, stop time and "
              "parameter sets) in every tool, written by `orchestrate crosscheck`. A cell is red when the "
              "archive does not load, a parameter of its `.ssv` files is not applied, the run stops before "
-             f"the stop time, or max |{COLUMN} - ours| exceeds the tool's tolerance, over the run or after "
-             f"{AFTER:g} s; \"ours\" is `orchestrate run` with the master of the tool's semantics. Cells: "
-             f"status, wall time, max |delta {COLUMN}| over the run / after {AFTER:g} s.", "",
+             f"the stop time, or max |{COLUMN} - ours| exceeds the tool's tolerance, in the first "
+             f"{AFTER:g} s or after; \"ours\" is `orchestrate run` with the master of the tool's semantics. "
+             f"Cells: status, wall time, max |delta {COLUMN}| until {AFTER:g} s / after.", "",
              "| tool | master | " + " | ".join(f"`{s}`" for s in scenarios) + " |",
              "|---|---|" + "---|" * len(scenarios)]
     for key in keys:
@@ -268,13 +276,13 @@ def write_markdown(cells: Iterable[Cell], path: Path, tools: Sequence[Tool]) -> 
                 row.append("not installed")
             else:
                 mark = "🟥" if c.red else "🟩"
-                dev = (f", {_fmt(c.deviation.max)} / {_fmt(c.deviation.after)}"
+                dev = (f", {_fmt(c.deviation.until)} / {_fmt(c.deviation.after)}"
                        if c.deviation is not None and not key.startswith("orchestrate-") else "")
                 row.append(f"{mark} {c.wall:.1f} s{dev}")
         lines.append("| " + " | ".join(row) + " |")
     lines += ["", "## Details", "",
-              "| tool | scenario | status | loads | parameters | stop time | plant.y over the run | "
-              f"plant.y after {AFTER:g} s | notes |", "|---|---|---|---|---|---|---|---|---|"]
+              f"| tool | scenario | status | loads | parameters | stop time | {COLUMN} until {AFTER:g} s | "
+              f"{COLUMN} after {AFTER:g} s | notes |", "|---|---|---|---|---|---|---|---|---|"]
     for c in cells:
         if c.missing:
             lines.append(f"| {c.title} | `{c.scenario}` | not installed | | | | | | {c.missing} |")
@@ -286,22 +294,22 @@ def write_markdown(cells: Iterable[Cell], path: Path, tools: Sequence[Tool]) -> 
             return "" if k is None else (k.detail if k.ok else f"**{k.detail}**")
 
         lines.append(f"| {c.title} | `{c.scenario}` | {'🟥 red' if c.red else '🟩 ok'} | {show('loads')} | "
-                     f"{show('parameters')} | {show('stop')} | {show(f'{COLUMN} over the run')} | "
+                     f"{show('parameters')} | {show('stop')} | {show(f'{COLUMN} until {AFTER:g} s')} | "
                      f"{show(f'{COLUMN} after {AFTER:g} s')} | {'; '.join(c.notes)} |")
-    lines += ["", "## Tolerances", "", "| tool | compared with | over the run | after 1 s | why |",
+    lines += ["", "## Tolerances", "", f"| tool | compared with | until {AFTER:g} s | after | why |",
               "|---|---|---|---|---|"]
     for tool in tools:
         t = tool.tolerance
         lines.append(f"| {tool.title} | `orchestrate run --master {reference_master(tool.delayed)}` | "
-                     f"{t.run:g} | {t.after:g} | {t.reason} |")
+                     f"{t.until:g} | {t.after:g} | {t.reason} |")
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return path
 
 
 CSV_FIELDS = ("tool", "scenario", "master", "reference", "status", "loads", "parameters", "stop_time",
-              "wall_s", "dy_max", "dy_max_at_s", "dy_after_1s", "tol_run", "tol_after_1s", "failures",
-              "notes")
+              "wall_s", "dy_max", "dy_max_at_s", "dy_until_1s", "dy_after_1s", "tol_until_1s", "tol_after_1s",
+              "failures", "notes")
 
 
 def write_csv(cells: Iterable[Cell], path: Path) -> Path:
@@ -317,9 +325,8 @@ def write_csv(cells: Iterable[Cell], path: Path) -> Path:
                 c.tool, c.scenario, "delayed" if c.delayed else "delay-free", c.reference, c.status,
                 ok.get("loads", ""), ok.get("parameters", ""), ok.get("stop", ""),
                 "" if c.wall is None else f"{c.wall:.3f}",
-                "" if d is None else repr(d.max), "" if d is None else repr(d.at),
-                "" if d is None else repr(d.after),
-                "" if t is None else repr(t.run), "" if t is None else repr(t.after),
+                *(("", "", "", "") if d is None else (repr(d.max), repr(d.at), repr(d.until), repr(d.after))),
+                "" if t is None else repr(t.until), "" if t is None else repr(t.after),
                 "; ".join(f"{k.name}: {k.detail}" for k in c.checks if not k.ok) or (c.missing or ""),
                 "; ".join(c.notes)])
     return path

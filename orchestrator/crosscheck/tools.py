@@ -23,13 +23,19 @@ from lxml import etree
 from ..results import structured
 from ..ssp import NS, SSD_NAME, open_scenario, read_scenario
 
-__all__ = ["Scenario", "Tolerance", "Tool", "ToolRun", "clean_environment", "elf_interpreter", "empty_result",
-           "last_per_step", "table_result"]
+__all__ = ["AMPLIFIED", "Scenario", "Tolerance", "Tool", "ToolRun", "clean_environment", "elf_interpreter",
+           "empty_result", "last_per_step", "table_result"]
 
 # Variables of the FMUs that pythonfmu's C-API hosts must not inherit from the caller: the FMUs are
 # expected to find libpython and their packages by themselves (see README, "Running the FMUs
 # outside Python").
 FMU_ENVIRONMENT = ("LD_PRELOAD", "PYTHONPATH", "PYTHONHOME")
+
+# Tolerance on max |plant.y - ours| after the first second for a tool that is not bit-identical to
+# our master: the chattering bursts and the fault amplify last-bit differences, measured up to
+# 1.3e-2 (Ecos on example1_finite_time at t = 27.1 s; our own jacobi master moves by 7.9e-3 when the
+# reference's phase changes by 1e-13). A different coupling shows in the first second instead.
+AMPLIFIED = 0.05
 
 
 @dataclass(frozen=True)
@@ -107,9 +113,9 @@ class ToolRun:
 
 @dataclass(frozen=True)
 class Tolerance:
-    """Allowed max |plant.y - ours| over the whole run and after the first second, and why."""
+    """Allowed max |plant.y - ours| in the first second (``until``) and after it (``after``), and why."""
 
-    run: float
+    until: float
     after: float
     reason: str
 
