@@ -32,6 +32,7 @@ from fmpy.ssp import ssd as fmpy_ssd
 from lxml import etree
 
 from .errors import ScenarioError
+from .units import UnitDef, read_units
 
 __all__ = [
     "NS",
@@ -92,20 +93,24 @@ class PortRef:
 
 @dataclass(frozen=True)
 class Connector:
-    """A connector declared on a component: ``kind`` is the causality, ``type`` the ssc type."""
+    """A connector declared on a component: ``kind`` is the causality, ``type`` the ssc type,
+    ``unit`` the unit its type element declares (None: none)."""
 
     name: str
     kind: str
     type: str | None
+    unit: str | None = None
 
 
 @dataclass(frozen=True)
 class Parameter:
-    """One parameter value, already converted to the Python type of its SSV type."""
+    """One parameter value, already converted to the Python type of its SSV type; ``unit``: the
+    unit the value is given in (SSV ``unit`` attribute of a Real; None: the variable's own)."""
 
     name: str
     type: str
     value: float | int | bool | str
+    unit: str | None = None
 
 
 @dataclass(frozen=True)
@@ -115,6 +120,7 @@ class ParameterSet:
 
     origin: str
     parameters: tuple[Parameter, ...]
+    units: tuple[UnitDef, ...] = ()  # the file's own ssv:Units definitions
 
     @classmethod
     def of(cls, origin: str, values: Mapping[str, float | int | bool | str]) -> ParameterSet:
@@ -177,6 +183,7 @@ class SystemStructure:
     experiment: Experiment
     description: str = ""
     ssd_file: str = ""
+    units: tuple[UnitDef, ...] = ()  # the SSD's own ssd:Units definitions
 
 
 def open_scenario(scenario: str | os.PathLike, stack: ExitStack) -> Path:
@@ -269,7 +276,7 @@ def _convert(type_: str, text: str | None) -> float | int | bool | str:
 
 
 def _parameter_set(fmpy_set: fmpy_ssd.ParameterSet, origin: str, prefix: str,
-                   problems: list[str]) -> ParameterSet:
+                   problems: list[str], units: tuple[UnitDef, ...] = ()) -> ParameterSet:
     """Convert fmpy's parameter set, stripping the binding's prefix from every name; parameters
     that cannot be used are left out and reported in ``problems``."""
     parameters = []
@@ -284,10 +291,10 @@ def _parameter_set(fmpy_set: fmpy_ssd.ParameterSet, origin: str, prefix: str,
             problems.append(f"{origin}: parameter '{name}' has no value element")
             continue
         try:
-            parameters.append(Parameter(name, p.type, _convert(p.type, p.value)))
+            parameters.append(Parameter(name, p.type, _convert(p.type, p.value), getattr(p, "unit", None)))
         except ValueError:
             problems.append(f"{origin}: parameter '{name}': value {p.value!r} is not a valid {p.type}")
-    return ParameterSet(origin, tuple(parameters))
+    return ParameterSet(origin, tuple(parameters), units)
 
 
 def _read_ssv(path: Path, label: str, origin: str, prefix: str) -> tuple[ParameterSet | None, list[str]]:
@@ -296,7 +303,9 @@ def _read_ssv(path: Path, label: str, origin: str, prefix: str) -> tuple[Paramet
     root, problems = _load(path, "SystemStructureParameterValues.xsd", label)
     if root is None or problems:
         return None, problems
-    return _parameter_set(fmpy_ssd.read_ssv(str(path), validate=False), origin, prefix, problems), problems
+    units = tuple(read_units(root, "ssv:Units", NS).values())
+    fmpy_set = fmpy_ssd.read_ssv(str(path), validate=False)
+    return _parameter_set(fmpy_set, origin, prefix, problems, units), problems
 
 
 def read_parameter_set(path: str | os.PathLike, prefix: str = "") -> ParameterSet:
@@ -381,7 +390,8 @@ def scan_scenario(folder: Path, label: str | None = None, fmu_dirs: Iterable[Pat
             offset = _number(transformation.get("offset"), 0.0)
         connections.append(Connection(PortRef(ends[0], ends[1]), PortRef(ends[2], ends[3]), factor, offset))
     structure = SystemStructure(system.get("name", ""), tuple(components), tuple(connections),
-                                _read_experiment(root, system), system.get("description", ""), label)
+                                _read_experiment(root, system), system.get("description", ""), label,
+                                tuple(read_units(root, "ssd:Units", NS).values()))
     return Reading(structure, tuple(problems), frozenset(no_fmu), frozenset(partial))
 
 
@@ -418,7 +428,8 @@ def _read_component(element: etree._Element, folder: Path, label: str, problems:
         if c.get("name") is None or c.get("kind") is None:
             continue  # the schema requires both and has reported it
         type_ = next((t for t in TYPES if c.find(f"ssc:{t}", NS) is not None), None)
-        connectors.append(Connector(c.get("name"), c.get("kind"), type_))
+        unit = c.find(f"ssc:{type_}", NS).get("unit") if type_ == "Real" else None
+        connectors.append(Connector(c.get("name"), c.get("kind"), type_, unit))
     parameter_sets, complete = [], True
     for binding in element.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
         prefix = binding.get("prefix", "")
@@ -428,8 +439,10 @@ def _read_component(element: etree._Element, folder: Path, label: str, problems:
             found.append(_read_ssv(folder / origin, f"{label}: {origin}", origin, prefix))
         for inline in binding.findall("ssd:ParameterValues/ssv:ParameterSet", NS):
             inline_problems: list[str] = []
-            found.append((_parameter_set(fmpy_ssd._get_parameter_set(inline), f"{label} (inline values of "
-                                         f"'{name}')", prefix, inline_problems), inline_problems))
+            inline_units = tuple(read_units(inline, "ssv:Units", NS).values())
+            inline_set = _parameter_set(fmpy_ssd._get_parameter_set(inline), f"{label} (inline values of "
+                                        f"'{name}')", prefix, inline_problems, inline_units)
+            found.append((inline_set, inline_problems))
         for parameter_set, set_problems in found:
             problems.extend(set_problems)
             complete = complete and not set_problems
@@ -501,7 +514,10 @@ def write_ssv(path: str | os.PathLike, parameter_set: ParameterSet, name: str | 
     root = _element(None, "ssv:ParameterSet", {"ssv": NS["ssv"]}, version="1.0", name=name or path.stem)
     parameters = _element(root, "ssv:Parameters")
     for p in parameter_set.parameters:
-        _element(_element(parameters, "ssv:Parameter", name=p.name), f"ssv:{p.type}", value=_literal(p.value))
+        parameter = _element(parameters, "ssv:Parameter", name=p.name)
+        value = _element(parameter, f"ssv:{p.type}", value=_literal(p.value))
+        if p.unit is not None:
+            value.set("unit", p.unit)
     _write(root, path)
     return path
 
@@ -523,7 +539,9 @@ def write_ssd(folder: str | os.PathLike, structure: SystemStructure) -> Path:
         for k in c.connectors:
             connector = _element(connectors, "ssd:Connector", name=k.name, kind=k.kind)
             if k.type is not None:
-                _element(connector, f"ssc:{k.type}")
+                typed = _element(connector, f"ssc:{k.type}")
+                if k.unit is not None:
+                    typed.set("unit", k.unit)
         if c.parameter_sets:
             bindings = _element(element, "ssd:ParameterBindings")
             for ps in c.parameter_sets:

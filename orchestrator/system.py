@@ -11,18 +11,19 @@ from __future__ import annotations
 
 import os
 from collections.abc import Collection, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 from fmpy import read_model_description
-from fmpy.model_description import BaseUnit, ModelDescription, ModelVariable, Unit
+from fmpy.model_description import ModelDescription, ModelVariable
 from fmpy.validation import validate_fmu, validate_model_description
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from .errors import ScenarioError
 from .ssp import Component, Connection, Parameter, ParameterSet, PortRef, SystemStructure
+from .units import BASE, UnitDef, UnitError, conversion, convert, resolve, split_value
 
 __all__ = ["ComponentModel", "Operation", "PortRef", "System"]
 
@@ -160,6 +161,15 @@ class System:
             if k.type is not None and FMU_TYPES.get(k.type) != v.type:
                 problems.append(f"{where}: declared type {k.type} but the FMU's variable is {v.type}")
                 continue
+            if k.unit is not None and _unit_name(v) is not None:
+                try:
+                    declared, own = self._resolve(k.unit), _unit_def(md, v)
+                except UnitError as exc:
+                    problems.append(f"{where}: {exc}")
+                    continue
+                if replace(declared, name="") != replace(own, name=""):
+                    problems.append(f"{where}: declared unit {k.unit} but the FMU's variable is in "
+                                    f"{own.name}")
             if v.type == "Real":  # recorded and exchanged; other types are checked, not recorded
                 (outputs if k.kind == "output" else inputs if k.kind == "input" else []).append(k.name)
         feedthrough: dict[str, set[str]] = {}
@@ -202,33 +212,49 @@ class System:
                 self.links[end] = con
 
     def _check_units(self, problems: list[str]) -> None:
-        """A connection without transformation joins equal units where both FMU variables declare
-        one: the same name, or definitions with the same SI base units, factor and offset."""
-        for con in self.links.values():
+        """A connection without transformation joins units of the same dimension where both ends
+        declare one (the SSD connector's unit, else the FMU variable's): equal units pass the value
+        unchanged, scalings of each other (deg -> rad, ms -> s) get the implied conversion (SSP 1.0
+        unit conversion) as the connection's factor and offset, other dimensions are an error."""
+        for end, con in list(self.links.items()):
             if con.transformed:
                 continue  # the transformation is the user's conversion; not ours to judge
-            start, end = self._unit(con.start), self._unit(con.end)
-            if start is None or end is None or start.name == end.name:
+            try:
+                start, target = self._port_unit(con.start), self._port_unit(con.end)
+            except UnitError as exc:
+                problems.append(f"{self.ssd}: connection {con}: {exc}")
                 continue
-            if not (start.baseUnit is not None and end.baseUnit is not None
-                    and _base(start.baseUnit) == _base(end.baseUnit)):
+            if start is None or target is None or start.name == target.name:
+                continue
+            try:
+                factor, offset = conversion(start, target)
+            except UnitError:
                 problems.append(f"{self.ssd}: connection {con}: unit mismatch ({con.start} is in "
-                                f"{start.name}, {con.end} in {end.name})")
+                                f"{start.name}, {con.end} in {target.name})")
+                continue
+            if (factor, offset) != (1.0, 0.0):
+                self.links[end] = replace(con, factor=factor, offset=offset)
 
-    def _unit(self, ref: PortRef) -> Unit | None:
-        """The unit definition of a Real variable (a name without definition: a Unit of that name)."""
+    def _resolve(self, name: str, *definitions: Iterable[UnitDef]) -> UnitDef:
+        """A unit named in the SSD or a parameter set: the files' own definitions, else the known names."""
+        tables = [{u.name: u for u in d} for d in (*definitions, self.structure.units)]
+        return resolve(name, *tables)
+
+    def _port_unit(self, ref: PortRef) -> UnitDef | None:
+        """The unit of a connected port: its SSD connector's, else its FMU variable's (None: neither)."""
         comp = self.components.get(ref.component)
         var = comp.variables.get(ref.connector) if comp is not None else None
         if comp is None or var is None or var.type != "Real":
             return None
-        name = var.unit or (var.declaredType.unit if var.declaredType is not None else None)
-        if name is None:
-            return None
-        return next((u for u in comp.model.unitDefinitions if u.name == name), Unit(name))
+        declared = next((k.unit for c in self.structure.components if c.name == ref.component
+                         for k in c.connectors if k.name == ref.connector), None)
+        if declared is not None:
+            return self._resolve(declared)
+        return _unit_def(comp.model, var) if _unit_name(var) is not None else None
 
     def _apply(self, component: str, ps: ParameterSet, problems: list[str]) -> None:
         for p in ps.parameters:
-            self._set_start(PortRef(component, p.name), p, ps.origin, problems)
+            self._set_start(PortRef(component, p.name), p, ps.origin, problems, ps.units)
 
     def _apply_prefixed(self, ps: ParameterSet, problems: list[str]) -> None:
         for p in ps.parameters:
@@ -237,7 +263,8 @@ class System:
             except ValueError as exc:
                 problems.append(f"{ps.origin}: {exc}")
                 continue
-            self._set_start(ref, Parameter(ref.connector, p.type, p.value), ps.origin, problems)
+            self._set_start(ref, Parameter(ref.connector, p.type, p.value, p.unit), ps.origin, problems,
+                            ps.units)
 
     def _override(self, key: str, value: object, problems: list[str]) -> None:
         try:
@@ -248,14 +275,18 @@ class System:
         comp = self.components.get(ref.component)
         var = comp.variables.get(ref.connector) if comp else None
         type_ = var.type if var is not None else "Real"
+        unit = None
+        if type_ == "Real" and isinstance(value, str):
+            value, unit = split_value(value)
         try:
             converted = _convert(type_, value)
         except ValueError:
             problems.append(f"--set {key}: {value!r} is not a valid {type_}")
             return
-        self._set_start(ref, Parameter(ref.connector, type_, converted), "--set", problems)
+        self._set_start(ref, Parameter(ref.connector, type_, converted, unit), "--set", problems)
 
-    def _set_start(self, ref: PortRef, p: Parameter, origin: str, problems: list[str]) -> None:
+    def _set_start(self, ref: PortRef, p: Parameter, origin: str, problems: list[str],
+                   units: Iterable[UnitDef] = ()) -> None:
         comp = self.components.get(ref.component)
         if comp is None:
             if ref.component not in {c.name for c in self.structure.components}:
@@ -270,6 +301,19 @@ class System:
             problems.append(f"{origin}: {ref} is {var.type} but the value given is {p.type}")
         else:
             value = float(p.value) if var.type == "Real" else p.value
+            if p.unit is not None and var.type == "Real":
+                try:
+                    given, own = self._resolve(p.unit, units), _unit_def(comp.model, var)
+                except UnitError as exc:
+                    problems.append(f"{origin}: {ref} = {p.value!r} {p.unit}: {exc}")
+                    return
+                if given.exponents != own.exponents:
+                    fmu = (f"the FMU's unit {own.name} ({own.dimension()})" if _unit_name(var) else
+                           "the FMU's variable, which is dimensionless (give the value without a unit)")
+                    problems.append(f"{origin}: {ref} = {p.value!r} {p.unit}: a value in {p.unit} "
+                                    f"({given.dimension()}) cannot be converted to {fmu}")
+                    return
+                value = convert(value, given, own)
             outside = _outside(var, value)
             if outside:
                 problems.append(f"{origin}: {ref} = {value!r} {outside}")
@@ -381,8 +425,20 @@ def _cycle(first: PortRef, succ: Mapping[PortRef, list[PortRef]]) -> list[PortRe
     raise AssertionError("a strongly connected part has a cycle through each of its ports")
 
 
-def _base(unit: BaseUnit) -> tuple[float, ...]:
-    return tuple(getattr(unit, a) for a in ("kg", "m", "s", "A", "K", "mol", "cd", "rad", "factor", "offset"))
+def _unit_name(var: ModelVariable) -> str | None:
+    """The unit a Real variable declares, directly or through its type (None: dimensionless)."""
+    return var.unit or (var.declaredType.unit if var.declaredType is not None else None)
+
+
+def _unit_def(md: ModelDescription, var: ModelVariable) -> UnitDef:
+    """The unit of an FMU variable: its UnitDefinitions entry (base units, factor, offset), else the
+    known unit of that name; dimensionless when it declares none. UnitError when unknown."""
+    name = _unit_name(var)
+    unit = next((u for u in md.unitDefinitions if u.name == name), None) if name else None
+    if unit is None or unit.baseUnit is None:
+        return resolve(name)
+    base = unit.baseUnit
+    return UnitDef(name, tuple(int(getattr(base, b)) for b in BASE), float(base.factor), float(base.offset))
 
 
 def _outside(var: ModelVariable, value: float | int | bool | str) -> str:

@@ -12,6 +12,7 @@ import datetime
 import hashlib
 import io
 import json
+import math
 import os
 import re
 import subprocess
@@ -29,6 +30,7 @@ from lxml import etree
 from orch_helpers import loop_scenario
 
 import orchestrator
+import orchestrator.validate
 from orchestrator.cli import _parser, main, plot_title
 from orchestrator.errors import ScenarioError, ScenarioWarning, UsageError
 from orchestrator.provenance import summary
@@ -263,3 +265,112 @@ def test_metrics_warns_on_a_partial_result(built, tmp_path, capsys):
     assert captured.err == (f"orchestrate: warning: {out}: partial result (failed at t = {last} s of "
                             "0.0 .. 1.0 s): the metrics cover only the rows written\n")
     assert "p: pendulum.ssp" in captured.out and f"failed at t = {last} s" in captured.out
+
+
+# -- part 1: units --------------------------------------------------------------------------------
+def _unpack(archive: Path, folder: Path) -> Path:
+    with zipfile.ZipFile(archive) as zf:
+        zf.extractall(folder)
+    return folder
+
+
+def _fault_time(result: np.ndarray) -> float:
+    """The first time at which the actuator's output is not the controller's v (the paper's
+    actuator: uf = v before t_fault)."""
+    differs = np.flatnonzero(result["actuator.uf"] != result["controller.v"])
+    return float(result["time"][differs[0]]) if differs.size else math.inf
+
+
+@pytest.mark.system
+def test_a_value_in_another_unit_is_converted_or_refused(built, tmp_path, capsys):
+    """Before: value="80" unit="ms" was applied as 80 s (no fault in the run)."""
+    folder = _unpack(built / "ssp" / "pendulum.ssp", tmp_path / "p")
+    ssv = folder / "actuator.ssv"
+    text = ssv.read_text()
+    edited = re.sub(r'(<ssv:Parameter name="t_fault">\s*<ssv:Real) value="[^"]*"', r'\1 value="80" unit="ms"',
+                    text)
+    assert edited != text
+    ssv.write_text(edited)
+    result = orchestrator.run(folder, stop_time=0.1)
+    assert _fault_time(result) == 0.08  # the fault starts at 80 ms, on the 0.5 ms grid
+    # the same value on the command line, with and without a space
+    for value in ("80ms", "80 ms", "0.08"):
+        out = tmp_path / "r.csv"
+        assert main(["run", str(built / "ssp" / "pendulum.ssp"), "--set", f"actuator.t_fault={value}",
+                     "--stop-time", "0.1", "--quiet", "--no-plot", "--output", str(out)]) == 0
+        assert _fault_time(read_csv(out)) == 0.08
+    # another dimension, or a unit on a dimensionless variable, is refused with one line
+    ssv.write_text(edited.replace('unit="ms"', 'unit="m"'))
+    with pytest.raises(ScenarioError) as info:
+        orchestrator.run(folder, stop_time=0.1)
+    assert str(info.value) == ("actuator.ssv: actuator.t_fault = 80.0 m: a value in m (m) cannot be "
+                               "converted to the FMU's unit s (s)")
+    assert main(["run", str(folder), "--set", "controller.k1=3ms", "--quiet", "--no-plot",
+                 "--output", str(tmp_path / "r.csv")]) == 1
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        "  - --set: controller.k1 = 3.0 ms: a value in ms (s) cannot be converted to the FMU's variable, "
+        "which is dimensionless (give the value without a unit)")
+
+
+@pytest.mark.system
+def test_connector_units_are_checked_against_the_fmu_and_each_other(built, tmp_path):
+    """Before: connectors declared unit="m" and unit="s" on plant.x1 -> controller.x1 (an angle in
+    rad in the FMU) were accepted."""
+    folder = _unpack(built / "ssp" / "pendulum.ssp", tmp_path / "p")
+    ssd = folder / SSD_NAME
+    tree = etree.parse(str(ssd))
+    root = tree.getroot()
+    for component, unit in (("plant", "m"), ("controller", "s")):
+        real = root.find(f"ssd:System/ssd:Elements/ssd:Component[@name='{component}']/ssd:Connectors/"
+                         "ssd:Connector[@name='x1']/ssc:Real", NS)
+        real.set("unit", unit)
+    tree.write(str(ssd))
+    report = orchestrator.validate.validate(folder)
+    assert [str(p) for p in report.errors] == [
+        f"error: {ssd}: component 'plant', connector 'x1': declared unit m but the FMU's variable is in rad",
+        f"error: {ssd}: connection plant.x1 -> controller.x1: unit mismatch (plant.x1 is in m, "
+        "controller.x1 in s)"]
+
+
+def _with_unit(fmu: Path, dest: Path, variable: str, unit: str) -> Path:
+    """Copy of a test FMU whose Real ``variable`` is in ``unit`` (rad and deg defined)."""
+    definitions = ('<UnitDefinitions><Unit name="rad"><BaseUnit rad="1"/></Unit><Unit name="deg">'
+                   '<BaseUnit rad="1" factor="0.017453292519943295"/></Unit></UnitDefinitions>')
+    with zipfile.ZipFile(fmu) as zf:
+        files = {i.filename: zf.read(i) for i in zf.infolist()}
+    xml = files["modelDescription.xml"].decode()
+    xml = xml.replace("<LogCategories>", definitions + "<LogCategories>", 1)
+    xml = re.sub(rf'(<ScalarVariable name="{variable}"[^>]*>\s*<Real)', rf'\1 unit="{unit}"', xml)
+    files["modelDescription.xml"] = xml.encode()
+    with zipfile.ZipFile(dest, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, data in files.items():
+            zf.writestr(name, data)
+    return dest
+
+
+@pytest.mark.system
+def test_a_connection_between_scalings_of_one_unit_converts(test_fmus, tmp_path):
+    """integrator.x in rad -> gain.u in deg: SSP 1.0's implied unit conversion multiplies by 180/pi,
+    so x_k = x0 (1 + h k 180/pi)^k."""
+    fmus = {"Source": test_fmus["Source"],
+            "Gain": _with_unit(test_fmus["Gain"], tmp_path / "Gain.fmu", "u", "deg"),
+            "Integrator": _with_unit(test_fmus["Integrator"], tmp_path / "Integrator.fmu", "x", "rad")}
+    k = -0.1
+    r = orchestrator.run(loop_scenario(tmp_path / "deg" / "loop", fmus, gain=k, stop=0.2, step=H))
+    n = np.arange(len(r))
+    np.testing.assert_allclose(r["gain.u"], r["integrator.x"] * 180 / math.pi, rtol=1e-15)
+    np.testing.assert_allclose(r["integrator.x"], (1 + H * k * 180 / math.pi) ** n, rtol=1e-12)
+
+
+def test_unit_conversions_against_their_definitions():
+    from orchestrator.units import KNOWN, UnitError, convert, split_value
+
+    assert convert(8000.0, KNOWN["ms"], KNOWN["s"]) == 8.0
+    assert convert(90.0, KNOWN["deg"], KNOWN["rad"]) == pytest.approx(math.pi / 2, rel=1e-15)
+    assert convert(60.0, KNOWN["rpm"], KNOWN["rad/s"]) == pytest.approx(2 * math.pi, rel=1e-15)
+    assert convert(25.0, KNOWN["degC"], KNOWN["K"]) == pytest.approx(298.15, rel=1e-15)
+    assert convert(36.0, KNOWN["km/h"], KNOWN["m/s"]) == pytest.approx(10.0, rel=1e-15)
+    with pytest.raises(UnitError, match=r"ms \(s\) cannot be converted to m \(m\)"):
+        convert(1.0, KNOWN["ms"], KNOWN["m"])
+    assert [split_value(t) for t in ("8000ms", "8000 ms", "-1.5e3 deg", "1e-3", "3 1/s", "true")] == [
+        ("8000", "ms"), ("8000", "ms"), ("-1.5e3", "deg"), ("1e-3", None), ("3", "1/s"), ("true", None)]
