@@ -23,8 +23,8 @@ from lxml import etree
 from ..results import structured
 from ..ssp import NS, SSD_NAME, open_scenario, read_scenario
 
-__all__ = ["AMPLIFIED", "Scenario", "Tolerance", "Tool", "ToolRun", "clean_environment", "elf_interpreter",
-           "empty_result", "last_per_step", "table_result"]
+__all__ = ["AMPLIFIED", "QUIET", "Scenario", "Tolerance", "Tool", "ToolRun", "clean_environment",
+           "elf_interpreter", "empty_result", "last_per_step", "table_result"]
 
 # Variables of the FMUs that pythonfmu's C-API hosts must not inherit from the caller: the FMUs are
 # expected to find libpython and their packages by themselves (see README, "Running the FMUs
@@ -36,6 +36,10 @@ FMU_ENVIRONMENT = ("LD_PRELOAD", "PYTHONPATH", "PYTHONHOME")
 # 1.3e-2 (Ecos on example1_finite_time at t = 27.1 s; our own jacobi master moves by 7.9e-3 when the
 # reference's phase changes by 1e-13). A different coupling shows in the first second instead.
 AMPLIFIED = 0.05
+# Tolerance in the first second for a tool that is not bit-identical: the regression tube of plant.y
+# before t = 1 s (tests/baselines/tolerances.json, quiet_atol); measured up to 1.5e-8 (OMSimulator on
+# the pendulum's stiff start, |v(0)| = 15 218).
+QUIET = 1e-6
 
 
 @dataclass(frozen=True)
