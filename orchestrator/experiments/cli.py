@@ -107,6 +107,7 @@ def _compare(args: argparse.Namespace) -> int:
     if tolerances is None:
         beside = args.baseline.parent / regression.TOLERANCES_NAME
         tolerances = regression.load_tolerances(beside) if beside.is_file() else regression.Tolerances()
+    tolerances = tolerances.for_scenario(args.baseline.stem)  # the baseline's own tubes, if any
     overrides = dict(regression.parse_tolerance(text, tolerances) for text in args.tol)
     comparison = regression.compare_files(args.result, args.baseline, tolerances.with_overrides(overrides))
     print(f"result:   {args.result}: {summary(read_provenance(args.result))}")

@@ -101,6 +101,12 @@ class Tolerances:
     default: Tolerance = Tolerance(rtol=0.01)
     quiet_until: float = 0.0
     source: str = "built-in defaults"
+    scenarios: Mapping[str, Mapping[str, Tolerance]] = field(default_factory=dict)
+
+    def for_scenario(self, name: str) -> Tolerances:
+        """The tubes for the baseline of scenario ``name``: its own tubes (``scenarios``) replace the
+        common ones for the signals they list."""
+        return replace(self, signals={**self.signals, **self.scenarios.get(name, {})})
 
     def of(self, name: str) -> Tolerance:
         """The tube of column ``name``."""
@@ -129,7 +135,8 @@ def _tolerance(entry: object, where: str) -> Tolerance:
 
 def load_tolerances(path: str | os.PathLike) -> Tolerances:
     """Read a tolerance file: ``{"quiet_until": s, "default": {...}, "signals": {"plant.y": {"atol":
-    ..., "quiet_atol": ..., "reason": "..."}}}`` (``reason`` is for the reader)."""
+    ..., "quiet_atol": ..., "reason": "..."}}, "scenarios": {"pendulum": {"plant.y": {...}}}}``
+    (``reason`` is for the reader; a scenario's own tubes apply to the baseline of that name)."""
     path = Path(path)
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
@@ -145,7 +152,13 @@ def load_tolerances(path: str | os.PathLike) -> Tolerances:
         raise RegressionError(f"{path}: quiet_until must be a number of seconds (got {quiet_until!r})")
     default = _tolerance(data["default"], f"{path}: default") if "default" in data else Tolerance(rtol=0.01)
     tubes = {name: _tolerance(entry, f"{path}: signal '{name}'") for name, entry in signals.items()}
-    return Tolerances(tubes, default, float(quiet_until), str(path))
+    scenarios = data.get("scenarios", {})
+    if not isinstance(scenarios, Mapping) or not all(isinstance(v, Mapping) for v in scenarios.values()):
+        raise RegressionError(f"{path}: 'scenarios' must map scenario names to objects of signals")
+    own = {scenario: {name: _tolerance(entry, f"{path}: scenario '{scenario}', signal '{name}'")
+                      for name, entry in entries.items() if name != "about"}
+           for scenario, entries in scenarios.items()}
+    return Tolerances(tubes, default, float(quiet_until), str(path), own)
 
 
 def parse_tolerance(text: str, base: Tolerances) -> tuple[str, Tolerance]:
@@ -340,6 +353,7 @@ def compare_files(result: str | os.PathLike, baseline: str | os.PathLike,
     if tolerances is None:
         beside = baseline.parent / TOLERANCES_NAME
         tolerances = load_tolerances(beside) if beside.is_file() else Tolerances()
+        tolerances = tolerances.for_scenario(baseline.stem)
     return compare(read_result(result), read_result(baseline), tolerances, str(result), str(baseline))
 
 
