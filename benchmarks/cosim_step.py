@@ -20,7 +20,8 @@ Method. Times are CPU times of this process (``time.process_time``), so other pr
 shared machine do not distort them. The stepping loop of ``orchestrate``'s master runs with results
 in memory. A second run wraps every fmi2DoStep/GetReal/SetReal (ctypes) in a CPU timer, corrected
 for the timer's own cost inside the timed window (calibrated on a no-op call); it gives the FMU
-breakdown, and ``loop - inside FMU calls`` is the master's own overhead. Every figure is the best
+breakdown, and ``rest = loop - inside FMU calls`` estimates the master's own overhead (the two
+come from different runs: a few us of noise, it can come out negative). Every figure is the best
 of ``--repeat`` runs. The in-process cost of the controller's two paths is in
 ``benchmarks/controller_step.py``.
 """
@@ -165,7 +166,7 @@ def measure(scenario: str, archives: dict[str, Path], stop: float, master: str, 
     step_ms = stop / steps * 1e3
     print(f"\n{scenario}: {steps} steps of {step_ms:g} ms, master {master}, best of {repeat}, "
           f"CPU us per communication step (timer bias {bias:.0f} ns/call corrected)")
-    print(f"  {'configuration':34s} {'loop':>7s} {'in FMUs':>7s} {'master':>7s} {'FMI calls/step':>15s}")
+    print(f"  {'configuration':34s} {'loop':>7s} {'in FMUs':>7s} {'rest':>7s} {'FMI calls/step':>15s}")
     for label in configurations:
         total, inside = best[label], best[label + " inside"]
         print(f"  {label:34s} {us(total)} {us(inside)} {us(total - inside)} "
