@@ -2,15 +2,15 @@
 
 pythonfmu 0.7 writes neither units nor output dependencies, keeps the very object returned by
 ``_get_fmu_state`` and snapshots only registered variables. This module adds what is missing.
+It cannot be a base class: the pythonfmu loader finds the slave with the regex
+``^class (\\w+)\\(\\s*Fmi2Slave\\s*\\)\\s*:`` on the script text, so every script declares
+``class Name(Fmi2Slave):`` and applies the :func:`fmu_model` decorator instead.
 
 It also replaces pythonfmu's ``get_real``/``set_real`` (and the Integer pair), which call one
 getter or setter lambda per variable: a slave keeps every variable in the attribute of the same
 name, value references map straight to those names, and outputs computed from inputs and states
 are refreshed once, by the slave's ``refresh_outputs()``, when one is read after anything changed
 (see :func:`declare`).
-It cannot be a base class: the pythonfmu loader finds the slave with the regex
-``^class (\\w+)\\(\\s*Fmi2Slave\\s*\\)\\s*:`` on the script text, so every script declares
-``class Name(Fmi2Slave):`` and applies the :func:`fmu_model` decorator instead.
 """
 
 from __future__ import annotations
