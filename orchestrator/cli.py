@@ -22,8 +22,9 @@ from pathlib import Path
 
 from . import MASTERS, run
 from .errors import OrchestratorError, ScenarioError, ScenarioWarning, SimulationError, UsageError
+from .plots import plot_run
 from .provenance import overrides_text, read_provenance
-from .results import plot_result, read_result
+from .results import read_result
 from .validate import validate
 
 __all__ = ["COMMAND_GROUP", "add_command", "fmu_dirs", "main", "plot_title", "resolve_scenario",
@@ -302,7 +303,8 @@ def _run(args: argparse.Namespace) -> int:
         logging.getLogger().removeHandler(messages)
     if plot is not None:
         try:
-            plot_result(result, plot, plot_title(name, read_provenance(output), args.master))
+            record = read_provenance(output)
+            plot_run(result, plot, plot_title(name, record, args.master), *_plot_context(record))
         except OSError as exc:
             print(f"orchestrate: error: cannot write the plot: {exc}; results kept in {output}",
                   file=sys.stderr)
@@ -331,6 +333,14 @@ def plot_title(name: str, record: dict | None, master: object = None) -> str:
     return f"{title}\n{changed}" if changed else title
 
 
+def _plot_context(record: dict | None) -> tuple[dict, float | None]:
+    """Column units and the fault time (``actuator.t_fault``) from a result's provenance."""
+    if record is None:
+        return {}, None
+    fault = (record.get("start_values") or {}).get("actuator.t_fault")
+    return record.get("units") or {}, float(fault) if isinstance(fault, (int, float)) else None
+
+
 def _validate(args: argparse.Namespace) -> int:
     overrides = _overrides(args.set)
     scenario = resolve_scenario(args.scenario)
@@ -354,6 +364,7 @@ def _plot(args: argparse.Namespace) -> int:
     data = read_result(args.result)
     target = args.output or args.result.with_suffix(".png")
     record = read_provenance(args.result)
-    plot_result(data, target, plot_title(args.result.stem, record, record.get("master") if record else None))
+    plot_run(data, target, plot_title(args.result.stem, record, record.get("master") if record else None),
+             *_plot_context(record))
     print(target)
     return 0

@@ -2,11 +2,12 @@
 
 A result alone does not say what produced it. The sidecar records the scenario and its SHA-256
 digest, every FMU (GUID, model name, generation tool, digest), every parameter set and override,
-the start values finally applied, start/stop/step, the master, the package versions, the git
-commit of the code (when it runs from a checkout) and the date; and the run's ``status``
-(``running`` while it runs, then ``complete``, ``failed`` or ``interrupted``) with the time of the
-last row, so a partial result is recognisable. It is written atomically (temporary file, rename)
-before the first step and again when the run ends.
+the start values finally applied, the unit of every column (from the model descriptions),
+start/stop/step, the master, the package versions, the git commit of the code (when it runs from
+a checkout) and the date; and the run's ``status`` (``running`` while it runs, then ``complete``,
+``failed`` or ``interrupted``) with the time of the last row, so a partial result is
+recognisable. It is written atomically (temporary file, rename) before the first step and again
+when the run ends.
 """
 
 from __future__ import annotations
@@ -23,8 +24,8 @@ from pathlib import Path
 
 from .system import System
 
-__all__ = ["PACKAGES", "commit", "describe", "digest", "finish", "overrides_text", "read_provenance",
-           "sidecar", "summary", "versions", "write_provenance"]
+__all__ = ["PACKAGES", "column_units", "commit", "describe", "digest", "finish", "overrides_text",
+           "read_provenance", "sidecar", "summary", "versions", "write_provenance"]
 
 PACKAGES = ("fixed-time-cosim", "fmpy", "pythonfmu", "numpy", "scipy", "lxml", "pyarrow")
 CODE_ROOT = Path(__file__).resolve().parents[1]
@@ -92,12 +93,25 @@ def describe(scenario: str | os.PathLike, system: System, *, start: float, stop:
         "overrides": {k: str(v) for k, v in (overrides or {}).items()},
         "start_values": {f"{name}.{k}": v for name, comp in system.components.items()
                          for k, v in comp.start_values.items()},
+        "units": column_units(system),
         "start_time": start, "stop_time": stop, "step": step, "master": master,
         "versions": versions(),
         "git": commit(),
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "status": "running",
     }
+
+
+def column_units(system: System) -> dict[str, str | None]:
+    """The unit of every result column ``component.connector`` (None: the FMU declares none)."""
+    return {f"{name}.{k}": _unit(comp.variables[k]) for name, comp in system.components.items()
+            for k in (*comp.outputs, *comp.inputs)}
+
+
+def _unit(var: object) -> str | None:
+    """The unit a variable declares, directly or through its type (None: none)."""
+    declared = getattr(var, "declaredType", None)
+    return getattr(var, "unit", None) or (declared.unit if declared is not None else None)
 
 
 def write_provenance(result: str | os.PathLike, record: Mapping[str, object]) -> Path:

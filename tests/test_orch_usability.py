@@ -374,3 +374,51 @@ def test_unit_conversions_against_their_definitions():
         convert(1.0, KNOWN["ms"], KNOWN["m"])
     assert [split_value(t) for t in ("8000ms", "8000 ms", "-1.5e3 deg", "1e-3", "3 1/s", "true")] == [
         ("8000", "ms"), ("8000", "ms"), ("-1.5e3", "deg"), ("1e-3", None), ("3", "1/s"), ("true", None)]
+
+
+# -- part 8: plots ------------------------------------------------------------------------------
+def test_the_run_figure_has_units_a_log_error_panel_a_fault_marker_and_readable_control_ticks():
+    """A synthetic pendulum-like result (oracle: the columns written here): y in rad, a control
+    spike of 1.5e4 over a chattering level of about 1."""
+    import matplotlib.pyplot as plt
+
+    from orchestrator.plots import build_figure
+
+    t = np.linspace(0.0, 30.0, 30001)
+    yd = np.sin(0.5 * t)
+    y = yd + 0.6 * np.exp(-40 * t) + 1e-4 * np.sin(7 * t)
+    v = np.where(t < 0.01, 1.5e4, np.sin(50 * t))
+    columns = {"time": t, "plant.y": y, "reference.yd": yd, "controller.v": v, "actuator.uf": 0.5 * v}
+    result = np.zeros(len(t), dtype=[(n, float) for n in columns])
+    for n, values in columns.items():
+        result[n] = values
+    units = {"plant.y": "rad", "reference.yd": None, "controller.v": None, "actuator.uf": None}
+    fig = build_figure(result, "pendulum (gauss-seidel)\nactuator.t_fault=6", units, fault_time=6.0)
+    try:
+        output, first, error, control = fig.axes
+        assert [a.get_ylabel() for a in fig.axes] == ["output (rad)", "first second (rad)", "|y - yd| (rad)",
+                                                      "control (-)"]
+        assert error.get_yscale() == "log" and control.get_yscale() == "symlog"
+        assert first.get_xlim()[1] <= 1.1  # the first second, on its own axis
+        for ax in (output, error, control):
+            assert any(list(line.get_xdata()) == [6.0, 6.0] for line in ax.get_lines()), ax.get_ylabel()
+        fig.canvas.draw()
+        low, high = control.get_ylim()
+        ticks = [tick for tick in control.get_yticks() if low <= tick <= high]
+        pixels = np.sort([control.transData.transform((0.0, tick))[1] for tick in ticks])
+        font = control.yaxis.get_ticklabels()[0].get_fontsize() * fig.dpi / 72
+        assert len(ticks) >= 3 and np.diff(pixels).min() > 1.2 * font  # labels cannot overlap
+        assert fig._suptitle.get_text().endswith("actuator.t_fault=6")
+    finally:
+        plt.close(fig)
+
+
+@pytest.mark.system
+def test_run_plot_title_and_axes_come_from_the_provenance(built, tmp_path):
+    out = tmp_path / "p.csv"
+    assert main(["run", str(built / "ssp" / "pendulum.ssp"), "--stop-time", "0.05",
+                 "--set", "actuator.t_fault=20ms", "--quiet", "--output", str(out)]) == 0
+    record = json.loads((tmp_path / "p.csv.json").read_text())
+    assert record["units"]["plant.y"] == "rad" and record["units"]["plant.x2"] == "rad/s"
+    assert record["start_values"]["actuator.t_fault"] == 0.02
+    assert (tmp_path / "p.png").stat().st_size > 10000

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+from importlib.metadata import version
 from pathlib import Path
 
 import pytest
@@ -19,6 +21,9 @@ def test_report_on_a_short_horizon(tmp_path: Path, capsys: pytest.CaptureFixture
     report = out / "report.md"
     assert capsys.readouterr().out.strip() == str(report)
     text = report.read_text()
+    head = subprocess.run(["git", "-C", str(Path(__file__).parent), "rev-parse", "HEAD"], capture_output=True,
+                          text=True).stdout.strip()
+    assert f"; commit `{head[:12]}`" in text and f"fmpy {version('fmpy')}" in text  # issue 12: provenance
     for example in (1, 2):
         for key, *_ in FIGURES:
             figure = out / f"example{example}_{key}.png"

@@ -27,6 +27,7 @@ from controller.params import Mode
 from .. import open_system, provenance, run
 from ..campaign import Design, read_table, sweep
 from ..campaign import write_report as campaign_report
+from ..plots import axis_label
 from .campaigns import TRACKING, claim_headlines, fault_headlines
 from .metrics import TrackingMetrics, format_table, tracking_metrics
 from .scenarios import build_scenarios
@@ -98,20 +99,23 @@ def settling_study(archive: Path, values: Sequence[float] = STUDY_VALUES, horizo
 
 
 # -- figures ---------------------------------------------------------------------------------------
-FIGURES = (
-    ("output", "output y and reference yd", lambda r: {"y": r["plant.y"]}, True),
-    ("error", "tracking error y - yd", lambda r: {"y - yd": r["plant.y"] - r["reference.yd"]}, False),
-    ("x2", "state x2", lambda r: {"x2": r["plant.x2"]}, False),
+FIGURES = (  # key, title, signals, with the reference, y label, columns whose unit the y axis shows
+    ("output", "output y and reference yd", lambda r: {"y": r["plant.y"]}, True, "y, yd", ["plant.y"]),
+    ("error", "tracking error y - yd", lambda r: {"y - yd": r["plant.y"] - r["reference.yd"]}, False,
+     "y - yd", ["plant.y"]),
+    ("x2", "state x2", lambda r: {"x2": r["plant.x2"]}, False, "x2", ["plant.x2"]),
     ("eta_hat", "adaptive estimates", lambda r: {"eta1_hat": r["controller.eta1_hat"],
-                                                  "eta2_hat": r["controller.eta2_hat"]}, False),
+                                                  "eta2_hat": r["controller.eta2_hat"]}, False,
+     "eta_hat", ["controller.eta1_hat", "controller.eta2_hat"]),
     ("control", "control v and applied uf", lambda r: {"v": r["controller.v"], "uf": r["actuator.uf"]},
-     False),
+     False, "v, uf", ["controller.v", "actuator.uf"]),
     ("z_r", "unmodeled dynamics z and dynamic signal r",
-     lambda r: {"z": r["plant.z"], "r": r["controller.r"]}, False),
+     lambda r: {"z": r["plant.z"], "r": r["controller.r"]}, False, "z, r", ["plant.z", "controller.r"]),
 )
 
 
-def _figures(results: dict[tuple[int, str], np.ndarray], out: Path) -> dict[int, list[tuple[str, str]]]:
+def _figures(results: dict[tuple[int, str], np.ndarray], out: Path,
+             units: dict[int, dict[str, str | None]] | None = None) -> dict[int, list[tuple[str, str]]]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -119,7 +123,7 @@ def _figures(results: dict[tuple[int, str], np.ndarray], out: Path) -> dict[int,
 
     written: dict[int, list[tuple[str, str]]] = {}
     for example in sorted({e for e, _ in results}):
-        for key, title, select, with_reference in FIGURES:
+        for key, title, select, with_reference, ylabel, columns in FIGURES:
             fig, ax = plt.subplots(figsize=(9, 3.4))
             for (e, method), result in results.items():
                 if e != example:
@@ -133,6 +137,7 @@ def _figures(results: dict[tuple[int, str], np.ndarray], out: Path) -> dict[int,
             if key == "control":
                 ax.set_yscale("symlog", linthresh=10)
             ax.set_title(f"Example {example}: {title}")
+            ax.set_ylabel(axis_label(ylabel, columns, (units or {}).get(example, {})))
             ax.set_xlabel("time (s)")
             ax.grid(True, alpha=0.3)
             ax.legend(loc="upper right", fontsize="small", ncol=2)
@@ -185,7 +190,12 @@ def write_report(out: str | os.PathLike = DEFAULT_OUT, stop_time: float | None =
         results = run_cases(archives, stop_time, processes)
         study = settling_study(archives[STUDY_SCENARIO], study_values, study_horizon, processes)
         settings = {s: _experiment(archives[s]) for s in CASES.values()}
-    figures = _figures(results, out)
+        units = {}
+        for (example, method), scenario in CASES.items():
+            if method == "fixed-time":
+                with open_system(archives[scenario]) as system:
+                    units[example] = provenance.column_units(system)
+    figures = _figures(results, out, units)
     elapsed = time.perf_counter() - started
 
     metrics = {case: _metrics(r) for case, r in results.items()}
