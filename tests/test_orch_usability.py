@@ -422,3 +422,16 @@ def test_run_plot_title_and_axes_come_from_the_provenance(built, tmp_path):
     assert record["units"]["plant.y"] == "rad" and record["units"]["plant.x2"] == "rad/s"
     assert record["start_values"]["actuator.t_fault"] == 0.02
     assert (tmp_path / "p.png").stat().st_size > 10000
+
+
+# -- part 6: the scenario's own tubes are what 'compare' uses ----------------------------------------
+def test_compare_uses_the_tubes_of_the_baselines_scenario(tmp_path, capsys):
+    t = [k / 10 for k in range(11)]
+    (tmp_path / "tolerances.json").write_text(json.dumps({
+        "signals": {"s": {"atol": 1e-3}}, "scenarios": {"pendulum": {"s": {"atol": 1e-6}}}}))
+    for name in ("pendulum", "other"):
+        (tmp_path / f"{name}.csv").write_text("time,s\n" + "".join(f"{x!r},1.0\n" for x in t))
+    (tmp_path / "r.csv").write_text("time,s\n" + "".join(f"{x!r},1.00001\n" for x in t))  # 1e-5 off
+    assert main(["compare", str(tmp_path / "r.csv"), str(tmp_path / "other.csv")]) == 0
+    assert main(["compare", str(tmp_path / "r.csv"), str(tmp_path / "pendulum.csv")]) == 1
+    assert "| s |" in capsys.readouterr().out
