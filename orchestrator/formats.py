@@ -1,0 +1,155 @@
+"""Result formats and output selection: what ``--output`` (by its extension), ``--output-variables``,
+``--output-interval`` and ``--no-inputs`` make of the CSV the master streams.
+
+* ``.csv``: text, ``time`` then one column per signal (what the master writes as the run goes);
+* ``.parquet``: one float64 column per signal, the same names (pyarrow; read with pandas, polars,
+  DuckDB, Spark ...);
+* ``.mat``: the Dymola/OpenModelica trajectory format (MATLAB v4, ``Aclass = Atrajectory 1.1
+  binTrans``, ``name``, ``description``, ``dataInfo``, ``data_1``, ``data_2``) that OMSimulator and
+  Dymola write, so the tools their users have read it; the same names (scipy).
+
+Any other extension is a usage error, before anything runs. A selection or another format is made
+from the streamed CSV when the run ends (also after a failure, from the rows kept): the CSV then
+goes to ``<output>.partial.csv`` while the run goes, and is removed once the final file is written.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import UsageError
+
+__all__ = ["FORMATS", "Selection", "check_output", "staging_path", "write_selected"]
+
+FORMATS = (".csv", ".parquet", ".mat")
+NS_PER_S = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class Selection:
+    """Which columns and rows of a result to write: ``variables`` (fnmatch patterns; empty: all),
+    ``interval`` (s; a multiple of the step, rows at ``t0 + k * interval``), ``drop`` (columns left
+    out, e.g. inputs that only repeat their source)."""
+
+    variables: tuple[str, ...] = ()
+    interval: float | None = None
+    drop: tuple[str, ...] = ()
+
+    @property
+    def everything(self) -> bool:
+        """True when every column and row is kept."""
+        return not self.variables and self.interval is None and not self.drop
+
+    def columns(self, names: Sequence[str]) -> list[str]:
+        """``time`` and the selected signals of ``names``, in their order; UsageError naming a
+        pattern that matches no column."""
+        signals = [n for n in names if n != "time" and n not in self.drop]
+        if not self.variables:
+            return ["time", *signals]
+        for pattern in self.variables:
+            if not fnmatch.filter(signals, pattern):
+                raise UsageError(f"--output-variables: '{pattern}' matches no column "
+                                 f"(columns: {', '.join(signals)})")
+        return ["time", *[n for n in signals if any(fnmatch.fnmatchcase(n, p) for p in self.variables)]]
+
+    def rows(self, time: np.ndarray) -> np.ndarray:
+        """Mask of the rows on the output grid ``t0 + k * interval`` (integer nanoseconds)."""
+        if self.interval is None or not len(time):
+            return np.ones(len(time), dtype=bool)
+        ns = np.round(np.asarray(time) * NS_PER_S).astype(np.int64)
+        return (ns - ns[0]) % round(self.interval * NS_PER_S) == 0
+
+
+def check_output(path: str | os.PathLike, step: float | None = None,
+                 selection: Selection = Selection()) -> None:
+    """UsageError for an extension no writer handles, or an interval that is not a positive
+    multiple of the communication step ``step``."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in FORMATS:
+        raise UsageError(f"--output {path}: cannot write '{suffix or 'no extension'}' files "
+                         f"(choose {', '.join(FORMATS)})")
+    interval = selection.interval
+    if interval is not None:
+        if not (np.isfinite(interval) and interval > 0):
+            raise UsageError(f"--output-interval must be positive and finite (got {interval!r})")
+        if step is not None and round(interval * NS_PER_S) % round(step * NS_PER_S):
+            raise UsageError(f"--output-interval {interval:g} s is not a multiple of the step {step:g} s")
+
+
+def staging_path(output: str | os.PathLike, selection: Selection = Selection()) -> Path:
+    """Where the master streams its CSV: ``output`` itself for a full CSV, else
+    ``<output>.partial.csv`` (turned into ``output`` by :func:`write_selected`)."""
+    output = Path(output)
+    if output.suffix.lower() == ".csv" and selection.everything:
+        return output
+    return output.with_name(output.name + ".partial.csv")
+
+
+def write_selected(csv: str | os.PathLike, output: str | os.PathLike,
+                   selection: Selection = Selection()) -> Path:
+    """Write the selected columns and rows of the result CSV ``csv`` to ``output`` in the format
+    of its extension (written to a temporary name, then renamed), and remove ``csv`` when it is
+    not ``output`` itself. Returns ``output``."""
+    from fmpy.util import read_csv
+
+    csv, output = Path(csv), Path(output)
+    if csv == output and selection.everything:
+        return output
+    data = read_csv(csv)
+    columns = selection.columns(data.dtype.names)
+    data = data[selection.rows(data["time"])]
+    partial = output.with_name(output.name + ".part")
+    suffix = output.suffix.lower()
+    if suffix == ".parquet":
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        table = pa.table({c: np.ascontiguousarray(data[c], dtype=np.float64) for c in columns})
+        pq.write_table(table, partial)
+    elif suffix == ".mat":
+        _write_mat(partial, data, columns)
+    else:
+        with open(partial, "w", encoding="utf-8", newline="\n") as out:
+            out.write(",".join(columns) + "\n")
+            for row in zip(*(data[c].tolist() for c in columns), strict=True):
+                out.write(",".join(map(repr, row)) + "\n")
+    partial.replace(output)
+    if csv != output:
+        csv.unlink(missing_ok=True)
+    return output
+
+
+def _chars(texts: Sequence[str]) -> np.ndarray:
+    """A MATLAB v4 character matrix with one text per column (binTrans), padded with blanks."""
+    width = max(1, *(len(t) for t in texts))
+    matrix = np.full((width, len(texts)), " ", dtype="U1")
+    for j, text in enumerate(texts):
+        matrix[:len(text), j] = list(text)
+    return matrix
+
+
+def _write_mat(path: Path, data: np.ndarray, columns: list[str]) -> None:
+    """The Dymola trajectory format (1.1, binTrans): every signal in ``data_2`` (one row per
+    variable, time first), ``data_1`` the time span, ``dataInfo`` as OMSimulator writes it."""
+    from scipy.io import savemat
+
+    aclass = np.full((4, 11), " ", dtype="U1")
+    for i, text in enumerate(("Atrajectory", "1.1", "", "binTrans")):
+        aclass[i, :len(text)] = list(text)
+    info = np.zeros((4, len(columns)), dtype=np.int32)
+    info[0, 1:] = 2  # every signal in data_2; time (column 0) is the abscissa
+    info[1, :] = np.arange(1, len(columns) + 1)
+    info[3, :] = -1  # not defined outside the time range
+    time = data["time"]
+    span = np.array([[time[0], time[-1]]]) if len(time) else np.zeros((1, 2))
+    with open(path, "wb") as stream:
+        values = np.array([data[c] for c in columns], dtype=np.float64).reshape(len(columns), -1)
+        descriptions = _chars([""] * len(columns))
+        savemat(stream, {"Aclass": aclass, "name": _chars(columns), "description": descriptions,
+                         "dataInfo": info, "data_1": span, "data_2": values}, format="4")
