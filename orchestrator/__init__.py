@@ -15,26 +15,39 @@ from contextlib import ExitStack, contextmanager
 import numpy as np
 
 from . import provenance
-from .errors import OrchestratorError, ScenarioError, ScenarioWarning, SimulationError, UsageError
+from .errors import (
+    Interrupted,
+    NonFiniteError,
+    OrchestratorError,
+    ScenarioError,
+    ScenarioWarning,
+    SimulationError,
+    TimeLimitError,
+    UsageError,
+)
 from .master import MASTERS
+from .ssp import DEFAULT_LIMITS, Limits
 from .system import PortRef, System
 from .validate import DEFAULT_STEP, check_scenario, timing
 
-__all__ = ["DEFAULT_STEP", "MASTERS", "OrchestratorError", "PortRef", "ScenarioError", "ScenarioWarning",
-           "SimulationError", "UsageError", "open_system", "run"]
+__all__ = ["DEFAULT_STEP", "MASTERS", "Interrupted", "Limits", "NonFiniteError", "OrchestratorError",
+           "PortRef", "ScenarioError", "ScenarioWarning", "SimulationError", "TimeLimitError", "UsageError",
+           "open_system", "run"]
 
 
 @contextmanager
 def open_system(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.PathLike] = (),
                 overrides: Mapping[str, object] | None = None,
-                fmu_dirs: Iterable[str | os.PathLike] = ()) -> Iterator[System]:
+                fmu_dirs: Iterable[str | os.PathLike] = (),
+                limits: Limits = DEFAULT_LIMITS) -> Iterator[System]:
     """Open, read and validate a scenario (``.ssp`` archive or folder); an archive stays unpacked
     until the ``with`` block ends. FMUs missing from the scenario are looked up by file name in
-    ``fmu_dirs`` (a source folder with the built FMUs). Raises ScenarioError listing every problem
+    ``fmu_dirs`` (a source folder with the built FMUs); an archive and its FMUs must stay within
+    ``limits`` (:class:`~orchestrator.ssp.Limits`). Raises ScenarioError listing every problem
     found (the checks of :func:`orchestrator.validate.validate`, without its warnings)."""
     with ExitStack() as stack:
         system, errors, _ = check_scenario(scenario, stack, parameter_sets=parameter_sets,
-                                           overrides=overrides, fmu_dirs=fmu_dirs)
+                                           overrides=overrides, fmu_dirs=fmu_dirs, limits=limits)
         if system is None or errors:
             raise ScenarioError(errors)
         yield system
@@ -44,7 +57,8 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
         parameter_sets: Iterable[str | os.PathLike] = (), overrides: Mapping[str, object] | None = None,
         master: str = "gauss-seidel", output: str | os.PathLike | None = None,
         progress: Callable[[int, int], None] | None = None, start_time: float | None = None,
-        strict: bool = False, fmu_dirs: Iterable[str | os.PathLike] = ()) -> np.ndarray:
+        strict: bool = False, fmu_dirs: Iterable[str | os.PathLike] = (), keep: bool = True,
+        timeout: float | None = None, limits: Limits = DEFAULT_LIMITS) -> np.ndarray:
     """Run a scenario (``.ssp`` archive or folder) and return the results as a structured array
     with a ``time`` field and one ``<component>.<connector>`` field per connector.
 
@@ -54,9 +68,13 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
     the SSD's bindings; ``overrides`` (``{"controller.k1": 12}``) apply last. ``output``: CSV file
     written as the run goes, with its provenance in ``<output>.json``
     (:mod:`orchestrator.provenance`). An input that no connection feeds and no value was given for is a
-    ScenarioWarning (``strict``: a ScenarioError). ``fmu_dirs``: as for :func:`open_system`.
-    Raises ScenarioError for a bad set-up and SimulationError (with the rows computed so far in
-    ``.result``) when an FMU fails.
+    ScenarioWarning (``strict``: a ScenarioError). ``fmu_dirs``, ``limits``: as for :func:`open_system`.
+    ``keep`` False (with an ``output``): the rows are only streamed to the CSV, memory stays flat
+    however long the run, and the array returned is a preview for plotting (at most 4000 rows: each
+    column's extremes per bucket of rows). ``timeout``: wall-clock limit in seconds.
+    Raises ScenarioError for a bad set-up; SimulationError when an FMU fails, NonFiniteError when
+    a value is NaN or infinite, TimeLimitError at the ``timeout``, Interrupted on SIGINT/SIGTERM
+    (a KeyboardInterrupt), each with the rows kept in ``.result`` and their number in ``.rows``.
     """
     if master not in MASTERS:
         raise ValueError(f"unknown master '{master}' (choose from {', '.join(MASTERS)})")
@@ -68,20 +86,19 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
             raise ScenarioError(system.unconnected)
         for message in system.unconnected:
             warnings.warn(message, ScenarioWarning, stacklevel=2)
+        runner = MASTERS[master](system, start, stop, h, output, progress, keep=keep or output is None,
+                                 timeout=timeout)
         if output is None:
-            return MASTERS[master](system, start, stop, h, output, progress).run()
+            return runner.run()
         record = provenance.describe(scenario, system, start=start, stop=stop, step=h, master=master,
                                      parameter_sets=parameter_sets, overrides=overrides)
         provenance.write_provenance(output, record)
         try:
-            result = MASTERS[master](system, start, stop, h, output, progress).run()
-        except SimulationError as exc:
-            rows = getattr(exc, "result", np.empty(0, dtype=[("time", float)]))
-            provenance.finish(output, record, "failed", len(rows),
-                              float(rows["time"][-1]) if len(rows) else None, str(exc))
+            result = runner.run()
+        except (SimulationError, KeyboardInterrupt, OSError) as exc:
+            rows = runner.recorder.count if runner.recorder is not None else 0
+            status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
+            provenance.finish(output, record, status, rows, runner.time(rows - 1) if rows else None, str(exc))
             raise
-        except KeyboardInterrupt:
-            provenance.finish(output, record, "interrupted", -1, None)
-            raise
-        provenance.finish(output, record, "complete", len(result), float(result["time"][-1]))
+        provenance.finish(output, record, "complete", runner.recorder.count, runner.time(runner.n))
         return result

@@ -21,10 +21,18 @@ from importlib.metadata import PackageNotFoundError, entry_points, version
 from pathlib import Path
 
 from . import MASTERS, run
-from .errors import OrchestratorError, ScenarioError, ScenarioWarning, SimulationError, UsageError
+from .errors import (
+    Interrupted,
+    OrchestratorError,
+    ScenarioError,
+    ScenarioWarning,
+    SimulationError,
+    UsageError,
+)
 from .plots import plot_run
 from .provenance import overrides_text, read_provenance
 from .results import read_result
+from .ssp import DEFAULT_LIMITS, Limits
 from .validate import validate
 
 __all__ = ["COMMAND_GROUP", "add_command", "fmu_dirs", "main", "plot_title", "resolve_scenario",
@@ -59,7 +67,13 @@ masters:
                 components in dependency order: the controller's v at t_k uses the plant at t_k.
   jacobi        libcosim's algorithm: every connection delays its value by one step.
 
-exit status: 0 success, 1 scenario error or simulation failure, 2 usage error, 130 interrupted.
+Faults: an FMU call that fails, a NaN or infinite value, or the --timeout end the run with one
+line and the rows before the fault kept; Ctrl-C (SIGINT) or SIGTERM stop it at the next
+communication point, keep every row computed and write the plot of them. The CSV is written to a
+temporary file and renamed, so its name never holds a half-written file.
+
+exit status: 0 success, 1 scenario error, simulation failure or --timeout, 2 usage error,
+130 interrupted (SIGINT), 143 terminated (SIGTERM).
 """
 VALIDATE_HELP = """\
 Check SCENARIO (as for 'run') without simulating: the archive, the SSD and SSV files against the
@@ -109,6 +123,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="refuse the scenario when an input is not connected (default: a warning)")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
     p.add_argument("--verbose", action="store_true", help="show the FMUs' log messages as they come")
+    p.add_argument("--timeout", type=float, metavar="SECONDS",
+                   help="wall-clock limit of the run: stop at the next communication point (a step that "
+                        "does not return is aborted 2 s later); exit status 1, rows kept")
 
     p = add_command(sub, "validate", _validate, help="check a scenario without simulating",
                     description=VALIDATE_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -130,6 +147,16 @@ def _scenario_arguments(p: argparse.ArgumentParser) -> None:
                    help="parameter values named COMPONENT.VARIABLE, applied after the SSD's own (repeatable)")
     p.add_argument("--set", action="append", default=[], metavar="COMPONENT.VARIABLE=VALUE",
                    help="set one parameter or start value, applied last (repeatable)")
+    group = p.add_argument_group("archive limits", "what an .ssp archive and each FMU in it may unpack to "
+                                 "(sizes in bytes; K, M, G suffixes)")
+    for field, option, what in (("total", "--max-total-size", "all members extracted together"),
+                                ("member", "--max-member-size", "one member"),
+                                ("ratio", "--max-ratio", "compression ratio of a member of 1 MiB or more"),
+                                ("members", "--max-members", "number of members"),
+                                ("xml", "--max-xml-size", "one SSD, SSV, SSM or modelDescription.xml")):
+        default = getattr(DEFAULT_LIMITS, field)
+        group.add_argument(option, dest=f"limit_{field}", type=float if field == "ratio" else _bytes,
+                           default=default, metavar="N", help=f"{what} (default {default:g})")
 
 
 def _overrides(items: Sequence[str]) -> dict[str, str]:
@@ -141,6 +168,23 @@ def _overrides(items: Sequence[str]) -> dict[str, str]:
             raise UsageError(f"--set expects COMPONENT.VARIABLE=VALUE (got '{item}')")
         overrides[key.strip()] = value.strip()
     return overrides
+
+
+def _bytes(text: str) -> int:
+    """``512M`` -> 536870912: a size in bytes with an optional K, M or G (powers of 1024)."""
+    factor = {"K": 1 << 10, "M": 1 << 20, "G": 1 << 30}.get(text[-1:].upper(), 1)
+    try:
+        value = float(text[:-1] if factor > 1 else text) * factor
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a size: {text!r}") from None
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"not a size: {text!r}")
+    return int(value)
+
+
+def _limits(args: argparse.Namespace) -> Limits:
+    """The archive limits of the command line."""
+    return Limits(**{f: getattr(args, f"limit_{f}") for f in ("total", "member", "ratio", "members", "xml")})
 
 
 def version_line() -> str:
@@ -268,6 +312,8 @@ def _run(args: argparse.Namespace) -> int:
     for option, value in (("--stop-time", args.stop_time), ("--start-time", args.start_time)):
         if value is not None and not math.isfinite(value):
             raise UsageError(f"{option} must be finite (got {value!r})")
+    if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
+        raise UsageError(f"--timeout must be positive and finite (got {args.timeout!r})")
     scenario = resolve_scenario(args.scenario)
     stale = stale_build(scenario)
     if stale and not args.allow_stale:
@@ -280,19 +326,25 @@ def _run(args: argparse.Namespace) -> int:
     logging.getLogger().addHandler(messages)
     if args.verbose:
         logging.getLogger().setLevel(logging.INFO)
+    status = 0  # 130/143 when interrupted: the rows kept are plotted, then that status returned
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ScenarioWarning)
             result = run(scenario, stop_time=args.stop_time, step=args.step,
                          parameter_sets=args.parameter_set, overrides=overrides, master=args.master,
                          output=output, progress=progress, start_time=args.start_time, strict=args.strict,
-                         fmu_dirs=fmu_dirs(scenario))
+                         fmu_dirs=fmu_dirs(scenario), keep=False, timeout=args.timeout, limits=_limits(args))
         _print_warnings(caught)
     except SimulationError as exc:
-        rows = len(getattr(exc, "result", ()))
+        rows = getattr(exc, "rows", len(getattr(exc, "result", ())))
         detail = f" ({messages.last})" if messages.last and "(" not in str(exc) else ""
         print(f"orchestrate: error: {exc}{detail}; {rows} rows kept in {output}", file=sys.stderr)
         return 1
+    except Interrupted as exc:
+        print(f"orchestrate: {exc}; {exc.rows} rows kept in {output}", file=sys.stderr)
+        if plot is None or exc.rows < 2:
+            return exc.exit_status
+        result, status = exc.result, exc.exit_status  # and plot the rows kept
     except KeyboardInterrupt:
         print(f"orchestrate: interrupted; rows computed so far kept in {output}", file=sys.stderr)
         return 130
@@ -309,10 +361,14 @@ def _run(args: argparse.Namespace) -> int:
             print(f"orchestrate: error: cannot write the plot: {exc}; results kept in {output}",
                   file=sys.stderr)
             return 1
+    if status:
+        print(f"orchestrate: plot of the rows kept: {plot}", file=sys.stderr)
+        return status
     if not args.quiet:
         extra = f" and {plot}" if plot is not None else ""
+        record = read_provenance(output) or {}
         span = f"t = {result['time'][0]:g} .. {result['time'][-1]:g} s"
-        print(f"{name}: {len(result)} rows, {span} -> {output}{extra}")
+        print(f"{name}: {record.get('rows', len(result))} rows, {span} -> {output}{extra}")
     return 0
 
 
@@ -345,7 +401,7 @@ def _validate(args: argparse.Namespace) -> int:
     overrides = _overrides(args.set)
     scenario = resolve_scenario(args.scenario)
     report = validate(scenario, parameter_sets=args.parameter_set, overrides=overrides,
-                      fmu_dirs=fmu_dirs(scenario))
+                      fmu_dirs=fmu_dirs(scenario), limits=_limits(args))
     stale = stale_build(scenario)
     if stale:
         print(f"warning: {stale}")

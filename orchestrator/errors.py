@@ -6,7 +6,8 @@ line returns after printing the one-line message.
 
 from __future__ import annotations
 
-__all__ = ["OrchestratorError", "ScenarioError", "ScenarioWarning", "SimulationError", "UsageError"]
+__all__ = ["Interrupted", "NonFiniteError", "OrchestratorError", "ScenarioError", "ScenarioWarning",
+           "SimulationError", "TimeLimitError", "UsageError"]
 
 
 class OrchestratorError(Exception):
@@ -56,6 +57,41 @@ class SimulationError(OrchestratorError, RuntimeError):
         if detail:
             message += f" ({detail})"
         super().__init__(message)
+
+
+class NonFiniteError(SimulationError):
+    """A value that is not finite (NaN, infinity) appeared in a row: the run stops there, and the
+    rows before it are kept. Reads ``plant: output 'y' is nan at t=0.050 s``."""
+
+    def __init__(self, component: str, variable: str, kind: str, value: float, time: float) -> None:
+        RuntimeError.__init__(self, f"{component}: {kind} '{variable}' is {value!r} at t={time:.3f} s "
+                                    "(not finite; the run stops at the first such value)")
+        self.component, self.function, self.status, self.time = component, "fmi2GetReal", repr(value), time
+        self.variable = variable
+
+
+class TimeLimitError(SimulationError):
+    """The run reached its wall-clock limit (``--timeout``): stopped at the next communication point,
+    or, when the step under way did not return within a grace period, that step was aborted."""
+
+    def __init__(self, limit: float, time: float, component: str = "", grace: float = 0.0) -> None:
+        if component:
+            message = (f"{component}: fmi2DoStep did not return within {limit:g} s + {grace:g} s "
+                       f"(--timeout) at t={time:.3f} s; step aborted")
+        else:
+            message = f"wall-clock limit of {limit:g} s (--timeout) reached at t={time:.3f} s"
+        RuntimeError.__init__(self, message)
+        self.component, self.function, self.status, self.time = component, "fmi2DoStep", "timeout", time
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT (Ctrl-C) or SIGTERM stopped the run at a communication point; the rows computed are
+    kept. ``exit_status`` is 128 + the signal number (130, 143), as a shell reports it."""
+
+    def __init__(self, signal_name: str, signal_number: int, time: float) -> None:
+        super().__init__(f"interrupted by {signal_name} at t={time:.3f} s")
+        self.signal_name, self.time = signal_name, time
+        self.exit_status = 128 + signal_number
 
 
 class ScenarioWarning(UserWarning):

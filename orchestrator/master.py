@@ -7,7 +7,15 @@ Both masters share the lifecycle on ``Master``: ``setup`` (extract and instantia
 prepare the value-reference and value arrays once) -> ``initialize`` (setupExperiment,
 enterInitializationMode, start values, propagation of initial outputs, exitInitializationMode;
 row t0) -> ``step`` (one communication step; one row) -> ``terminate``. Every FMU is terminated and
-freed on every path through an ExitStack.
+freed on every path through an ExitStack (but one that returned fmi2Fatal: FMI allows no call).
+
+Faults end the run with the rows before them kept: an FMU call that fails (SimulationError), a
+value that is not finite (NonFiniteError: the rows are checked in blocks of 16, so the run stops
+at most 16 steps later and names the step it appeared at), the wall-clock limit ``timeout``
+(TimeLimitError), SIGINT or SIGTERM (Interrupted). In the main thread the signals and the limit
+only set a flag that the loop reads at the next communication point, because an exception raised
+inside a Python FMU's code would make it fail with fmi2Fatal; a step that does not return
+within ``GRACE`` seconds after the limit (or after a second Ctrl-C) is aborted by raising into it.
 
 Values live in one float64 array ``values``: ``[time, inputs..., outputs...]``; each FMU's outputs
 and inputs are contiguous slices of it, so one batched ``fmi2GetReal``/``fmi2SetReal`` per FMU
@@ -28,36 +36,125 @@ checked calls, statuses, cleanup) are :mod:`orchestrator.fmi`'s.
 from __future__ import annotations
 
 import ctypes
+import math
 import os
 import shutil
+import signal
 import tempfile
+import threading
+import time
 from collections.abc import Callable
 from contextlib import ExitStack
 from ctypes import c_double, c_uint
+from types import FrameType
 from typing import NamedTuple
 
 import numpy as np
 
-from .errors import SimulationError
+from .errors import Interrupted, NonFiniteError, SimulationError, TimeLimitError
 from .fmi import FAILED, Instance, MessageLog, interpreter_guard
+from .results import NonFiniteError as NonFiniteRow
 from .results import Recorder
 from .system import ComponentModel, PortRef, System
 
-__all__ = ["MASTERS", "NS_PER_S", "GaussSeidel", "Jacobi", "Master", "time_grid"]
+__all__ = ["GRACE", "MASTERS", "MAX_TIME", "NS_PER_S", "GaussSeidel", "Jacobi", "Master", "grid", "time_grid"]
 
 NS_PER_S = 1_000_000_000
+MAX_TIME = (2**63 - 1) / NS_PER_S / 2  # s: t0 + n*h stays within int64 nanoseconds (292 years / 2)
+GRACE = 2.0  # s a step may still take after the wall-clock limit or a second Ctrl-C before it is aborted
 
 
-def time_grid(start: float, stop: float, step: float) -> np.ndarray:
-    """Communication points t_k = t0 + k*h, k = 0..n, up to the last one not after ``stop``,
-    computed in integer nanoseconds and rounded once (libcosim's time representation)."""
+def grid(start: float, stop: float, step: float) -> tuple[int, int, int]:
+    """The grid t_k = t0 + k*h, k = 0..n, up to the last point not after ``stop``: t0 and h in
+    integer nanoseconds (libcosim's time representation) and n. ValueError when a time is not
+    finite or beyond ``MAX_TIME``, the step is below 1 ns or the stop is before the start."""
+    for name, x in (("start time", start), ("stop time", stop), ("communication step", step)):
+        if not (math.isfinite(x) and abs(x) <= MAX_TIME):
+            raise ValueError(f"the {name} {x!r} s is not a finite time within +-{MAX_TIME:.3g} s")
     t0, t1, h = (round(x * NS_PER_S) for x in (start, stop, step))
     if h <= 0:
         raise ValueError(f"the communication step must be positive and at least 1 ns (got {step!r} s)")
     if t1 < t0:
         raise ValueError(f"the stop time {stop!r} s is before the start time {start!r} s")
-    n = (t1 - t0) // h
+    return t0, h, (t1 - t0) // h
+
+
+def time_grid(start: float, stop: float, step: float) -> np.ndarray:
+    """Communication points t_k = t0 + k*h, k = 0..n (:func:`grid`), in seconds, each computed in
+    integer nanoseconds and rounded once."""
+    t0, h, n = grid(start, stop, step)
     return (t0 + h * np.arange(n + 1, dtype=np.int64)) / NS_PER_S
+
+
+class _Abort(BaseException):
+    """Raised by a signal handler into a step that does not return (a BaseException, so that
+    ``except Exception`` in our code or an FMU's does not swallow it)."""
+
+
+class Stopper:
+    """Turns SIGINT, SIGTERM and the wall-clock limit ``timeout`` into a request (``reason``) that the
+    master reads at the next communication point; a second signal, or the limit + GRACE, raises
+    _Abort into the step under way. Signal handlers are installed only in the main thread and only
+    over the defaults (an application that set its own keeps them); elsewhere the limit is checked
+    at each communication point."""
+
+    def __init__(self, timeout: float | None) -> None:
+        self.timeout = timeout
+        self.reason: int | str | None = None  # a signal number or "timeout"
+        self.aborted = False
+        self._previous: dict[int, object] = {}
+        self.deadline = math.inf
+
+    def __enter__(self) -> Stopper:
+        if self.timeout is not None:
+            self.deadline = time.monotonic() + self.timeout
+        if threading.current_thread() is not threading.main_thread():
+            return self
+        defaults = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: signal.SIG_DFL}
+        for signum, default in defaults.items():
+            if signal.getsignal(signum) is default:
+                self._previous[signum] = signal.signal(signum, self._on_signal)
+        if self.timeout is not None and signal.getsignal(signal.SIGALRM) is signal.SIG_DFL:
+            self._previous[signal.SIGALRM] = signal.signal(signal.SIGALRM, self._on_alarm)
+            signal.setitimer(signal.ITIMER_REAL, max(self.timeout, 1e-6))
+            self.deadline = math.inf  # the timer does it
+        return self
+
+    def _on_signal(self, signum: int, frame: FrameType | None) -> None:
+        if self.reason is not None:
+            self.aborted = True
+            raise _Abort
+        self.reason = signum
+
+    def _on_alarm(self, signum: int, frame: FrameType | None) -> None:
+        if self.reason is None:
+            self.reason = "timeout"
+            signal.setitimer(signal.ITIMER_REAL, GRACE)  # the step under way gets GRACE s to return
+        else:
+            self.aborted = True
+            raise _Abort
+
+    def requested(self) -> bool:
+        """Whether the run must stop at this communication point."""
+        if self.reason is None and time.monotonic() > self.deadline:
+            self.reason = "timeout"
+        return self.reason is not None
+
+    def disarm(self) -> None:
+        """No more alarm (the loop has stopped)."""
+        if signal.SIGALRM in self._previous:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+
+    def error(self, t: float, component: str = "") -> BaseException:
+        """The exception that ends the run: TimeLimitError or Interrupted."""
+        if self.reason == "timeout":
+            return TimeLimitError(self.timeout, t, component, GRACE if component else 0.0)
+        return Interrupted(signal.Signals(self.reason).name, int(self.reason), t)
+
+    def __exit__(self, *exc: object) -> None:
+        self.disarm()
+        for signum, previous in self._previous.items():
+            signal.signal(signum, previous)
 
 
 class Copy(NamedTuple):
@@ -94,46 +191,104 @@ class Master:
     """Base class: the lifecycle and everything both algorithms share.
 
     ``progress`` (if given) is called with the number of steps done, about every 1 % of the run.
+    ``keep`` False (with an ``output``): rows are only streamed to the CSV and ``run`` returns a
+    preview for plotting (:class:`~orchestrator.results.Recorder`), so memory stays flat however
+    long the run. ``timeout``: wall-clock limit of the run in seconds.
     """
 
     name = ""
 
     def __init__(self, system: System, start_time: float, stop_time: float, step: float,
                  output: str | os.PathLike | None = None,
-                 progress: Callable[[int, int], None] | None = None) -> None:
+                 progress: Callable[[int, int], None] | None = None, keep: bool = True,
+                 timeout: float | None = None) -> None:
         self.system = system
-        self.times = time_grid(start_time, stop_time, step).tolist()
-        self.start_time = self.times[0]
+        self._t0, self._h, self.n = grid(start_time, stop_time, step)
+        self.start_time = self._t0 / NS_PER_S
         self.stop_time = stop_time
         self.output = output
         self.progress = progress
+        self.keep = keep
+        self.timeout = timeout
         self.instances: list[Instance] = []
         self.recorder: Recorder | None = None
         self.messages = MessageLog()
+
+    @property
+    def times(self) -> np.ndarray:
+        """Every communication point (for inspection; the loop computes t_k as it goes)."""
+        return (self._t0 + self._h * np.arange(self.n + 1, dtype=np.int64)) / NS_PER_S
+
+    def time(self, k: int) -> float:
+        """t_k in seconds."""
+        return (self._t0 + self._h * k) / NS_PER_S
 
     # -- public lifecycle -------------------------------------------------------------------
     def run(self) -> np.ndarray:
         """setup -> initialize -> step* -> terminate; returns the structured result array.
 
-        On failure the rows computed so far are kept (in the CSV and in ``self.recorder``) and the
-        SimulationError is raised after every FMU has been freed.
+        On failure, timeout or interruption the rows computed so far are kept (in the CSV and in
+        ``self.recorder``) and the error (SimulationError, NonFiniteError, TimeLimitError,
+        Interrupted; each with ``result`` and ``rows``) is raised after every FMU has been freed.
         """
         with ExitStack() as stack:
+            stopper = stack.enter_context(Stopper(self.timeout))
             self.setup(stack)
             stack.callback(self.recorder.close)
             try:
                 self.initialize()
-                n = len(self.times) - 1
+                n = self.n
                 stride = max(1, n // 100)
+                poll = stopper.deadline != math.inf  # no timer: compare the clock at each point
                 for k in range(n):
                     self.step(k)
+                    if stopper.reason is not None or (poll and stopper.requested()):
+                        stopper.disarm()
+                        raise stopper.error(self.time(k + 1))
                     if self.progress is not None and (k + 1) % stride == 0:
                         self.progress(k + 1, n)
+                self.recorder.check()
                 self.terminate()
-            except SimulationError as exc:
-                exc.result = self.recorder.result()
-                raise
+            except NonFiniteRow as exc:
+                stopper.disarm()
+                raise self._kept(self._non_finite(exc)) from None
+            except (SimulationError, _Abort) as exc:
+                stopper.disarm()
+                raise self._kept(self._cause(exc, stopper)) from None
+            except (Interrupted, TimeLimitError) as exc:
+                raise self._kept(exc) from None
         return self.recorder.result()
+
+    def _kept(self, exc: BaseException) -> BaseException:
+        """``exc`` with the rows kept: ``rows`` (their number) and ``result`` (as ``run`` returns)."""
+        exc.rows = self.recorder.count
+        exc.result = self.recorder.result()
+        return exc
+
+    def _cause(self, exc: SimulationError | _Abort, stopper: Stopper) -> BaseException:
+        """What to report for a failed call or an aborted step: the stop request that caused it, or
+        a non-finite value among the rows not yet checked (it came first), or the failure itself."""
+        component = getattr(exc, "component", "")
+        t = getattr(exc, "time", self.time(self.recorder.count))
+        if stopper.reason is not None:
+            if isinstance(exc, SimulationError):
+                for inst in self.instances:
+                    if inst.name == component and stopper.aborted:
+                        inst.broken = True  # the exception raised into it made it fail
+            return stopper.error(t, component if stopper.aborted else "")
+        try:
+            self.recorder.check()
+        except NonFiniteRow as row:
+            return self._non_finite(row)
+        return exc
+
+    def _non_finite(self, exc: NonFiniteRow) -> NonFiniteError:
+        """The NonFiniteError naming the component, variable and time of a non-finite value."""
+        name = self.columns[exc.column]
+        port = PortRef.parse(name)
+        kind = "output" if exc.column >= self._first_output else "input"
+        value = float(self.recorder.data[exc.row - self.recorder._base, exc.column])
+        return NonFiniteError(port.component, port.connector, kind, value, self.time(exc.row))
 
     def setup(self, stack: ExitStack) -> None:
         """Extract and instantiate every FMU (freed by ``stack``) and lay out the value arrays."""
@@ -147,12 +302,12 @@ class Master:
             stack.callback(instance.release)
             self.instances.append(instance)
         self._layout()
-        self.recorder = Recorder(self.columns, len(self.times), self.output)
+        self.recorder = Recorder(self.columns, self.n + 1, self.output, keep=self.keep or self.output is None)
 
     def initialize(self) -> None:
         """FMI initialization; afterwards every FMU is in step mode and row t0 is recorded."""
         t0 = self.start_time
-        stop = self.times[-1] if self.stop_time is None else float(self.stop_time)
+        stop = self.time(self.n) if self.stop_time is None else float(self.stop_time)
         for inst in self.instances:
             start_values = self._start_values(self.system.components[inst.name])
             inst.set_start_values(start_values, t0)
@@ -163,7 +318,7 @@ class Master:
 
     def step(self, k: int) -> None:
         """Advance every FMU from t_k to t_k+1 and record row t_k+1."""
-        t, t_next = self.times[k], self.times[k + 1]
+        t, t_next = (self._t0 + self._h * k) / NS_PER_S, (self._t0 + self._h * (k + 1)) / NS_PER_S
         self._step_impl(t, t_next - t, t_next)
         self.recorder.append(self.values)
 
@@ -198,6 +353,7 @@ class Master:
         columns += [str(p) for p in input_order]
         slot = {p: 1 + j for j, p in enumerate(input_order)}
         out_slice: dict[str, slice] = {}
+        self._first_output = len(columns)
         for comp in system.components.values():
             first = len(columns)
             columns += [str(PortRef(comp.name, o)) for o in comp.outputs]

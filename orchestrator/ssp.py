@@ -1,11 +1,15 @@
 """SSP 1.0 scenarios as one object model: frozen dataclasses read from and written to SSD/SSV
 files (a ``.ssp`` archive or a folder holding ``SystemStructure.ssd``).
 
-Reading: the archive is unpacked safely (no member may escape the folder), every XML file is
-parsed and validated against the SSP 1.0 schemas that fmpy ships, and the SSD is read into the
-dataclasses. fmpy's reader is used for parameter sets; the parts that ``fmpy.ssp.ssd.read_ssd``
-drops (connector types, ``ssc:LinearTransformation``, ``DefaultExperiment``, the tool annotations
-that hold the communication step) are read here. Every problem names the file it is in.
+Reading: the archive is unpacked safely and within bounds: only the SSD and what it references
+(its parameter files, the FMUs of its components) are extracted, no member may escape the folder,
+and :class:`Limits` bounds the number of members, the size of each member and of all together, and
+the compression ratio, for the archive and for every FMU in it (see ``Limits``). Every XML file is
+parsed (no entity expansion, no network) and validated against the SSP 1.0 schemas that fmpy
+ships, and the SSD is read into the dataclasses. fmpy's reader is used for parameter sets; the
+parts that ``fmpy.ssp.ssd.read_ssd`` drops (connector types, ``ssc:LinearTransformation``,
+``DefaultExperiment``, the tool annotations that hold the communication step) are read here.
+Every problem names the file it is in.
 
 Writing (lxml) the way every tool reads it (SPEC section 7): literal ``ssd:``/``ssc:``/``ssv:``
 prefixes, ``version="1.0"``, every connector declared with its causality and type, parameter
@@ -17,7 +21,9 @@ baseStepSize``) and where OMSimulator does (``oms:FixedStepMaster stepSize``).
 from __future__ import annotations
 
 import functools
+import math
 import os
+import posixpath
 import shutil
 import stat
 import tempfile
@@ -40,7 +46,9 @@ __all__ = [
     "Component",
     "Connection",
     "Connector",
+    "DEFAULT_LIMITS",
     "Experiment",
+    "Limits",
     "Parameter",
     "ParameterSet",
     "PortRef",
@@ -186,19 +194,57 @@ class SystemStructure:
     units: tuple[UnitDef, ...] = ()  # the SSD's own ssd:Units definitions
 
 
-def open_scenario(scenario: str | os.PathLike, stack: ExitStack) -> Path:
+@dataclass(frozen=True)
+class Limits:
+    """Bounds on what a scenario may unpack to, so that any input costs bounded disk, memory and
+    time (a CI service runs archives it did not write). They apply to the members extracted from an
+    ``.ssp`` archive (all together: ``total``) and to every FMU of the scenario (all its members,
+    as an FMU is extracted whole). Sizes are the uncompressed sizes the zip directory declares,
+    which Python's zipfile enforces while reading (a member that lies fails its CRC check).
+
+    ``ratio`` (uncompressed / compressed) applies to members of at least ``RATIO_FLOOR`` bytes:
+    small files compress well without being bombs. ``xml`` bounds an SSD, SSV, SSM or
+    modelDescription.xml, which are parsed in memory (lxml needs several times the file size)."""
+
+    total: int = 1 << 30
+    member: int = 512 << 20
+    ratio: float = 100.0
+    members: int = 10_000
+    xml: int = 32 << 20
+
+    OPTIONS = {"total": "--max-total-size", "member": "--max-member-size", "ratio": "--max-ratio",
+               "members": "--max-members", "xml": "--max-xml-size"}
+
+
+DEFAULT_LIMITS = Limits()
+RATIO_FLOOR = 1 << 20
+XML_SUFFIXES = (".ssd", ".ssv", ".ssm", ".xml")
+
+
+def _size(n: float) -> str:
+    """``1536`` -> ``1.5 KiB``."""
+    for unit in ("bytes", "KiB", "MiB", "GiB"):
+        if n < 1024 or unit == "GiB":
+            return f"{n:.0f} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
+        n /= 1024
+    return ""  # unreachable
+
+
+def open_scenario(scenario: str | os.PathLike, stack: ExitStack, limits: Limits = DEFAULT_LIMITS) -> Path:
     """Return the folder holding ``SystemStructure.ssd``; an archive is unpacked into a temporary
     folder that ``stack`` removes. Hostile or broken archives raise ScenarioError."""
-    folder, problems = unpack_scenario(scenario, stack)
+    folder, problems = unpack_scenario(scenario, stack, limits)
     if folder is None or problems:
         raise ScenarioError(problems)
     return folder
 
 
-def unpack_scenario(scenario: str | os.PathLike, stack: ExitStack) -> tuple[Path | None, list[str]]:
+def unpack_scenario(scenario: str | os.PathLike, stack: ExitStack,
+                    limits: Limits = DEFAULT_LIMITS) -> tuple[Path | None, list[str]]:
     """:func:`open_scenario` that returns its problems instead of raising, for checks that go on:
-    unsafe members of an archive are reported and left out, the others extracted. The folder is
-    None when there is no SSD to read."""
+    unsafe members of an archive are reported and left out, the SSD and what it references
+    extracted within ``limits``; every FMU the SSD references is checked against ``limits`` (also in
+    a folder). The folder is None when there is no SSD to read, or the archive breaks a limit."""
     path = Path(scenario)
     problems: list[str] = []
     if path.is_dir():
@@ -207,34 +253,155 @@ def unpack_scenario(scenario: str | os.PathLike, stack: ExitStack) -> tuple[Path
         folder = Path(tempfile.mkdtemp(prefix="ssp-"))
         stack.callback(shutil.rmtree, folder, ignore_errors=True)
         try:
-            problems = _safe_extract(path, folder)
-        except zipfile.BadZipFile as exc:
+            problems, refused = _safe_extract(path, folder, limits)
+        except (zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError, EOFError, ValueError,
+                UnicodeDecodeError) as exc:
             return None, [f"{path}: not a valid SSP (zip) archive: {exc}"]
+        if refused:
+            return None, problems
     else:
         return None, [f"{path}: no such scenario (expected a .ssp archive or a folder)"]
     if not (folder / SSD_NAME).is_file():
         return None, [*problems, f"{path}: no {SSD_NAME} at the root of the scenario"]
+    label = path.name if path.is_file() else str(folder)
+    for reference in _references(folder / SSD_NAME, limits)[1]:
+        fmu = folder / reference
+        if fmu.is_file() and zipfile.is_zipfile(fmu):
+            problems += check_zip(fmu, f"{label}: {reference}", limits)
     return folder, problems
 
 
-def _safe_extract(archive: Path, dest: Path) -> list[str]:
-    """Extract every member but those with an absolute path, '..' or a symbolic link, which are
-    returned as problems (nothing is ever written outside ``dest``). Raises BadZipFile when the
-    file is not a zip archive."""
+def check_zip(path: Path, label: str, limits: Limits = DEFAULT_LIMITS,
+              infos: list[zipfile.ZipInfo] | None = None) -> list[str]:
+    """The limits ``path`` (a zip file, e.g. an FMU, extracted whole) breaks, or ``infos`` of it, one
+    line each naming ``label``, the member and the option that raises the limit. Reads only the
+    zip's directory."""
     problems = []
-    with zipfile.ZipFile(archive) as zf:
-        for info in zf.infolist():
-            name = info.filename
-            parts = PurePosixPath(name.replace("\\", "/")).parts
-            target = dest.joinpath(*PurePosixPath(name).parts)
-            if (name.startswith(("/", "\\")) or (len(name) > 1 and name[1] == ":") or ".." in parts
-                    or not target.resolve().is_relative_to(dest.resolve())):
-                problems.append(f"{archive.name}: member '{name}' points outside the archive folder")
-            elif stat.S_ISLNK(info.external_attr >> 16):
-                problems.append(f"{archive.name}: member '{name}' is a symbolic link")
-            else:
-                zf.extract(info, dest)
+    if infos is None:
+        try:
+            with zipfile.ZipFile(path) as zf:
+                infos = zf.infolist()
+        except (zipfile.BadZipFile, OSError, ValueError) as exc:
+            return [f"{label}: not a valid zip file: {exc}"]
+    option = Limits.OPTIONS
+    if len(infos) > limits.members:
+        return [f"{label}: {len(infos)} members, above the limit of {limits.members} ({option['members']})"]
+    total = 0
+    for info in infos:
+        size, name = info.file_size, info.filename
+        total += size
+        where = f"{label}: member '{name}'"
+        if size > limits.member:
+            problems.append(f"{where} is {_size(size)} uncompressed, above the limit of "
+                            f"{_size(limits.member)} per member ({option['member']})")
+        elif name.lower().endswith(XML_SUFFIXES) and size > limits.xml:
+            problems.append(f"{where} is {_size(size)}, above the limit of {_size(limits.xml)} for an "
+                            f"XML file ({option['xml']})")
+        elif size >= RATIO_FLOOR and size > limits.ratio * max(info.compress_size, 1):
+            problems.append(f"{where} expands {size / max(info.compress_size, 1):.0f} times (to "
+                            f"{_size(size)}), above the limit of {limits.ratio:g} ({option['ratio']})")
+    if total > limits.total and not problems:
+        problems.append(f"{label}: {_size(total)} uncompressed in all, above the limit of "
+                        f"{_size(limits.total)} ({option['total']})")
     return problems
+
+
+def extract_zip(path: Path, dest: Path, label: str, limits: Limits = DEFAULT_LIMITS) -> Path:
+    """Extract the zip ``path`` (an FMU) whole into ``dest`` after checking it against ``limits``
+    and that no member leaves ``dest``; ScenarioError naming ``label`` otherwise."""
+    with zipfile.ZipFile(path) as zf:
+        infos = zf.infolist()
+        problems = check_zip(path, label, limits, infos)
+        safe = []
+        for info in infos:
+            problem = _unsafe(info, dest, label)
+            if problem:
+                problems.append(problem)
+            else:
+                safe.append(info)
+        if problems:
+            raise ScenarioError(problems)
+        for info in safe:
+            zf.extract(info, dest)
+    return dest
+
+
+def _unsafe(info: zipfile.ZipInfo, dest: Path, label: str) -> str:
+    """Why a member must not be extracted into ``dest`` ('' when it may)."""
+    name = info.filename
+    parts = PurePosixPath(name.replace("\\", "/")).parts
+    target = dest.joinpath(*PurePosixPath(name).parts)
+    if (name.startswith(("/", "\\")) or (len(name) > 1 and name[1] == ":") or ".." in parts
+            or not target.resolve().is_relative_to(dest.resolve())):
+        return f"{label}: member '{name}' points outside the archive folder"
+    if stat.S_ISLNK(info.external_attr >> 16):
+        return f"{label}: member '{name}' is a symbolic link"
+    return ""
+
+
+def _safe_extract(archive: Path, dest: Path, limits: Limits) -> tuple[list[str], bool]:
+    """Extract the SSD and the members it references (parameter files, FMUs), nothing else, within
+    ``limits``; members with an absolute path, '..' or a symbolic link are reported and left out
+    (nothing is ever written outside ``dest``). Returns the problems and whether the archive is
+    refused as a whole (a limit broken: nothing more is read). Raises BadZipFile when the file is
+    not a zip archive."""
+    problems = []
+    label = archive.name
+    with zipfile.ZipFile(archive) as zf:
+        infos = zf.infolist()
+        if len(infos) > limits.members:
+            return [f"{label}: {len(infos)} members, above the limit of {limits.members} "
+                    f"({Limits.OPTIONS['members']})"], True
+        safe: dict[str, zipfile.ZipInfo] = {}
+        for info in infos:
+            problem = _unsafe(info, dest, label)
+            if problem:
+                problems.append(problem)
+            elif not info.is_dir():
+                safe[posixpath.normpath(info.filename)] = info
+        if SSD_NAME not in safe:
+            return problems, False
+        wanted = [safe[SSD_NAME]]
+        limit_problems = check_zip(archive, label, limits, wanted)
+        if limit_problems:
+            return problems + limit_problems, True
+        zf.extract(wanted[0], dest)
+        xml_files, fmus = _references(dest / SSD_NAME, limits)
+        wanted += [safe[n] for n in dict.fromkeys(xml_files + fmus) if n in safe and n != SSD_NAME]
+        limit_problems = check_zip(archive, label, limits, wanted)
+        if limit_problems:
+            return problems + limit_problems, True
+        for info in wanted[1:]:
+            zf.extract(info, dest)
+    return problems, False
+
+
+def _parser() -> etree.XMLParser:
+    """lxml parser for untrusted files: no entity expansion, no DTD or network access."""
+    return etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False)
+
+
+def _references(ssd: Path, limits: Limits) -> tuple[list[str], list[str]]:
+    """What the SSD at ``ssd`` references, as normalized paths relative to its folder: XML files
+    (SSV, SSM) and FMUs; paths that would leave the folder are left out (the reading reports them
+    missing). Empty when the SSD cannot be parsed."""
+    try:
+        if ssd.stat().st_size > limits.xml:
+            return [], []
+        root = etree.parse(str(ssd), _parser()).getroot()
+    except (OSError, etree.XMLSyntaxError):
+        return [], []
+    xml_files, fmus = [], []
+    for element in root.iter(f"{{{NS['ssd']}}}*"):
+        source = element.get("source")
+        if not source or etree.QName(element).localname not in ("Component", "ParameterBinding",
+                                                                 "ParameterMapping"):
+            continue
+        name = posixpath.normpath(source.replace("\\", "/"))
+        if name.startswith(("/", "../")) or name == ".." or ":" in name.split("/")[0]:
+            continue
+        (fmus if etree.QName(element).localname == "Component" else xml_files).append(name)
+    return xml_files, fmus
 
 
 @functools.cache
@@ -249,7 +416,7 @@ def _load(path: Path, schema: str, label: str) -> tuple[etree._Element | None, l
     if not path.is_file():
         return None, [f"{label}: file is missing"]
     try:
-        root = etree.parse(str(path)).getroot()
+        root = etree.parse(str(path), _parser()).getroot()
     except etree.XMLSyntaxError as exc:
         return None, [f"{label}: broken XML: {exc}"]
     validator = _schema(schema)
@@ -388,9 +555,13 @@ def scan_scenario(folder: Path, label: str | None = None, fmu_dirs: Iterable[Pat
         if transformation is not None:
             factor = _number(transformation.get("factor"), 1.0)
             offset = _number(transformation.get("offset"), 0.0)
+            if not (math.isfinite(factor) and math.isfinite(offset)):
+                problems.append(f"{label}: connection {ends[0]}.{ends[1]} -> {ends[2]}.{ends[3]}: "
+                                f"LinearTransformation factor={factor!r} offset={offset!r} is not finite")
         connections.append(Connection(PortRef(ends[0], ends[1]), PortRef(ends[2], ends[3]), factor, offset))
     structure = SystemStructure(system.get("name", ""), tuple(components), tuple(connections),
-                                _read_experiment(root, system), system.get("description", ""), label,
+                                _read_experiment(root, system, label, problems),
+                                system.get("description", ""), label,
                                 tuple(read_units(root, "ssd:Units", NS).values()))
     return Reading(structure, tuple(problems), frozenset(no_fmu), frozenset(partial))
 
@@ -423,10 +594,14 @@ def _read_component(element: etree._Element, folder: Path, label: str, problems:
         problems.append(f"{where}: FMU '{element.get('source')}' is missing")
     else:
         has_fmu = True
-    connectors = []
+    connectors, seen = [], set()
     for c in element.findall("ssd:Connectors/ssd:Connector", NS):
         if c.get("name") is None or c.get("kind") is None:
             continue  # the schema requires both and has reported it
+        if c.get("name") in seen:
+            problems.append(f"{where}: connector '{c.get('name')}' is declared more than once")
+            continue
+        seen.add(c.get("name"))
         type_ = next((t for t in TYPES if c.find(f"ssc:{t}", NS) is not None), None)
         unit = c.find(f"ssc:{type_}", NS).get("unit") if type_ == "Real" else None
         connectors.append(Connector(c.get("name"), c.get("kind"), type_, unit))
@@ -451,22 +626,36 @@ def _read_component(element: etree._Element, folder: Path, label: str, problems:
     return Component(name, source, tuple(connectors), tuple(parameter_sets)), has_fmu, complete
 
 
-def _read_experiment(root: etree._Element, system: etree._Element) -> Experiment:
-    """Start/stop from DefaultExperiment; the step from libcosim's or OMSimulator's annotation."""
+def _read_experiment(root: etree._Element, system: etree._Element, label: str,
+                     problems: list[str]) -> Experiment:
+    """Start/stop from DefaultExperiment; the step from libcosim's or OMSimulator's annotation. A
+    value that is not a finite number is a problem (and left at its default)."""
     experiment = root.find("ssd:DefaultExperiment", NS)
     start, stop, step = 0.0, None, None
+
+    def finite(element: etree._Element, attribute: str, default: float | None) -> float | None:
+        text = element.get(attribute)
+        value = _number(text, None)
+        if text is None:
+            return default
+        if value is None or not math.isfinite(value):
+            problems.append(f"{label}: {etree.QName(element).localname} {attribute}={text!r} is not a finite "
+                            "number")
+            return default
+        return value
+
     if experiment is not None:
-        start = _number(experiment.get("startTime"), 0.0)
-        stop = _number(experiment.get("stopTime"), None)
+        start = finite(experiment, "startTime", 0.0)
+        stop = finite(experiment, "stopTime", None)
         osp = experiment.find(f"ssd:Annotations/ssc:Annotation[@type='{OSP_ANNOTATION}']"
                               "/osp:Algorithm/osp:FixedStepAlgorithm", NS)
         if osp is not None:
-            step = _number(osp.get("baseStepSize"), None)
+            step = finite(osp, "baseStepSize", None)
     if step is None:
         oms = system.find(f"ssd:Annotations/ssc:Annotation[@type='{OMS_ANNOTATION}']"
                           "/oms:Annotations/oms:SimulationInformation/oms:FixedStepMaster", NS)
         if oms is not None:
-            step = _number(oms.get("stepSize"), None)
+            step = finite(oms, "stepSize", None)
     return Experiment(start, stop, step)
 
 

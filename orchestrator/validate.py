@@ -22,8 +22,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import ScenarioError, UsageError
-from .master import NS_PER_S, time_grid
-from .ssp import SSD_NAME, SystemStructure, scan_parameter_set, scan_scenario, unpack_scenario
+from .master import NS_PER_S, grid
+from .ssp import (
+    DEFAULT_LIMITS,
+    SSD_NAME,
+    Limits,
+    SystemStructure,
+    scan_parameter_set,
+    scan_scenario,
+    unpack_scenario,
+)
 from .system import System
 
 __all__ = ["DEFAULT_STEP", "Problem", "Validation", "check_scenario", "timing", "validate"]
@@ -67,12 +75,13 @@ def check_scenario(scenario: str | os.PathLike, stack: ExitStack, *,
                    parameter_sets: Iterable[str | os.PathLike] = (),
                    overrides: Mapping[str, object] | None = None,
                    fmu_warnings: bool = False,
-                   fmu_dirs: Iterable[str | os.PathLike] = ()) -> tuple[System | None, list[str], list[str]]:
-    """Unpack (into a folder ``stack`` removes), read and check a scenario, every stage as far as it
-    can go. Returns the system (None when no SSD could be read; its ``schedule`` is empty when
-    there are errors), the errors and the warnings (``fmu_warnings``: add fmpy's full FMU validation).
-    FMUs missing from the scenario are looked up by file name in ``fmu_dirs``."""
-    folder, errors = unpack_scenario(scenario, stack)
+                   fmu_dirs: Iterable[str | os.PathLike] = (),
+                   limits: Limits = DEFAULT_LIMITS) -> tuple[System | None, list[str], list[str]]:
+    """Unpack (into a folder ``stack`` removes; within ``limits``), read and check a scenario, every
+    stage as far as it can go. Returns the system (None when no SSD could be read; its ``schedule``
+    is empty when there are errors), the errors and the warnings (``fmu_warnings``: add fmpy's full
+    FMU validation). FMUs missing from the scenario are looked up by file name in ``fmu_dirs``."""
+    folder, errors = unpack_scenario(scenario, stack, limits)
     if folder is None:
         return None, errors, []
     path = Path(scenario)
@@ -116,29 +125,30 @@ def timing(structure: SystemStructure, stop_time: float | None = None,
     error = UsageError if given else ScenarioError
     where = ", ".join(given) if given else structure.ssd_file
     try:
-        grid = time_grid(start, stop, h)
+        t0, hn, n = grid(start, stop, h)
     except ValueError as exc:
         raise error(f"{where}: {exc}") from exc
-    t0, t1, hn = (round(x * NS_PER_S) for x in (start, stop, h))
-    if len(grid) < 2:
+    t1 = round(stop * NS_PER_S)
+    if n < 1:
         raise error(f"{where}: the step {h:g} s is longer than the run ({start:g} .. {stop:g} s): "
                     "no step would be taken")
     if (t1 - t0) % hn:
-        n = (t1 - t0) // hn
         raise error(f"{where}: the step {h:g} s does not divide the run {start:g} .. {stop:g} s "
-                    f"(the last step would end at {grid[-1]:.9g} s); stop at {start + n * h:.9g} or "
-                    f"{start + (n + 1) * h:.9g} s, or choose a step that divides {stop - start:.9g} s")
+                    f"(the last step would end at {(t0 + n * hn) / NS_PER_S:.9g} s); stop at "
+                    f"{start + n * h:.9g} or {start + (n + 1) * h:.9g} s, or choose a step that divides "
+                    f"{stop - start:.9g} s")
     return start, stop, h
 
 
 def validate(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.PathLike] = (),
              overrides: Mapping[str, object] | None = None,
-             fmu_dirs: Iterable[str | os.PathLike] = ()) -> Validation:
+             fmu_dirs: Iterable[str | os.PathLike] = (), limits: Limits = DEFAULT_LIMITS) -> Validation:
     """Check a scenario (``.ssp`` archive or folder, with the same parameter files and overrides as
     ``run``) without simulating and report every problem found. Nothing is written next to it."""
     with ExitStack() as stack:
         system, errors, warnings = check_scenario(scenario, stack, parameter_sets=parameter_sets,
-                                                  overrides=overrides, fmu_warnings=True, fmu_dirs=fmu_dirs)
+                                                  overrides=overrides, fmu_warnings=True, fmu_dirs=fmu_dirs,
+                                                  limits=limits)
     if system is None:
         return Validation(str(scenario), tuple(Problem(e) for e in errors))
     structure = system.structure

@@ -14,7 +14,7 @@ FMU_SCRIPTS = Path(__file__).parent / "fmus"
 PYTHONFMU = Path(sys.executable).with_name("pythonfmu")
 
 # ModelStructure dependencies pythonfmu does not write: output -> inputs it depends on (by name)
-DEPENDENCIES = {"Source": {"y": []}, "Gain": {"y": ["u"]}, "Integrator": {"x": []}}
+DEPENDENCIES = {"Source": {"y": []}, "Gain": {"y": ["u"]}, "Integrator": {"x": []}, "Faulty": {"y": []}}
 
 
 def build_test_fmu(name: str, dest: Path) -> Path:
