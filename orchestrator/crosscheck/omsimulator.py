@@ -172,7 +172,8 @@ class OMSimulatorPythonTool(Tool):
         start = time.perf_counter()
         log = workdir / "omsimulator.log"
         with interpreter_guard(), _quiet_temp(workdir):
-            oms.Capi.setLogFile(str(log))
+            with _stdout_silenced():  # closing the previous log file prints a line
+                oms.Capi.setLogFile(str(log))
             model = None
             try:
                 model = oms.SSP(str(scenario.path), temp_dir=str(workdir)).instantiate()
