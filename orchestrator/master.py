@@ -70,7 +70,7 @@ def grid(start: float, stop: float, step: float) -> tuple[int, int, int]:
     finite or beyond ``MAX_TIME``, the step is below 1 ns or the stop is before the start."""
     for name, x in (("start time", start), ("stop time", stop), ("communication step", step)):
         if not (math.isfinite(x) and abs(x) <= MAX_TIME):
-            raise ValueError(f"the {name} {x!r} s is not a finite time within +-{MAX_TIME:.3g} s")
+            raise ValueError(f"the {name} {x:g} s is not a finite time within +-{MAX_TIME:.3g} s")
     t0, t1, h = (round(x * NS_PER_S) for x in (start, stop, step))
     if h <= 0:
         raise ValueError(f"the communication step must be positive and at least 1 ns (got {step!r} s)")

@@ -651,11 +651,11 @@ def _read_experiment(root: etree._Element, system: etree._Element, label: str,
                               "/osp:Algorithm/osp:FixedStepAlgorithm", NS)
         if osp is not None:
             step = finite(osp, "baseStepSize", None)
-    if step is None:
-        oms = system.find(f"ssd:Annotations/ssc:Annotation[@type='{OMS_ANNOTATION}']"
-                          "/oms:Annotations/oms:SimulationInformation/oms:FixedStepMaster", NS)
-        if oms is not None:
-            step = finite(oms, "stepSize", None)
+    oms = system.find(f"ssd:Annotations/ssc:Annotation[@type='{OMS_ANNOTATION}']"
+                      "/oms:Annotations/oms:SimulationInformation/oms:FixedStepMaster", NS)
+    if oms is not None:  # read (and checked) also when libcosim's annotation gives the step
+        oms_step = finite(oms, "stepSize", None)
+        step = oms_step if step is None else step
     return Experiment(start, stop, step)
 
 
