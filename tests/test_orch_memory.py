@@ -1,0 +1,45 @@
+"""Long runs: the results are streamed, so the resident size of ``orchestrate run`` does not grow
+with the run length (it held every row before: 182 MB for 300 s of example1).
+
+Oracle: the peak resident size the kernel reports for the process (``wait4``), for a 30 s and a
+300 s run of the same cheap scenario at 2 ms (15 001 and 150 001 rows: keeping the rows, as
+before, would add about 11 MB), and the CSV's line count and last time.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from orch_helpers import loop_scenario
+
+pytestmark = pytest.mark.system
+
+ORCHESTRATE = Path(sys.executable).with_name("orchestrate")
+
+
+def _peak_kib(*args: str) -> int:
+    """Run ``orchestrate ARGS`` and return its peak resident size in KiB."""
+    process = subprocess.Popen([str(ORCHESTRATE), *args], stdout=subprocess.DEVNULL)
+    _, status, usage = os.wait4(process.pid, 0)
+    process.returncode = os.waitstatus_to_exitcode(status)
+    assert process.returncode == 0
+    return usage.ru_maxrss
+
+
+def test_resident_size_does_not_grow_with_the_run_length(test_fmus, tmp_path):
+    ssp = loop_scenario(tmp_path / "loop", test_fmus, stop=1.0, step=0.002)
+    peaks = {}
+    for stop in (30, 300):
+        csv = tmp_path / f"r{stop}.csv"
+        peaks[stop] = _peak_kib("run", str(ssp), "--stop-time", str(stop), "--output", str(csv), "--quiet",
+                                "--no-plot")
+        with csv.open() as f:
+            lines = sum(1 for _ in f)
+        assert lines == 1 + 500 * stop + 1  # header and every row
+        assert float(csv.read_bytes()[-200:].splitlines()[-1].split(b",")[0]) == stop
+    # 135 000 more rows held (6 values and a time each) would be 11 MB; allow 4 MB of noise
+    assert peaks[300] - peaks[30] < 4096, peaks
