@@ -48,13 +48,19 @@ class Actuator(Fmi2Slave):
             depends_on=("v", "x1", "x2"),
         )
         declare(self, "u_dz", OUTPUT, "Dead-zone output u(v)", depends_on=("v",))
-        declare(self, "m_r", PARAMETER, "Dead-zone slope for v >= b_r")
-        declare(self, "m_l", PARAMETER, "Dead-zone slope for v <= -b_l")
-        declare(self, "b_r", PARAMETER, "Right dead-zone break point")
-        declare(self, "b_l", PARAMETER, "Left dead-zone break point (at v = -b_l)")
-        declare(self, "K_inf", PARAMETER, "Lasting effectiveness: K(t) = K_inf + K_amp exp(-K_rate t)")
-        declare(self, "K_amp", PARAMETER, "Decaying part of the effectiveness K(t)")
-        declare(self, "K_rate", PARAMETER, "Decay rate of the effectiveness K(t)", unit="1/s")
+        declare(self, "m_r", PARAMETER, "Dead-zone slope for v >= b_r", minimum=0.0)
+        declare(self, "m_l", PARAMETER, "Dead-zone slope for v <= -b_l", minimum=0.0)
+        declare(self, "b_r", PARAMETER, "Right dead-zone break point", minimum=0.0)
+        declare(self, "b_l", PARAMETER, "Left dead-zone break point (at v = -b_l)", minimum=0.0)
+        declare(
+            self,
+            "K_inf",
+            PARAMETER,
+            "Lasting effectiveness: K(t) = K_inf + K_amp exp(-K_rate t)",
+            minimum=0.0,
+        )
+        declare(self, "K_amp", PARAMETER, "Decaying part of the effectiveness K(t)", minimum=0.0)
+        declare(self, "K_rate", PARAMETER, "Decay rate of the effectiveness K(t)", unit="1/s", minimum=0.0)
         declare(self, "L_gain", PARAMETER, "Bias fault gain: L(t) = L_gain x2 cos(x1)^2 + L_bias")
         declare(self, "L_bias", PARAMETER, "Constant part of the bias fault L(t)")
         declare(self, "t_fault", PARAMETER, "Time at which the fault and the dead-zone start", unit="s")

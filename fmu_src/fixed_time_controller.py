@@ -87,26 +87,50 @@ class FixedTimeController(Fmi2Slave):
         declare(self, "r", OUTPUT, "Dynamic signal r of the unmodeled dynamics", depends_on=())
         for name in ("k", "q", "a", "kappa", "rho", "rho_bar"):
             for i in (1, 2):
-                declare(self, f"{name}{i}", PARAMETER, GAIN_DESCRIPTIONS[name].format(i=i))
-        declare(self, "alpha", PARAMETER, "Exponent alpha > 1 of the fast term sig(z)^(2 alpha - 1)")
-        declare(self, "beta", PARAMETER, "Exponent 0.5 < beta < 1 of the term sig(z)^(2 beta - 1)")
-        declare(self, "mode", PARAMETER, "Control law: 0 = fixed-time, 1 = finite-time (k = 0)", integer=True)
-        declare(self, "a_bar", PARAMETER, "Decay rate a_bar of the dynamic signal r", unit="1/s")
-        declare(self, "gamma_gain", PARAMETER, "Gain of x1^gamma_power in r' (unmodeled dynamics bound)")
-        declare(self, "gamma_power", PARAMETER, "Power of x1 in r'")
-        declare(self, "d_r", PARAMETER, "Constant term d_r in r'")
-        declare(self, "r0", PARAMETER, "Initial value of r")
-        declare(self, "eta1_0", PARAMETER, "Initial value of eta_hat_1")
-        declare(self, "eta2_0", PARAMETER, "Initial value of eta_hat_2")
+                declare(self, f"{name}{i}", PARAMETER, GAIN_DESCRIPTIONS[name].format(i=i), minimum=0.0)
+        declare(
+            self, "alpha", PARAMETER, "Exponent alpha > 1 of the fast term sig(z)^(2 alpha - 1)", minimum=1.0
+        )
+        declare(
+            self,
+            "beta",
+            PARAMETER,
+            "Exponent 0.5 < beta < 1 of the term sig(z)^(2 beta - 1)",
+            minimum=0.5,
+            maximum=1.0,
+        )
+        declare(
+            self,
+            "mode",
+            PARAMETER,
+            "Control law: 0 = fixed-time, 1 = finite-time (k = 0)",
+            integer=True,
+            minimum=0,
+            maximum=1,
+        )
+        declare(self, "a_bar", PARAMETER, "Decay rate a_bar of the dynamic signal r", unit="1/s", minimum=0.0)
+        declare(
+            self,
+            "gamma_gain",
+            PARAMETER,
+            "Gain of x1^gamma_power in r' (unmodeled dynamics bound)",
+            minimum=0.0,
+        )
+        declare(self, "gamma_power", PARAMETER, "Power of x1 in r'", minimum=0.0)
+        declare(self, "d_r", PARAMETER, "Constant term d_r in r'", minimum=0.0)
+        declare(self, "r0", PARAMETER, "Initial value of r", minimum=0.0)
+        declare(self, "eta1_0", PARAMETER, "Initial value of eta_hat_1", minimum=0.0)
+        declare(self, "eta2_0", PARAMETER, "Initial value of eta_hat_2", minimum=0.0)
         for j in range(1, len(DEFAULT_CENTERS) + 1):
             declare(self, f"mu{j}", PARAMETER, f"Center of RBF neuron {j} (mu_{j} * ones)")
-        declare(self, "tau", PARAMETER, "Width tau of the Gaussian RBF neurons")
+        declare(self, "tau", PARAMETER, "Width tau of the Gaussian RBF neurons", minimum=0.0)
         declare(
             self,
             "substeps",
             PARAMETER,
             "RK4 sub-steps per communication step for r and eta_hat",
             integer=True,
+            minimum=1,
         )
 
     def _parameters(self) -> ControllerParameters:

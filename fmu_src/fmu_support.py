@@ -56,7 +56,8 @@ DEFAULT_EXPERIMENT = DefaultExperiment(start_time=0.0, stop_time=30.0, step_size
 
 # Instance attributes that belong to pythonfmu's machinery, not to the simulation state.
 _NOT_STATE = frozenset(
-    {"vars", "log_queue", "instance_name", "resources", "visible", "guid", "_fmu_meta", "_fmu_io"}
+    {"vars", "log_queue", "instance_name", "resources", "visible", "guid", "_fmu_meta", "_fmu_io",
+     "_fmu_ranges"}
 )
 
 # pythonfmu's binary forwards FMU log messages (even fmi2Fatal ones) to the importer only when
@@ -118,6 +119,8 @@ def declare(
     unit: str | None = None,
     depends_on: Iterable[str] | None = None,
     integer: bool = False,
+    minimum: float | None = None,
+    maximum: float | None = None,
 ) -> None:
     """Register one variable with its description, unit and (for outputs) input dependencies.
 
@@ -127,6 +130,9 @@ def declare(
     has changed since (``fmi2SetReal``, ``do_step`` and initialization mark the outputs stale).
     Parameters are ``fixed``: changed only before initialization. ``depends_on`` lists the input
     names an output depends on directly (empty: none); ``None`` keeps the FMI default (all).
+    ``minimum``/``maximum`` go to the variable's ``min``/``max``: the closed range the model's own
+    check accepts (an open bound such as ``beta < 1`` is written as ``max="1"`` and still refused
+    by the check), so importers can show and enforce it before a run.
     """
     if unit is not None and unit not in UNITS:
         raise ValueError(f"{type(slave).__name__}.{name}: unknown unit {unit!r}")
@@ -156,6 +162,8 @@ def declare(
         io.feedthrough = io.feedthrough or depends is None or bool(depends)
     meta = slave.__dict__.setdefault("_fmu_meta", {})
     meta[name] = (unit, depends)
+    if minimum is not None or maximum is not None:
+        slave.__dict__.setdefault("_fmu_ranges", {})[name] = (minimum, maximum)
 
 
 def assigned(slave: Fmi2Slave) -> frozenset[str]:
@@ -231,8 +239,10 @@ def mark_stale(slave: Fmi2Slave) -> None:
 
 
 def _extend_model_description(slave: Fmi2Slave, root: Element) -> Element:
-    """Add UnitDefinitions, unit attributes and ModelStructure dependencies to pythonfmu's XML."""
+    """Add UnitDefinitions, unit and min/max attributes and ModelStructure dependencies to
+    pythonfmu's XML."""
     meta: dict[str, tuple[str | None, tuple[str, ...] | None]] = slave.__dict__.get("_fmu_meta", {})
+    ranges: dict[str, tuple[float | None, float | None]] = slave.__dict__.get("_fmu_ranges", {})
     used_units = sorted({unit for unit, _ in meta.values() if unit is not None})
     if used_units:
         definitions = Element("UnitDefinitions")
@@ -255,6 +265,11 @@ def _extend_model_description(slave: Fmi2Slave, root: Element) -> Element:
         unit = meta.get(name, (None, None))[0]
         if unit is not None:
             node.find("Real").set("unit", unit)
+        low, high = ranges.get(name, (None, None))
+        typed = node.find("Real") if node.find("Real") is not None else node.find("Integer")
+        for attribute, bound in (("min", low), ("max", high)):
+            if bound is not None:
+                typed.set(attribute, repr(int(bound)) if typed.tag == "Integer" else repr(float(bound)))
 
     outputs = root.find("ModelStructure/Outputs")
     if outputs is not None:

@@ -45,9 +45,9 @@ class PendulumPlant(Fmi2Slave):
             self, "uf", Fmi2Causality.input, "Control applied by the actuator, held over each step", unit="N"
         )
         declare_plant_outputs(self, "rad", "rad/s")
-        declare(self, "M", PARAMETER, "Mass", unit="kg")
-        declare(self, "L", PARAMETER, "Length", unit="m")
-        declare(self, "B", PARAMETER, "Damping coefficient", unit="kg/s2")
+        declare(self, "M", PARAMETER, "Mass", unit="kg", minimum=0.0)
+        declare(self, "L", PARAMETER, "Length", unit="m", minimum=0.0)
+        declare(self, "B", PARAMETER, "Damping coefficient", unit="kg/s2", minimum=0.0)
         declare(self, "g", PARAMETER, "Gravitational acceleration", unit="m/s2")
         declare(self, "d1", PARAMETER, "Amplitude of the disturbance d1 sin(t) on x1'", unit="rad/s")
         declare(self, "d2", PARAMETER, "Amplitude of the disturbance d2 cos(t) on x2'", unit="rad/s2")

@@ -62,7 +62,12 @@ def declare_integrator(slave: Fmi2Slave) -> None:
     slave._method = DOPRI  # resolved at exit_initialization_mode
     slave._next_step = 0.0  # Dormand-Prince step size carried to the next communication step
     declare(
-        slave, "max_step", parameter, "Largest RK4 sub-step inside a communication step (method 1)", unit="s"
+        slave,
+        "max_step",
+        parameter,
+        "Largest RK4 sub-step inside a communication step (method 1)",
+        unit="s",
+        minimum=0.0,
     )
     declare(
         slave,
@@ -71,9 +76,13 @@ def declare_integrator(slave: Fmi2Slave) -> None:
         "Integrator: 0 = Dormand-Prince 5(4) with error control (rtol, atol), 1 = RK4 with sub-steps of "
         "at most max_step; if only max_step is set, 1",
         integer=True,
+        minimum=0,
+        maximum=1,
     )
-    declare(slave, "rtol", parameter, "Relative tolerance of the local error (method 0)")
-    declare(slave, "atol", parameter, "Absolute tolerance of the local error (method 0)")
+    declare(
+        slave, "rtol", parameter, "Relative tolerance of the local error (method 0)", minimum=0.0, maximum=1.0
+    )
+    declare(slave, "atol", parameter, "Absolute tolerance of the local error (method 0)", minimum=0.0)
 
 
 def resolved_method(slave: Fmi2Slave) -> int:

@@ -216,7 +216,8 @@ def test_external_scheduler_gives_the_same_table(
 
 
 def test_failing_variant_is_a_row_and_the_rest_finish(scenario: Path, tmp_path: Path) -> None:
-    path = design(tmp_path, {"controller.beta": [0.75, 1.2], "plant.x1_0": [0.0, 1.0]})
+    # beta = 1.0: inside the FMU's declared range [0.5, 1], refused by the FMU's own (open) check
+    path = design(tmp_path, {"controller.beta": [0.75, 1.0], "plant.x1_0": [0.0, 1.0]})
     assert (
         main(
             [
@@ -236,10 +237,10 @@ def test_failing_variant_is_a_row_and_the_rest_finish(scenario: Path, tmp_path: 
     _, rows = read_rows(tmp_path / "out" / "runs.csv")
     assert len(rows) == 4
     for row in rows:
-        if row["controller.beta"] == 1.2:
+        if row["controller.beta"] == 1.0:
             assert row["status"] == "failed" and row["rae"] is None
             assert row["reason"].startswith("controller: fmi2GetReal returned fmi2Fatal at t=0.000 s")
-            assert "beta must satisfy 0.5 < beta < 1 (got 1.2)" in row["reason"]
+            assert "beta must satisfy 0.5 < beta < 1 (got 1.0)" in row["reason"]
         else:
             assert row["status"] == "ok" and row["reason"] == "" and row["rmse"] > 0
 

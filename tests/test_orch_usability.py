@@ -435,3 +435,32 @@ def test_compare_uses_the_tubes_of_the_baselines_scenario(tmp_path, capsys):
     assert main(["compare", str(tmp_path / "r.csv"), str(tmp_path / "other.csv")]) == 0
     assert main(["compare", str(tmp_path / "r.csv"), str(tmp_path / "pendulum.csv")]) == 1
     assert "| s |" in capsys.readouterr().out
+
+
+# -- part 1: the checked ranges are in the FMUs' min/max -------------------------------------------
+RANGES = {  # SPEC section 1 and the models' constraints: (min, max) as closed hulls
+    "FixedTimeController": {"beta": ("0.5", "1.0"), "alpha": ("1.0", None), "k1": ("0.0", None),
+                            "q2": ("0.0", None), "mode": ("0", "1"), "tau": ("0.0", None),
+                            "substeps": ("1", None)},
+    "Actuator": {"m_r": ("0.0", None), "b_l": ("0.0", None), "K_inf": ("0.0", None)},
+    "PendulumPlant": {"M": ("0.0", None), "B": ("0.0", None), "rtol": ("0.0", "1.0"), "method": ("0", "1")},
+}
+
+
+@pytest.mark.system
+def test_fmus_declare_the_ranges_their_checks_enforce(fmus, built, capsys):
+    for model, ranges in RANGES.items():
+        with zipfile.ZipFile(fmus[model]) as zf:
+            xml = zf.read("modelDescription.xml").decode()
+        for name, (low, high) in ranges.items():
+            pattern = rf'<ScalarVariable name="{name}"[^>]*>\s*<(?:Real|Integer)([^>]*)/>'
+            element = re.search(pattern, xml).group(1)
+            assert re.search(r'min="([^"]*)"', element).group(1) == low, (model, name)
+            found = re.search(r'max="([^"]*)"', element)
+            assert (found.group(1) if found else None) == high, (model, name)
+    # so the orchestrator refuses a value outside before any simulation, in one line
+    assert main(["validate", str(built / "ssp" / "pendulum.ssp"), "--set", "controller.beta=1.5",
+                 "--set", "actuator.b_r=-0.1"]) == 1
+    assert capsys.readouterr().out.splitlines()[:2] == [
+        "error: --set: controller.beta = 1.5 is above the FMU's max 1.0",
+        "error: --set: actuator.b_r = -0.1 is below the FMU's min 0.0"]
