@@ -12,9 +12,9 @@ __all__ = ["rbf_basis", "rbf_energy"]
 
 def rbf_basis(X: Sequence[float], centers: Sequence[float], width: float) -> np.ndarray:
     """Basis vector P(X): neuron j is exp(-||X - mu_j * ones||^2 / tau^2) (eq. 24)."""
-    X = np.asarray(X, dtype=float)
+    x = np.asarray(X, dtype=float)
     mu = np.asarray(centers, dtype=float)[:, None]
-    return np.exp(-np.sum((X[None, :] - mu) ** 2, axis=1) / width**2)
+    return np.exp(-np.sum((x[None, :] - mu) ** 2, axis=1) / width**2)
 
 
 def rbf_energy(s1: float, s2: float, dim: int, centers: Sequence[float], width: float) -> float:

@@ -35,7 +35,9 @@ class AdaptiveController:
 
     def reset(self) -> None:
         """Back to the initial values r0 and eta0."""
-        self.state = [self.params.r0, *self.params.eta0]
+        eta0 = self.params.eta0
+        assert eta0 is not None  # ControllerParameters.__post_init__ always fills it
+        self.state = [self.params.r0, *eta0]
         self.last = None
         self._last_arguments = ()
 
