@@ -267,15 +267,17 @@ def unpack_scenario(scenario: str | os.PathLike, stack: ExitStack,
     for reference in _references(folder / SSD_NAME, limits)[1]:
         fmu = folder / reference
         if fmu.is_file() and zipfile.is_zipfile(fmu):
-            problems += check_zip(fmu, f"{label}: {reference}", limits)
+            fmu_problems = check_zip(fmu, f"{label}: {reference}", limits)
+            if fmu_problems:  # refused before anything reads it (fmpy reads an FMU whole)
+                return None, problems + fmu_problems
     return folder, problems
 
 
 def check_zip(path: Path, label: str, limits: Limits = DEFAULT_LIMITS,
               infos: list[zipfile.ZipInfo] | None = None) -> list[str]:
-    """The limits ``path`` (a zip file, e.g. an FMU, extracted whole) breaks, or ``infos`` of it, one
-    line each naming ``label``, the member and the option that raises the limit. Reads only the
-    zip's directory."""
+    """The limits ``path`` (a zip file, e.g. an FMU, extracted whole) breaks, or ``infos`` of it, and
+    its members that would leave the folder it is extracted to; one line each naming ``label``, the
+    member and the option that raises the limit. Reads only the zip's directory."""
     problems = []
     if infos is None:
         try:
@@ -291,7 +293,11 @@ def check_zip(path: Path, label: str, limits: Limits = DEFAULT_LIMITS,
         size, name = info.file_size, info.filename
         total += size
         where = f"{label}: member '{name}'"
-        if size > limits.member:
+        if _escapes(name):
+            problems.append(f"{where} points outside the archive folder")
+        elif stat.S_ISLNK(info.external_attr >> 16):
+            problems.append(f"{where} is a symbolic link")
+        elif size > limits.member:
             problems.append(f"{where} is {_size(size)} uncompressed, above the limit of "
                             f"{_size(limits.member)} per member ({option['member']})")
         elif name.lower().endswith(XML_SUFFIXES) and size > limits.xml:
@@ -306,33 +312,17 @@ def check_zip(path: Path, label: str, limits: Limits = DEFAULT_LIMITS,
     return problems
 
 
-def extract_zip(path: Path, dest: Path, label: str, limits: Limits = DEFAULT_LIMITS) -> Path:
-    """Extract the zip ``path`` (an FMU) whole into ``dest`` after checking it against ``limits``
-    and that no member leaves ``dest``; ScenarioError naming ``label`` otherwise."""
-    with zipfile.ZipFile(path) as zf:
-        infos = zf.infolist()
-        problems = check_zip(path, label, limits, infos)
-        safe = []
-        for info in infos:
-            problem = _unsafe(info, dest, label)
-            if problem:
-                problems.append(problem)
-            else:
-                safe.append(info)
-        if problems:
-            raise ScenarioError(problems)
-        for info in safe:
-            zf.extract(info, dest)
-    return dest
+def _escapes(name: str) -> bool:
+    """Whether a member name is absolute or climbs out of the folder it is extracted to."""
+    parts = PurePosixPath(name.replace("\\", "/")).parts
+    return name.startswith(("/", "\\")) or (len(name) > 1 and name[1] == ":") or ".." in parts
 
 
 def _unsafe(info: zipfile.ZipInfo, dest: Path, label: str) -> str:
     """Why a member must not be extracted into ``dest`` ('' when it may)."""
     name = info.filename
-    parts = PurePosixPath(name.replace("\\", "/")).parts
     target = dest.joinpath(*PurePosixPath(name).parts)
-    if (name.startswith(("/", "\\")) or (len(name) > 1 and name[1] == ":") or ".." in parts
-            or not target.resolve().is_relative_to(dest.resolve())):
+    if _escapes(name) or not target.resolve().is_relative_to(dest.resolve()):
         return f"{label}: member '{name}' points outside the archive folder"
     if stat.S_ISLNK(info.external_attr >> 16):
         return f"{label}: member '{name}' is a symbolic link"

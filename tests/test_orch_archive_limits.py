@@ -71,6 +71,17 @@ def test_compression_bomb_in_a_referenced_fmu_is_refused(good, tmp_path, capsys)
     assert main(["validate", str(bad), "--max-ratio", "5000"]) == 0  # the option raises it
 
 
+def test_fmu_member_escaping_is_refused_before_reading(good, tmp_path, capsys):
+    members = _members(good)
+    inner = _members_of_bytes(members["resources/Gain.fmu"])
+    fmu = _zip(tmp_path / "Gain.fmu", {**inner, "../evil.txt": b"x"})
+    bad = _zip(tmp_path / "evil.ssp", {**members, "resources/Gain.fmu": fmu.read_bytes()})
+    assert main(["validate", str(bad)]) == 1
+    assert capsys.readouterr().out.splitlines()[:2] == [
+        "error: evil.ssp: resources/Gain.fmu: member '../evil.txt' points outside the archive folder",
+        f"failed: {bad}: 1 error(s), 0 warning(s)"]  # refused whole: the FMU is not read
+
+
 def _members_of_bytes(data: bytes) -> dict[str, bytes]:
     import io
 
