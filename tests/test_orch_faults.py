@@ -93,6 +93,12 @@ def test_fault_at_step_k(fault, faulty_fmu, tmp_path):
         assert elapsed < 20
 
 
+def _default_sigint() -> None:
+    """In the child: Ctrl-C as in a terminal (a test worker may run with SIGINT ignored, which the
+    child would inherit and orchestrate would respect)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _wait_for_rows(csv_folder: Path, process: subprocess.Popen, rows: int = 300) -> None:
     """Wait until the CSV being written (temporary name) holds ``rows`` lines."""
     deadline = time.monotonic() + 60
@@ -115,7 +121,7 @@ def test_signal_stops_at_a_communication_point_and_keeps_rows(signum, status, te
     csv = out / "r.csv"
     env = {**os.environ, "TMPDIR": str(tmp_path)}
     process = subprocess.Popen([str(ORCHESTRATE), "run", str(ssp), "--output", str(csv), "--quiet"],
-                               stderr=subprocess.PIPE, text=True, env=env)
+                               stderr=subprocess.PIPE, text=True, env=env, preexec_fn=_default_sigint)
     _wait_for_rows(out, process)
     process.send_signal(signum)
     _, err = process.communicate(timeout=60)
