@@ -341,10 +341,11 @@ def _run(args: argparse.Namespace) -> int:
         print(f"orchestrate: error: {exc}{detail}; {rows} rows kept in {output}", file=sys.stderr)
         return 1
     except Interrupted as exc:
-        print(f"orchestrate: {exc}; {exc.rows} rows kept in {output}", file=sys.stderr)
+        stopped = f"orchestrate: {exc}; {exc.rows} rows kept in {output}"
         if plot is None or exc.rows < 2:
+            print(stopped, file=sys.stderr)
             return exc.exit_status
-        result, status = exc.result, exc.exit_status  # and plot the rows kept
+        result, status = exc.result, exc.exit_status  # plot the rows kept, then say so
     except KeyboardInterrupt:
         print(f"orchestrate: interrupted; rows computed so far kept in {output}", file=sys.stderr)
         return 130
@@ -360,9 +361,9 @@ def _run(args: argparse.Namespace) -> int:
         except OSError as exc:
             print(f"orchestrate: error: cannot write the plot: {exc}; results kept in {output}",
                   file=sys.stderr)
-            return 1
+            return status or 1
     if status:
-        print(f"orchestrate: plot of the rows kept: {plot}", file=sys.stderr)
+        print(f"{stopped} (plot: {plot})", file=sys.stderr)
         return status
     if not args.quiet:
         extra = f" and {plot}" if plot is not None else ""
