@@ -136,6 +136,7 @@ def collect_bundle(model: str, root: Path = REPO_ROOT) -> Bundle:
         elif isinstance(node, ast.ImportFrom):
             if node.level:
                 raise BuildError(f"{script}:{node.lineno}: the FMU script must use absolute imports")
+            assert node.module is not None  # an absolute "from X import" always names X
             if _is_local(node.module):
                 pending.append(node.module)
             else:
@@ -158,6 +159,7 @@ def collect_bundle(model: str, root: Path = REPO_ROOT) -> Bundle:
                     third_party.add(alias.name.split(".")[0])
             elif isinstance(node, ast.ImportFrom):
                 if node.level == 0:
+                    assert node.module is not None  # an absolute "from X import" always names X
                     if _is_local(node.module):
                         raise BuildError(
                             f"{path}:{node.lineno}: bundled modules must import {node.module} relatively"
@@ -258,10 +260,10 @@ def _rewrite_script(bundle: Bundle, package: str) -> str:
             new = ast.ImportFrom(module=f"{package}.{node.module}", names=node.names, level=0)
             lines[node.lineno - 1 : node.end_lineno] = [ast.unparse(new) + "\n"]
     text = "".join(lines)
-    for node in ast.walk(ast.parse(text)):
-        if isinstance(node, ast.ImportFrom) and _is_local(node.module):
+    for found in ast.walk(ast.parse(text)):
+        if isinstance(found, ast.ImportFrom) and _is_local(found.module):
             raise BuildError(
-                f"{bundle.script}:{node.lineno}: local import of {node.module} outside module level"
+                f"{bundle.script}:{found.lineno}: local import of {found.module} outside module level"
             )
     classes = CLASS_LINE.findall(text)
     if classes != [bundle.model]:
