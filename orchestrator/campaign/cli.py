@@ -11,6 +11,7 @@ import math
 import sys
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 from ..cli import add_command, resolve_scenario
 from ..errors import UsageError
@@ -118,7 +119,7 @@ def _sweep(args: argparse.Namespace, metrics: Metrics | None) -> int:
         if not sep or "." not in key:
             raise UsageError(f"--set expects COMPONENT.VARIABLE=VALUE (got '{item}')")
         extra[key.strip()] = value.strip()
-    changes: dict[str, object] = {}
+    changes: dict[str, Any] = {}
     if extra:
         changes["fixed"] = {**design.fixed, **extra}
     for name in ("stop_time", "step", "timeout"):

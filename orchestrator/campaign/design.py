@@ -234,8 +234,8 @@ def read_design(path: str | os.PathLike) -> Design:
             if not low < high:
                 raise DesignError(f"{where} ranges '{name}': low must be below high (got {r!r})")
             boxes[name] = (low, high)
-        points = sample_points(boxes, n, method, seed)
-        parts.append((list(boxes), [tuple(float(v) for v in p) for p in points]))
+        sampled = sample_points(boxes, n, method, seed)
+        parts.append((list(boxes), [tuple(float(v) for v in p) for p in sampled]))
 
     table = data.get("table")
     if table is not None:

@@ -7,7 +7,7 @@ import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 
-from distributed import WorkerPlugin
+from distributed import Worker, WorkerPlugin
 
 from .worker import scenario_folder
 
@@ -21,7 +21,7 @@ class ScenarioPlugin(WorkerPlugin):
     def __init__(self, archives: Mapping[str, bytes]) -> None:
         self.archives = dict(archives)
 
-    def setup(self, worker: object) -> None:
+    def setup(self, worker: Worker) -> None:
         for digest, data in self.archives.items():
             folder = scenario_folder(digest, Path(worker.local_directory))
             if folder.is_dir():

@@ -22,6 +22,7 @@ import os
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -33,7 +34,7 @@ SUMMARY_NAME = "summary.md"
 WORST_COUNT = 5
 FAILURES_LISTED = 20
 
-Row = Mapping[str, object]
+Row = Mapping[str, Any]  # column -> cell: int, float, str or None, by column
 
 
 def _value(row: Row, column: str) -> float:
@@ -185,7 +186,7 @@ def _worst(rows: Sequence[Row], metric: str) -> list[Row]:
 
 def _by_group(rows: Sequence[Row], meta: Mapping, metrics: Sequence[str]) -> list[str]:
     """Per group of the first plot's facet (and per scenario): counts, median and largest metric."""
-    spec = next((p for p in meta.get("plots", []) if p.get("facet")), {})
+    spec: Mapping[str, Any] = next((p for p in meta.get("plots", []) if p.get("facet")), {})
     panels = _facets(spec, rows, meta)
     if len(panels) < 2:
         return []

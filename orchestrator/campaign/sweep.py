@@ -22,12 +22,17 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 from .. import DEFAULT_STEP, MASTERS, open_system
 from ..errors import OrchestratorError, ScenarioError, UsageError
 from .design import EXPERIMENT_KEYS, Design, read_design
 from .table import CSV_NAME, Journal, read_rows
 from .worker import FAILED, OK, TIMEOUT, Metrics, RunOutcome, RunSpec, run_variant
+
+if TYPE_CHECKING:
+    import numpy as np
+    from distributed import Client
 
 __all__ = ["SCHEDULER_ENV", "CampaignInterrupted", "CampaignSummary", "connect", "plan", "sweep"]
 
@@ -139,7 +144,7 @@ def plan(
 @contextmanager
 def connect(
     scheduler: str | None = None, workers: int | None = None, processes: bool = True
-) -> Iterator[object]:
+) -> Iterator[Client]:
     """A ``distributed.Client``: to ``scheduler`` (or $ORCHESTRATE_SCHEDULER) if given, else to an
     embedded LocalCluster of ``workers`` (default: one per core) single-threaded worker processes."""
     from distributed import Client, LocalCluster
@@ -210,7 +215,7 @@ def _resume(folder: Path, columns: list[str], specs: list[RunSpec], resume: bool
 
 def _row(spec: RunSpec, outcome: RunOutcome, params: Sequence[str]) -> dict[str, object]:
     row: dict[str, object] = {"run": spec.index, "run_id": spec.run_id, "scenario": spec.scenario}
-    row.update({p: float(spec.overrides[p]) for p in params})
+    row.update({p: float(cast(float, spec.overrides[p])) for p in params})  # varied: always numbers
     row.update(
         stop_time=spec.stop_time,
         step=spec.step,
@@ -222,13 +227,14 @@ def _row(spec: RunSpec, outcome: RunOutcome, params: Sequence[str]) -> dict[str,
     return row
 
 
-def _write_trajectory(folder: Path, spec: RunSpec, outcome: RunOutcome) -> None:
+def _write_trajectory(folder: Path, spec: RunSpec, data: np.ndarray) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    data = outcome.trajectory
     folder.mkdir(parents=True, exist_ok=True)
-    table = pa.table({name: data[name] for name in data.dtype.names})
+    names = data.dtype.names
+    assert names is not None  # a result is a structured array, one field per column
+    table = pa.table({name: data[name] for name in names})
     pq.write_table(table, folder / f"run-{spec.index:05d}-{spec.run_id}.parquet")
 
 
@@ -349,7 +355,7 @@ def sweep(
                     outcome = RunOutcome(spec.index, FAILED, reason, float("nan"))
                 future.release()
                 if outcome.trajectory is not None:
-                    _write_trajectory(out / TRAJECTORY_DIR, spec, outcome)
+                    _write_trajectory(out / TRAJECTORY_DIR, spec, outcome.trajectory)
                 journal.append(_row(spec, outcome, params))
                 counts[outcome.status] += 1
                 bar.set_postfix(failed=counts[FAILED] + counts[TIMEOUT], refresh=False)

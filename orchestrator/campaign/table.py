@@ -14,6 +14,10 @@ import json
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, TextIO, cast
+
+if TYPE_CHECKING:
+    from _csv import Writer
 
 __all__ = [
     "CSV_NAME",
@@ -71,8 +75,8 @@ class Journal:
         self.csv_path = folder / CSV_NAME
         self.parquet_path = folder / PARQUET_NAME
         self.rows: list[dict[str, object]] = []
-        self._file = None
-        self._writer = None
+        self._file: TextIO | None = None
+        self._writer: Writer | None = None
 
     def start(self, kept: Sequence[dict[str, object]]) -> None:
         """Begin the journal with the rows kept from an earlier run of the campaign."""
@@ -84,6 +88,7 @@ class Journal:
 
     def append(self, row: Mapping[str, object]) -> None:
         """Record one finished run (flushed at once)."""
+        assert self._file is not None and self._writer is not None, "Journal.append before start"
         self.rows.append(dict(row))
         self._writer.writerow([_cell(row.get(c)) for c in self.columns])
         self._file.flush()
@@ -97,7 +102,7 @@ class Journal:
         write_parquet(self.parquet_path, self.columns, self.rows, self.metadata)
 
     def _write_sorted(self) -> None:
-        self.rows.sort(key=lambda r: r["run"])
+        self.rows.sort(key=lambda r: cast(int, r["run"]))
         partial = self.csv_path.with_name(self.csv_path.name + ".part")
         with open(partial, "w", newline="", encoding="utf-8") as f:
             writer = csv.writer(f)
@@ -126,7 +131,7 @@ def write_parquet(
     os.replace(partial, path)
 
 
-def read_table(path: str | os.PathLike) -> tuple[list[dict[str, object]], dict[str, object]]:
+def read_table(path: str | os.PathLike) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """Rows and campaign metadata of a campaign table (``runs.parquet``, or ``runs.csv`` with the
     metadata read from ``campaign.json`` beside it)."""
     path = Path(path)

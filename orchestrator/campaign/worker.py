@@ -130,7 +130,7 @@ def run_variant(spec: RunSpec, metrics: Metrics | None = None) -> RunOutcome:
             FAILED,
             _one_line(f"{reason}; {rows} rows computed"),
             time.perf_counter() - started,
-            trajectory=_decimate(partial, spec.keep_every) if rows else None,
+            trajectory=_decimate(partial, spec.keep_every) if partial is not None and rows else None,
         )
     except OrchestratorError as exc:
         return RunOutcome(spec.index, FAILED, _one_line(str(exc)), time.perf_counter() - started)
