@@ -703,7 +703,11 @@ def write_ssv(path: str | os.PathLike, parameter_set: ParameterSet, name: str | 
 
 def write_ssd(folder: str | os.PathLike, structure: SystemStructure) -> Path:
     """Write ``folder/SystemStructure.ssd`` and the ``.ssv`` file of every parameter set bound by a
-    component (named by its ``origin``); returns the SSD's path."""
+    component (file named by its ``origin``); returns the SSD's path.
+
+    Every ``.ssv`` carries the system's name as its set name: one named parameter set spread over
+    one file per component, because libcosim applies only a component's first binding and Ecos
+    applies one named set (the union of the files carrying that name)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     nsmap = {prefix: NS[prefix] for prefix in ("ssd", "ssc", "ssv", "osp", "oms")}
@@ -724,7 +728,7 @@ def write_ssd(folder: str | os.PathLike, structure: SystemStructure) -> Path:
         if c.parameter_sets:
             bindings = _element(element, "ssd:ParameterBindings")
             for ps in c.parameter_sets:
-                write_ssv(folder / ps.origin, ps, c.name)
+                write_ssv(folder / ps.origin, ps, structure.name)
                 _element(bindings, "ssd:ParameterBinding", source=ps.origin)
     connections = _element(system, "ssd:Connections")
     for k in structure.connections:
