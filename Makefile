@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 ORCH   := $(VENV)/bin/orchestrate
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test unit build lint table study report baselines bench clean
+.PHONY: run test unit build lint crosscheck table study report baselines bench clean
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -24,10 +24,15 @@ run: build
 	@echo "results CSV: results/pendulum.csv"
 	@echo "plot:        results/pendulum.png"
 
-## test: the whole suite (unit + system tests with real FMUs) on 2 workers; tests sharing an
-## expensive reference run in one worker (xdist groups)
+## test: the whole suite (unit + system tests with real FMUs and real SSP tools) on 2 workers;
+## tests sharing an expensive reference run in one worker (xdist groups). Also writes the
+## conformance matrix of every scenario in every installed SSP tool to results/crosscheck/.
 test: build
-	$(PY) -m pytest -q -n 2 --dist loadgroup
+	CROSSCHECK_OUTPUT=results/crosscheck $(PY) -m pytest -q -n 2 --dist loadgroup
+
+## crosscheck: every built scenario in every installed SSP tool -> results/crosscheck/matrix.md
+crosscheck: build
+	$(ORCH) crosscheck
 
 ## unit: the fast unit tests only (no FMU, no other tool, no 30 s reference)
 unit: $(STAMP)
