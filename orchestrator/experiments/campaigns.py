@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import math
 from collections.abc import Mapping, Sequence
+from typing import Any, cast
 
 import numpy as np
 
@@ -27,6 +28,7 @@ def tracking_row(result: np.ndarray, params: Mapping[str, object]) -> dict[str, 
     """The metric columns of one run from its result array and parameters."""
     t, y, yd = result["time"], result["plant.y"], result["reference.yd"]
     m = tracking_metrics(t, y, yd, result["controller.v"], result["actuator.uf"], band=BAND)
+    assert m.peak_v is not None and m.peak_uf is not None  # v and uf were given
     error = np.abs(y - yd)
     row = {
         "rae": m.rae,
@@ -42,7 +44,7 @@ def tracking_row(result: np.ndarray, params: Mapping[str, object]) -> dict[str, 
         "max_error_after_fault": math.nan,
     }
     if "actuator.t_fault" in params:
-        after = error[t >= float(params["actuator.t_fault"])]
+        after = error[t >= float(cast("float | str", params["actuator.t_fault"]))]
         if after.size:
             row["mae_after_fault"] = float(after.mean())
             row["max_error_after_fault"] = float(after.max())
@@ -73,11 +75,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _mode_name(value: object) -> str:
-    return "fixed-time" if int(float(value)) == 0 else "finite-time"
+    return "fixed-time" if int(float(cast("float | str", value))) == 0 else "finite-time"
 
 
 def claim_headlines(
-    rows: Sequence[Mapping[str, object]], fixed: Mapping[str, object] | None = None
+    rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, object] | None = None
 ) -> list[str]:
     """Headline findings of the fixed-time claim campaign (``ssp/campaigns/fixed_time_claim.toml``):
     per law, how many initial states diverge (the run fails), never enter the band within the
@@ -85,13 +87,13 @@ def claim_headlines(
     run settles; and the states where one law settles and the other does not. ``fixed``: the
     design's fixed overrides (where ``controller.mode`` is when it does not vary)."""
     default_mode = (fixed or {}).get("controller.mode", 0)
-    by_state: dict[tuple[float, float], dict[str, Mapping[str, object]]] = {}
+    by_state: dict[tuple[float, float], dict[str, Mapping[str, Any]]] = {}
     for r in rows:
         by_state.setdefault((float(r["plant.x1_0"]), float(r["plant.x2_0"])), {})[
             _mode_name(r.get("controller.mode", default_mode))
         ] = r
 
-    def settled(r: Mapping[str, object] | None) -> bool:
+    def settled(r: Mapping[str, Any] | None) -> bool:
         return r is not None and r["status"] == "ok" and math.isfinite(float(r["settling_time"]))
 
     lines = []
@@ -132,13 +134,13 @@ def claim_headlines(
 
 
 def fault_headlines(
-    rows: Sequence[Mapping[str, object]], fixed: Mapping[str, object] | None = None
+    rows: Sequence[Mapping[str, Any]], fixed: Mapping[str, object] | None = None
 ) -> list[str]:
     """Headline findings of the fault-tolerance campaign: per scenario and law, failures and the
     largest MAE and |y - yd| after the fault, with the worst run's fault (``fixed``: as for
     :func:`claim_headlines`)."""
     default_mode = (fixed or {}).get("controller.mode", 0)
-    groups: dict[tuple[str, str], list[Mapping[str, object]]] = {}
+    groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
     for r in rows:
         groups.setdefault(
             (str(r["scenario"]), _mode_name(r.get("controller.mode", default_mode))), []

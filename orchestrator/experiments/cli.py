@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import cast
 
 from ..cli import add_command
 from ..errors import ScenarioError, UsageError
@@ -75,7 +76,7 @@ def _metrics(args: argparse.Namespace) -> int:
     rows, notes = [], []
     for path in args.results:
         data = read_result(path)
-        names = data.dtype.names
+        names = data.dtype.names or ()  # a result is a structured array: never None
         missing = [c for c in ("plant.y", "reference.yd") if c not in names]
         if missing:
             raise ScenarioError(f"{path}: no column {', '.join(missing)} (needs plant.y and reference.yd)")
@@ -93,7 +94,7 @@ def _metrics(args: argparse.Namespace) -> int:
             print(f"orchestrate: warning: {path}: partial result ({record.get('status')} at t = "
                   f"{record.get('last_time')} s of {span}): the metrics cover only the rows written",
                   file=sys.stderr)
-        elif record is not None and float(data["time"][-1]) < float(record["stop_time"]):
+        elif record is not None and float(data["time"][-1]) < float(cast("float | str", record["stop_time"])):
             print(f"orchestrate: warning: {path}: ends at t = {data['time'][-1]:g} s, before the run's stop "
                   f"time {record['stop_time']} s: the metrics cover only the rows written", file=sys.stderr)
     print(format_table(rows))

@@ -19,6 +19,7 @@ import argparse
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -47,29 +48,35 @@ class ReferenceRun:
     data: np.ndarray = field(repr=False)
 
 
-def _controller_inputs(t: float, y: Sequence[float], ex: Example) -> tuple[list[float], tuple]:
+def _controller_inputs(t: float, y: np.ndarray, ex: Example) -> tuple[list[float], tuple]:
     return [y[0], y[1]], reference_signal(t, ex.reference)
 
 
-def _outputs(t: float, y: Sequence[float], ex: Example, params: ControllerParameters) -> tuple:
+def _seq(values: np.ndarray) -> Sequence[float]:
+    """An array where the law and the plant models take a ``Sequence[float]``: they only index it,
+    so the array serves as it is (their annotations name no arrays)."""
+    return cast(Sequence[float], values)
+
+
+def _outputs(t: float, y: np.ndarray, ex: Example, params: ControllerParameters) -> tuple:
     """(v, uf, u_dz, terms) for the full state y = [x1, x2, z, r, eta_1..eta_n] at time t."""
     x, yd = _controller_inputs(t, y, ex)
-    terms = evaluate(y[3:], x, yd, params)
+    terms = evaluate(_seq(y[3:]), x, yd, params)
     uf, u_dz = actuator_output(t, terms.v, y[0], y[1], ex.actuator)
     return terms.v, uf, u_dz, terms
 
 
 def _continuous_rhs(t: float, y: np.ndarray, ex: Example, params: ControllerParameters) -> list[float]:
     _, uf, _, terms = _outputs(t, y, ex, params)
-    return [*ex.plant_rhs(t, y[:3], uf), *terms.derivative]
+    return [*ex.plant_rhs(t, _seq(y[:3]), uf), *terms.derivative]
 
 
 def _held_rhs(t: float, y: np.ndarray, ex: Example, params: ControllerParameters, x, yd, uf) -> list[float]:
     """Plant driven by the held uf; controller states driven by the held inputs x, yd."""
-    return [*ex.plant_rhs(t, y[:3], uf), *evaluate(y[3:], x, yd, params).derivative]
+    return [*ex.plant_rhs(t, _seq(y[:3]), uf), *evaluate(_seq(y[3:]), x, yd, params).derivative]
 
 
-def _record(t: float, y: Sequence[float], ex: Example, params: ControllerParameters) -> tuple:
+def _record(t: float, y: np.ndarray, ex: Example, params: ControllerParameters) -> tuple:
     v, uf, u_dz, terms = _outputs(t, y, ex, params)
     yd = reference_signal(t, ex.reference)[0]
     return (t, y[0], y[1], y[2], y[0], yd, v, uf, u_dz, y[3], y[4], y[5], terms.z[0], terms.z[1])
@@ -95,6 +102,7 @@ def simulate(
     if not math.isclose(steps * grid, stop, rel_tol=1e-12):
         raise ValueError(f"stop time {stop} is not a whole number of grid steps {grid}")
     times = [k * grid for k in range(steps + 1)]
+    assert params.eta0 is not None  # ControllerParameters.__post_init__ always fills it
     y0 = np.array([*example.x0, params.r0, *params.eta0])
     rows = []
     if sample_time is None:

@@ -183,12 +183,20 @@ def parse_tolerance(text: str, base: Tolerances) -> tuple[str, Tolerance]:
 
 
 # -- results and baselines ----------------------------------------------------------------------
+def _fields(data: np.ndarray) -> tuple[str, ...]:
+    """The column names of a result or baseline (a structured array, one field per column)."""
+    names = data.dtype.names
+    if names is None:
+        raise TypeError(f"expected a structured array with one field per column, got dtype {data.dtype}")
+    return names
+
+
 def resample(result: np.ndarray, grid: float, columns: Sequence[str] | None = None) -> np.ndarray:
     """The result on the grid ``t0 + k*grid`` (computed like the master's grid, so points shared
     with the result's own grid take its values exactly), keeping ``columns`` (default all)."""
     t = result["time"]
     times = time_grid(float(t[0]), float(t[-1]), grid)
-    names = ["time", *[c for c in (columns or result.dtype.names) if c != "time"]]
+    names = ["time", *[c for c in (columns or _fields(result)) if c != "time"]]
     out = np.zeros(len(times), dtype=[(n, np.float64) for n in names])
     out["time"] = times
     for n in names[1:]:
@@ -215,7 +223,7 @@ def _atomic_write(path: Path, text: str) -> None:
 def write_baseline(data: np.ndarray, path: str | os.PathLike) -> Path:
     """Write a baseline CSV readable by ``fmpy.util.read_csv``: exact time, values to 9 significant
     digits (a reviewable, stable text diff)."""
-    names = data.dtype.names
+    names = _fields(data)
     lines = [",".join(names)]
     for row in data.tolist():
         lines.append(",".join([repr(row[0]), *(f"{v:.{DIGITS}g}" for v in row[1:])]))
@@ -302,7 +310,8 @@ def _check(name: str, t: np.ndarray, y: np.ndarray, y_ref: np.ndarray, tol: Tole
     lower = np.empty(len(t))
     upper = np.empty(len(t))
     width = max(tol.atol, tol.rtol * float(np.ptp(y_ref[~quiet]))) if (~quiet).any() else 0.0
-    for part, w in ((quiet, tol.quiet_atol), (~quiet, width)):
+    bands = [(~quiet, width)] if tol.quiet_atol is None else [(quiet, tol.quiet_atol), (~quiet, width)]
+    for part, w in bands:
         if part.any():
             lower[part], upper[part] = _tube(t[part], y[part], y_ref[part], w, tol.dt)
     finite = np.isfinite(y)
@@ -323,10 +332,10 @@ def compare(result: np.ndarray, baseline: np.ndarray, tolerances: Tolerances | N
     """Compare every baseline column with the result's column of the same name on the baseline's
     time grid (the result is interpolated linearly onto it)."""
     tolerances = tolerances or Tolerances()
-    names = [n for n in baseline.dtype.names if n != "time"]
-    have = set(result.dtype.names)
+    names = [n for n in _fields(baseline) if n != "time"]
+    have = set(_fields(result))
     missing = [n for n in names if n not in have]
-    extra = [n for n in result.dtype.names if n != "time" and n not in set(baseline.dtype.names)]
+    extra = [n for n in _fields(result) if n != "time" and n not in set(_fields(baseline))]
     problems = []
     t_ref, t_res = baseline["time"], result["time"]
     eps = 1e-9 * max(1.0, abs(float(t_ref[-1])))
