@@ -55,7 +55,7 @@ STUDY_VALUES = (-2.0, -1.0, 0.0, 1.0, 2.0)
 STUDY_HORIZON = 10.0
 
 
-def _run_case(args: tuple[str, float | None, dict]) -> np.ndarray:
+def _run_case(args: tuple[Path, float | None, dict]) -> np.ndarray:
     archive, stop_time, overrides = args
     return run(archive, stop_time=stop_time, overrides=overrides)
 
@@ -68,7 +68,7 @@ def _metrics(result: np.ndarray) -> TrackingMetrics:
 def run_cases(archives: dict[str, Path], stop_time: float | None = None,
               processes: int = 2) -> dict[tuple[int, str], np.ndarray]:
     """Run the four cases of Tables 1-2 (full DefaultExperiment unless ``stop_time``)."""
-    jobs = [(archives[s], stop_time, {}) for s in CASES.values()]
+    jobs: list[tuple[Path, float | None, dict]] = [(archives[s], stop_time, {}) for s in CASES.values()]
     with ProcessPoolExecutor(processes) as pool:
         return dict(zip(CASES, pool.map(_run_case, jobs), strict=True))
 
@@ -150,7 +150,7 @@ def _figures(results: dict[tuple[int, str], np.ndarray], out: Path,
 
 
 # -- the report -------------------------------------------------------------------------------------
-def _experiment(archive: Path) -> tuple[float, float, dict[str, object]]:
+def _experiment(archive: Path) -> tuple[float | None, float, dict[str, object]]:
     """Stop time, step and the controller's alpha, beta of a scenario, as the orchestrator reads them."""
     with open_system(archive) as system:
         ex = system.structure.experiment
@@ -169,7 +169,7 @@ def _fmt(value: float) -> str:
 def _provenance_line() -> str:
     """Date, commit and package versions of the code that wrote the report."""
     git = provenance.commit()
-    code = (f"commit `{git['commit'][:12]}`{' with local changes' if git['modified'] else ''}"
+    code = (f"commit `{str(git['commit'])[:12]}`{' with local changes' if git['modified'] else ''}"
             if git else "not from a git checkout")
     packages = ", ".join(f"{k} {v}" for k, v in provenance.versions().items())
     date = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
