@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import os
 import warnings
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
-from . import provenance
+from . import formats, provenance
 from .errors import (
     Interrupted,
     NonFiniteError,
@@ -58,7 +60,9 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
         master: str = "gauss-seidel", output: str | os.PathLike | None = None,
         progress: Callable[[int, int], None] | None = None, start_time: float | None = None,
         strict: bool = False, fmu_dirs: Iterable[str | os.PathLike] = (), keep: bool = True,
-        timeout: float | None = None, limits: Limits = DEFAULT_LIMITS) -> np.ndarray:
+        timeout: float | None = None, limits: Limits = DEFAULT_LIMITS,
+        output_variables: Sequence[str] = (), output_interval: float | None = None,
+        no_inputs: bool = False) -> np.ndarray:
     """Run a scenario (``.ssp`` archive or folder) and return the results as a structured array
     with a ``time`` field and one ``<component>.<connector>`` field per connector.
 
@@ -75,7 +79,16 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
     Raises ScenarioError for a bad set-up; SimulationError when an FMU fails, NonFiniteError when
     a value is NaN or infinite, TimeLimitError at the ``timeout``, Interrupted on SIGINT/SIGTERM
     (a KeyboardInterrupt), each with the rows kept in ``.result`` and their number in ``.rows``.
+
+    Output control (:mod:`orchestrator.formats`): the format is chosen by the extension of
+    ``output`` (``.csv``, ``.parquet``, ``.mat``; others are a UsageError before anything runs);
+    ``output_variables`` (fnmatch patterns), ``output_interval`` (a multiple of the step) and
+    ``no_inputs`` (leave out input columns that only repeat their source) select what the file
+    holds; the array returned is not affected.
     """
+    selection = formats.Selection(tuple(output_variables), output_interval)
+    if output is not None:
+        formats.check_output(output, selection=selection)
     if master not in MASTERS:
         raise ValueError(f"unknown master '{master}' (choose from {', '.join(MASTERS)})")
     parameter_sets = list(parameter_sets)
@@ -86,12 +99,21 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
             raise ScenarioError(system.unconnected)
         for message in system.unconnected:
             warnings.warn(message, ScenarioWarning, stacklevel=2)
-        runner = MASTERS[master](system, start, stop, h, output, progress, keep=keep or output is None,
+        stream = output
+        if output is not None:  # the master streams a CSV; other formats and selections come from it
+            formats.check_output(output, h, selection)
+            if no_inputs:
+                selection = replace(selection, drop=tuple(str(end) for end, link in system.links.items()
+                                                          if not link.transformed))
+            stream = formats.staging_path(output, selection)
+        runner = MASTERS[master](system, start, stop, h, stream, progress, keep=keep or output is None,
                                  timeout=timeout)
         if output is None:
             return runner.run()
         record = provenance.describe(scenario, system, start=start, stop=stop, step=h, master=master,
                                      parameter_sets=parameter_sets, overrides=overrides)
+        record["output"] = {"format": Path(output).suffix.lower(), "variables": list(selection.variables),
+                            "interval": selection.interval, "left_out": list(selection.drop)}
         provenance.write_provenance(output, record)
         try:
             result = runner.run()
@@ -99,6 +121,9 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
             rows = runner.recorder.count if runner.recorder is not None else 0
             status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
             provenance.finish(output, record, status, rows, runner.time(rows - 1) if rows else None, str(exc))
+            if rows and Path(stream).is_file():
+                formats.write_selected(stream, output, selection)  # the rows kept, in the format asked for
             raise
+        formats.write_selected(stream, output, selection)
         provenance.finish(output, record, "complete", runner.recorder.count, runner.time(runner.n))
         return result

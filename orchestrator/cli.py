@@ -29,6 +29,7 @@ from .errors import (
     SimulationError,
     UsageError,
 )
+from .formats import Selection, check_output
 from .plots import plot_run
 from .provenance import overrides_text, read_provenance
 from .results import read_result
@@ -113,7 +114,15 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--stop-time", type=float, metavar="T", help="stop time in s (default: from the SSD)")
     p.add_argument("--step", type=float, metavar="H",
                    help="communication step in s (default: from the SSD); must divide the run")
-    p.add_argument("--output", type=Path, metavar="FILE.csv", help="result CSV (default: results/<name>.csv)")
+    p.add_argument("--output", type=Path, metavar="FILE",
+                   help="result file, format by extension: .csv, .parquet, .mat (Dymola/OpenModelica "
+                        "trajectory) (default: results/<name>.csv)")
+    p.add_argument("--output-variables", action="append", default=[], metavar="PATTERN",
+                   help="columns to write, shell patterns such as 'plant.*' (repeatable; default: all)")
+    p.add_argument("--output-interval", type=float, metavar="S",
+                   help="write every row at t0 + k S only (a multiple of the step; default: every step)")
+    p.add_argument("--no-inputs", action="store_true",
+                   help="leave out input columns that only repeat the output connected to them")
     p.add_argument("--plot", type=Path, metavar="FILE.png", help="plot file (default: results/<name>.png)")
     p.add_argument("--no-plot", action="store_true", help="do not plot")
     p.add_argument("--master", choices=list(MASTERS), default="gauss-seidel", help="master algorithm")
@@ -320,6 +329,7 @@ def _run(args: argparse.Namespace) -> int:
         raise ScenarioError(stale)
     name = scenario.stem if scenario.is_file() else scenario.resolve().name
     output = args.output or Path("results") / f"{name}.csv"
+    check_output(output, selection=Selection(tuple(args.output_variables), args.output_interval))
     plot = None if args.no_plot else args.plot or output.with_suffix(".png")
     progress = None if args.quiet or not sys.stderr.isatty() else _Progress(name)
     messages = _LastMessage(args.verbose)
@@ -333,7 +343,9 @@ def _run(args: argparse.Namespace) -> int:
             result = run(scenario, stop_time=args.stop_time, step=args.step,
                          parameter_sets=args.parameter_set, overrides=overrides, master=args.master,
                          output=output, progress=progress, start_time=args.start_time, strict=args.strict,
-                         fmu_dirs=fmu_dirs(scenario), keep=False, timeout=args.timeout, limits=_limits(args))
+                         fmu_dirs=fmu_dirs(scenario), keep=False, timeout=args.timeout, limits=_limits(args),
+                         output_variables=args.output_variables, output_interval=args.output_interval,
+                         no_inputs=args.no_inputs)
         _print_warnings(caught)
     except SimulationError as exc:
         rows = getattr(exc, "rows", len(getattr(exc, "result", ())))

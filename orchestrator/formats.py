@@ -8,9 +8,10 @@
   binTrans``, ``name``, ``description``, ``dataInfo``, ``data_1``, ``data_2``) that OMSimulator and
   Dymola write, so the tools their users have read it; the same names (scipy).
 
-Any other extension is a usage error, before anything runs. A selection or another format is made
-from the streamed CSV when the run ends (also after a failure, from the rows kept): the CSV then
-goes to ``<output>.partial.csv`` while the run goes, and is removed once the final file is written.
+A name without extension gets CSV; any other extension is a usage error, before anything runs.
+A selection or another format is made from the streamed CSV when the run ends (also after a
+failure, from the rows kept): the CSV then goes to ``<output>.partial.csv`` while the run goes,
+and is removed once the final file is written.
 """
 
 from __future__ import annotations
@@ -68,12 +69,12 @@ class Selection:
 
 def check_output(path: str | os.PathLike, step: float | None = None,
                  selection: Selection = Selection()) -> None:
-    """UsageError for an extension no writer handles, or an interval that is not a positive
-    multiple of the communication step ``step``."""
+    """UsageError for an extension no writer handles (none: CSV), or an interval that is not a
+    positive multiple of the communication step ``step``."""
     suffix = Path(path).suffix.lower()
-    if suffix not in FORMATS:
-        raise UsageError(f"--output {path}: cannot write '{suffix or 'no extension'}' files "
-                         f"(choose {', '.join(FORMATS)})")
+    if suffix and suffix not in FORMATS:
+        raise UsageError(f"--output {path}: cannot write '{suffix}' files (choose {', '.join(FORMATS)}; "
+                         "a name without extension gets CSV)")
     interval = selection.interval
     if interval is not None:
         if not (np.isfinite(interval) and interval > 0):
@@ -86,7 +87,7 @@ def staging_path(output: str | os.PathLike, selection: Selection = Selection()) 
     """Where the master streams its CSV: ``output`` itself for a full CSV, else
     ``<output>.partial.csv`` (turned into ``output`` by :func:`write_selected`)."""
     output = Path(output)
-    if output.suffix.lower() == ".csv" and selection.everything:
+    if output.suffix.lower() in (".csv", "") and selection.everything:
         return output
     return output.with_name(output.name + ".partial.csv")
 

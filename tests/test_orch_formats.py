@@ -1,0 +1,125 @@
+"""Issue 12 part 5: result formats by extension (CSV, Parquet, MAT) and output selection.
+
+Oracles: a CSV written by hand (values known), pyarrow's and scipy's readers, and the MAT file
+OMSimulator itself writes for a scenario (the layout Dymola/OpenModelica tools read).
+"""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+import scipy.io as sio
+
+from orchestrator.errors import UsageError
+from orchestrator.formats import Selection, check_output, staging_path, write_selected
+
+TIMES = [k / 100 for k in range(11)]  # 0 .. 0.1 s, step 0.01 s
+OMSIMULATOR = Path(__file__).resolve().parents[2] / "shared" / "tools" / "omsimulator" / "bin" / "OMSimulator"
+
+
+def _csv(path: Path) -> Path:
+    """time, a.x = 2 t, a.u = t^2, b.y = -t (repr'd, exact)."""
+    lines = ["time,a.x,a.u,b.y"] + [f"{t!r},{2 * t!r},{t * t!r},{-t!r}" for t in TIMES]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_unknown_extension_and_bad_interval_are_usage_errors():
+    """Before: --output r.xlsx (or .mat, .parquet) got CSV text under that name, silently."""
+    for name in ("r.xlsx", "r.txt", "r.csv.gz"):
+        with pytest.raises(UsageError, match=r"cannot write .* files \(choose \.csv, \.parquet, \.mat;"):
+            check_output(name)
+    for name in ("r.csv", "r.parquet", "r.MAT", "r"):  # no extension: CSV, as before
+        check_output(name)
+    with pytest.raises(UsageError, match="not a multiple of the step 0.01 s"):
+        check_output("r.csv", 0.01, Selection(interval=0.015))
+    check_output("r.csv", 0.01, Selection(interval=0.05))
+
+
+def test_parquet_with_selection(tmp_path):
+    source = _csv(tmp_path / "r.parquet.partial.csv")
+    selection = Selection(variables=("a.*",), interval=0.05, drop=("a.u",))
+    assert staging_path(tmp_path / "r.parquet", selection) == source
+    out = write_selected(source, tmp_path / "r.parquet", selection)
+    table = pq.read_table(out)
+    assert table.schema.names == ["time", "a.x"]
+    assert table.column("time").to_pylist() == [0.0, 0.05, 0.1]
+    assert table.column("a.x").to_pylist() == [0.0, 2 * 0.05, 2 * 0.1]
+    assert not source.exists()
+
+
+def test_csv_selection_in_place_and_unmatched_pattern(tmp_path):
+    source = _csv(tmp_path / "r.partial.csv")
+    with pytest.raises(UsageError, match="'c.\\*' matches no column"):
+        write_selected(source, tmp_path / "r.csv", Selection(variables=("c.*",)))
+    out = write_selected(source, tmp_path / "r.csv", Selection(variables=("b.y", "a.u")))
+    assert out.read_text().splitlines()[:3] == ["time,a.u,b.y", "0.0,0.0,-0.0", f"0.01,{0.01 * 0.01!r},-0.01"]
+    full = _csv(tmp_path / "full.csv")
+    assert staging_path(full) == full and write_selected(full, full) == full and full.exists()
+
+
+def test_mat_is_the_dymola_trajectory_layout(tmp_path):
+    out = write_selected(_csv(tmp_path / "r.partial.csv"), tmp_path / "r.mat")
+    m = sio.loadmat(out, chars_as_strings=False)
+    assert ["".join(row).strip() for row in m["Aclass"]] == ["Atrajectory", "1.1", "", "binTrans"]
+    names = ["".join(m["name"][:, j]).strip() for j in range(m["name"].shape[1])]
+    assert names == ["time", "a.x", "a.u", "b.y"]
+    assert m["dataInfo"].tolist() == [[0, 2, 2, 2], [1, 2, 3, 4], [0, 0, 0, 0], [-1, -1, -1, -1]]
+    assert m["data_1"].tolist() == [[0.0, 0.1]]
+    assert m["data_2"].shape == (4, 11)
+    assert m["data_2"][0].tolist() == TIMES and m["data_2"][2].tolist() == [t * t for t in TIMES]
+
+
+@pytest.mark.system
+@pytest.mark.skipif(not OMSIMULATOR.is_file(), reason="OMSimulator is not installed beside the project")
+def test_mat_matches_what_omsimulator_writes(built, tmp_path):
+    """The same variables, types and conventions as OMSimulator's own result file of a scenario."""
+    theirs = tmp_path / "oms.mat"
+    done = subprocess.run([str(OMSIMULATOR), str(built / "ssp" / "example1.ssp"), "--stopTime=0.01",
+                           f"--resultFile={theirs}"], cwd=tmp_path, capture_output=True, text=True,
+                          env={"PATH": "/usr/bin:/bin"}, timeout=300)
+    assert done.returncode == 0 and theirs.is_file(), done.stdout + done.stderr
+    from orchestrator.cli import main
+
+    ours = tmp_path / "r.mat"
+    assert main(["run", str(built / "ssp" / "example1.ssp"), "--stop-time", "0.01", "--quiet", "--no-plot",
+                 "--output", str(ours)]) == 0
+    a, b = sio.loadmat(theirs, chars_as_strings=False), sio.loadmat(ours, chars_as_strings=False)
+    assert [k for k in a if not k.startswith("__")] == [k for k in b if not k.startswith("__")]
+    for key in ("Aclass", "name", "description", "dataInfo", "data_1", "data_2"):
+        assert a[key].dtype == b[key].dtype, key
+    assert ["".join(r).strip() for r in a["Aclass"]] == ["".join(r).strip() for r in b["Aclass"]]
+    assert a["dataInfo"][:, 0].tolist() == b["dataInfo"][:, 0].tolist()  # time: the abscissa
+    their_names = {"".join(a["name"][:, j]).strip().removeprefix("example1.example1.")
+                   for j in range(a["name"].shape[1])}
+    our_names = ["".join(b["name"][:, j]).strip() for j in range(b["name"].shape[1])]
+    assert "plant.y" in our_names and set(our_names) <= their_names | {"time"}
+    y = our_names.index("plant.y")
+    np.testing.assert_array_equal(b["data_2"][0], np.arange(11) / 1000)
+    assert b["data_2"][y][0] == 0.5  # Example 1 starts at x1(0) = 0.5
+    assert not (tmp_path / "r.mat.partial.csv").exists()  # the staging CSV is gone
+
+
+@pytest.mark.system
+def test_run_writes_the_format_and_selection_also_for_a_failed_run(test_fmus, tmp_path, capsys):
+    """--no-inputs leaves out gain.u and integrator.u (each repeats the output connected to it);
+    a run that fails at t = 0.05 s still gives its rows kept, as Parquet."""
+    from orch_helpers import loop_scenario
+
+    from orchestrator.cli import main
+
+    loop = loop_scenario(tmp_path / "loop", test_fmus, fail_at=0.05, stop=0.1, step=0.01)
+    out = tmp_path / "r.parquet"
+    assert main(["run", str(loop), "--quiet", "--no-plot", "--output", str(out), "--no-inputs"]) == 1
+    assert "rows kept in" in capsys.readouterr().err
+    table = pq.read_table(out)
+    assert table.schema.names == ["time", "source.y", "gain.y", "integrator.x"]
+    assert table.column("time").to_pylist() == [k / 100 for k in range(6)]
+    assert not (tmp_path / "r.parquet.partial.csv").exists()
+    with pytest.raises(SystemExit) as info:
+        main(["run", str(loop), "--quiet", "--output", str(tmp_path / "r.xlsx")])
+    assert info.value.code == 2 and not (tmp_path / "r.xlsx").exists()
