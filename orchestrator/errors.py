@@ -6,6 +6,8 @@ line returns after printing the one-line message.
 
 from __future__ import annotations
 
+from typing import Any
+
 __all__ = ["Interrupted", "NonFiniteError", "OrchestratorError", "ScenarioError", "ScenarioWarning",
            "SimulationError", "TimeLimitError", "UsageError"]
 
@@ -40,8 +42,12 @@ class ScenarioError(OrchestratorError, ValueError):
 class SimulationError(OrchestratorError, RuntimeError):
     """An FMU call failed while the scenario ran.
 
-    Reads ``controller: fmi2DoStep returned fmi2Error at t=10.000 s``.
+    Reads ``controller: fmi2DoStep returned fmi2Error at t=10.000 s``. Raised by a master, it
+    carries the rows kept: their number ``rows`` and ``result`` (as the run would have returned).
     """
+
+    rows: int = 0
+    result: Any = None
 
     STATUS_NAMES = ("fmi2OK", "fmi2Warning", "fmi2Discard", "fmi2Error", "fmi2Fatal", "fmi2Pending")
 
@@ -86,7 +92,11 @@ class TimeLimitError(SimulationError):
 
 class Interrupted(KeyboardInterrupt):
     """SIGINT (Ctrl-C) or SIGTERM stopped the run at a communication point; the rows computed are
-    kept. ``exit_status`` is 128 + the signal number (130, 143), as a shell reports it."""
+    kept (``rows``, ``result`` as for SimulationError). ``exit_status`` is 128 + the signal number
+    (130, 143), as a shell reports it."""
+
+    rows: int = 0
+    result: Any = None
 
     def __init__(self, signal_name: str, signal_number: int, time: float) -> None:
         super().__init__(f"interrupted by {signal_name} at t={time:.3f} s")

@@ -47,7 +47,7 @@ from collections.abc import Callable
 from contextlib import ExitStack
 from ctypes import c_double, c_uint
 from types import FrameType
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -102,7 +102,7 @@ class Stopper:
         self.timeout = timeout
         self.reason: int | str | None = None  # a signal number or "timeout"
         self.aborted = False
-        self._previous: dict[int, object] = {}
+        self._previous: dict[int, Any] = {}
         self.deadline = math.inf
 
     def __enter__(self) -> Stopper:
@@ -145,11 +145,11 @@ class Stopper:
         if signal.SIGALRM in self._previous:
             signal.setitimer(signal.ITIMER_REAL, 0)
 
-    def error(self, t: float, component: str = "") -> BaseException:
+    def error(self, t: float, component: str = "") -> TimeLimitError | Interrupted:
         """The exception that ends the run: TimeLimitError or Interrupted."""
-        if self.reason == "timeout":
-            return TimeLimitError(self.timeout, t, component, GRACE if component else 0.0)
-        return Interrupted(signal.Signals(self.reason).name, int(self.reason), t)
+        if isinstance(self.reason, int):
+            return Interrupted(signal.Signals(self.reason).name, self.reason, t)
+        return TimeLimitError(self.timeout or 0.0, t, component, GRACE if component else 0.0)
 
     def __exit__(self, *exc: object) -> None:
         self.disarm()
@@ -259,13 +259,14 @@ class Master:
                 raise self._kept(exc) from None
         return self.recorder.result()
 
-    def _kept(self, exc: BaseException) -> BaseException:
+    def _kept(self, exc: SimulationError | Interrupted) -> SimulationError | Interrupted:
         """``exc`` with the rows kept: ``rows`` (their number) and ``result`` (as ``run`` returns)."""
+        assert self.recorder is not None
         exc.rows = self.recorder.count
         exc.result = self.recorder.result()
         return exc
 
-    def _cause(self, exc: SimulationError | _Abort, stopper: Stopper) -> BaseException:
+    def _cause(self, exc: SimulationError | _Abort, stopper: Stopper) -> SimulationError | Interrupted:
         """What to report for a failed call or an aborted step: the stop request that caused it, or
         a non-finite value among the rows not yet checked (it came first), or the failure itself."""
         component = getattr(exc, "component", "")
@@ -280,6 +281,7 @@ class Master:
             self.recorder.check()
         except NonFiniteRow as row:
             return self._non_finite(row)
+        assert isinstance(exc, SimulationError)  # _Abort is raised only after a stop request
         return exc
 
     def _non_finite(self, exc: NonFiniteRow) -> NonFiniteError:

@@ -163,7 +163,9 @@ def _unwritable(tmp_path: Path) -> Path:
 @pytest.mark.parametrize("case", ["read_only", "dev_full", "file_as_folder"])
 def test_unwritable_output_is_one_line(case, test_fmus, tmp_path):
     ssp = loop_scenario(tmp_path / "loop", test_fmus, stop=1.0, step=H)
-    target = {"read_only": _unwritable(tmp_path) / "r.csv", "dev_full": Path("/dev/full"),
+    full = tmp_path / "full.csv"  # a full disk: /dev/full under a name with the CSV extension
+    full.symlink_to("/dev/full")
+    target = {"read_only": _unwritable(tmp_path) / "r.csv", "dev_full": full,
               "file_as_folder": tmp_path / "loop.ssp" / "r.csv"}[case]
     r = orchestrate("run", str(ssp), "--output", str(target), "--no-plot", tmp=tmp_path)
     assert r.returncode == 1
