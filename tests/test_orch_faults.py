@@ -207,3 +207,19 @@ def test_two_runs_writing_one_file_leave_a_complete_csv(test_fmus, tmp_path):
     assert x0 in (1.0, 2.0)
     np.testing.assert_allclose(data["integrator.x"], x0 * (1 - 2.0 * H) ** np.arange(2001), rtol=1e-12)
     assert not list(tmp_path.glob(".r.csv.*.part"))
+
+
+def test_timeout_stops_a_long_run_at_a_communication_point(test_fmus, tmp_path):
+    """A run slower than --timeout (every step returns): stopped at the next communication point,
+    exit 1, one line, the rows kept are every row computed."""
+    ssp = loop_scenario(tmp_path / "loop", test_fmus, stop=10000.0, step=H)
+    csv = tmp_path / "r.csv"
+    r = orchestrate("run", str(ssp), "--output", str(csv), "--no-plot", "--timeout", "1", tmp=tmp_path)
+    assert r.returncode == 1
+    lines = r.stderr.strip().splitlines()
+    data = read_csv(csv)
+    n = len(data)
+    assert len(lines) == 1 and lines[0].startswith("orchestrate: error: wall-clock limit of 1 s (--timeout) "
+                                                   f"reached at t={(n - 1) * H:.3f} s"), lines
+    assert lines[0].endswith(f"; {n} rows kept in {csv}")
+    np.testing.assert_allclose(data["integrator.x"], (1 - 2.0 * H) ** np.arange(n), rtol=1e-12)
