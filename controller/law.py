@@ -11,15 +11,25 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from .params import ControllerParameters
+from .params import SEMI_IMPLICIT, ControllerParameters
 from .rbf import rbf_energy
 
-__all__ = ["ControlTerms", "evaluate", "sig"]
+__all__ = ["ControlTerms", "evaluate", "semi_implicit_feedback", "sig"]
 
 
 def sig(z: float, p: float) -> float:
     """sig(z)^p = sign(z) |z|^p."""
     return math.copysign(abs(z) ** p, z) if z != 0.0 else 0.0
+
+
+def semi_implicit_feedback(z: float, phi: float, bh: float) -> float:
+    """The semi-implicit value of one step's feedback -sign(z) phi: -sign(z) min(phi, |z| / bh).
+
+    ``phi`` is the law's feedback magnitude at |z| (k|z|^(2 alpha-1) + q|z|^(2 beta-1) + eta_hat w|z|),
+    ``bh = b_max * sample_time``. It is the control u of z_next = z + bh u with u in -phi Sgn(z_next)
+    (magnitude at the sample, sign set-valued at the next one: Acary and Brogliato's implicit sign).
+    """
+    return -math.copysign(min(phi, abs(z) / bh), z) if z != 0.0 else 0.0
 
 
 @dataclass(frozen=True)
@@ -41,7 +51,8 @@ def evaluate(
 ) -> ControlTerms:
     """Evaluate the law and the state derivative at one instant.
 
-    ``derivative`` is ``[r', eta_hat_1', ..., eta_hat_n']`` (eq. 20, 38, 55, 69).
+    ``derivative`` is ``[r', eta_hat_1', ..., eta_hat_n']`` (eq. 20, 38, 55, 69). With
+    ``p.discretization`` semi-implicit each zeta_i is :func:`semi_implicit_feedback` of its terms.
     """
     n = p.n
     r = state[0]
@@ -49,6 +60,8 @@ def evaluate(
     p_alpha = 2.0 * p.alpha - 1.0
     p_beta = 2.0 * p.beta - 1.0
     k = p.k_effective
+    semi = p.discretization == SEMI_IMPLICIT
+    bh = p.b_max * p.sample_time
     # X_1 = [x1, yd, yd', r]; X_{i+1} adds x_{i+1}, eta_hat_i and yd^(i+1).
     s1 = x[0] + yd[0] + yd[1] + r
     s2 = x[0] * x[0] + yd[0] * yd[0] + yd[1] * yd[1] + r * r
@@ -66,7 +79,11 @@ def evaluate(
         z = x[i] - previous  # eq. 26
         ptp = rbf_energy(s1, s2, dim, p.centers, p.width)
         weight = ptp / (2.0 * p.a[i] * p.a[i])
-        zeta = -k[i] * sig(z, p_alpha) - p.q[i] * sig(z, p_beta) - eta[i] * z * weight  # eq. 37/54/68
+        if semi:
+            a = abs(z)
+            zeta = semi_implicit_feedback(z, k[i] * a**p_alpha + p.q[i] * a**p_beta + eta[i] * a * weight, bh)
+        else:
+            zeta = -k[i] * sig(z, p_alpha) - p.q[i] * sig(z, p_beta) - eta[i] * z * weight  # eq. 37/54/68
         derivative.append(p.kappa[i] * z * z * weight - (p.rho[i] + p.rho_bar[i]) * eta[i])  # eq. 38
         z_list.append(z)
         zeta_list.append(zeta)

@@ -15,7 +15,7 @@ import math
 from collections.abc import Callable, Sequence
 
 from .law import ControlTerms
-from .params import ControllerParameters
+from .params import SEMI_IMPLICIT, ControllerParameters
 
 __all__ = ["LawValues", "Order2Controller"]
 
@@ -42,6 +42,8 @@ def _law_for(params: ControllerParameters) -> Callable[..., LawValues]:
     flat1 = tuple(c for neuron in neurons1 for c in neuron)
     flat2 = tuple(c for neuron in neurons2 for c in neuron)
     exp, copysign = math.exp, math.copysign
+    semi = params.discretization == SEMI_IMPLICIT  # controller.law.semi_implicit_feedback, inlined
+    bh = params.b_max * params.sample_time
 
     def law(r: float, eta1: float, eta2: float, x1: float, x2: float, yd: float, yd1: float, yd2: float
             ) -> LawValues:
@@ -88,14 +90,22 @@ def _law_for(params: ControllerParameters) -> Callable[..., LawValues]:
         weight1 = ptp1 / two_a2_1
         if z1 != 0.0:
             a = abs(z1)
-            zeta1 = -k1 * copysign(a**p_alpha, z1) - q1 * copysign(a**p_beta, z1) - eta1 * z1 * weight1
+            if semi:
+                phi = k1 * a**p_alpha + q1 * a**p_beta + eta1 * a * weight1
+                zeta1 = -copysign(a / bh if a / bh < phi else phi, z1)  # min(phi, a / bh)
+            else:
+                zeta1 = -k1 * copysign(a**p_alpha, z1) - q1 * copysign(a**p_beta, z1) - eta1 * z1 * weight1
         else:
             zeta1 = 0.0
         z2 = x2 - zeta1
         weight2 = ptp2 / two_a2_2
         if z2 != 0.0:
             a = abs(z2)
-            v = -k2 * copysign(a**p_alpha, z2) - q2 * copysign(a**p_beta, z2) - eta2 * z2 * weight2
+            if semi:
+                phi = k2 * a**p_alpha + q2 * a**p_beta + eta2 * a * weight2
+                v = -copysign(a / bh if a / bh < phi else phi, z2)  # min(phi, a / bh)
+            else:
+                v = -k2 * copysign(a**p_alpha, z2) - q2 * copysign(a**p_beta, z2) - eta2 * z2 * weight2
         else:
             v = 0.0
         return (

@@ -5,14 +5,18 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from enum import IntEnum
+from typing import TypeVar
 
 __all__ = [
     "DEFAULT_CENTERS",
+    "EXPLICIT",
     "FINITE_TIME",
     "FIXED_TIME",
     "ControllerParameters",
+    "Discretization",
     "Mode",
     "ParameterError",
+    "SEMI_IMPLICIT",
 ]
 
 
@@ -37,18 +41,54 @@ class Mode(IntEnum):
     @classmethod
     def parse(cls, value: object) -> Mode:
         """A Mode from itself, its integer value or its label; ValueError naming the choices."""
-        if isinstance(value, str):
-            for mode in cls:
-                if value.strip().lower() in (mode.label, mode.name.lower(), str(mode.value)):
-                    return mode
-        elif isinstance(value, int) and not isinstance(value, bool) and value in tuple(cls):
-            return cls(value)
-        choices = " or ".join(f"{m.value} ({m.label})" for m in cls)
-        raise ValueError(f"mode must be {choices} (got {value!r})")
+        return _parse_choice(cls, "mode", value)
 
+
+class Discretization(IntEnum):
+    """How the sampled controller evaluates the law (the controller FMU's Integer ``discretization``).
+
+    ``EXPLICIT`` (0): the paper's law at the sample, held (the reproduction). ``SEMI_IMPLICIT`` (1):
+    each step's feedback magnitude phi(|z|) = k|z|^(2 alpha-1) + q|z|^(2 beta-1) + eta_hat w |z| is
+    evaluated at the sample, its sign implicitly at the next one (Acary and Brogliato 2010), which
+    gives min(phi(|z|), |z| / (b_max sample_time)): the law itself wherever one sample of it cannot
+    drive z through zero, the one-sample deadbeat correction inside that boundary layer.
+    """
+
+    EXPLICIT = 0
+    SEMI_IMPLICIT = 1
+
+    @property
+    def label(self) -> str:
+        """The label: "explicit" or "semi-implicit"."""
+        return self.name.lower().replace("_", "-")
+
+    def __str__(self) -> str:
+        return self.label
+
+    @classmethod
+    def parse(cls, value: object) -> Discretization:
+        """A Discretization from itself, its integer value or its label; ValueError naming the choices."""
+        return _parse_choice(cls, "discretization", value)
+
+
+def _parse_choice(cls: type[_Choice], name: str, value: object) -> _Choice:
+    """A member of ``cls`` from itself, its integer value or its label; ValueError naming the choices."""
+    if isinstance(value, str):
+        for member in cls:
+            if value.strip().lower() in (member.label, member.name.lower(), str(member.value)):
+                return member
+    elif isinstance(value, int) and not isinstance(value, bool) and value in tuple(cls):
+        return cls(value)
+    choices = " or ".join(f"{m.value} ({m.label})" for m in cls)
+    raise ValueError(f"{name} must be {choices} (got {value!r})")
+
+
+_Choice = TypeVar("_Choice", Mode, Discretization)
 
 FIXED_TIME = Mode.FIXED_TIME
 FINITE_TIME = Mode.FINITE_TIME
+EXPLICIT = Discretization.EXPLICIT
+SEMI_IMPLICIT = Discretization.SEMI_IMPLICIT
 
 DEFAULT_CENTERS = (-1.5, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5)
 
@@ -69,6 +109,9 @@ class ControllerParameters:
 
     Per-step gains are tuples of length n (index i-1 belongs to step i). In finite-time mode
     the fast gains ``k`` are not used (the law of the paper's comparison method [36]).
+    ``discretization``, ``sample_time`` (s) and ``b_max`` (the bound b_M of the plant's input
+    gains, the paper's Assumption 3) select how a sampled controller evaluates the law
+    (:class:`Discretization`); the last two are used, and checked, only when it is semi-implicit.
     """
 
     k: tuple[float, ...]
@@ -88,6 +131,9 @@ class ControllerParameters:
     eta0: tuple[float, ...] | None = None
     centers: tuple[float, ...] = DEFAULT_CENTERS
     width: float = 2.0
+    discretization: Discretization = EXPLICIT
+    sample_time: float = 1e-3
+    b_max: float = 1.0
 
     def __post_init__(self) -> None:
         per_step = ("k", "q", "a", "kappa", "rho", "rho_bar")
@@ -95,12 +141,18 @@ class ControllerParameters:
             object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
         eta0 = self.eta0 if self.eta0 is not None else (0.0,) * len(self.q)
         object.__setattr__(self, "eta0", tuple(float(v) for v in eta0))
-        for name in ("alpha", "beta", "a_bar", "gamma_gain", "gamma_power", "d_r", "r0", "width"):
+        reals = ("alpha", "beta", "a_bar", "gamma_gain", "gamma_power", "d_r", "r0", "width")
+        reals += ("sample_time", "b_max")
+        for name in reals:
             object.__setattr__(self, name, float(getattr(self, name)))
 
         problems: list[str] = []
         try:
             object.__setattr__(self, "mode", Mode.parse(self.mode))
+        except ValueError as error:
+            problems.append(str(error))
+        try:
+            object.__setattr__(self, "discretization", Discretization.parse(self.discretization))
         except ValueError as error:
             problems.append(str(error))
         n = len(self.q)
@@ -121,7 +173,8 @@ class ControllerParameters:
                 problem = _positive(f"{name}[{i}]", value)
                 if problem:
                     problems.append(problem)
-        for name in ("a_bar", "width"):
+        used = ("a_bar", "width") + (("sample_time", "b_max") if self.discretization == SEMI_IMPLICIT else ())
+        for name in used:
             problem = _positive(name, getattr(self, name))
             if problem:
                 problems.append(problem)

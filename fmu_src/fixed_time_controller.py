@@ -14,6 +14,7 @@ import math
 import re
 
 from pythonfmu import Fmi2Causality, Fmi2Slave
+from pythonfmu.enums import Fmi2Status
 
 from controller.order2 import LawValues, Order2Controller
 from controller.params import DEFAULT_CENTERS, ControllerParameters, ParameterError
@@ -64,6 +65,10 @@ class FixedTimeController(Fmi2Slave):
             setattr(self, f"mu{j}", center)
         self.tau = 2.0
         self.substeps = 1
+        self.discretization = 0
+        self.sample_time = 1e-3
+        self.b_max = 1.0
+        self._warned_step = False  # the step != sample_time warning, logged once
         # Outputs, written by refresh_outputs.
         self.v = self.z1 = self.z2 = self.zeta1 = self.eta1_hat = self.eta2_hat = self.r = 0.0
         self._controller: Order2Controller | None = None  # built at exit_initialization_mode
@@ -132,6 +137,14 @@ class FixedTimeController(Fmi2Slave):
             integer=True,
             minimum=1,
         )
+        # Added last (issue 11), so the value references above stay where they were.
+        declare(self, "discretization", PARAMETER, "Sampled law: 0 = explicit (the paper's law held), "
+                "1 = semi-implicit (min(phi(|z|), |z| / (b_max sample_time)) per step: no chattering)",
+                integer=True, minimum=0, maximum=1)
+        declare(self, "sample_time", PARAMETER, "Sample time h of the semi-implicit law (the communication "
+                "step)", unit="s", minimum=0.0)
+        declare(self, "b_max", PARAMETER, "Upper bound b_M of the plant's input gains g_i (paper's "
+                "Assumption 3), used by the semi-implicit law", minimum=0.0)
 
     def _parameters(self) -> ControllerParameters:
         """The library's validated parameters; raises naming the FMU parameters."""
@@ -154,6 +167,9 @@ class FixedTimeController(Fmi2Slave):
                 eta0=(self.eta1_0, self.eta2_0),
                 centers=tuple(getattr(self, f"mu{j}") for j in range(1, len(DEFAULT_CENTERS) + 1)),
                 width=self.tau,
+                discretization=self.discretization,
+                sample_time=self.sample_time,
+                b_max=self.b_max,
             )
         except ParameterError as error:
             message = rename_indexed(str(error), {"eta0": "eta{}_0"})
@@ -184,6 +200,12 @@ class FixedTimeController(Fmi2Slave):
         being finite.
         """
         c = self._controller
+        if c.params.discretization and not self._warned_step and not math.isclose(
+                step_size, c.params.sample_time, rel_tol=1e-9):
+            self._warned_step = True
+            report(self, f"communication step {step_size!r} s at t = {current_time!r} differs from "
+                   f"sample_time = {c.params.sample_time!r} s that the semi-implicit law assumes "
+                   "(logged once)", Fmi2Status.warning)
         # The law behind the outputs is the first RK4 stage, unless something changed since.
         first = None if self._fmu_stale else self._law
         before = (c.r, c.eta1, c.eta2)

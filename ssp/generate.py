@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import asdict
 from pathlib import Path
 
-from controller.params import Mode
+from controller.params import Discretization, Mode
 from fmu_src.models.examples import EXAMPLE1, EXAMPLE2, Example
 from orchestrator.ssp import Connection, Experiment, SystemStructure, component, write_ssd
 
@@ -31,11 +31,16 @@ CONNECTIONS = tuple(Connection.between(start, end) for start, end in [
 GAINS = ("k", "q", "a", "kappa", "rho", "rho_bar")  # per backstepping step: FMU parameters k1, k2, ...
 
 
-def parameters(example: Example, mode: Mode, t_fault: float | None) -> dict[str, dict[str, float]]:
-    """The FMU parameter values of one scenario, per component, from the example's data."""
+def parameters(example: Example, mode: Mode, t_fault: float | None,
+               sample_time: float | None = None) -> dict[str, dict[str, float]]:
+    """The FMU parameter values of one scenario, per component, from the example's data
+    (``sample_time``: the controller's semi-implicit discretization at that sample time)."""
     c = example.controller
     controller = {f"{g}{i}": value for g in GAINS for i, value in enumerate(getattr(c, g), start=1)}
     controller |= {"alpha": c.alpha, "beta": c.beta, "mode": int(mode)}
+    if sample_time is not None:
+        controller |= {"discretization": int(Discretization.SEMI_IMPLICIT), "sample_time": sample_time,
+                       "b_max": c.b_max}
     actuator = asdict(example.actuator) | ({} if t_fault is None else {"t_fault": t_fault})
     physical = asdict(example.plant) if example.plant else {}
     initial = dict(zip(("x1_0", "x2_0", "z_0"), example.x0, strict=True))
@@ -44,9 +49,10 @@ def parameters(example: Example, mode: Mode, t_fault: float | None) -> dict[str,
 
 
 def scenario(dest: Path, name: str, example: Example, mode: Mode, description: str,
-             t_fault: float | None = None, step: float = 1e-3) -> None:
-    """Write the scenario folder ``dest/name`` (communication step ``step`` in seconds)."""
-    values = parameters(example, mode, t_fault)
+             t_fault: float | None = None, step: float = 1e-3, smooth: bool = False) -> None:
+    """Write the scenario folder ``dest/name`` (communication step ``step`` in seconds; ``smooth``:
+    the controller's semi-implicit discretization at that step)."""
+    values = parameters(example, mode, t_fault, step if smooth else None)
     components = (
         component("reference", "Reference.fmu", REFERENCE, values["reference"]),
         component("controller", "FixedTimeController.fmu", CONTROLLER, values["controller"]),
@@ -73,6 +79,14 @@ def main(dest: Path = HERE) -> None:
              step=5e-4)
     scenario(dest, "pendulum_finite_time", EXAMPLE2, Mode.FINITE_TIME,
              "Example 2 pendulum, finite-time baseline controller [36], actuator fault from t = 5 s")
+    # Issue 11: the controller's semi-implicit discretization (no chattering bursts), b_max from the
+    # examples' input gains.
+    scenario(dest, "example1_smooth", EXAMPLE1, Mode.FIXED_TIME,
+             "Example 1, fixed-time controller with the semi-implicit discretization, fault from t = 10 s",
+             smooth=True)
+    scenario(dest, "pendulum_smooth", EXAMPLE2, Mode.FIXED_TIME,
+             "Example 2 pendulum, fixed-time controller with the semi-implicit discretization, fault from "
+             "t = 5 s", step=5e-4, smooth=True)  # 0.5 ms as pendulum: at 1 ms jacobi diverges at 0.064 s
 
 
 if __name__ == "__main__":

@@ -13,7 +13,14 @@ from hypothesis import strategies as st
 
 from controller.law import evaluate
 from controller.order2 import Order2Controller
-from controller.params import DEFAULT_CENTERS, FINITE_TIME, FIXED_TIME, ControllerParameters
+from controller.params import (
+    DEFAULT_CENTERS,
+    EXPLICIT,
+    FINITE_TIME,
+    FIXED_TIME,
+    SEMI_IMPLICIT,
+    ControllerParameters,
+)
 from controller.stepping import AdaptiveController
 from fmu_src.models.examples import EXAMPLE1, EXAMPLE2
 
@@ -26,7 +33,9 @@ gain = st.floats(0.1, 30.0)
 
 @st.composite
 def parameters(draw: st.DrawFn) -> ControllerParameters:
-    """Valid gains of either mode; the FMU's seven centers, or another number (the loop path)."""
+    """Valid gains of either mode and either discretization (issue 11; sample times from 0.1 to 10 ms,
+    so both sides of the semi-implicit law's boundary layer are drawn); the FMU's seven centers, or
+    another number (the loop path)."""
     pair = st.tuples(gain, gain)
     centers = draw(st.one_of(st.just(DEFAULT_CENTERS), st.lists(values, min_size=1, max_size=9)))
     return ControllerParameters(
@@ -34,6 +43,8 @@ def parameters(draw: st.DrawFn) -> ControllerParameters:
         alpha=draw(st.floats(1.05, 3.0)), beta=draw(st.floats(0.55, 0.95)),
         mode=draw(st.sampled_from([FIXED_TIME, FINITE_TIME])), r0=draw(positive),
         eta0=(draw(positive), draw(positive)), centers=tuple(centers), width=draw(st.floats(0.5, 4.0)),
+        discretization=draw(st.sampled_from([EXPLICIT, SEMI_IMPLICIT])),
+        sample_time=draw(st.floats(1e-4, 1e-2)), b_max=draw(st.floats(0.2, 5.0)),
     )
 
 
@@ -76,9 +87,10 @@ def test_many_steps_equal_the_general_controller(
     assert all(math.isfinite(v) for v in general.state)
 
 
+@pytest.mark.parametrize("discretization", [EXPLICIT, SEMI_IMPLICIT])
 @pytest.mark.parametrize("example", [EXAMPLE1, EXAMPLE2], ids=["example1", "pendulum"])
-def test_output_terms_and_reset(example) -> None:
-    params = example.controller
+def test_output_terms_and_reset(example, discretization) -> None:
+    params = example.controller.with_changes(discretization=discretization)
     fast, general = Order2Controller(params), AdaptiveController(params)
     x, yd = (0.5, 0.5), (0.0, 0.5, 0.0)
     for _ in range(5):

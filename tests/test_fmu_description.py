@@ -26,7 +26,7 @@ CONTROLLER_PARAMETERS = (
     [f"{g}{i}" for g in ("k", "q", "a", "kappa", "rho", "rho_bar") for i in (1, 2)]
     + ["alpha", "beta", "mode", "a_bar", "gamma_gain", "gamma_power", "d_r", "r0", "eta1_0", "eta2_0"]
     + [f"mu{j}" for j in range(1, 8)]
-    + ["tau", "substeps"]
+    + ["tau", "substeps", "discretization", "sample_time", "b_max"]
 )
 PARAMETERS = {  # model -> parameter -> (default, unit)
     "Reference": {
@@ -60,6 +60,9 @@ PARAMETERS = {  # model -> parameter -> (default, unit)
         "eta2_0": (0.0, None),
         "tau": (2.0, None),
         "substeps": (1, None),
+        "discretization": (0, None),
+        "sample_time": (1e-3, "s"),
+        "b_max": (1.0, None),
         **{f"mu{j}": (c, None) for j, c in enumerate((-1.5, -1, -0.5, 0, 0.5, 1, 1.5), start=1)},
     },
     "Actuator": {
@@ -171,7 +174,9 @@ def test_parameter_defaults_and_units(fmus: dict, model: str) -> None:
         assert (variables["x1"].unit, variables["x2"].unit, variables["y"].unit) == ("rad", "rad/s", "rad")
         assert variables["uf"].unit == "N"
     if model == "FixedTimeController":
-        assert variables["mode"].type == variables["substeps"].type == "Integer"
+        assert {variables[n].type for n in ("mode", "substeps", "discretization")} == {"Integer"}
+        # issue 11's parameters were added last: the value references of the others do not move
+        assert [v.name for v in md.modelVariables][-3:] == ["discretization", "sample_time", "b_max"]
     # every unit used is defined, with SI base-unit exponents
     used = {v.unit for v in md.modelVariables if v.unit}
     defined = {u.name: u.baseUnit for u in md.unitDefinitions}

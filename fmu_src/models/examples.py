@@ -46,7 +46,8 @@ EXAMPLE1 = Example(
     reference=ReferenceParameters(amplitude=0.5, omega=1.0),
     actuator=ActuatorParameters(t_fault=10.0),
     controller=ControllerParameters(
-        k=(10, 10), q=(8, 8), a=(5, 2), kappa=(2, 2), rho=(2, 2), rho_bar=(1, 1), alpha=1.5, beta=0.75
+        k=(10, 10), q=(8, 8), a=(5, 2), kappa=(2, 2), rho=(2, 2), rho_bar=(1, 1), alpha=1.5, beta=0.75,
+        b_max=3.0,  # input gains 2 + sin(x1) and 2 + cos(x1 x2) <= 3 (paper's Assumption 3)
     ),
 )
 
@@ -59,7 +60,8 @@ EXAMPLE2 = Example(
     reference=ReferenceParameters(amplitude=1.0, omega=0.5),
     actuator=ActuatorParameters(t_fault=5.0),
     controller=ControllerParameters(
-        k=(25, 25), q=(20, 20), a=(5, 2), kappa=(2, 2), rho=(1, 1), rho_bar=(2, 1), alpha=1.5, beta=0.75
+        k=(25, 25), q=(20, 20), a=(5, 2), kappa=(2, 2), rho=(1, 1), rho_bar=(2, 1), alpha=1.5, beta=0.75,
+        b_max=1.0,  # input gains 1 (x1' = x2 + ...) and 1 / (M L) = 1
     ),
     plant=PendulumParameters(),
 )
