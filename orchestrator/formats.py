@@ -26,7 +26,7 @@ import numpy as np
 
 from .errors import UsageError
 
-__all__ = ["FORMATS", "Selection", "check_output", "staging_path", "write_selected"]
+__all__ = ["FORMATS", "Selection", "check_output", "read_table", "staging_path", "write_selected"]
 
 FORMATS = (".csv", ".parquet", ".mat")
 NS_PER_S = 1_000_000_000
@@ -154,3 +154,34 @@ def _write_mat(path: Path, data: np.ndarray, columns: list[str]) -> None:
         descriptions = _chars([""] * len(columns))
         savemat(stream, {"Aclass": aclass, "name": _chars(columns), "description": descriptions,
                          "dataInfo": info, "data_1": span, "data_2": values}, format="4")
+
+
+def read_table(path: str | os.PathLike) -> np.ndarray:
+    """A ``.parquet`` or ``.mat`` (Dymola trajectory) result as a structured array, ``time`` first
+    (ValueError or OSError when it is not one)."""
+    path = Path(path)
+    if path.suffix.lower() == ".parquet":
+        import pyarrow.parquet as pq
+
+        table = pq.read_table(path)
+        columns = {name: table.column(name).to_numpy().astype(np.float64) for name in table.schema.names}
+    else:
+        from scipy.io import loadmat
+
+        mat = loadmat(path, chars_as_strings=False)
+        if "".join(mat["Aclass"][3]).strip() != "binTrans":
+            raise ValueError("not a Dymola trajectory file in binTrans layout")
+        names = ["".join(mat["name"][:, j]).strip() for j in range(mat["name"].shape[1])]
+        info, data = mat["dataInfo"], {1: mat["data_1"], 2: mat["data_2"]}
+        columns = {}
+        for j, name in enumerate(names):
+            matrix = data[2 if j == 0 else int(info[0, j])]
+            row = abs(int(info[1, j])) - 1
+            values = np.sign(info[1, j]) * matrix[row]
+            if matrix is data[1]:  # a constant: its value at every time point
+                values = np.full(data[2].shape[1], values[0])
+            columns[name] = values
+    result = np.zeros(len(next(iter(columns.values()))), dtype=[(n, np.float64) for n in columns])
+    for name, values in columns.items():
+        result[name] = values
+    return result

@@ -27,6 +27,7 @@ import numpy as np
 from fmpy.util import read_csv
 
 from .errors import UsageError
+from .formats import read_table
 
 __all__ = ["PREVIEW_BUCKETS", "NonFiniteError", "Recorder", "ResultFileError", "plot_result", "read_result",
            "structured"]
@@ -48,10 +49,12 @@ def read_result(path: str | os.PathLike) -> np.ndarray:
     path = Path(path)
     if not path.is_file():
         raise ResultFileError(f"{path}: no such file")
-    try:
-        data = read_csv(path)
-    except (OSError, ValueError, IndexError, UnicodeDecodeError) as exc:
-        raise ResultFileError(f"{path}: not a result CSV ({exc})") from exc
+    kind = path.suffix.lower()
+    try:  # .parquet and .mat: what 'run --output' writes besides CSV (orchestrator.formats)
+        data = read_table(path) if kind in (".parquet", ".mat") else read_csv(path)
+    except (OSError, ValueError, IndexError, KeyError, UnicodeDecodeError) as exc:
+        what = kind[1:].upper() if kind in (".parquet", ".mat") else "CSV"
+        raise ResultFileError(f"{path}: not a result {what} ({exc})") from exc
     names = data.dtype.names or ()
     if "time" not in names:
         raise ResultFileError(f"{path}: no 'time' column (columns: {', '.join(names)})")

@@ -123,3 +123,21 @@ def test_run_writes_the_format_and_selection_also_for_a_failed_run(test_fmus, tm
     with pytest.raises(SystemExit) as info:
         main(["run", str(loop), "--quiet", "--output", str(tmp_path / "r.xlsx")])
     assert info.value.code == 2 and not (tmp_path / "r.xlsx").exists()
+
+
+@pytest.mark.system
+def test_metrics_plot_and_compare_read_every_format(built, tmp_path, capsys):
+    """The same run written as CSV, Parquet and MAT gives the same metrics table and compares equal."""
+    from orchestrator.cli import main
+
+    tables = {}
+    for suffix in (".csv", ".parquet", ".mat"):
+        out = tmp_path / f"r{suffix}"
+        assert main(["run", str(built / "ssp" / "example1.ssp"), "--stop-time", "0.1", "--quiet",
+                     "--output", str(out), "--plot", str(tmp_path / f"r{suffix}.png")]) == 0
+        assert main(["metrics", str(out)]) == 0
+        tables[suffix] = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| r |")]
+        assert main(["plot", str(out), "--output", str(tmp_path / f"p{suffix}.png")]) == 0
+    assert tables[".csv"] == tables[".parquet"] == tables[".mat"]
+    assert main(["compare", str(tmp_path / "r.mat"), str(tmp_path / "r.csv")]) == 0
+    assert main(["compare", str(tmp_path / "r.parquet"), str(tmp_path / "r.csv")]) == 0
