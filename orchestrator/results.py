@@ -29,8 +29,7 @@ from fmpy.util import read_csv
 from .errors import UsageError
 from .formats import read_table
 
-__all__ = ["PREVIEW_BUCKETS", "NonFiniteError", "Recorder", "ResultFileError", "plot_result", "read_result",
-           "structured"]
+__all__ = ["PREVIEW_BUCKETS", "NonFiniteError", "Recorder", "ResultFileError", "read_result", "structured"]
 
 
 def structured(data: np.ndarray, columns: Sequence[str]) -> np.ndarray:
@@ -239,40 +238,3 @@ class Recorder:
         parts = [*self._preview, self._fold(current, self._base)] if len(current) else list(self._preview)
         data = np.concatenate(parts) if parts else np.empty((0, len(self.columns)))
         return structured(data, self.columns)
-
-
-PLOT_GROUPS = (("output and reference", ("plant.y", "reference.yd")),
-               ("control", ("controller.v", "actuator.uf")))
-
-
-def plot_result(result: np.ndarray, path: str | os.PathLike, title: str = "") -> Path:
-    """Plot tracking (``plant.y`` vs ``reference.yd``) and control (``controller.v``, ``actuator.uf``)
-    when the columns exist, otherwise every column, against time; saved to ``path``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    names = [n for n in result.dtype.names if n != "time"]
-    groups = [(label, [c for c in cols if c in names]) for label, cols in PLOT_GROUPS]
-    groups = [g for g in groups if g[1]] or [(n, [n]) for n in names[:8]]
-    fig, axes = plt.subplots(len(groups), 1, sharex=True, figsize=(9, 2.6 * len(groups)), squeeze=False)
-    for ax, (label, cols) in zip(axes[:, 0], groups, strict=True):
-        for c in cols:
-            ax.plot(result["time"], result[c], label=c, linewidth=1)
-        magnitude = np.abs(np.concatenate([result[c] for c in cols]))
-        typical = float(np.percentile(magnitude, 95)) if magnitude.size else 0.0
-        if typical > 0.0 and magnitude.max() > 50.0 * typical:  # e.g. the controller's initial spike
-            ax.set_yscale("symlog", linthresh=typical)
-        ax.set_ylabel(label)
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper right", fontsize="small")
-    axes[-1, 0].set_xlabel("time (s)")
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
