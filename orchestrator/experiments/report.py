@@ -50,6 +50,8 @@ PAPER_TABLE = {
     (2, "fixed-time"): (0.1157, 0.0066, 0.0810, 0.0477),
     (2, "finite-time"): (0.1422, 0.0092, 0.0960, 0.0636),
 }
+# example -> the fixed-time scenario with the semi-implicit discretization (issue 11)
+SMOOTH = {1: "example1_smooth", 2: "pendulum_smooth"}
 STUDY_SCENARIO = "example1_no_fault"
 STUDY_VALUES = (-2.0, -1.0, 0.0, 1.0, 2.0)
 STUDY_HORIZON = 10.0
@@ -186,8 +188,11 @@ def write_report(out: str | os.PathLike = DEFAULT_OUT, stop_time: float | None =
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="report-") as work:
-        archives = build_scenarios([*CASES.values(), STUDY_SCENARIO], work)
+        archives = build_scenarios([*CASES.values(), *SMOOTH.values(), STUDY_SCENARIO], work)
         results = run_cases(archives, stop_time, processes)
+        with ProcessPoolExecutor(processes) as pool:
+            smooth = dict(zip(SMOOTH, pool.map(_run_case, [(archives[s], stop_time, {})
+                                                           for s in SMOOTH.values()]), strict=True))
         study = settling_study(archives[STUDY_SCENARIO], study_values, study_horizon, processes)
         settings = {s: _experiment(archives[s]) for s in CASES.values()}
         units = {}
@@ -235,6 +240,7 @@ def write_report(out: str | os.PathLike = DEFAULT_OUT, stop_time: float | None =
                      f"MAE {fixed.mae:.4f} vs {finite.mae:.4f}).")
     lines.append("")
 
+    lines += _discretization_section(results, smooth, out)
     lines += _study_section(study, study_values, study_horizon)
     if campaigns is not None:
         lines += _campaign_sections(Path(campaigns), out)
@@ -248,6 +254,52 @@ def write_report(out: str | os.PathLike = DEFAULT_OUT, stop_time: float | None =
     path = out / "report.md"
     path.write_text("\n".join(lines), encoding="utf-8")
     return path
+
+
+def _discretization_section(results: dict[tuple[int, str], np.ndarray], smooth: dict[int, np.ndarray],
+                            out: Path) -> list[str]:
+    """Issue 11: the fixed-time scenarios' control, explicit sampling against the semi-implicit law,
+    measured (``discretization.chattering``) and plotted side by side after the 1 s transient."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .discretization import GAP, RATE, START, chattering
+
+    lines = ["## Sampled law: explicit (the paper's) vs semi-implicit (`discretization = 1`)", "",
+             f"Fixed-time scenarios, v after {START:g} s: total variation per second, peak, and chattering "
+             f"bursts (reversals of v with both changes above {RATE:g}/s times the step, grouped when under "
+             f"{GAP:g} s apart); tracking metrics over the whole run.", "",
+             "| example | scenario | TV of v per s | peak abs(v) | bursts | burst time (s) | MAE | RMSE "
+             "| settling (s) |", "|---|---|---|---|---|---|---|---|---|"]
+    for example, semi in smooth.items():
+        pair = (("explicit", CASES[(example, "fixed-time")], results[(example, "fixed-time")]),
+                ("semi-implicit", SMOOTH[example], semi))
+        for _, scenario, r in pair:
+            c, m = chattering(r["time"], r["controller.v"]), _metrics(r)
+            lines.append(f"| {example} | {scenario} | {c.tv_per_second:.3g} | {c.peak:.3g} | {c.bursts} | "
+                         f"{c.burst_time:.2f} | {m.mae:.5f} | {m.rmse:.4f} | {m.settling_time:.3f} |")
+    lines.append("")
+    for example, semi in smooth.items():
+        pair = (("explicit", CASES[(example, "fixed-time")], results[(example, "fixed-time")]),
+                ("semi-implicit", SMOOTH[example], semi))
+        fig, axes = plt.subplots(1, 2, figsize=(12, 3.4), sharey=True)
+        for ax, (label, scenario, r) in zip(axes, pair, strict=True):
+            after = r["time"] >= START
+            ax.plot(r["time"][after], r["controller.v"][after], linewidth=0.7, label="v")
+            ax.plot(r["time"][after], r["actuator.uf"][after], linewidth=0.7, label="uf")
+            ax.set_title(f"Example {example}, {label} (`{scenario}`)")
+            ax.set_xlabel("time (s)")
+            ax.grid(True, alpha=0.3)
+            ax.legend(loc="upper right", fontsize="small")
+        axes[0].set_ylabel("v, uf")
+        fig.tight_layout()
+        name = f"example{example}_control_discretization.png"
+        fig.savefig(out / name, dpi=100)
+        plt.close(fig)
+        lines += [f"![Example {example}: control, explicit vs semi-implicit]({name})", ""]
+    return lines
 
 
 # name -> (title, headline findings) of the campaigns shipped in ssp/campaigns/
