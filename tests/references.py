@@ -9,7 +9,7 @@ import functools
 import numpy as np
 import pytest
 
-from controller.params import Mode
+from controller.params import EXPLICIT, Discretization, Mode
 from fmu_src.models.examples import EXAMPLES
 from orchestrator.experiments.closed_loop import simulate
 
@@ -17,11 +17,13 @@ GROUP = pytest.mark.xdist_group("monolithic-references")
 
 
 @functools.cache
-def reference(number: int, mode: Mode = Mode.FIXED_TIME, sample_time: float | None = None) -> np.ndarray:
+def reference(number: int, mode: Mode = Mode.FIXED_TIME, sample_time: float | None = None,
+              discretization: Discretization = EXPLICIT) -> np.ndarray:
     """Example ``number`` over its 30 s on the 1 ms grid: the continuous law, or sampled and held
-    every ``sample_time`` seconds (read-only: shared between tests)."""
+    every ``sample_time`` seconds with the law's ``discretization`` (read-only: shared between tests)."""
     example = EXAMPLES[number]
-    data = simulate(example, example.controller.with_changes(mode=mode), sample_time=sample_time,
-                    grid=sample_time or 1e-3).data
+    params = example.controller.with_changes(mode=mode, discretization=discretization,
+                                             sample_time=sample_time or 1e-3)
+    data = simulate(example, params, sample_time=sample_time, grid=sample_time or 1e-3).data
     data.flags.writeable = False
     return data
