@@ -66,4 +66,3 @@ def test_semi_implicit_cosimulation_matches_the_monolithic_discrete_law(built, s
           f"{deviation.max():.2e}; max |v - v_ref| after 1 s {v_deviation[~early].max():.2e}")
     assert deviation[early].max() <= 1e-6
     assert deviation.max() <= 1e-9  # inside the 2e-3 of the explicit scenarios above
-    assert deviation.max() <= 1e-9
