@@ -66,7 +66,7 @@ _NOT_STATE = frozenset(
 LOGGER_NAME = "fixed_time_cosim.fmu"
 _log = logging.getLogger(LOGGER_NAME)
 
-SlaveClass = TypeVar("SlaveClass", bound=type)
+SlaveClass = TypeVar("SlaveClass", bound=type[Fmi2Slave])
 
 
 class FmuParameterError(ValueError):
@@ -238,6 +238,14 @@ def mark_stale(slave: Fmi2Slave) -> None:
     slave.__dict__["_fmu_stale"] = True
 
 
+def _child(parent: Element, path: str) -> Element:
+    """The element at ``path`` under ``parent``, which pythonfmu's XML always has."""
+    child = parent.find(path)
+    if child is None:
+        raise ValueError(f"pythonfmu's modelDescription has no {path} under <{parent.tag}>")
+    return child
+
+
 def _extend_model_description(slave: Fmi2Slave, root: Element) -> Element:
     """Add UnitDefinitions, unit and min/max attributes and ModelStructure dependencies to
     pythonfmu's XML."""
@@ -253,20 +261,21 @@ def _extend_model_description(slave: Fmi2Slave, root: Element) -> Element:
                 {k: str(v) for k, v in UNITS[unit].items()},
             )
         # Schema order: CoSimulation, UnitDefinitions, TypeDefinitions, LogCategories, ...
-        position = list(root).index(root.find("CoSimulation")) + 1
+        position = list(root).index(_child(root, "CoSimulation")) + 1
         root.insert(position, definitions)
 
-    index = {}  # name -> 1-based index in ModelVariables
-    causality = {}
-    for i, node in enumerate(root.find("ModelVariables"), start=1):
-        name = node.get("name")
+    index: dict[str, int] = {}  # name -> 1-based index in ModelVariables
+    causality: dict[str, str | None] = {}
+    for i, node in enumerate(_child(root, "ModelVariables"), start=1):
+        name = node.get("name", "")
         index[name] = i
         causality[name] = node.get("causality")
-        unit = meta.get(name, (None, None))[0]
-        if unit is not None:
-            node.find("Real").set("unit", unit)
+        variable_unit = meta.get(name, (None, None))[0]
+        if variable_unit is not None:
+            _child(node, "Real").set("unit", variable_unit)
         low, high = ranges.get(name, (None, None))
-        typed = node.find("Real") if node.find("Real") is not None else node.find("Integer")
+        real = node.find("Real")
+        typed = real if real is not None else _child(node, "Integer")
         for attribute, bound in (("min", low), ("max", high)):
             if bound is not None:
                 typed.set(attribute, repr(int(bound)) if typed.tag == "Integer" else repr(float(bound)))
@@ -277,7 +286,7 @@ def _extend_model_description(slave: Fmi2Slave, root: Element) -> Element:
         parameters = [index[n] for n, c in causality.items() if c == "parameter"]
         initial = Element("InitialUnknowns")
         for unknown in outputs:
-            name = names[unknown.get("index")]
+            name = names[unknown.get("index", "")]
             depends = meta.get(name, (None, None))[1]
             if depends is None:
                 continue
@@ -290,12 +299,11 @@ def _extend_model_description(slave: Fmi2Slave, root: Element) -> Element:
             SubElement(
                 initial,
                 "Unknown",
-                index=unknown.get("index"),
+                index=unknown.get("index", ""),
                 dependencies=" ".join(map(str, sorted(inputs + parameters))),
             )
         if len(initial):
-            structure = root.find("ModelStructure")
-            structure.append(initial)
+            _child(root, "ModelStructure").append(initial)
     return root
 
 
