@@ -43,7 +43,7 @@ import signal
 import tempfile
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from contextlib import ExitStack
 from ctypes import c_double, c_uint
 from types import FrameType
@@ -179,9 +179,9 @@ class Operation(NamedTuple):
 
     is_set: bool
     instance: Instance
-    function: ctypes._CFuncPtr  # the instance's fmi2SetReal or fmi2GetReal
+    function: Callable[..., int]  # the instance's fmi2SetReal or fmi2GetReal
     vrs: ctypes.Array
-    count: int
+    n_values: int
     values: ctypes.Array  # view of the master's value buffer
     copies: tuple[Copy, ...]
     scaled: tuple[Scaled, ...]
@@ -234,7 +234,9 @@ class Master:
         with ExitStack() as stack:
             stopper = stack.enter_context(Stopper(self.timeout))
             self.setup(stack)
-            stack.callback(self.recorder.close)
+            recorder = self.recorder
+            assert recorder is not None  # setup() creates it
+            stack.callback(recorder.close)
             try:
                 self.initialize()
                 n = self.n
@@ -247,7 +249,7 @@ class Master:
                         raise stopper.error(self.time(k + 1))
                     if self.progress is not None and (k + 1) % stride == 0:
                         self.progress(k + 1, n)
-                self.recorder.check()
+                recorder.check()
                 self.terminate()
             except NonFiniteRow as exc:
                 stopper.disarm()
@@ -257,7 +259,7 @@ class Master:
                 raise self._kept(self._cause(exc, stopper)) from None
             except (Interrupted, TimeLimitError) as exc:
                 raise self._kept(exc) from None
-        return self.recorder.result()
+        return recorder.result()
 
     def _kept(self, exc: SimulationError | Interrupted) -> SimulationError | Interrupted:
         """``exc`` with the rows kept: ``rows`` (their number) and ``result`` (as ``run`` returns)."""
@@ -269,6 +271,7 @@ class Master:
     def _cause(self, exc: SimulationError | _Abort, stopper: Stopper) -> SimulationError | Interrupted:
         """What to report for a failed call or an aborted step: the stop request that caused it, or
         a non-finite value among the rows not yet checked (it came first), or the failure itself."""
+        assert self.recorder is not None
         component = getattr(exc, "component", "")
         t = getattr(exc, "time", self.time(self.recorder.count))
         if stopper.reason is not None:
@@ -289,6 +292,7 @@ class Master:
         name = self.columns[exc.column]
         port = PortRef.parse(name)
         kind = "output" if exc.column >= self._first_output else "input"
+        assert self.recorder is not None
         value = float(self.recorder.data[exc.row - self.recorder._base, exc.column])
         return NonFiniteError(port.component, port.connector, kind, value, self.time(exc.row))
 
@@ -316,12 +320,14 @@ class Master:
             inst.setup(t0, stop)
             inst.set_start_values(start_values, t0)
         self._initialize_impl(t0)
+        assert self.recorder is not None  # setup() creates it
         self.recorder.append(self.values)
 
     def step(self, k: int) -> None:
         """Advance every FMU from t_k to t_k+1 and record row t_k+1."""
         t, t_next = (self._t0 + self._h * k) / NS_PER_S, (self._t0 + self._h * (k + 1)) / NS_PER_S
         self._step_impl(t, t_next - t, t_next)
+        assert self.recorder is not None  # setup() creates it
         self.recorder.append(self.values)
 
     def terminate(self) -> None:
@@ -406,7 +412,7 @@ class Master:
         return copies, scaled
 
     @staticmethod
-    def _vrs(comp: ComponentModel, names: list[str]) -> ctypes.Array:
+    def _vrs(comp: ComponentModel, names: Sequence[str]) -> ctypes.Array:
         variables = comp.variables
         return (c_uint * len(names))(*[variables[n].valueReference for n in names])
 
