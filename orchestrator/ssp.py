@@ -381,7 +381,8 @@ def _references(ssd: Path, limits: Limits) -> tuple[list[str], list[str]]:
         root = etree.parse(str(ssd), _parser()).getroot()
     except (OSError, etree.XMLSyntaxError):
         return [], []
-    xml_files, fmus = [], []
+    xml_files: list[str] = []
+    fmus: list[str] = []
     for element in root.iter(f"{{{NS['ssd']}}}*"):
         source = element.get("source")
         if not source or etree.QName(element).localname not in ("Component", "ParameterBinding",
@@ -635,7 +636,9 @@ def _read_experiment(root: etree._Element, system: etree._Element, label: str,
         return value
 
     if experiment is not None:
-        start = finite(experiment, "startTime", 0.0)
+        start_time = finite(experiment, "startTime", 0.0)
+        assert start_time is not None  # the default is returned when the attribute is bad or missing
+        start = start_time
         stop = finite(experiment, "stopTime", None)
         osp = experiment.find(f"ssd:Annotations/ssc:Annotation[@type='{OSP_ANNOTATION}']"
                               "/osp:Algorithm/osp:FixedStepAlgorithm", NS)
@@ -731,21 +734,21 @@ def write_ssd(folder: str | os.PathLike, structure: SystemStructure) -> Path:
                 write_ssv(folder / ps.origin, ps, structure.name)
                 _element(bindings, "ssd:ParameterBinding", source=ps.origin)
     connections = _element(system, "ssd:Connections")
-    for k in structure.connections:
-        connection = _element(connections, "ssd:Connection", startElement=k.start.component,
-                              startConnector=k.start.connector, endElement=k.end.component,
-                              endConnector=k.end.connector)
-        if k.transformed:
-            _element(connection, "ssc:LinearTransformation", factor=repr(k.factor), offset=repr(k.offset))
+    for link in structure.connections:
+        connection = _element(connections, "ssd:Connection", startElement=link.start.component,
+                              startConnector=link.start.connector, endElement=link.end.component,
+                              endConnector=link.end.connector)
+        if link.transformed:
+            _element(connection, "ssc:LinearTransformation", factor=repr(link.factor),
+                     offset=repr(link.offset))
     ex = structure.experiment
     if ex.step is not None:
         annotation = _element(_element(system, "ssd:Annotations"), "ssc:Annotation", type=OMS_ANNOTATION)
         information = _element(_element(annotation, "oms:Annotations"), "oms:SimulationInformation")
         _element(information, "oms:FixedStepMaster", description="oms-ma", stepSize=repr(ex.step))
-    times = {"startTime": repr(ex.start_time)}
+    experiment = _element(root, "ssd:DefaultExperiment", startTime=repr(ex.start_time))
     if ex.stop_time is not None:
-        times["stopTime"] = repr(ex.stop_time)
-    experiment = _element(root, "ssd:DefaultExperiment", **times)
+        experiment.set("stopTime", repr(ex.stop_time))
     if ex.step is not None:
         annotation = _element(_element(experiment, "ssd:Annotations"), "ssc:Annotation", type=OSP_ANNOTATION)
         _element(_element(annotation, "osp:Algorithm"), "osp:FixedStepAlgorithm", baseStepSize=repr(ex.step),
@@ -760,14 +763,14 @@ def pack_ssp(folder: str | os.PathLike, fmus: Mapping[str, str | os.PathLike],
     """Zip ``folder`` (SSD at the root, .ssv files beside it) with ``fmus`` (archive name -> file)
     placed under ``resources/``; written to a temporary name first so a failed build leaves no
     half-written archive."""
-    folder, dest = Path(folder), Path(dest)
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    partial = dest.with_name(dest.name + ".part")
+    source, target = Path(folder), Path(dest)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    partial = target.with_name(target.name + ".part")
     with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zf:
-        for path in sorted(folder.rglob("*")):
+        for path in sorted(source.rglob("*")):
             if path.is_file() and not path.name.startswith("."):
-                zf.write(path, path.relative_to(folder).as_posix())
-        for name, path in sorted(fmus.items()):
-            zf.write(path, f"resources/{name}")
-    partial.replace(dest)
-    return dest
+                zf.write(path, path.relative_to(source).as_posix())
+        for name, fmu in sorted(fmus.items()):
+            zf.write(fmu, f"resources/{name}")
+    partial.replace(target)
+    return target

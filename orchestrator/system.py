@@ -13,6 +13,7 @@ import os
 from collections.abc import Collection, Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import SupportsFloat, SupportsIndex, SupportsInt
 
 import numpy as np
 from fmpy import read_model_description
@@ -147,7 +148,8 @@ class System:
 
     def _component(self, c: Component, md: ModelDescription, problems: list[str]) -> ComponentModel:
         variables = {v.name: v for v in md.modelVariables}
-        outputs, inputs = [], []
+        outputs: list[str] = []
+        inputs: list[str] = []
         for k in c.connectors:
             where = f"{self.ssd}: component '{c.name}', connector '{k.name}'"
             v = variables.get(k.name)
@@ -313,7 +315,7 @@ class System:
                     problems.append(f"{origin}: {ref} = {p.value!r} {p.unit}: a value in {p.unit} "
                                     f"({given.dimension()}) cannot be converted to {fmu}")
                     return
-                value = convert(value, given, own)
+                value = convert(float(value), given, own)  # already a float: a Real
             outside = _outside(var, value)
             if outside:
                 problems.append(f"{origin}: {ref} = {value!r} {outside}")
@@ -348,7 +350,11 @@ class System:
         """Order of 'get outputs' / 'set inputs' at a communication point (one set per component
         when possible, else the inputs that feed no output are set last)."""
         order = self._toposort(split=False)
-        return order if order is not None else self._toposort(split=True)
+        if order is None:
+            order = self._toposort(split=True)
+        # Still None only when a connection starts at a component whose FMU is missing: an error
+        # the reading reports, so no run uses the (then empty) schedule.
+        return order if order is not None else []
 
     def _toposort(self, split: bool) -> list[Operation] | None:
         nodes: list[Operation] = []
@@ -438,7 +444,8 @@ def _unit_def(md: ModelDescription, var: ModelVariable) -> UnitDef:
     if unit is None or unit.baseUnit is None:
         return resolve(name)
     base = unit.baseUnit
-    return UnitDef(name, tuple(int(getattr(base, b)) for b in BASE), float(base.factor), float(base.offset))
+    return UnitDef(unit.name, tuple(int(getattr(base, b)) for b in BASE), float(base.factor),
+                   float(base.offset))
 
 
 def _outside(var: ModelVariable, value: float | int | bool | str) -> str:
@@ -473,8 +480,12 @@ def structure_sets(structure: SystemStructure) -> list[tuple[str, ParameterSet]]
 
 def _convert(type_: str, value: object) -> float | int | bool | str:
     if type_ == "Real":
+        if not isinstance(value, str | SupportsFloat | SupportsIndex):
+            raise TypeError(f"{value!r} is not a number")
         return float(value)
     if type_ in ("Integer", "Enumeration"):
+        if not isinstance(value, str | SupportsInt | SupportsIndex):
+            raise TypeError(f"{value!r} is not a number")
         if isinstance(value, str):
             return int(value)
         if isinstance(value, float) and not value.is_integer():
