@@ -141,7 +141,7 @@ class ControllerParameters:
             object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
         eta0 = self.eta0 if self.eta0 is not None else (0.0,) * len(self.q)
         object.__setattr__(self, "eta0", tuple(float(v) for v in eta0))
-        reals = ("alpha", "beta", "a_bar", "gamma_gain", "gamma_power", "d_r", "r0", "width")
+        reals: tuple[str, ...] = ("alpha", "beta", "a_bar", "gamma_gain", "gamma_power", "d_r", "r0", "width")
         reals += ("sample_time", "b_max")
         for name in reals:
             object.__setattr__(self, name, float(getattr(self, name)))

@@ -24,13 +24,12 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing
-import multiprocessing.process
-import multiprocessing.queues
 import queue as queues
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -171,7 +170,8 @@ def targets(outcomes: Sequence[Outcome]) -> list[str]:
         semi = found.get((e, FIXED_TIME, "semi-implicit", 1e-3))
         cont = found.get((e, FIXED_TIME, "continuous", None))
         expl = found.get((e, FIXED_TIME, "explicit", 1e-3))
-        if not (semi and cont and expl and semi.metrics and cont.chattering and expl.metrics):
+        if not (semi and cont and expl and semi.metrics and semi.chattering and cont.chattering
+                and expl.metrics):
             continue
         ratios = (semi.chattering.tv_per_second / cont.chattering.tv_per_second,
                   semi.chattering.peak / cont.chattering.peak, semi.metrics.mae / expl.metrics.mae,
@@ -182,7 +182,7 @@ def targets(outcomes: Sequence[Outcome]) -> list[str]:
     return lines
 
 
-def _worker(case: Case, queue: multiprocessing.queues.Queue) -> None:
+def _worker(case: Case, queue: Any) -> None:
     queue.put(run_case(case))
 
 
@@ -191,7 +191,7 @@ def run_all(todo: Sequence[Case], jobs: int, timeout: float) -> list[Outcome]:
     and reported as failed (the explicit loop at 5 ms can make the reference solver crawl)."""
     context = multiprocessing.get_context("spawn")
     pending = list(todo)
-    running: list[tuple[Case, multiprocessing.process.BaseProcess, object, float]] = []
+    running: list[tuple[Case, Any, Any, float]] = []  # case, process, its result queue, start
     outcomes: list[Outcome] = []
     while pending or running:
         while pending and len(running) < max(1, jobs):
