@@ -110,6 +110,7 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
                                  timeout=timeout)
         if output is None:
             return runner.run()
+        assert stream is not None  # the staging path of ``output``
         record = provenance.describe(scenario, system, start=start, stop=stop, step=h, master=master,
                                      parameter_sets=parameter_sets, overrides=overrides)
         record["output"] = {"format": Path(output).suffix.lower(), "variables": list(selection.variables),
@@ -125,5 +126,6 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
                 formats.write_selected(stream, output, selection)  # the rows kept, in the format asked for
             raise
         formats.write_selected(stream, output, selection)
+        assert runner.recorder is not None  # created by the run
         provenance.finish(output, record, "complete", runner.recorder.count, runner.time(runner.n))
         return result

@@ -13,6 +13,7 @@ On a write error the temporary file is removed, one line goes to stderr and the 
 
 from __future__ import annotations
 
+import io
 import os
 import signal
 import sys
@@ -26,6 +27,7 @@ def main(argv: list[str]) -> int:
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     part, final, ncols = argv[0], argv[1], int(argv[2])
     source = sys.stdin.buffer
+    assert isinstance(source, io.BufferedReader)  # what the stdin pipe is; read1 takes what is there
     row_bytes = 8 * ncols
     pending = b""
     try:

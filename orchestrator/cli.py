@@ -19,6 +19,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from importlib.metadata import PackageNotFoundError, entry_points, version
 from pathlib import Path
+from typing import TypedDict, Unpack
 
 from . import MASTERS, run
 from .errors import (
@@ -93,8 +94,17 @@ exit status: 0 no error (warnings allowed), 1 errors found, 2 usage error.
 Handler = Callable[[argparse.Namespace], int]
 
 
+class CommandOptions(TypedDict, total=False):
+    """Keyword arguments of :func:`add_command`, passed on to ``add_parser``."""
+
+    help: str
+    description: str | None
+    epilog: str | None
+    formatter_class: type[argparse.HelpFormatter]
+
+
 def add_command(subparsers: argparse._SubParsersAction, name: str, handler: Handler,
-                **kwargs: object) -> argparse.ArgumentParser:
+                **kwargs: Unpack[CommandOptions]) -> argparse.ArgumentParser:
     """Add subcommand ``name`` run by ``handler(args) -> exit status``; returns its parser."""
     parser = subparsers.add_parser(name, **kwargs)
     parser.set_defaults(handler=handler)

@@ -19,6 +19,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     import matplotlib.figure
+    from matplotlib.axes import Axes
 
 __all__ = ["axis_label", "build_figure", "plot_run"]
 
@@ -46,7 +47,7 @@ def _decade_ticks(values: np.ndarray, linthresh: float) -> list[float]:
     return sorted(ticks)
 
 
-def _fault_line(ax: object, fault_time: float | None, t: np.ndarray, label: bool) -> None:
+def _fault_line(ax: Axes, fault_time: float | None, t: np.ndarray, label: bool) -> None:
     if fault_time is not None and t[0] <= fault_time <= t[-1]:
         ax.axvline(fault_time, color="tab:red", linestyle="--", linewidth=0.9,
                    label="fault" if label else None)
@@ -76,6 +77,7 @@ def build_figure(result: np.ndarray, title: str = "", units: Mapping[str, str | 
 
     units = units or {}
     t = result["time"]
+    assert result.dtype.names is not None  # a structured array
     names = [n for n in result.dtype.names if n != "time"]
     if all(c in names for c in TRACKING):
         control = [c for c in CONTROL if c in names]

@@ -146,13 +146,13 @@ def summary(record: Mapping[str, object] | None) -> str:
     """One line: scenario, overrides, parameter sets, timing, master, status, commit and date."""
     if record is None:
         return "no provenance file"
-    scenario = record.get("scenario") or {}
+    scenario = _mapping(record.get("scenario"))
     parts = [f"{Path(str(scenario.get('path', '?'))).name} (sha256 {str(scenario.get('sha256', ''))[:12]})"]
-    overrides = record.get("overrides") or {}
+    overrides = _mapping(record.get("overrides"))
     parts.append("--set " + " ".join(f"{k}={v}" for k, v in overrides.items()) if overrides else "no --set")
-    sets = record.get("parameter_sets") or []
+    sets = _set_names(record)
     if sets:
-        parts.append("--parameter-set " + " ".join(Path(s["path"]).name for s in sets))
+        parts.append("--parameter-set " + " ".join(sets))
     parts.append(f"t = {record.get('start_time')} .. {record.get('stop_time')} s, "
                  f"step {record.get('step')} s, {record.get('master')}")
     status = record.get("status")
@@ -169,6 +169,19 @@ def overrides_text(record: Mapping[str, object] | None) -> str:
     """The overrides and parameter sets of a run, short, for a plot title ('' when none)."""
     if record is None:
         return ""
-    items = [f"{k}={v}" for k, v in (record.get("overrides") or {}).items()]
-    items += [Path(s["path"]).name for s in record.get("parameter_sets") or []]
+    items = [f"{k}={v}" for k, v in _mapping(record.get("overrides")).items()]
+    items += _set_names(record)
     return ", ".join(items)
+
+
+def _mapping(value: object) -> Mapping[str, object]:
+    """A JSON object of a record (empty when absent, null or not an object)."""
+    return value if isinstance(value, Mapping) else {}
+
+
+def _set_names(record: Mapping[str, object]) -> list[str]:
+    """File names of the parameter sets a record lists."""
+    sets = record.get("parameter_sets")
+    if not isinstance(sets, list):
+        return []
+    return [Path(str(_mapping(s).get("path", ""))).name for s in sets]
