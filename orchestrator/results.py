@@ -131,6 +131,7 @@ class Recorder:
 
     def _send(self, writer: subprocess.Popen, data: bytes) -> None:
         """Write to the writer; when it has died (disk full, ...) raise OSError with its reason."""
+        assert writer.stdin is not None  # a pipe (_start_writer)
         try:
             writer.stdin.write(data)
             writer.stdin.flush()
@@ -139,12 +140,13 @@ class Recorder:
             raise self._failure(writer) from None
 
     def _failure(self, writer: subprocess.Popen) -> OSError:
+        assert writer.stdin is not None and writer.stderr is not None  # pipes (_start_writer)
         try:
             writer.stdin.close()
         except OSError:
             pass
         writer.wait()
-        reason = writer.stderr.read().decode("utf-8", "replace").strip() if writer.stderr else ""
+        reason = writer.stderr.read().decode("utf-8", "replace").strip()
         writer.stderr.close()
         return OSError(f"{self.path}: {reason or f'the CSV writer failed (exit status {writer.returncode})'}")
 
@@ -201,9 +203,9 @@ class Recorder:
         rows = []
         for b in parts:
             lo, hi = b.argmin(axis=1), b.argmax(axis=1)
-            first, second = np.minimum(lo, hi), np.maximum(lo, hi)
-            a = np.take_along_axis(b, first[:, None, :], axis=1)[:, 0]
-            z = np.take_along_axis(b, second[:, None, :], axis=1)[:, 0]
+            earlier, later = np.minimum(lo, hi), np.maximum(lo, hi)
+            a = np.take_along_axis(b, earlier[:, None, :], axis=1)[:, 0]
+            z = np.take_along_axis(b, later[:, None, :], axis=1)[:, 0]
             a[:, 0], z[:, 0] = b[:, 0, 0], b[:, -1, 0]
             rows.append(np.stack([a, z], axis=1).reshape(-1, block.shape[1]))
         return np.concatenate(rows)
@@ -222,6 +224,7 @@ class Recorder:
             self.flush()
         finally:
             self._writer = None
+            assert writer.stdin is not None and writer.stderr is not None  # pipes (_start_writer)
             try:
                 writer.stdin.close()
             except OSError:
