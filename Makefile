@@ -38,8 +38,10 @@ crosscheck: build
 unit: $(STAMP)
 	$(PY) -m pytest -q -m "not system"
 
+## lint: ruff and mypy (configuration in pyproject.toml)
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
 
 ## table: metrics of the monolithic reference, continuous law and 1 ms zero-order hold
 table: $(STAMP)

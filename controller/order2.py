@@ -145,6 +145,7 @@ class Order2Controller:
 
     def reset(self) -> None:
         """Back to the initial values r0 and eta0."""
+        assert self.params.eta0 is not None  # ControllerParameters fills it
         self.r = self.params.r0
         self.eta1, self.eta2 = self.params.eta0
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from enum import IntEnum
-from typing import TypeVar
+from typing import Any, TypeVar
 
 __all__ = [
     "DEFAULT_CENTERS",
@@ -165,7 +165,7 @@ class ControllerParameters:
             problems.append(f"alpha must satisfy alpha > 1 (got {self.alpha!r})")
         if not 0.5 < self.beta < 1.0:
             problems.append(f"beta must satisfy 0.5 < beta < 1 (got {self.beta!r})")
-        gains = ("q", "a", "kappa", "rho", "rho_bar")
+        gains: tuple[str, ...] = ("q", "a", "kappa", "rho", "rho_bar")
         if self.mode == FIXED_TIME:
             gains = ("k",) + gains
         for name in gains:
@@ -182,6 +182,7 @@ class ControllerParameters:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 problems.append(f"{name} must satisfy {name} >= 0 (got {value!r})")
+        assert self.eta0 is not None  # filled above
         initial = [("r0", self.r0)] + [(f"eta0[{i}]", v) for i, v in enumerate(self.eta0, 1)]
         for name, value in initial:
             if not (math.isfinite(value) and value >= 0.0):
@@ -201,6 +202,6 @@ class ControllerParameters:
         """The fast gains the law applies: ``k`` in fixed-time mode, zeros in finite-time mode."""
         return self.k if self.mode == FIXED_TIME else (0.0,) * self.n
 
-    def with_changes(self, **changes: object) -> ControllerParameters:
+    def with_changes(self, **changes: Any) -> ControllerParameters:
         """A validated copy with some fields replaced."""
         return replace(self, **changes)

@@ -12,12 +12,13 @@ from __future__ import annotations
 
 import math
 import re
+from typing import cast
 
 from pythonfmu import Fmi2Causality, Fmi2Slave
 from pythonfmu.enums import Fmi2Status
 
 from controller.order2 import LawValues, Order2Controller
-from controller.params import DEFAULT_CENTERS, ControllerParameters, ParameterError
+from controller.params import DEFAULT_CENTERS, ControllerParameters, Discretization, Mode, ParameterError
 from fmu_src.fmu_support import declare, fmu_model, mark_stale, raise_problems, rename_indexed, report
 
 PARAMETER = Fmi2Causality.parameter
@@ -158,7 +159,7 @@ class FixedTimeController(Fmi2Slave):
                 },
                 alpha=self.alpha,
                 beta=self.beta,
-                mode=self.mode,
+                mode=cast(Mode, self.mode),  # an int; ControllerParameters parses and checks it
                 a_bar=self.a_bar,
                 gamma_gain=self.gamma_gain,
                 gamma_power=self.gamma_power,
@@ -167,7 +168,7 @@ class FixedTimeController(Fmi2Slave):
                 eta0=(self.eta1_0, self.eta2_0),
                 centers=tuple(getattr(self, f"mu{j}") for j in range(1, len(DEFAULT_CENTERS) + 1)),
                 width=self.tau,
-                discretization=self.discretization,
+                discretization=cast(Discretization, self.discretization),  # likewise
                 sample_time=self.sample_time,
                 b_max=self.b_max,
             )
@@ -200,6 +201,7 @@ class FixedTimeController(Fmi2Slave):
         being finite.
         """
         c = self._controller
+        assert c is not None, "doStep before exitInitializationMode"
         if c.params.discretization and not self._warned_step and not math.isclose(
                 step_size, c.params.sample_time, rel_tol=1e-9):
             self._warned_step = True
