@@ -73,14 +73,18 @@ def _read_result(path: Path, scenario: Scenario,
     return table_result(named["time"], named, columns), named
 
 
+# Both entry points run the same library: one tolerance.
+TOLERANCE = Tolerance(QUIET, AMPLIFIED, "delay-free like `gauss-seidel`, not bit-identical: 5e-13 (its CSV's "
+                      "12 digits) to 1.5e-8 (pendulum) in the first second, amplified after it")
+
+
 class OMSimulatorCliTool(Tool):
     """``bin/OMSimulator`` (a subprocess with a clean environment)."""
 
     key = "omsimulator"
     title = "OMSimulator 3 (CLI)"
     delayed = False
-    tolerance = Tolerance(QUIET, AMPLIFIED, "delay-free like `gauss-seidel`, not bit-identical: 5e-13 (its "
-                          "CSV's 12 digits) to 1.5e-8 (pendulum) in the first second, amplified after it")
+    tolerance = TOLERANCE
 
     def missing(self) -> str | None:
         binary = home() / "bin" / "OMSimulator"
@@ -145,8 +149,7 @@ class OMSimulatorPythonTool(Tool):
     key = "omsimulator-py"
     title = "OMSimulator 3 (Python)"
     delayed = False
-    tolerance = Tolerance(QUIET, AMPLIFIED, "delay-free like `gauss-seidel`, not bit-identical: 5e-13 (its "
-                          "CSV's 12 digits) to 1.5e-8 (pendulum) in the first second, amplified after it")
+    tolerance = TOLERANCE
 
     def missing(self) -> str | None:
         package = home() / "lib" / "x86_64-linux-gnu" / "OMSimulator"
