@@ -13,7 +13,11 @@ the last commit before issue 10; sources taken with ``git archive``, built by th
 * ``now, plant method 1``: the current FMUs with the plant's old integrator (RK4, ``max_step``
   25 us), everything else new: the difference to ``before`` is the controller and get/set work,
   the difference to ``now`` the plant integrator;
-* ``now``: the current FMUs (Dormand-Prince 5(4) plants, n = 2 scalar controller, direct get/set);
+* ``now, through pythonfmu``: the current FMUs with the shim's direct calls off
+  (``FTC_FMU_DIRECT=0``): every FMI call goes through pythonfmu's binary, as before the shim made
+  the step's calls itself;
+* ``now``: the current FMUs (Dormand-Prince 5(4) plants, n = 2 scalar controller, attribute get/set,
+  the shim's direct fmi2DoStep/GetReal/SetReal);
 * libcosim (``simulate_until``, numWorkerThreads="0") on the ``before`` and ``now`` archives.
 
 Method. Times are CPU times of this process (``time.process_time``), so other processes on the
@@ -29,6 +33,7 @@ of ``--repeat`` runs. The in-process cost of the controller's two paths is in
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import tarfile
 import tempfile
@@ -133,6 +138,7 @@ def measure(scenario: str, archives: dict[str, Path], stop: float, master: str, 
     configurations = {
         "before": (archives["before"], {}),
         "now, plant method 1 (RK4)": (archives["now"], {"plant.method": 1}),
+        "now, through pythonfmu": (archives["now"], {}),
         "now": (archives["now"], {}),
     }
     best: dict[str, float] = {}
@@ -148,6 +154,8 @@ def measure(scenario: str, archives: dict[str, Path], stop: float, master: str, 
     steps, outputs = 0, []
     for _ in range(repeat):
         for label, (archive, overrides) in configurations.items():
+            # The shim reads FTC_FMU_DIRECT at fmi2Instantiate.
+            os.environ["FTC_FMU_DIRECT"] = "0" if label == "now, through pythonfmu" else "1"
             plain = loop(archive, stop, master, overrides, instrument=False)
             steps, outputs = plain["steps"], plain["outputs"]
             keep(label, plain["cpu"])
@@ -156,6 +164,7 @@ def measure(scenario: str, archives: dict[str, Path], stop: float, master: str, 
             if keep(label + " inside", sum(corrected.values())):
                 breakdown[label] = corrected
                 calls[label] = sum(n for _, n in timed["inside"].values())
+        os.environ["FTC_FMU_DIRECT"] = "1"
         for which in ("before", "now"):
             _, timing = run_libcosim(archives[which], stop, ["time"] + outputs)
             keep(f"libcosim {which}", timing["cpu"] * 1e9)
@@ -177,6 +186,9 @@ def measure(scenario: str, archives: dict[str, Path], stop: float, master: str, 
         print(f"  {'libcosim, ' + which + ' archive':34s} {us(lc)}   ratio ours / libcosim {ours / lc:.3f}")
     print(f"  speed-up now vs before: {best['before'] / best['now']:.2f}x "
           f"({us(best['before']).strip()} -> {us(best['now']).strip()} us/step)")
+    through = best["now, through pythonfmu"]
+    print(f"  the shim's direct calls: {through / best['now']:.2f}x "
+          f"({us(through).strip()} -> {us(best['now']).strip()} us/step)")
     components = sorted({c for b in breakdown.values() for c, _ in b})
     print(f"  FMU breakdown, CPU us per communication step: {' / '.join(configurations)}")
     for component in components:

@@ -11,6 +11,11 @@ getter or setter lambda per variable: a slave keeps every variable in the attrib
 name, value references map straight to those names, and outputs computed from inputs and states
 are refreshed once, by the slave's ``refresh_outputs()``, when one is read after anything changed
 (see :func:`declare`).
+
+The FMU's C shim (``fmu_src/shim/fmi2_shim.c``) makes the calls of every communication step
+(``fmi2DoStep``, ``fmi2GetReal``/``fmi2SetReal`` of inputs and outputs) on these same attributes
+itself, past pythonfmu's per-call machinery: :func:`fmu_model` offers it the slave's binding
+(see :func:`_direct_binding`).
 """
 
 from __future__ import annotations
@@ -18,6 +23,9 @@ from __future__ import annotations
 import copy
 import logging
 import re
+import sys
+import threading
+import weakref
 from collections.abc import Iterable, Sequence
 from typing import Any, TypeVar
 from xml.etree.ElementTree import Element, SubElement
@@ -318,6 +326,66 @@ def _set_fmu_state(self: Fmi2Slave, state: dict[str, Any]) -> None:
     mark_stale(self)
 
 
+# The binding handed to the shim; bump with the shim's DIRECT_PROTOCOL when the tuple changes.
+DIRECT_PROTOCOL = 1
+_KIND_INPUT, _KIND_OUTPUT = 1, 2
+_STEP_OK, _STEP_DISCARD, _STEP_RAISED = 0, 1, 2
+
+
+def _direct_binding(slave: Fmi2Slave, do_step: Any) -> tuple[Any, ...]:
+    """What the shim's direct calls need (see "Direct calls" in ``fmi2_shim.c``): (protocol, the
+    slave's ``__dict__``, ``step(t, h) -> code``, ``refresh()``, the log queue pythonfmu forwards,
+    value reference -> name, value reference -> kind (bytes: 1 Real input, 2 Real output, 0 any
+    other), whether an output depends directly on an input, the key of the stale flag).
+
+    ``step`` calls ``do_step`` (the class's own, unwrapped) and returns 0 (True), 1 (False:
+    fmi2Discard) or 2 (it raised: the exception is kept, and the class's ``do_step`` as pythonfmu
+    calls it raises that very exception, so that pythonfmu reports it as usual)."""
+    d = slave.__dict__
+    io: _ValueReferences = d["_fmu_io"]
+    size = max(io.real, default=-1) + 1
+    names: list[str | None] = [None] * size
+    kinds = bytearray(size)
+    for vr, name in io.real_inputs.items():
+        names[vr], kinds[vr] = sys.intern(name), _KIND_INPUT
+    for vr in io.computed:
+        if vr in io.real:
+            names[vr], kinds[vr] = sys.intern(io.real[vr]), _KIND_OUTPUT
+
+    def step(current_time: float, step_size: float) -> int:
+        try:
+            return _STEP_OK if do_step(slave, current_time, step_size) else _STEP_DISCARD
+        except BaseException as error:  # noqa: BLE001 - pythonfmu reports every exception
+            d["_fmu_raised"] = error
+            return _STEP_RAISED
+
+    def refresh() -> None:
+        slave.refresh_outputs()
+        d["_fmu_stale"] = False
+
+    return (DIRECT_PROTOCOL, d, step, refresh, slave.log_queue, tuple(names), bytes(kinds), io.feedthrough,
+            sys.intern("_fmu_stale"))
+
+
+def _claim(model: str, instance_name: str) -> tuple[Any, ...] | None:
+    """The shim's ``sys._ftc_fmu_claim``: the binding of the slave constructed last in this thread,
+    if it is an instance ``instance_name`` of ``model`` (pythonfmu has just constructed it in
+    fmi2Instantiate or fmi2Reset), else None (the shim then forwards every call to pythonfmu)."""
+    ref = _constructed().pop(threading.get_ident(), None)
+    slave = ref() if ref is not None else None
+    if slave is None or type(slave).__name__ != model or slave.instance_name != instance_name:
+        return None
+    return slave._fmu_direct_binding()
+
+
+def _constructed() -> dict[int, weakref.ReferenceType[Fmi2Slave]]:
+    """Thread id -> the slave constructed last in that thread, shared by every FMU in the process
+    (each bundles its own copy of this module): kept in ``sys``, with the first copy's claim."""
+    registry: dict[int, weakref.ReferenceType[Fmi2Slave]] = sys.__dict__.setdefault("_ftc_fmu_slaves", {})
+    sys.__dict__.setdefault("_ftc_fmu_claim", _claim)
+    return registry
+
+
 def fmu_model(cls: SlaveClass) -> SlaveClass:
     """Class decorator: DefaultExperiment, extended model description, full state snapshots and
     attribute-based get/set (the class defines ``refresh_outputs()``, see :func:`declare`)."""
@@ -337,6 +405,26 @@ def fmu_model(cls: SlaveClass) -> SlaveClass:
     cls.get_integer = _get_integer
     cls.set_integer = _set_integer
     cls.default_experiment = DEFAULT_EXPERIMENT
+
+    base_init, own_do_step = cls.__init__, cls.do_step
+
+    def init(self: Fmi2Slave, **kwargs: Any) -> None:
+        base_init(self, **kwargs)
+        _constructed()[threading.get_ident()] = weakref.ref(self)
+
+    def do_step(self: Fmi2Slave, current_time: float, step_size: float) -> bool:
+        raised = self.__dict__.pop("_fmu_raised", None)
+        if raised is not None:  # the shim's direct call raised it: pythonfmu reports it now
+            raise raised
+        return own_do_step(self, current_time, step_size)
+
+    def direct_binding(self: Fmi2Slave) -> tuple[Any, ...]:
+        return _direct_binding(self, own_do_step)
+
+    init.__doc__, do_step.__doc__ = base_init.__doc__, own_do_step.__doc__
+    cls.__init__ = init
+    cls.do_step = do_step
+    cls._fmu_direct_binding = direct_binding
     return cls
 
 

@@ -18,9 +18,11 @@
       the GIL. pythonfmu then finds Python initialized, so it neither initializes nor finalizes
       it, and takes the GIL with PyGILState_Ensure as it does in a Python host. A lock on the
       libpython file keeps FMUs instantiated in parallel threads from starting Python twice;
-   4. opens <model>_pythonfmu.so with RTLD_NOW | RTLD_LOCAL and forwards every FMI call to it
+   4. opens <model>_pythonfmu.so with RTLD_NOW | RTLD_LOCAL and forwards the FMI calls to it
       (fmi2GetTypesPlatform and fmi2GetVersion it answers itself, "default" and "2.0", so that
-      a host may call them before anything is loaded).
+      a host may call them before anything is loaded), except the calls of every communication
+      step to the project's own slaves, which it makes itself on the same Python objects (see
+      "Direct calls" below).
 
    When Python is already initialized in the process (fmpy, libcosimpy, OMSimulator's Python
    API), steps 2-3 do nothing. When something is missing, fmi2Instantiate logs one message
@@ -73,59 +75,65 @@ typedef struct {
     fmi2ComponentEnvironment componentEnvironment;
 } fmi2CallbackFunctions;
 
-/* Every FMI 2.0 function that takes a component and returns a status: name, parameters, call. */
-#define FMI2_FORWARDED(X)                                                                                    \
-    X(fmi2SetDebugLogging, (fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[]),     \
-      (c, on, n, categories))                                                                                \
-    X(fmi2SetupExperiment,                                                                                   \
-      (fmi2Component c, fmi2Boolean tolDefined, fmi2Real tol, fmi2Real start, fmi2Boolean stopDefined,       \
-       fmi2Real stop),                                                                                       \
-      (c, tolDefined, tol, start, stopDefined, stop))                                                        \
-    X(fmi2EnterInitializationMode, (fmi2Component c), (c))                                                   \
-    X(fmi2ExitInitializationMode, (fmi2Component c), (c))                                                    \
-    X(fmi2Terminate, (fmi2Component c), (c))                                                                 \
-    X(fmi2Reset, (fmi2Component c), (c))                                                                     \
-    X(fmi2GetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[]), (c, vr, n, v))  \
-    X(fmi2GetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[]),          \
-      (c, vr, n, v))                                                                                         \
-    X(fmi2GetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[]),          \
-      (c, vr, n, v))                                                                                         \
-    X(fmi2GetString, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[]),            \
-      (c, vr, n, v))                                                                                         \
-    X(fmi2SetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]),          \
-      (c, vr, n, v))                                                                                         \
-    X(fmi2SetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer v[]),    \
-      (c, vr, n, v))                                                                                         \
-    X(fmi2SetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[]),    \
-      (c, vr, n, v))                                                                                         \
-    X(fmi2SetString, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[]),      \
-      (c, vr, n, v))                                                                                         \
-    X(fmi2GetFMUstate, (fmi2Component c, fmi2FMUstate * state), (c, state))                                  \
-    X(fmi2SetFMUstate, (fmi2Component c, fmi2FMUstate state), (c, state))                                    \
-    X(fmi2FreeFMUstate, (fmi2Component c, fmi2FMUstate * state), (c, state))                                 \
-    X(fmi2SerializedFMUstateSize, (fmi2Component c, fmi2FMUstate state, size_t * size), (c, state, size))    \
-    X(fmi2SerializeFMUstate, (fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size),          \
-      (c, state, bytes, size))                                                                               \
-    X(fmi2DeSerializeFMUstate, (fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate * state), \
-      (c, bytes, size, state))                                                                               \
-    X(fmi2GetDirectionalDerivative,                                                                          \
-      (fmi2Component c, const fmi2ValueReference unknown[], size_t nUnknown, const fmi2ValueReference known[], \
-       size_t nKnown, const fmi2Real dvKnown[], fmi2Real dvUnknown[]),                                       \
-      (c, unknown, nUnknown, known, nKnown, dvKnown, dvUnknown))                                             \
-    X(fmi2SetRealInputDerivatives,                                                                           \
-      (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[],                 \
-       const fmi2Real value[]),                                                                              \
-      (c, vr, n, order, value))                                                                              \
-    X(fmi2GetRealOutputDerivatives,                                                                          \
-      (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[], fmi2Real value[]), \
-      (c, vr, n, order, value))                                                                              \
-    X(fmi2DoStep, (fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior), (c, t, h, noSetPrior))  \
-    X(fmi2CancelStep, (fmi2Component c), (c))                                                                \
-    X(fmi2GetStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Status * value), (c, s, value))          \
-    X(fmi2GetRealStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Real * value), (c, s, value))        \
-    X(fmi2GetIntegerStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Integer * value), (c, s, value))  \
-    X(fmi2GetBooleanStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Boolean * value), (c, s, value))  \
+/* Every FMI 2.0 function that takes a component and returns a status: name, parameters, call.
+   FMI2_PLAIN ones are forwarded to pythonfmu as they are; FMI2_DIRECT ones have a direct path
+   (section "Direct calls" below) and are forwarded when it does not apply. */
+#define FMI2_PLAIN(X)                                                                                         \
+    X(fmi2SetDebugLogging, (fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[]),        \
+      (c, on, n, categories))                                                                                 \
+    X(fmi2SetupExperiment,                                                                                    \
+      (fmi2Component c, fmi2Boolean tolDefined, fmi2Real tol, fmi2Real start, fmi2Boolean stopDefined,        \
+       fmi2Real stop),                                                                                        \
+      (c, tolDefined, tol, start, stopDefined, stop))                                                         \
+    X(fmi2EnterInitializationMode, (fmi2Component c), (c))                                                    \
+    X(fmi2ExitInitializationMode, (fmi2Component c), (c))                                                     \
+    X(fmi2Terminate, (fmi2Component c), (c))                                                                  \
+    X(fmi2GetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[]),            \
+      (c, vr, n, v))                                                                                          \
+    X(fmi2GetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[]),            \
+      (c, vr, n, v))                                                                                          \
+    X(fmi2GetString, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[]),              \
+      (c, vr, n, v))                                                                                          \
+    X(fmi2SetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer v[]),      \
+      (c, vr, n, v))                                                                                          \
+    X(fmi2SetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[]),      \
+      (c, vr, n, v))                                                                                          \
+    X(fmi2SetString, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[]),        \
+      (c, vr, n, v))                                                                                          \
+    X(fmi2GetFMUstate, (fmi2Component c, fmi2FMUstate * state), (c, state))                                   \
+    X(fmi2SetFMUstate, (fmi2Component c, fmi2FMUstate state), (c, state))                                     \
+    X(fmi2FreeFMUstate, (fmi2Component c, fmi2FMUstate * state), (c, state))                                  \
+    X(fmi2SerializedFMUstateSize, (fmi2Component c, fmi2FMUstate state, size_t * size), (c, state, size))     \
+    X(fmi2SerializeFMUstate, (fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size),            \
+      (c, state, bytes, size))                                                                                \
+    X(fmi2DeSerializeFMUstate, (fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate * state),  \
+      (c, bytes, size, state))                                                                                \
+    X(fmi2GetDirectionalDerivative,                                                                           \
+      (fmi2Component c, const fmi2ValueReference unknown[], size_t nUnknown, const fmi2ValueReference known[],\
+       size_t nKnown, const fmi2Real dvKnown[], fmi2Real dvUnknown[]),                                        \
+      (c, unknown, nUnknown, known, nKnown, dvKnown, dvUnknown))                                              \
+    X(fmi2SetRealInputDerivatives,                                                                            \
+      (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[],                   \
+       const fmi2Real value[]),                                                                               \
+      (c, vr, n, order, value))                                                                               \
+    X(fmi2GetRealOutputDerivatives,                                                                           \
+      (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[], fmi2Real value[]),\
+      (c, vr, n, order, value))                                                                               \
+    X(fmi2CancelStep, (fmi2Component c), (c))                                                                 \
+    X(fmi2GetStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Status * value), (c, s, value))            \
+    X(fmi2GetIntegerStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Integer * value), (c, s, value))    \
     X(fmi2GetStringStatus, (fmi2Component c, const fmi2StatusKind s, fmi2String * value), (c, s, value))
+
+#define FMI2_DIRECT(X)                                                                                        \
+    X(fmi2Reset, (fmi2Component c), (c))                                                                      \
+    X(fmi2GetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[]), (c, vr, n, v))   \
+    X(fmi2SetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]),            \
+      (c, vr, n, v))                                                                                          \
+    X(fmi2DoStep, (fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior), (c, t, h, noSetPrior))   \
+    X(fmi2GetRealStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Real * value), (c, s, value))          \
+    X(fmi2GetBooleanStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Boolean * value), (c, s, value))
+
+#define FMI2_FORWARDED(X) FMI2_PLAIN(X) FMI2_DIRECT(X)
 
 /* pythonfmu's functions, resolved once by load() before the first instance exists. */
 #define DECLARE_POINTER(name, params, args) static fmi2Status(*inner_##name) params;
@@ -134,7 +142,27 @@ static fmi2Component (*inner_fmi2Instantiate)(fmi2String, fmi2Type, fmi2String, 
                                               const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean);
 static void (*inner_fmi2FreeInstance)(fmi2Component);
 
+/* What the shim hands the host as fmi2Component: pythonfmu's component and the direct path. */
+struct direct;
+struct instance {
+    fmi2Component inner;        /* pythonfmu's component */
+    struct direct *direct;      /* NULL: every call forwarded (see "Direct calls") */
+    int direct_allowed;         /* FTC_FMU_DIRECT is not "0" */
+    char name[256];             /* instance name */
+    fmi2Real last_successful_time; /* what pythonfmu's fmi2DoStep would record */
+    fmi2Boolean wants_to_terminate;
+};
+
+/* call_<name>(c, ...): the pythonfmu function on the instance's own component. */
+#define INNER_CALL(name, params, args)                                                                       \
+    static fmi2Status call_##name params {                                                                   \
+        c = ((struct instance *)c)->inner;                                                                   \
+        return inner_##name args;                                                                            \
+    }
+FMI2_PLAIN(INNER_CALL)
+
 static void unload(void);
+static void resolve_python_api(void *python);
 
 static pthread_mutex_t load_lock = PTHREAD_MUTEX_INITIALIZER;
 static int loaded;            /* 0: not tried, 1: pythonfmu's binary is ready, -1: failed */
@@ -404,6 +432,7 @@ static int load(void) {
 #define RESOLVE(name, params, args) *(void **)(&inner_##name) = dlsym(inner, #name);
     FMI2_FORWARDED(RESOLVE)
     atexit(unload); /* after pythonfmu's static destructors were registered: runs before them */
+    resolve_python_api(python);
     return 0;
 }
 
@@ -421,6 +450,297 @@ static void report(const fmi2CallbackFunctions *functions, fmi2String instanceNa
     escaped[j] = '\0';
     functions->logger(functions->componentEnvironment, instanceName ? instanceName : model, status,
                       status == fmi2Warning ? "logStatusWarning" : "logStatusError", escaped);
+}
+
+/* ---- Direct calls ------------------------------------------------------------------------------
+
+   pythonfmu spends about 1.5 us of every FMI call on its own machinery before the model's code
+   runs (a list of value references built per call, the method looked up by name, three strings
+   built to scan the log queue), whatever the model does; a communication step of the closed loop
+   makes 11 such calls. For the project's own slaves (those made with fmu_src.fmu_support's
+   fmu_model) the shim makes the four calls of every step itself, on the same Python objects:
+
+   * fmi2SetReal of inputs writes the floats into the slave's __dict__ (what the slave's own
+     set_real does) and marks the outputs stale if some output depends on an input;
+   * fmi2GetReal of inputs and outputs reads them from __dict__, after the slave's
+     refresh_outputs() if an output is asked for and they are stale (what get_real does);
+   * fmi2DoStep calls the slave's do_step through a wrapper that turns its result into a code.
+
+   Everything else, and any call that the direct path does not cover (parameters, unknown value
+   references, a Python exception), goes to pythonfmu as before, so its messages and statuses are
+   unchanged: a do_step that raises is replayed through pythonfmu's fmi2DoStep, which raises the
+   same exception object again (fmu_support keeps it), and a refresh that raises is retried by
+   pythonfmu's fmi2GetReal. Messages the slave queued during a direct call are passed to the host
+   by an empty pythonfmu fmi2GetReal, which forwards the queue as after any call. The shim keeps
+   the last successful time and the terminate wish that pythonfmu's fmi2DoStep would record.
+
+   The binding: pythonfmu constructs the slave inside fmi2Instantiate (and again in fmi2Reset) in
+   the calling thread; fmu_model's __init__ leaves a weak reference to it under the thread's id in
+   sys._ftc_fmu_slaves, and sys._ftc_fmu_claim(model, instance name) hands the shim the binding of
+   that slave (checked to be of this model and instance name) or None. FTC_FMU_DIRECT=0 turns the
+   direct path off (everything forwarded), for comparison. */
+
+#define DIRECT_PROTOCOL 1
+enum { KIND_NONE = 0, KIND_INPUT = 1, KIND_OUTPUT = 2 };
+enum { STEP_OK = 0, STEP_DISCARD = 1, STEP_RAISED = 2 };
+
+typedef struct _object PyObject; /* opaque: only pointers cross this file */
+
+/* The Python C-API functions the direct path uses, looked up in the process's libpython. */
+static struct {
+    int ready;
+    int (*gil_ensure)(void);
+    void (*gil_release)(int);
+    PyObject *(*import)(const char *);
+    PyObject *(*getattr)(PyObject *, const char *);
+    PyObject *(*call)(PyObject *, PyObject *);         /* PyObject_CallObject */
+    PyObject *(*call2)(PyObject *, ...);               /* PyObject_CallFunctionObjArgs */
+    PyObject *(*from_string)(const char *);
+    PyObject *(*from_double)(double);
+    double (*as_double)(PyObject *);
+    long (*as_long)(PyObject *);
+    PyObject *(*tuple_item)(PyObject *, long);
+    long (*tuple_size)(PyObject *);
+    char *(*bytes_string)(PyObject *);
+    long (*bytes_size)(PyObject *);
+    PyObject *(*dict_get)(PyObject *, PyObject *);
+    int (*dict_set)(PyObject *, PyObject *, PyObject *);
+    long (*list_size)(PyObject *);
+    int (*is_true)(PyObject *);
+    PyObject *(*error)(void);
+    void (*clear_error)(void);
+    void (*incref)(PyObject *);
+    void (*decref)(PyObject *);
+    PyObject *true_object;
+} py;
+
+static void resolve_python_api(void *python) {
+    py.ready = 1;
+#define FIND(field, symbol) py.ready &= (*(void **)(&py.field) = dlsym(python, symbol)) != NULL
+    FIND(gil_ensure, "PyGILState_Ensure");
+    FIND(gil_release, "PyGILState_Release");
+    FIND(import, "PyImport_ImportModule");
+    FIND(getattr, "PyObject_GetAttrString");
+    FIND(call, "PyObject_CallObject");
+    FIND(call2, "PyObject_CallFunctionObjArgs");
+    FIND(from_string, "PyUnicode_FromString");
+    FIND(from_double, "PyFloat_FromDouble");
+    FIND(as_double, "PyFloat_AsDouble");
+    FIND(as_long, "PyLong_AsLong");
+    FIND(tuple_item, "PyTuple_GetItem");
+    FIND(tuple_size, "PyTuple_Size");
+    FIND(bytes_string, "PyBytes_AsString");
+    FIND(bytes_size, "PyBytes_Size");
+    FIND(dict_get, "PyDict_GetItem");
+    FIND(dict_set, "PyDict_SetItem");
+    FIND(list_size, "PyList_Size");
+    FIND(is_true, "PyObject_IsTrue");
+    FIND(error, "PyErr_Occurred");
+    FIND(clear_error, "PyErr_Clear");
+    FIND(incref, "Py_IncRef");
+    FIND(decref, "Py_DecRef");
+    FIND(true_object, "_Py_TrueStruct"); /* the object Py_True itself */
+#undef FIND
+}
+
+/* A slave's binding: strong references, released at fmi2FreeInstance and before fmi2Reset. */
+struct direct {
+    PyObject *dict;      /* the slave's __dict__: its variables by name */
+    PyObject *do_step;   /* bound method (t, h) -> STEP_* */
+    PyObject *refresh;   /* bound method: refresh_outputs(), then _fmu_stale = False */
+    PyObject *log_queue; /* the list pythonfmu forwards to the host's logger */
+    PyObject *stale;     /* the key "_fmu_stale" */
+    PyObject *names;     /* tuple: value reference -> variable name (None if not direct) */
+    const unsigned char *kinds; /* value reference -> KIND_* (bytes owned by `binding`) */
+    size_t n;            /* number of value references covered */
+    int feedthrough;     /* some output depends directly on an input */
+    PyObject *binding;   /* the tuple the slave handed over, owning the objects above */
+};
+
+static void release_binding(struct instance *i) {
+    if (!i->direct) return;
+    int gil = py.gil_ensure();
+    py.decref(i->direct->binding);
+    py.decref(i->direct->stale);
+    py.gil_release(gil);
+    free(i->direct);
+    i->direct = NULL;
+}
+
+/* Asks the slave just constructed in this thread for its binding; leaves i->direct NULL (every
+   call forwarded) for slaves that do not offer one, such as plain pythonfmu slaves. */
+static void bind_direct(struct instance *i) {
+    release_binding(i);
+    if (!i->direct_allowed || !py.ready) return;
+    int gil = py.gil_ensure();
+    PyObject *sys = py.import("sys"), *claim = NULL, *binding = NULL, *model_name = NULL, *name = NULL;
+    if (sys) claim = py.getattr(sys, "_ftc_fmu_claim");
+    if (claim) model_name = py.from_string(model);
+    if (model_name) name = py.from_string(i->name);
+    if (name) binding = py.call2(claim, model_name, name, NULL);
+    struct direct *d = NULL;
+    if (binding && py.tuple_size(binding) == 9 && py.as_long(py.tuple_item(binding, 0)) == DIRECT_PROTOCOL) {
+        d = calloc(1, sizeof *d);
+        PyObject *kinds = py.tuple_item(binding, 6);
+        if (d) {
+            d->dict = py.tuple_item(binding, 1);
+            d->do_step = py.tuple_item(binding, 2);
+            d->refresh = py.tuple_item(binding, 3);
+            d->log_queue = py.tuple_item(binding, 4);
+            d->names = py.tuple_item(binding, 5);
+            d->kinds = (const unsigned char *)py.bytes_string(kinds);
+            d->n = (size_t)py.bytes_size(kinds);
+            d->feedthrough = py.is_true(py.tuple_item(binding, 7)) == 1;
+            d->stale = py.tuple_item(binding, 8);
+            d->binding = binding;
+            py.incref(d->stale);
+            binding = NULL; /* owned by d */
+        }
+        if (!d || !d->kinds || py.error()) {
+            if (d && d->binding) py.decref(d->binding);
+            free(d);
+            d = NULL;
+        }
+    }
+    if (py.error()) py.clear_error();
+    PyObject *owned[] = {binding, name, model_name, claim, sys};
+    for (size_t k = 0; k < sizeof owned / sizeof owned[0]; k++)
+        if (owned[k]) py.decref(owned[k]);
+    py.gil_release(gil);
+    i->direct = d;
+}
+
+/* Passes the messages the slave queued during a direct call to the host (pythonfmu forwards its
+   log queue after every call it makes; an empty fmi2GetReal is such a call). */
+static void flush_log(struct instance *i, int gil) {
+    long queued = py.list_size(i->direct->log_queue);
+    py.gil_release(gil);
+    if (queued > 0) inner_fmi2GetReal(i->inner, NULL, 0, NULL);
+}
+
+/* Whether every value reference is of the kinds in `allowed` (a bit mask of 1 << KIND_*). */
+static int covered(const struct direct *d, const fmi2ValueReference vr[], size_t n, int allowed, int *outputs) {
+    *outputs = 0;
+    for (size_t k = 0; k < n; k++) {
+        if (vr[k] >= d->n || !(allowed & (1 << d->kinds[vr[k]]))) return 0;
+        *outputs |= d->kinds[vr[k]] == KIND_OUTPUT;
+    }
+    return 1;
+}
+
+EXPORT fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[]) {
+    struct instance *i = c;
+    int outputs;
+    if (!i || !inner_fmi2GetReal) return fmi2Error;
+    if (!i->direct || !covered(i->direct, vr, n, 1 << KIND_INPUT | 1 << KIND_OUTPUT, &outputs))
+        return inner_fmi2GetReal(i->inner, vr, n, v);
+    struct direct *d = i->direct;
+    int gil = py.gil_ensure();
+    if (outputs) {
+        PyObject *stale = py.dict_get(d->dict, d->stale);
+        if (!stale || py.is_true(stale)) {
+            PyObject *result = py.call(d->refresh, NULL);
+            if (!result) { /* pythonfmu calls refresh_outputs again and reports the exception */
+                py.clear_error();
+                py.gil_release(gil);
+                return inner_fmi2GetReal(i->inner, vr, n, v);
+            }
+            py.decref(result);
+        }
+    }
+    for (size_t k = 0; k < n; k++) {
+        PyObject *value = py.dict_get(d->dict, py.tuple_item(d->names, (long)vr[k]));
+        v[k] = value ? py.as_double(value) : -1.0;
+        if (!value || (v[k] == -1.0 && py.error())) { /* not a number: pythonfmu reports it */
+            py.clear_error();
+            py.gil_release(gil);
+            return inner_fmi2GetReal(i->inner, vr, n, v);
+        }
+    }
+    flush_log(i, gil);
+    return fmi2OK;
+}
+
+EXPORT fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]) {
+    struct instance *i = c;
+    int outputs;
+    if (!i || !inner_fmi2SetReal) return fmi2Error;
+    if (!i->direct || !covered(i->direct, vr, n, 1 << KIND_INPUT, &outputs))
+        return inner_fmi2SetReal(i->inner, vr, n, v);
+    struct direct *d = i->direct;
+    int gil = py.gil_ensure();
+    int failed = 0;
+    for (size_t k = 0; k < n && !failed; k++) {
+        PyObject *value = py.from_double(v[k]);
+        failed = !value || py.dict_set(d->dict, py.tuple_item(d->names, (long)vr[k]), value) != 0;
+        if (value) py.decref(value);
+    }
+    if (!failed && d->feedthrough) failed = py.dict_set(d->dict, d->stale, py.true_object) != 0;
+    if (failed) { /* out of memory: pythonfmu sets them again and reports */
+        py.clear_error();
+        py.gil_release(gil);
+        return inner_fmi2SetReal(i->inner, vr, n, v);
+    }
+    flush_log(i, gil);
+    return fmi2OK;
+}
+
+EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior) {
+    struct instance *i = c;
+    if (!i || !inner_fmi2DoStep) return fmi2Error;
+    if (!i->direct) return inner_fmi2DoStep(i->inner, t, h, noSetPrior);
+    int gil = py.gil_ensure();
+    PyObject *time = py.from_double(t), *step = py.from_double(h), *result = NULL;
+    if (time && step) result = py.call2(i->direct->do_step, time, step, NULL);
+    long code = result ? py.as_long(result) : STEP_RAISED;
+    PyObject *owned[] = {result, step, time};
+    for (size_t k = 0; k < sizeof owned / sizeof owned[0]; k++)
+        if (owned[k]) py.decref(owned[k]);
+    if (py.error()) py.clear_error();
+    if (code == STEP_RAISED) { /* pythonfmu's fmi2DoStep raises the kept exception and reports it */
+        py.gil_release(gil);
+        return inner_fmi2DoStep(i->inner, t, h, noSetPrior);
+    }
+    flush_log(i, gil);
+    if (code == STEP_OK) {
+        i->last_successful_time = t + h;
+        return fmi2OK;
+    }
+    i->last_successful_time = t; /* as pythonfmu's fmi2DoStep after a step that returned False */
+    i->wants_to_terminate = 1;
+    return fmi2Discard;
+}
+
+EXPORT fmi2Status fmi2Reset(fmi2Component c) {
+    struct instance *i = c;
+    if (!i || !inner_fmi2Reset) return fmi2Error;
+    release_binding(i);
+    fmi2Status status = inner_fmi2Reset(i->inner); /* pythonfmu constructs a new slave */
+    i->last_successful_time = 0.0;
+    i->wants_to_terminate = 0;
+    if (status < fmi2Error) bind_direct(i);
+    return status;
+}
+
+/* Once the direct path has made a step, pythonfmu's record of the last step is not current. */
+EXPORT fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
+    struct instance *i = c;
+    if (!i || !inner_fmi2GetRealStatus) return fmi2Error;
+    if (i->direct && s == fmi2LastSuccessfulTime && value) {
+        *value = i->last_successful_time;
+        return fmi2OK;
+    }
+    return inner_fmi2GetRealStatus(i->inner, s, value);
+}
+
+EXPORT fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
+    struct instance *i = c;
+    if (!i || !inner_fmi2GetBooleanStatus) return fmi2Error;
+    if (i->direct && s == fmi2Terminated && value) {
+        *value = i->wants_to_terminate;
+        return fmi2OK;
+    }
+    return inner_fmi2GetBooleanStatus(i->inner, s, value);
 }
 
 EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
@@ -447,16 +767,36 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
                  "import)", model, instanceName ? instanceName : "the model", python_info);
         report(functions, instanceName, fmi2Error, message);
     }
-    return c;
+    if (!c) return NULL;
+    struct instance *i = calloc(1, sizeof *i);
+    if (!i) {
+        inner_fmi2FreeInstance(c);
+        report(functions, instanceName, fmi2Error, "fmi2 shim: out of memory");
+        return NULL;
+    }
+    i->inner = c;
+    snprintf(i->name, sizeof i->name, "%s", instanceName ? instanceName : "");
+    const char *setting = getenv("FTC_FMU_DIRECT");
+    i->direct_allowed = !(setting && strcmp(setting, "0") == 0);
+    bind_direct(i);
+    return i;
 }
 
 EXPORT void fmi2FreeInstance(fmi2Component c) {
-    if (c && inner_fmi2FreeInstance) inner_fmi2FreeInstance(c);
+    struct instance *i = c;
+    if (!i) return;
+    release_binding(i);
+    if (inner_fmi2FreeInstance) inner_fmi2FreeInstance(i->inner);
+    free(i);
 }
 
+/* The FMI2_PLAIN functions: pythonfmu's, called with its own component. */
 #define FORWARD(name, params, args)                                                                          \
-    EXPORT fmi2Status name params { return inner_##name ? inner_##name args : fmi2Error; }
-FMI2_FORWARDED(FORWARD)
+    EXPORT fmi2Status name params {                                                                          \
+        if (!inner_##name || !c) return fmi2Error;                                                           \
+        return call_##name args;                                                                             \
+    }
+FMI2_PLAIN(FORWARD)
 
 /* Releases pythonfmu's binary when the shim is unloaded and at exit, whichever comes first.
 

@@ -1,0 +1,183 @@
+"""The shim's direct calls (fmu_src/shim/fmi2_shim.c, "Direct calls") against pythonfmu's own
+path, which FTC_FMU_DIRECT=0 restores: the oracle is the same FMU driven through pythonfmu.
+
+Every communication step's fmi2DoStep/GetReal/SetReal of the project's FMUs goes past
+pythonfmu's per-call machinery when the shim has claimed the slave. These tests check that the
+two paths cannot be told apart: identical co-simulation results (bit for bit), the same status
+and message when do_step raises (replayed through pythonfmu), the same fmi2Discard, last
+successful time and terminate wish, messages queued during a step reaching the host's logger,
+and a new binding after fmi2Reset.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import fmpy
+import numpy as np
+import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import (
+    FMU2Slave,
+    fmi2CallbackAllocateMemoryTYPE,
+    fmi2CallbackFreeMemoryTYPE,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+    fmi2Discard,
+    fmi2LastSuccessfulTime,
+    fmi2Terminated,
+)
+
+import orchestrator
+
+pytestmark = pytest.mark.system
+
+PATHS = ("direct", "pythonfmu")
+
+
+@pytest.fixture(params=PATHS)
+def path(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
+    """Which path the instances created in the test take (the shim reads FTC_FMU_DIRECT at
+    fmi2Instantiate)."""
+    monkeypatch.setenv("FTC_FMU_DIRECT", "1" if request.param == "direct" else "0")
+    return str(request.param)
+
+
+class Messages:
+    """An FMI logger that keeps (status, message) of every call."""
+
+    def __init__(self) -> None:
+        self.seen: list[tuple[int, str]] = []
+        self.callbacks = fmi2CallbackFunctions()
+        self.callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
+        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
+        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
+
+    def _log(self, env, name, status, category, message) -> None:  # noqa: ANN001 - ctypes callback
+        self.seen.append((status, message.decode()))
+
+
+def instantiate(fmu: Path, messages: Messages, name: str = "instance") -> tuple[FMU2Slave, dict[str, int]]:
+    """One instance with logging on, and its value references by name."""
+    md = read_model_description(str(fmu))
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu)),
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+    slave.instantiate(callbacks=messages.callbacks, loggingOn=True)
+    return slave, {v.name: v.valueReference for v in md.modelVariables}
+
+
+@contextmanager
+def instance(fmu: Path, messages: Messages) -> Iterator[tuple[FMU2Slave, dict[str, int]]]:
+    """:func:`instantiate`, freed on every path."""
+    slave, vr = instantiate(fmu, messages)
+    try:
+        yield slave, vr
+    finally:
+        slave.freeInstance()
+
+
+def unclaimed() -> bool:
+    """Whether a slave constructed in this thread is still waiting for the shim to claim it."""
+    return threading.get_ident() in sys.__dict__.get("_ftc_fmu_slaves", {})
+
+
+@pytest.mark.parametrize("scenario", ["example1", "pendulum"])
+def test_results_identical_on_both_paths(built: Path, monkeypatch: pytest.MonkeyPatch, scenario: str) -> None:
+    """Every column of a 1 s co-simulation is the same to the bit, direct or through pythonfmu."""
+    results = {}
+    for value in ("1", "0"):
+        monkeypatch.setenv("FTC_FMU_DIRECT", value)
+        results[value] = orchestrator.run(built / "ssp" / f"{scenario}.ssp", stop_time=1.0)
+    direct, plain = results["1"], results["0"]
+    assert direct.dtype.names == plain.dtype.names
+    assert len(direct) == len(plain) > 1000
+    for column in direct.dtype.names:
+        assert np.array_equal(direct[column], plain[column]), column
+
+
+def test_instances_are_claimed(fmus: dict[str, Path], path: str) -> None:
+    """The shim claims each slave pythonfmu constructs, in fmi2Instantiate and in fmi2Reset (with the
+    direct path off it does not ask)."""
+    for fmu in fmus.values():
+        with instance(fmu, Messages()) as (slave, _):
+            assert unclaimed() == (path == "pythonfmu")
+            slave.reset()
+            assert unclaimed() == (path == "pythonfmu")
+        sys.__dict__.get("_ftc_fmu_slaves", {}).clear()
+
+
+def test_raise_in_do_step_is_reported_by_pythonfmu(fmus: dict[str, Path], path: str) -> None:
+    """A do_step that raises (the controller before initialization) gives pythonfmu's fmi2Fatal and
+    its message naming the exception, on both paths. (The instance is not freed: after fmi2Fatal
+    FMI allows no further call, and pythonfmu 0.7.0's fmi2FreeInstance then corrupts the heap.)"""
+    messages = Messages()
+    slave, _ = instantiate(fmus["FixedTimeController"], messages)
+    with pytest.raises(FMICallException) as raised:
+        slave.doStep(0.0, 1e-3)
+    assert raised.value.status == 4  # fmi2Fatal
+    assert messages.seen[-1][0] == 4
+    assert "[doStep]" in messages.seen[-1][1]
+    assert "doStep before exitInitializationMode" in messages.seen[-1][1]
+
+
+def test_discard_and_step_status(fmus: dict[str, Path], path: str) -> None:
+    """A plant step whose state overflows is fmi2Discard with the plant's message; the last successful
+    time and the terminate wish are those pythonfmu's fmi2DoStep records."""
+    messages = Messages()
+    with instance(fmus["Example1Plant"], messages) as (slave, vr):
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        slave.setReal([vr["uf"]], [1.0])
+        slave.doStep(0.0, 1e-3)
+        assert slave.getRealStatus(fmi2LastSuccessfulTime) == 1e-3
+        assert not slave.getBooleanStatus(fmi2Terminated)
+        slave.setReal([vr["uf"]], [1e300])
+        with pytest.raises(FMICallException) as raised:
+            slave.doStep(1e-3, 1e-3)
+        assert raised.value.status == fmi2Discard
+        assert slave.getRealStatus(fmi2LastSuccessfulTime) == 1e-3
+        assert slave.getBooleanStatus(fmi2Terminated)
+        assert slave.getReal([vr["y"]]) == [slave.getReal([vr["x1"]])[0]]  # the state of 1 ms
+    assert any("step rejected (fmi2Discard)" in text for _, text in messages.seen)
+
+
+def test_warning_in_do_step_reaches_the_host(fmus: dict[str, Path], path: str) -> None:
+    """A message the slave queues in a successful step (the semi-implicit controller stepped at
+    another step than its sample time) reaches the host's logger, once."""
+    messages = Messages()
+    with instance(fmus["FixedTimeController"], messages) as (slave, vr):
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.setInteger([vr["discretization"]], [1])
+        slave.exitInitializationMode()
+        for k in range(3):
+            slave.doStep(k * 2e-3, 2e-3)
+    warnings = [text for status, text in messages.seen if "differs from sample_time" in text]
+    assert len(warnings) == 1
+    assert "communication step 0.002 s at t = 0.0" in warnings[0]
+
+
+def test_reset_gives_a_fresh_instance(fmus: dict[str, Path], path: str) -> None:
+    """After fmi2Reset the new slave answers: the same outputs as the first run, step by step."""
+    def run(slave: FMU2Slave, vr: dict) -> list[float]:
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        rows = []
+        for k in range(5):
+            slave.setReal([vr["x1"], vr["x2"], vr["yd"]], [0.5 - 0.01 * k, 0.5, 0.0])
+            rows += slave.getReal([vr["v"], vr["eta1_hat"], vr["r"]])
+            slave.doStep(k * 1e-3, 1e-3)
+        return rows
+
+    with instance(fmus["FixedTimeController"], Messages()) as (slave, vr):
+        first = run(slave, vr)
+        slave.reset()
+        assert run(slave, vr) == first
+        assert len(set(first)) > 5  # the outputs moved
