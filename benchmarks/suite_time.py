@@ -6,11 +6,14 @@ back in one run (issue 14: the restructured suite against the one before it).
 Each revision is cloned (``git clone`` of this repository, then ``git checkout``) into a
 temporary folder beside this checkout (so that ``../shared`` resolves as it does here and in CI).
 There, as ``.ci/run`` does, with no stdin: ``make build`` (the set-up: a new ``.venv``, the FMU
-build, the scenarios), then ``make test`` (with the build up to date: the suite alone). The later
-revision's suite runs twice: whole, and without the test of the conformance matrix
-(``tests/test_crosscheck_system.py``: every scenario in six other SSP tools, added after
-1b18f86 by issue 8), so that the same tests can be compared. Prints the wall times, pytest's
-summary lines and the ratios.
+build, the scenarios), then ``make test`` (with the build up to date: the suite alone).
+
+The later suite holds tests the earlier one did not have (the conformance matrix of issue 8,
+the faults of issue 13, ...), so both suites are also run on their common tests only: the tests
+of the earlier revision that the later one still has, under the same id or, when their file was
+renamed, under the only id with the same test name. Each side runs them with its own
+``make test`` pytest command (``make -n test``). Prints the wall times, pytest's summary lines
+and the ratios.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import shlex
 import shutil
 import subprocess
 import tempfile
@@ -27,7 +31,6 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 BEFORE = "1b18f86"  # the last commit before issue 14's restructuring of the tests
-MATRIX_TEST = "tests/test_crosscheck_system.py"
 
 
 @dataclass
@@ -53,17 +56,46 @@ def timed(label: str, command: list[str], clone: Path, addopts: str = "") -> Tim
     return Timing(label, wall, done.returncode, summary)
 
 
-def measure(revision: str, parent: Path, without_matrix: bool) -> list[Timing]:
+def measure(revision: str, parent: Path) -> tuple[Path, list[Timing]]:
     """Clone ``revision`` into ``parent``; time the set-up and the suite there."""
     clone = parent / f"suite-{revision}"
     subprocess.run(["git", "clone", "--quiet", str(REPO), str(clone)], check=True)
     subprocess.run(["git", "-C", str(clone), "checkout", "--quiet", revision], check=True)
-    runs = [timed(f"{revision} make build (set-up)", ["make", "build"], clone),
-            timed(f"{revision} make test", ["make", "test"], clone)]
-    if without_matrix:
-        runs.append(timed(f"{revision} make test without {MATRIX_TEST}", ["make", "test"], clone,
-                          f"--ignore={MATRIX_TEST}"))
-    return runs
+    return clone, [timed(f"{revision} make build (set-up)", ["make", "build"], clone),
+                   timed(f"{revision} make test", ["make", "test"], clone)]
+
+
+def test_ids(clone: Path) -> list[str]:
+    """The node ids of a clone's suite (``pytest --collect-only -q``)."""
+    listed = subprocess.run([str(clone / ".venv" / "bin" / "python"), "-m", "pytest", "--collect-only", "-q",
+                             "-p", "no:cacheprovider"], cwd=clone, capture_output=True, text=True, check=True)
+    return [line for line in listed.stdout.splitlines() if line.startswith("tests/") and "::" in line]
+
+
+def common_tests(old: list[str], new: list[str]) -> tuple[list[str], list[str]]:
+    """The old ids the new suite still has (same id, or the only new id of the same test name in
+    another file) and their new ids, in the same order."""
+    present = set(new)
+    by_name: dict[str, list[str]] = {}
+    for node in new:
+        by_name.setdefault(node.split("::", 1)[1], []).append(node)
+    pairs = []
+    for node in old:
+        same_name = by_name.get(node.split("::", 1)[1], [])
+        if node in present:
+            pairs.append((node, node))
+        elif len(same_name) == 1:
+            pairs.append((node, same_name[0]))
+    return [a for a, _ in pairs], [b for _, b in pairs]
+
+
+def pytest_command(clone: Path) -> list[str]:
+    """The pytest command of the clone's ``make test`` (``make -n test``; the build is up to date)."""
+    # The recipe line, e.g. "CROSSCHECK_OUTPUT=results/crosscheck .venv/bin/python -m pytest -q -n 2".
+    lines = subprocess.run(["make", "-n", "test"], cwd=clone, capture_output=True, text=True,
+                           check=True).stdout.splitlines()
+    line = next(line for line in lines if "pytest" in line)
+    return shlex.split(line)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -78,8 +110,14 @@ def main(argv: list[str] | None = None) -> int:
     parent = args.keep or Path(tempfile.mkdtemp(prefix="suite-time-", dir=REPO.parent))
     parent.mkdir(parents=True, exist_ok=True)
     try:
-        old = measure(args.before, parent, without_matrix=False)
-        new = measure(after, parent, without_matrix=True)
+        old_clone, old = measure(args.before, parent)
+        new_clone, new = measure(after, parent)
+        old_ids, new_ids = common_tests(test_ids(old_clone), test_ids(new_clone))
+        for clone, revision, ids, runs in ((old_clone, args.before, old_ids, old),
+                                           (new_clone, after, new_ids, new)):
+            # "env" takes the VAR=value words a make recipe may start with.
+            runs.append(timed(f"{revision} its make test on the {len(ids)} common tests",
+                              ["env", *pytest_command(clone), *ids], clone))
     finally:
         if args.keep is None:
             shutil.rmtree(parent, ignore_errors=True)
@@ -87,10 +125,8 @@ def main(argv: list[str] | None = None) -> int:
           f"(load average {os.getloadavg()[0]:.2f}):")
     for run in old + new:
         print(f"  {run.label:62s} {run.wall:7.1f} s  exit {run.status}  {run.summary}")
-    base = old[1].wall
-    for run in new[1:]:
-        print(f"  ratio ({run.label}) / ({old[1].label}): {run.wall / base:.2f}")
-    print(f"  set-up ratio: {new[0].wall / old[0].wall:.2f}")
+    for a, b in zip(old, new, strict=True):
+        print(f"  ratio {after} / {args.before}, {a.label.split(' ', 1)[1]}: {b.wall / a.wall:.2f}")
     return max(run.status for run in old + new)
 
 
