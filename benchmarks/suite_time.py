@@ -4,7 +4,7 @@ back in one run (issue 14: the restructured suite against the one before it).
     python benchmarks/suite_time.py [--before 1b18f86] [--after HEAD] [--keep DIR]
 
 Each revision is cloned (``git clone`` of this repository, then ``git checkout``) into a
-temporary folder beside this checkout (so that ``../shared`` resolves as it does here and in CI).
+folder beside this checkout (so that ``../shared`` resolves as it does here and in CI).
 There, as ``.ci/run`` does, with no stdin: ``make build`` (the set-up: a new ``.venv``, the FMU
 build, the scenarios), then ``make test`` (with the build up to date: the suite alone).
 
@@ -57,8 +57,9 @@ def timed(label: str, command: list[str], clone: Path, addopts: str = "") -> Tim
 
 
 def measure(revision: str, parent: Path) -> tuple[Path, list[Timing]]:
-    """Clone ``revision`` into ``parent``; time the set-up and the suite there."""
-    clone = parent / f"suite-{revision}"
+    """Clone ``revision`` beside this checkout (``<parent>-<revision>``, so that ``../shared`` is
+    the same folder); time the set-up and the suite there."""
+    clone = parent.with_name(f"{parent.name}-{revision}")
     subprocess.run(["git", "clone", "--quiet", str(REPO), str(clone)], check=True)
     subprocess.run(["git", "-C", str(clone), "checkout", "--quiet", revision], check=True)
     return clone, [timed(f"{revision} make build (set-up)", ["make", "build"], clone),
@@ -103,12 +104,13 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--before", default=BEFORE)
     parser.add_argument("--after", default="HEAD")
-    parser.add_argument("--keep", type=Path, help="keep the clones in this folder (default: removed)")
+    parser.add_argument("--keep", type=Path, help="keep the clones, named KEEP-<revision> (default: removed)")
     args = parser.parse_args(argv)
     after = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", args.after], check=True,
                            capture_output=True, text=True).stdout.strip()
     parent = args.keep or Path(tempfile.mkdtemp(prefix="suite-time-", dir=REPO.parent))
     parent.mkdir(parents=True, exist_ok=True)
+    clones = [parent.with_name(f"{parent.name}-{r}") for r in (args.before, after)]
     try:
         old_clone, old = measure(args.before, parent)
         new_clone, new = measure(after, parent)
@@ -120,7 +122,8 @@ def main(argv: list[str] | None = None) -> int:
                               ["env", *pytest_command(clone), *ids], clone))
     finally:
         if args.keep is None:
-            shutil.rmtree(parent, ignore_errors=True)
+            for folder in (parent, *clones):
+                shutil.rmtree(folder, ignore_errors=True)
     print(f"fresh clones, back to back, finished {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} "
           f"(load average {os.getloadavg()[0]:.2f}):")
     for run in old + new:
