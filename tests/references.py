@@ -1,6 +1,8 @@
 """The monolithic reference runs (30 s, solve_ivp at rtol 1e-10) that several tests compare with,
-each computed once per test process. Their tests share the xdist group ``monolithic-references``
-(``pytest -n 2 --dist loadgroup``), so one worker computes each run once."""
+each computed once per test process. The tests of one example share the xdist group
+``monolithic-references-<number>`` (``pytest -n 2 --dist loadgroup``, :func:`group`): one worker
+computes each run once, and the two examples' runs (the pendulum's cost most) can go to two
+workers."""
 
 from __future__ import annotations
 
@@ -13,7 +15,10 @@ from controller.params import EXPLICIT, Discretization, Mode
 from fmu_src.models.examples import EXAMPLES
 from orchestrator.experiments.closed_loop import simulate
 
-GROUP = pytest.mark.xdist_group("monolithic-references")
+
+def group(number: int) -> pytest.MarkDecorator:
+    """The xdist group of the tests that use Example ``number``'s references."""
+    return pytest.mark.xdist_group(f"monolithic-references-{number}")
 
 
 @functools.cache

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from references import GROUP, reference
+from references import group, reference
 
 from controller.law import evaluate
 from controller.params import Mode
@@ -29,9 +29,8 @@ def test_initial_control_effort_matches_the_independent_figure(number, v0, rel):
     assert d["time"][0] == 0.0 and d["x1"][0] == ex.x0[0]
 
 
-@GROUP
 @pytest.mark.system
-@pytest.mark.parametrize("number", [1, 2])
+@pytest.mark.parametrize("number", [pytest.param(n, marks=group(n)) for n in (1, 2)])
 def test_fixed_time_tracks_better_than_finite_time_over_30_s(number):
     """The paper's claim (Tables 1-2), and SPEC section 6's RMSE near 0.012 for Example 1."""
     metrics = {}

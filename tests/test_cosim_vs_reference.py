@@ -18,18 +18,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from references import GROUP, reference
+from references import group, reference
 
 import orchestrator
 from controller.params import SEMI_IMPLICIT
 
 REPO = Path(__file__).resolve().parent.parent
 
-pytestmark = [pytest.mark.system, GROUP]
+pytestmark = pytest.mark.system
 
 
 # (scenario, example, the communication step the scenario ships with)
-@pytest.mark.parametrize(("scenario", "number", "step"), [("example1", 1, 1e-3), ("pendulum", 2, 5e-4)])
+@pytest.mark.parametrize(("scenario", "number", "step"), [pytest.param("example1", 1, 1e-3, marks=group(1)),
+                                                         pytest.param("pendulum", 2, 5e-4, marks=group(2))])
 def test_cosimulated_plant_output_matches_the_monolithic_reference(built, scenario, number, step):
     cosim = orchestrator.run(built / "ssp" / f"{scenario}.ssp")
     sampled = reference(number, sample_time=step)
@@ -49,7 +50,8 @@ def test_cosimulated_plant_output_matches_the_monolithic_reference(built, scenar
 
 
 @pytest.mark.parametrize(("scenario", "number", "step"),
-                         [("example1_smooth", 1, 1e-3), ("pendulum_smooth", 2, 5e-4)])
+                         [pytest.param("example1_smooth", 1, 1e-3, marks=group(1)),
+                          pytest.param("pendulum_smooth", 2, 5e-4, marks=group(2))])
 def test_semi_implicit_cosimulation_matches_the_monolithic_discrete_law(built, scenario, number, step):
     """Issue 11: the co-simulated semi-implicit controller FMU (the n = 2 path) against the monolithic
     reference of the same discrete law (the general-n library law, solve_ivp between samples), to the

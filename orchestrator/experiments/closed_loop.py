@@ -48,17 +48,17 @@ class ReferenceRun:
     data: np.ndarray = field(repr=False)
 
 
-def _controller_inputs(t: float, y: np.ndarray, ex: Example) -> tuple[list[float], tuple]:
+def _controller_inputs(t: float, y: np.ndarray | list[float], ex: Example) -> tuple[list[float], tuple]:
     return [y[0], y[1]], reference_signal(t, ex.reference)
 
 
-def _seq(values: np.ndarray) -> Sequence[float]:
+def _seq(values: np.ndarray | list[float]) -> Sequence[float]:
     """An array where the law and the plant models take a ``Sequence[float]``: they only index it,
     so the array serves as it is (their annotations name no arrays)."""
     return cast(Sequence[float], values)
 
 
-def _outputs(t: float, y: np.ndarray, ex: Example, params: ControllerParameters) -> tuple:
+def _outputs(t: float, y: np.ndarray | list[float], ex: Example, params: ControllerParameters) -> tuple:
     """(v, uf, u_dz, terms) for the full state y = [x1, x2, z, r, eta_1..eta_n] at time t."""
     x, yd = _controller_inputs(t, y, ex)
     terms = evaluate(_seq(y[3:]), x, yd, params)
@@ -67,13 +67,16 @@ def _outputs(t: float, y: np.ndarray, ex: Example, params: ControllerParameters)
 
 
 def _continuous_rhs(t: float, y: np.ndarray, ex: Example, params: ControllerParameters) -> list[float]:
-    _, uf, _, terms = _outputs(t, y, ex, params)
-    return [*ex.plant_rhs(t, _seq(y[:3]), uf), *terms.derivative]
+    # Python floats: the models' scalar arithmetic on NumPy scalars costs about twice as much.
+    values = y.tolist()
+    _, uf, _, terms = _outputs(t, values, ex, params)
+    return [*ex.plant_rhs(t, values[:3], uf), *terms.derivative]
 
 
 def _held_rhs(t: float, y: np.ndarray, ex: Example, params: ControllerParameters, x, yd, uf) -> list[float]:
     """Plant driven by the held uf; controller states driven by the held inputs x, yd."""
-    return [*ex.plant_rhs(t, _seq(y[:3]), uf), *evaluate(_seq(y[3:]), x, yd, params).derivative]
+    values = y.tolist()  # Python floats, as in _continuous_rhs
+    return [*ex.plant_rhs(t, values[:3], uf), *evaluate(values[3:], x, yd, params).derivative]
 
 
 def _record(t: float, y: np.ndarray, ex: Example, params: ControllerParameters) -> tuple:
