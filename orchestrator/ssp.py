@@ -733,7 +733,8 @@ def write_ssd(folder: str | os.PathLike, structure: SystemStructure) -> Path:
             for ps in c.parameter_sets:
                 write_ssv(folder / ps.origin, ps, structure.name)
                 _element(bindings, "ssd:ParameterBinding", source=ps.origin)
-    connections = _element(system, "ssd:Connections")
+    # SSP's schema wants at least one Connection inside Connections: none, no element.
+    connections = _element(system, "ssd:Connections") if structure.connections else None
     for link in structure.connections:
         connection = _element(connections, "ssd:Connection", startElement=link.start.component,
                               startConnector=link.start.connector, endElement=link.end.component,

@@ -189,3 +189,17 @@ def test_object_model_round_trip(tmp_path):
                                                          for c in read.components)))
     for name in ("SystemStructure.ssd", "a.ssv"):
         assert (second / name).read_bytes() == (first / name).read_bytes(), name
+
+
+def test_a_system_without_connections_is_written_schema_valid(tmp_path):
+    """SSP's schema wants at least one Connection inside a Connections element: a system of one
+    component is written without it and reads back (the schema check is inside read_scenario)."""
+    from orchestrator.ssp import Experiment, SystemStructure, component, read_scenario, write_ssd
+
+    alone = SystemStructure("alone", (component("a", "A.fmu", [("y", "output", "Real")]),), (),
+                            Experiment(0.0, 1.0, 0.1))
+    write_ssd(tmp_path, alone)
+    (tmp_path / "resources").mkdir()
+    (tmp_path / "resources" / "A.fmu").write_bytes(b"not read here")
+    assert "Connections" not in (tmp_path / "SystemStructure.ssd").read_text()
+    assert read_scenario(tmp_path).connections == ()
