@@ -36,3 +36,16 @@ def test_report_on_a_short_horizon(tmp_path: Path, capsys: pytest.CaptureFixture
     study = text.split("## The fixed-time claim, measured")[1]
     assert study.count("\n| ") == 1 + 4  # header and the 2 x 2 initial states
     assert "horizon 0.5 s" in study
+
+
+@pytest.mark.parametrize("values", [(-1.0, 1.0), (2.0,)])
+def test_study_section_on_a_grid_without_nearer_states(values: tuple[float, ...]) -> None:
+    """Every state of the grid {-1, 1}^2 (or {2}^2) is equally far from the origin: there is nothing
+    to compare the farthest states with, and the section says so instead of failing (it raised
+    ValueError on an empty selection)."""
+    from orchestrator.experiments.report import SettlingRow, _study_section
+
+    rows = [SettlingRow(a, b, 0.05, 0.3) for a in values for b in values]
+    text = "\n".join(_study_section(rows, values, 1.0))
+    assert f"max(|x1(0)|, |x2(0)|) = {max(abs(v) for v in values):g}" in text
+    assert "cannot be judged" in text and "Verdict" not in text

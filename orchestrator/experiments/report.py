@@ -355,10 +355,13 @@ def _study_section(study: list[SettlingRow], values: Sequence[float], horizon: f
         return text + (f" ({bad} of {len(x)} runs never settled or failed)" if bad else "")
 
     lines += ["", f"Fixed-time: settling times {spread(fixed)}; finite-time: {spread(finite)}.", ""]
-    if np.isfinite(fixed).all() and np.isfinite(finite).all():
-        # growth of the worst settling time from the near half of the grid to its farthest states
-        distance = np.array([max(abs(r.x1_0), abs(r.x2_0)) for r in study])
-        near, far = distance <= distance.max() / 2, distance == distance.max()
+    # growth of the worst settling time from the near half of the grid to its farthest states
+    distance = np.array([max(abs(r.x1_0), abs(r.x2_0)) for r in study])
+    near, far = distance <= distance.max() / 2, distance == distance.max()
+    if not near.any():
+        lines.append(f"Every initial state of this grid is at max(|x1(0)|, |x2(0)|) = {distance.max():g}: "
+                     "no nearer states to compare with, so the claim cannot be judged from this grid.")
+    elif np.isfinite(fixed).all() and np.isfinite(finite).all():
         fixed_growth = fixed[far].max() - fixed[near].max()
         finite_growth = finite[far].max() - finite[near].max()
         lines.append(f"Worst settling time from the initial states with max(|x1(0)|, |x2(0)|) <= "
