@@ -509,7 +509,6 @@ static struct {
     int (*is_true)(PyObject *);
     PyObject *(*error)(void);
     void (*clear_error)(void);
-    void (*incref)(PyObject *);
     void (*decref)(PyObject *);
     PyObject *true_object;
 } py;
@@ -537,17 +536,17 @@ static void resolve_python_api(void *python) {
     FIND(is_true, "PyObject_IsTrue");
     FIND(error, "PyErr_Occurred");
     FIND(clear_error, "PyErr_Clear");
-    FIND(incref, "Py_IncRef");
     FIND(decref, "Py_DecRef");
     FIND(true_object, "_Py_TrueStruct"); /* the object Py_True itself */
 #undef FIND
 }
 
-/* A slave's binding: strong references, released at fmi2FreeInstance and before fmi2Reset. */
+/* A slave's binding: the tuple it handed over (one strong reference, released at fmi2FreeInstance
+   and before fmi2Reset) and the items of that tuple, borrowed. */
 struct direct {
     PyObject *dict;      /* the slave's __dict__: its variables by name */
-    PyObject *do_step;   /* bound method (t, h) -> STEP_* */
-    PyObject *refresh;   /* bound method: refresh_outputs(), then _fmu_stale = False */
+    PyObject *do_step;   /* function (t, h) -> STEP_* */
+    PyObject *refresh;   /* function: refresh_outputs(), then _fmu_stale = False */
     PyObject *log_queue; /* the list pythonfmu forwards to the host's logger */
     PyObject *stale;     /* the key "_fmu_stale" */
     PyObject *names;     /* tuple: value reference -> variable name (None if not direct) */
@@ -561,7 +560,6 @@ static void release_binding(struct instance *i) {
     if (!i->direct) return;
     int gil = py.gil_ensure();
     py.decref(i->direct->binding);
-    py.decref(i->direct->stale);
     py.gil_release(gil);
     free(i->direct);
     i->direct = NULL;
@@ -570,7 +568,6 @@ static void release_binding(struct instance *i) {
 /* Asks the slave just constructed in this thread for its binding; leaves i->direct NULL (every
    call forwarded) for slaves that do not offer one, such as plain pythonfmu slaves. */
 static void bind_direct(struct instance *i) {
-    release_binding(i);
     if (!i->direct_allowed || !py.ready) return;
     int gil = py.gil_ensure();
     PyObject *sys = py.import("sys"), *claim = NULL, *binding = NULL, *model_name = NULL, *name = NULL;
@@ -593,7 +590,6 @@ static void bind_direct(struct instance *i) {
             d->feedthrough = py.is_true(py.tuple_item(binding, 7)) == 1;
             d->stale = py.tuple_item(binding, 8);
             d->binding = binding;
-            py.incref(d->stale);
             binding = NULL; /* owned by d */
         }
         if (!d || !d->kinds || py.error()) {

@@ -53,8 +53,8 @@ def _controller_inputs(t: float, y: np.ndarray | list[float], ex: Example) -> tu
 
 
 def _seq(values: np.ndarray | list[float]) -> Sequence[float]:
-    """An array where the law and the plant models take a ``Sequence[float]``: they only index it,
-    so the array serves as it is (their annotations name no arrays)."""
+    """An array (or list) where the law and the plant models take a ``Sequence[float]``: they only
+    index it, so it serves as it is (their annotations name no arrays)."""
     return cast(Sequence[float], values)
 
 
