@@ -10,8 +10,8 @@
 
 A name without extension gets CSV; any other extension is a usage error, before anything runs.
 A selection or another format is made from the streamed CSV when the run ends (also after a
-failure, from the rows kept): the CSV then goes to ``<output>.partial.csv`` while the run goes,
-and is removed once the final file is written.
+failure, from the rows kept): the CSV then goes to ``<output>.<pid>.partial.csv`` (the process id:
+two runs writing one output do not share it) and is removed once the final file is written.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import files
 from .errors import UsageError
 
 __all__ = ["FORMATS", "Selection", "check_output", "read_table", "staging_path", "write_selected"]
@@ -85,11 +86,12 @@ def check_output(path: str | os.PathLike, step: float | None = None,
 
 def staging_path(output: str | os.PathLike, selection: Selection = Selection()) -> Path:
     """Where the master streams its CSV: ``output`` itself for a full CSV, else
-    ``<output>.partial.csv`` (turned into ``output`` by :func:`write_selected`)."""
+    ``<output>.<pid>.partial.csv``, of this process only (turned into ``output`` by
+    :func:`write_selected`)."""
     output = Path(output)
     if output.suffix.lower() in (".csv", "") and selection.everything:
         return output
-    return output.with_name(output.name + ".partial.csv")
+    return output.with_name(f"{output.name}.{os.getpid()}.partial.csv")
 
 
 def write_selected(csv: str | os.PathLike, output: str | os.PathLike,
@@ -105,22 +107,21 @@ def write_selected(csv: str | os.PathLike, output: str | os.PathLike,
     data = read_csv(csv)
     columns = selection.columns(data.dtype.names)
     data = data[selection.rows(data["time"])]
-    partial = output.with_name(output.name + ".part")
     suffix = output.suffix.lower()
-    if suffix == ".parquet":
-        import pyarrow as pa
-        import pyarrow.parquet as pq
+    with files.replacing(output) as partial:
+        if suffix == ".parquet":
+            import pyarrow as pa
+            import pyarrow.parquet as pq
 
-        table = pa.table({c: np.ascontiguousarray(data[c], dtype=np.float64) for c in columns})
-        pq.write_table(table, partial)
-    elif suffix == ".mat":
-        _write_mat(partial, data, columns)
-    else:
-        with open(partial, "w", encoding="utf-8", newline="\n") as out:
-            out.write(",".join(columns) + "\n")
-            for row in zip(*(data[c].tolist() for c in columns), strict=True):
-                out.write(",".join(map(repr, row)) + "\n")
-    partial.replace(output)
+            table = pa.table({c: np.ascontiguousarray(data[c], dtype=np.float64) for c in columns})
+            pq.write_table(table, partial)
+        elif suffix == ".mat":
+            _write_mat(partial, data, columns)
+        else:
+            with open(partial, "w", encoding="utf-8", newline="\n") as out:
+                out.write(",".join(columns) + "\n")
+                for row in zip(*(data[c].tolist() for c in columns), strict=True):
+                    out.write(",".join(map(repr, row)) + "\n")
     if csv != output:
         csv.unlink(missing_ok=True)
     return output

@@ -22,6 +22,7 @@ from collections.abc import Iterable, Mapping
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
+from . import files
 from .system import System
 
 __all__ = ["PACKAGES", "column_units", "commit", "describe", "digest", "finish", "overrides_text",
@@ -116,12 +117,7 @@ def _unit(var: object) -> str | None:
 
 def write_provenance(result: str | os.PathLike, record: Mapping[str, object]) -> Path:
     """Write (atomically) the sidecar of ``result``; returns its path."""
-    path = sidecar(result)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_name(path.name + ".part")
-    partial.write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
-    partial.replace(path)
-    return path
+    return files.write_text(sidecar(result), json.dumps(record, indent=1) + "\n")
 
 
 def finish(result: str | os.PathLike, record: dict[str, object], status: str, rows: int,

@@ -37,6 +37,7 @@ from typing import overload
 from fmpy.ssp import ssd as fmpy_ssd
 from lxml import etree
 
+from . import files
 from .errors import ScenarioError
 from .units import UnitDef, read_units
 
@@ -765,13 +766,10 @@ def pack_ssp(folder: str | os.PathLike, fmus: Mapping[str, str | os.PathLike],
     placed under ``resources/``; written to a temporary name first so a failed build leaves no
     half-written archive."""
     source, target = Path(folder), Path(dest)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    partial = target.with_name(target.name + ".part")
-    with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zf:
+    with files.replacing(target) as partial, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zf:
         for path in sorted(source.rglob("*")):
             if path.is_file() and not path.name.startswith("."):
                 zf.write(path, path.relative_to(source).as_posix())
         for name, fmu in sorted(fmus.items()):
             zf.write(fmu, f"resources/{name}")
-    partial.replace(target)
     return target

@@ -24,6 +24,7 @@ import pytest
 from fmpy.util import read_csv
 from orch_helpers import build_test_fmu, loop_scenario
 
+from orchestrator.formats import read_table
 from orchestrator.ssp import Connection, Experiment, SystemStructure, component, pack_ssp, write_ssd
 
 pytestmark = pytest.mark.system
@@ -192,21 +193,25 @@ def test_non_finite_start_value_fails_at_t0_with_no_row(test_fmus, tmp_path):
     assert not list(tmp_path.glob(".r.csv.*.part"))
 
 
-def test_two_runs_writing_one_file_leave_a_complete_csv(test_fmus, tmp_path):
+@pytest.mark.parametrize("name", ["r.csv", "r.parquet"])
+def test_two_runs_writing_one_file_leave_a_complete_file(test_fmus, tmp_path, name):
+    """Both runs succeed; the file and its sidecar are each one run's, complete; no temporary file
+    is left (the CSV is streamed, the Parquet file made from a staging CSV of each process)."""
     ssp = loop_scenario(tmp_path / "loop", test_fmus, stop=20.0, step=H)
-    csv = tmp_path / "r.csv"
+    out = tmp_path / "results" / name
     env = {**os.environ, "TMPDIR": str(tmp_path)}
-    runs = [subprocess.Popen([str(ORCHESTRATE), "run", str(ssp), "--output", str(csv), "--no-plot", "--quiet",
+    runs = [subprocess.Popen([str(ORCHESTRATE), "run", str(ssp), "--output", str(out), "--no-plot", "--quiet",
                               "--set", f"integrator.x0={x0}"], env=env, stderr=subprocess.PIPE)
             for x0 in (1.0, 2.0)]
     for p in runs:
         assert p.wait(timeout=120) == 0, p.stderr.read()
-    data = read_csv(csv)
+    data = read_csv(out) if out.suffix == ".csv" else read_table(out)
     assert len(data) == 2001
     x0 = data["integrator.x"][0]
     assert x0 in (1.0, 2.0)
     np.testing.assert_allclose(data["integrator.x"], x0 * (1 - 2.0 * H) ** np.arange(2001), rtol=1e-12)
-    assert not list(tmp_path.glob(".r.csv.*.part"))
+    assert json.loads((tmp_path / "results" / f"{name}.json").read_text())["status"] == "complete"
+    assert sorted(p.name for p in out.parent.iterdir()) == [name, f"{name}.json"]
 
 
 def test_timeout_stops_a_long_run_at_a_communication_point(test_fmus, tmp_path):

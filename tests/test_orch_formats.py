@@ -6,6 +6,7 @@ OMSimulator itself writes for a scenario (the layout Dymola/OpenModelica tools r
 
 from __future__ import annotations
 
+import os
 import subprocess
 from pathlib import Path
 
@@ -41,9 +42,9 @@ def test_unknown_extension_and_bad_interval_are_usage_errors():
 
 
 def test_parquet_with_selection(tmp_path):
-    source = _csv(tmp_path / "r.parquet.partial.csv")
     selection = Selection(variables=("a.*",), interval=0.05, drop=("a.u",))
-    assert staging_path(tmp_path / "r.parquet", selection) == source
+    source = _csv(staging_path(tmp_path / "r.parquet", selection))
+    assert source.name == f"r.parquet.{os.getpid()}.partial.csv"  # this process's own
     out = write_selected(source, tmp_path / "r.parquet", selection)
     table = pq.read_table(out)
     assert table.schema.names == ["time", "a.x"]
@@ -101,7 +102,7 @@ def test_mat_matches_what_omsimulator_writes(built, tmp_path):
     y = our_names.index("plant.y")
     np.testing.assert_array_equal(b["data_2"][0], np.arange(11) / 1000)
     assert b["data_2"][y][0] == 0.5  # Example 1 starts at x1(0) = 0.5
-    assert not (tmp_path / "r.mat.partial.csv").exists()  # the staging CSV is gone
+    assert sorted(p.name for p in tmp_path.glob("r.mat*")) == ["r.mat", "r.mat.json"]  # no staging CSV left
 
 
 @pytest.mark.system
@@ -119,7 +120,7 @@ def test_run_writes_the_format_and_selection_also_for_a_failed_run(test_fmus, tm
     table = pq.read_table(out)
     assert table.schema.names == ["time", "source.y", "gain.y", "integrator.x"]
     assert table.column("time").to_pylist() == [k / 100 for k in range(6)]
-    assert not (tmp_path / "r.parquet.partial.csv").exists()
+    assert sorted(p.name for p in tmp_path.glob("r.parquet*")) == ["r.parquet", "r.parquet.json"]
     with pytest.raises(SystemExit) as info:
         main(["run", str(loop), "--quiet", "--output", str(tmp_path / "r.xlsx")])
     assert info.value.code == 2 and not (tmp_path / "r.xlsx").exists()

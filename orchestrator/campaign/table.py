@@ -16,6 +16,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO, cast
 
+from .. import files
+
 if TYPE_CHECKING:
     from _csv import Writer
 
@@ -103,12 +105,10 @@ class Journal:
 
     def _write_sorted(self) -> None:
         self.rows.sort(key=lambda r: cast(int, r["run"]))
-        partial = self.csv_path.with_name(self.csv_path.name + ".part")
-        with open(partial, "w", newline="", encoding="utf-8") as f:
+        with files.replacing(self.csv_path) as partial, open(partial, "w", newline="", encoding="utf-8") as f:
             writer = csv.writer(f)
             writer.writerow(self.columns)
             writer.writerows([_cell(r.get(c)) for c in self.columns] for r in self.rows)
-        os.replace(partial, self.csv_path)
 
 
 def write_parquet(
@@ -126,9 +126,8 @@ def write_parquet(
         metadata={META_KEY: json.dumps(metadata, default=str).encode()},
     )
     arrays = {c: [r.get(c) for r in rows] for c in columns}
-    partial = path.with_name(path.name + ".part")
-    pq.write_table(pa.table(arrays, schema=schema), partial)
-    os.replace(partial, path)
+    with files.replacing(path) as partial:
+        pq.write_table(pa.table(arrays, schema=schema), partial)
 
 
 def read_table(path: str | os.PathLike) -> tuple[list[dict[str, Any]], dict[str, Any]]:

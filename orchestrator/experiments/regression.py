@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 from fmpy.util import validate_signal
 
-from .. import open_system, run
+from .. import files, open_system, run
 from ..errors import UsageError
 from ..master import time_grid
 from ..results import read_result
@@ -204,22 +204,6 @@ def resample(result: np.ndarray, grid: float, columns: Sequence[str] | None = No
     return out
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` via a temporary file in the same folder: never a half-written file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
-            f.write(text)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file the usual mode
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
-
-
 def write_baseline(data: np.ndarray, path: str | os.PathLike) -> Path:
     """Write a baseline CSV readable by ``fmpy.util.read_csv``: exact time, values to 9 significant
     digits (a reviewable, stable text diff)."""
@@ -227,9 +211,7 @@ def write_baseline(data: np.ndarray, path: str | os.PathLike) -> Path:
     lines = [",".join(names)]
     for row in data.tolist():
         lines.append(",".join([repr(row[0]), *(f"{v:.{DIGITS}g}" for v in row[1:])]))
-    path = Path(path)
-    _atomic_write(path, "\n".join(lines) + "\n")
-    return path
+    return files.write_text(path, "\n".join(lines) + "\n")
 
 
 # -- the comparison -----------------------------------------------------------------------------
