@@ -56,10 +56,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     advancing = AdaptiveController(params)
     outputting = AdaptiveController(params)
     fast = Order2Controller(params)
+    stage = Order2Controller(params).stage(*x, *yd)
 
     def fast_step() -> None:  # as the FMU: the output's law is the first RK4 stage
-        first = fast.law(fast.r, fast.eta1, fast.eta2, *x, *yd)
-        fast.advance(*x, *yd, H, first)
+        fast.advance(*x, *yd, H, fast.stage(*x, *yd))
 
     figures = {
         "output + advance (one communication step)": lambda: step(stepping),
@@ -69,6 +69,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "rbf_energy (7 neurons)": lambda: rbf_energy(1.0, 2.0, 7, params.centers, params.width),
         "n = 2 path: law + advance (one step)": fast_step,
         "n = 2 path: law (1 evaluation)": lambda: fast.law(*state, *x, *yd),
+        "n = 2 path: stage (the output's law)": lambda: fast.stage(*x, *yd),
+        "n = 2 path: advance from a stage (3 rates)": lambda: fast.advance(*x, *yd, H, stage),
     }
     print(f"median of {args.batches} batches of {args.per_batch} calls, n = 2, Example 1 gains, h = {H} s")
     results = {}

@@ -17,7 +17,7 @@ from typing import cast
 from pythonfmu import Fmi2Causality, Fmi2Slave
 from pythonfmu.enums import Fmi2Status
 
-from controller.order2 import LawValues, Order2Controller
+from controller.order2 import Order2Controller, Stage
 from controller.params import DEFAULT_CENTERS, ControllerParameters, Discretization, Mode, ParameterError
 from fmu_src.fmu_support import declare, fmu_model, mark_stale, raise_problems, rename_indexed, report
 
@@ -73,7 +73,7 @@ class FixedTimeController(Fmi2Slave):
         # Outputs, written by refresh_outputs.
         self.v = self.z1 = self.z2 = self.zeta1 = self.eta1_hat = self.eta2_hat = self.r = 0.0
         self._controller: Order2Controller | None = None  # built at exit_initialization_mode
-        self._law: LawValues | None = None  # the law behind the outputs (current unless stale)
+        self._stage: Stage | None = None  # the law behind the outputs (current unless stale)
 
         descriptions = {
             "x1": "Plant state x1 (the output y)",
@@ -185,7 +185,8 @@ class FixedTimeController(Fmi2Slave):
         c = self._controller
         if c is None:
             c = Order2Controller(self._parameters(), self.substeps)
-        self._law = law = c.law(c.r, c.eta1, c.eta2, self.x1, self.x2, self.yd, self.yd_dot, self.yd_ddot)
+        self._stage = stage = c.stage(self.x1, self.x2, self.yd, self.yd_dot, self.yd_ddot)
+        law = stage[0]
         self.v, self.z1, self.z2, self.zeta1 = law[0], law[1], law[2], law[3]
         self.r, self.eta1_hat, self.eta2_hat = c.r, c.eta1, c.eta2
 
@@ -209,7 +210,7 @@ class FixedTimeController(Fmi2Slave):
                    f"sample_time = {c.params.sample_time!r} s that the semi-implicit law assumes "
                    "(logged once)", Fmi2Status.warning)
         # The law behind the outputs is the first RK4 stage, unless something changed since.
-        first = None if self._fmu_stale else self._law
+        first = None if self._fmu_stale else self._stage
         before = (c.r, c.eta1, c.eta2)
         c.advance(self.x1, self.x2, self.yd, self.yd_dot, self.yd_ddot, step_size, first)
         mark_stale(self)
