@@ -71,10 +71,12 @@ def _kernels_for(params: ControllerParameters) -> tuple[Callable[..., Held], Cal
         a = abs(z1)
         if semi:  # phi's first two terms and the boundary layer |z1| / (b h)
             gains1 = k1 * a**p_alpha + q1 * a**p_beta
-        else:  # zeta1's first two terms
+            layer1 = a / bh
+        else:  # zeta1's first two terms; b h is not validated (nor used) by the explicit law
             gains1 = -k1 * copysign(a**p_alpha, z1) - q1 * copysign(a**p_beta, z1)
+            layer1 = 0.0
         return (x1 + yd + yd1, x1 * x1 + yd * yd + yd1 * yd1, x2, x2 * x2, yd2, yd2 * yd2, z1, a, gains1,
-                a / bh, kappa1 * z1 * z1, gamma_gain * abs(x1) ** gamma_power)
+                layer1, kappa1 * z1 * z1, gamma_gain * abs(x1) ** gamma_power)
 
     def rates(r: float, eta1: float, eta2: float, inputs: Held) -> Rates:
         """(zeta1, z2, weight2, ptp1, ptp2, r', eta1', eta2') at states (r, eta1, eta2)."""

@@ -104,6 +104,22 @@ def test_output_terms_and_reset(example, discretization) -> None:
     assert fast.state == [params.r0, *params.eta0]
 
 
+@pytest.mark.parametrize("unused", [{"sample_time": 0.0}, {"b_max": 0.0}])
+def test_explicit_law_ignores_the_semi_implicit_constants(unused: dict) -> None:
+    """The explicit law does not use (nor validate) sample_time and b_max: a zero there evaluates
+    and steps as the general path does (hoisting |z1| / (b h) out of the stages once divided by it)."""
+    params = EXAMPLE1.controller.with_changes(discretization=EXPLICIT, **unused)
+    fast, general = Order2Controller(params), AdaptiveController(params)
+    x, yd = (0.5, 0.5), (0.0, 0.5, 0.0)
+    for _ in range(3):
+        terms = general.output(x, yd)
+        assert_close(fast.stage(*x, *yd)[0][0], terms.v)
+        fast.advance(*x, *yd, 1e-3, fast.stage(*x, *yd))
+        general.advance(x, yd, 1e-3)
+        for a, b in zip(fast.state, general.state, strict=True):
+            assert_close(a, b)
+
+
 def test_only_order_two() -> None:
     one = ControllerParameters(k=(1,), q=(1,), a=(1,), kappa=(1,), rho=(1,), rho_bar=(1,))
     with pytest.raises(ValueError, match="n = 2"):
