@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import math
 import os
-import secrets
 import subprocess
 import sys
 from collections.abc import Sequence
@@ -26,6 +25,7 @@ from pathlib import Path
 import numpy as np
 from fmpy.util import read_csv
 
+from . import files
 from .errors import UsageError
 from .formats import read_table
 
@@ -119,8 +119,7 @@ class Recorder:
             part = path
             path.open("w").close()
         else:
-            part = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.part")
-            os.close(os.open(part, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))  # mode as open() gives
+            part = files.reserve(path)
         self._part = part
         writer = subprocess.Popen(
             [sys.executable, "-m", "orchestrator._csvwriter", str(part), str(path.resolve()),
