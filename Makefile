@@ -4,6 +4,10 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 ORCH   := $(VENV)/bin/orchestrate
 STAMP  := $(VENV)/.installed
+# A second Python version for the FMUs' test in a Python host other than the build's (fmpy only).
+ALT_PYTHON ?= $(firstword $(wildcard /usr/bin/python3.12 /usr/local/bin/python3.12 $(HOME)/.pyenv/versions/3.12*/bin/python3.12))
+ALT_VENV   := .venv-alt
+ALT_STAMP  := $(ALT_VENV)/.installed
 
 .PHONY: run test unit build lint crosscheck table study report baselines bench clean
 
@@ -13,7 +17,15 @@ $(STAMP): pyproject.toml constraints.txt
 	$(PY) -m pip install --quiet -e '.[test]' -c constraints.txt
 	touch $(STAMP)
 
-## build: the five FMUs into build/fmus/, every scenario into build/ssp/<name>.ssp
+# No second Python on the machine: the test that needs it says so and skips.
+$(ALT_STAMP): constraints.txt
+	@if [ -n "$(ALT_PYTHON)" ]; then \
+	  $(ALT_PYTHON) -m venv $(ALT_VENV) && \
+	  $(ALT_VENV)/bin/python -m pip install --quiet fmpy==0.3.32 -c constraints.txt && touch $(ALT_STAMP); \
+	else echo "no python3.12 found: the second-Python test will skip"; fi
+
+## build: the five FMUs (each with its own Python runtime, fetched once into build/runtime/) into
+## build/fmus/, every scenario into build/ssp/<name>.ssp
 build: $(STAMP)
 	$(ORCH) build
 
@@ -27,7 +39,7 @@ run: build
 ## test: the whole suite (unit + system tests with real FMUs and real SSP tools) on 2 workers;
 ## tests sharing an expensive reference run in one worker (xdist groups). Also writes the
 ## conformance matrix of every scenario in every installed SSP tool to results/crosscheck/.
-test: build
+test: build $(ALT_STAMP)
 	CROSSCHECK_OUTPUT=results/crosscheck $(PY) -m pytest -q -n 2 --dist loadgroup
 
 ## crosscheck: every built scenario in every installed SSP tool -> results/crosscheck/matrix.md
@@ -66,4 +78,4 @@ bench: build
 	$(PY) benchmarks/cosim_step.py
 
 clean:
-	rm -rf build results
+	rm -rf build results $(ALT_VENV)

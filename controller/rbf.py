@@ -5,16 +5,14 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-import numpy as np
-
 __all__ = ["rbf_basis", "rbf_energy"]
 
 
-def rbf_basis(X: Sequence[float], centers: Sequence[float], width: float) -> np.ndarray:
-    """Basis vector P(X): neuron j is exp(-||X - mu_j * ones||^2 / tau^2) (eq. 24)."""
-    x = np.asarray(X, dtype=float)
-    mu = np.asarray(centers, dtype=float)[:, None]
-    return np.exp(-np.sum((x[None, :] - mu) ** 2, axis=1) / width**2)
+def rbf_basis(X: Sequence[float], centers: Sequence[float], width: float) -> list[float]:
+    """Basis vector P(X): neuron j is exp(-||X - mu_j * ones||^2 / tau^2) (eq. 24).
+
+    Plain floats: the controller FMU carries no third-party package (no NumPy)."""
+    return [math.exp(-sum((float(x) - mu) ** 2 for x in X) / width**2) for mu in centers]
 
 
 def rbf_energy(s1: float, s2: float, dim: int, centers: Sequence[float], width: float) -> float:

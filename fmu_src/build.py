@@ -8,16 +8,19 @@ package ``_ftc_<model>_<hash>``, where ``<hash>`` is a digest of every bundled b
 script's own ``from fmu_src... / from controller... import`` lines are rewritten (with ``ast``);
 bundled modules must import each other relatively.
 
-pythonfmu's linux64 binary does not link libpython, so a host without Python in its process
-cannot load it. The build compiles ``fmu_src/shim/fmi2_shim.c`` with the system C compiler into
-``binaries/linux64/<model>.so``, keeps pythonfmu's binary beside it as ``<model>_pythonfmu.so``
-and records the building interpreter (its shared libpython, home and site-packages) in
-``binaries/linux64/python_env.txt``; the shim loads that Python when the host has none (see the
-shim's header). The win64 binary stays as pythonfmu made it.
+Each FMU carries its own CPython runtime (``fmu_src/runtime.py``: libpython, the two libraries it
+links and the standard-library modules the FMU's code can import, from pinned Debian 12
+packages) and no third-party package: a bundled module that imports one is refused. pythonfmu's
+linux64 binary does not link libpython, so the build compiles ``fmu_src/shim/`` with the system C
+compiler into ``binaries/linux64/<model>.so`` and keeps pythonfmu's binary beside it as
+``<model>_pythonfmu.so``; the shim starts the bundled runtime when the host has no Python (see
+the shim's header). Only the linux64 platform is shipped: pythonfmu's win64 binary needs a
+Python installed, which an FMU that says ``needsExecutionTool="false"`` must not.
 
-The archive is normalized afterwards: GUID derived from the digest, no generation date, sorted
-entries with fixed timestamps, ``resources/requirements.txt`` with the pinned run-time imports.
-Rebuilding the same sources with the same compiler gives identical bytes.
+The archive is normalized afterwards: GUID derived from a digest of every bundled byte, no
+generation date, sorted entries with fixed timestamps, licences under ``documentation/licenses``.
+Nothing of the build machine (no path) goes in. Rebuilding the same sources with the same
+compiler and runtime packages gives identical bytes.
 
 Usage: ``python -m fmu_src.build DEST [--model NAME]...``
 """
@@ -33,7 +36,6 @@ import re
 import shutil
 import subprocess
 import sys
-import sysconfig
 import tempfile
 import uuid
 import zipfile
@@ -46,7 +48,9 @@ from xml.etree import ElementTree
 import pythonfmu
 from pythonfmu import FmuBuilder
 
-__all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "c_compiler", "main", "python_env_record"]
+from .runtime import Runtime, RuntimeBundleError, ensure_runtime, runtime_members
+
+__all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "c_compiler", "main"]
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 LOCAL_PACKAGES = ("fmu_src", "controller")
@@ -60,15 +64,17 @@ FMU_SCRIPTS = {
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
-BUILD_FORMAT = "2"
-SHIM_SOURCE = Path("fmu_src", "shim", "fmi2_shim.c")  # relative to the source root
-# No debug info, build id or symbol table, so the bytes depend only on source, compiler and flags.
+BUILD_FORMAT = "3"
+SHIM_DIR = Path("fmu_src", "shim")  # relative to the source root
+SHIM_SOURCES = ("fmi2_shim.c", "start_python.c")
+SHIM_HEADERS = ("start_python.h",)
+# No debug info, build id or symbol table, so the bytes depend only on source, compiler and flags;
+# the runtime's libraries are found by soname through $ORIGIN/python/lib (see the shim's header).
 SHIM_FLAGS = tuple(
     "-std=c11 -O2 -fPIC -shared -fvisibility=hidden -g0 -Wall -Wextra -Wno-format-truncation "
-    "-Wl,--build-id=none -s".split()
-)
+    "-Wl,--build-id=none -s -Wl,--enable-new-dtags".split()
+) + ("-Wl,-rpath,$ORIGIN/python/lib",)
 SHIM_LIBS = ("-ldl", "-pthread")
-PYTHON_ENV = "binaries/linux64/python_env.txt"
 CLASS_LINE = re.compile(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", re.MULTILINE)  # pythonfmu's loader regex
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 GUID_NAMESPACE = uuid.UUID("5b0f3a52-4c1e-4d59-9a4e-2f6f1c1e7a10")
@@ -89,7 +95,7 @@ class Bundle:
 
     def digest(self, native: str) -> str:
         """SHA-256 over everything that ends up in the archive (sources, pythonfmu version, format,
-        and ``native``: the shim's source, compiler, flags and recorded Python)."""
+        and ``native``: a digest of the compiled shim and of the bundled runtime's members)."""
         h = hashlib.sha256()
         options = repr(sorted(BUILD_OPTIONS.items()))
         for part in (BUILD_FORMAT, pythonfmu.__version__, self.model, options, native):
@@ -192,63 +198,54 @@ def c_compiler() -> tuple[str, str]:
     )
 
 
-def python_env_record() -> str:
-    """``binaries/linux64/python_env.txt``: the Python the shim loads when the host has none
-    (this interpreter's shared libpython, its home and its site-packages, where the packages of
-    requirements.txt are installed)."""
-    lines = [
-        "# The Python that binaries/linux64/<model>.so (fmu_src/shim/fmi2_shim.c) loads when the",
-        "# host process has none: recorded from the interpreter that built the FMU.",
-        "# Overrides: FTC_PYTHON_LIBRARY (libpython), FTC_PYTHON_PATH (site dirs, ':'-separated),",
-        "# PYTHONHOME.",
-        f"version={sys.version_info.major}.{sys.version_info.minor}",
-    ]
-    libdir, soname = sysconfig.get_config_var("LIBDIR"), sysconfig.get_config_var("INSTSONAME")
-    if sysconfig.get_config_var("Py_ENABLE_SHARED") and libdir and soname and Path(libdir, soname).is_file():
-        lines.append(f"library={Path(libdir, soname)}")
-    else:
-        lines.append("# no library: the building Python has no shared libpython (not --enable-shared)")
-    home = sys.base_prefix
-    if sys.base_exec_prefix != sys.base_prefix:  # PYTHONHOME's prefix:exec_prefix form
-        home += f":{sys.base_exec_prefix}"
-    lines.append(f"home={home}")
-    paths = sysconfig.get_paths()
-    lines += [f"path={p}" for p in dict.fromkeys((paths["purelib"], paths["platlib"]))]
-    return "\n".join(lines) + "\n"
-
-
-def compile_shim(source: Path, where: Path) -> bytes:
-    """Compile the FMI shim; returns the shared object's bytes (the same for the same inputs)."""
+def compile_shim(root: Path, runtime: Runtime, where: Path) -> bytes:
+    """Compile the FMI shim against the runtime's headers; returns the shared object's bytes (the
+    same for the same sources, compiler and runtime)."""
     compiler, _ = c_compiler()
     work = where / "shim"
     work.mkdir(parents=True)
-    shutil.copyfile(source, work / source.name)
-    command = [compiler, *SHIM_FLAGS, "-o", "shim.so", source.name, *SHIM_LIBS]
+    for name in SHIM_SOURCES + SHIM_HEADERS:
+        source = root / SHIM_DIR / name
+        if not source.is_file():
+            raise BuildError(f"FMI shim source not found: {source}")
+        shutil.copyfile(source, work / name)
+    includes = [f"-I{d}" for d in runtime.include_dirs]
+    command = [compiler, *SHIM_FLAGS, *includes, "-o", "shim.so", *SHIM_SOURCES, *SHIM_LIBS]
     result = subprocess.run(command, cwd=work, capture_output=True, text=True)
     if result.returncode != 0:
-        raise BuildError(f"{source}: {compiler} failed:\n{result.stderr.strip()}")
+        raise BuildError(f"{root / SHIM_DIR}: {compiler} failed:\n{result.stderr.strip()}")
     return (work / "shim.so").read_bytes()
 
 
-def native_identity(root: Path = REPO_ROOT) -> str:
-    """What makes the linux64 binaries and python_env.txt: shim source, compiler, flags, record."""
-    source = root / SHIM_SOURCE
-    if not source.is_file():
-        raise BuildError(f"FMI shim source not found: {source}")
-    text = hashlib.sha256(source.read_bytes()).hexdigest()
-    return "\0".join((text, c_compiler()[1], repr(SHIM_FLAGS + SHIM_LIBS), python_env_record()))
+def _ensure_runtime() -> Runtime:
+    try:
+        return ensure_runtime()
+    except RuntimeBundleError as error:
+        raise BuildError(str(error)) from error
 
 
-def requirements(bundle: Bundle) -> str:
-    """``resources/requirements.txt``: the pinned distributions the FMU imports at run time."""
-    distributions = importlib.metadata.packages_distributions()
-    lines = [f"# Run-time imports of {bundle.model} besides the standard library and the bundled pythonfmu."]
-    for name in sorted(bundle.third_party):
-        if name not in distributions:
-            raise BuildError(f"{bundle.model}: imported package {name!r} is not installed")
-        for dist in sorted(set(distributions[name])):
-            lines.append(f"{dist}=={importlib.metadata.version(dist)}")
-    return "\n".join(lines) + "\n"
+def _runtime(bundle: Bundle) -> dict[str, bytes]:
+    """The runtime members for ``bundle`` (standard-library closure of its script and modules)."""
+    runtime = _ensure_runtime()
+    if bundle.third_party:
+        raise BuildError(
+            f"{bundle.model} imports {', '.join(sorted(bundle.third_party))}: an FMU carries no third-party "
+            "package (it must run where nothing is installed); use the standard library"
+        )
+    with tempfile.TemporaryDirectory(prefix="ftc_closure_") as tmp:
+        shutil.copytree(Path(pythonfmu.__file__).parent, Path(tmp) / "pythonfmu")
+        try:
+            return runtime_members(runtime, [bundle.script], [bundle.script.parent.parent, Path(tmp)])
+        except RuntimeBundleError as error:
+            raise BuildError(f"{bundle.model}: {error}") from error
+
+
+def _licence(distribution: str) -> bytes:
+    """The licence file of an installed distribution (pythonfmu's ships in the FMU)."""
+    for file in importlib.metadata.files(distribution) or ():
+        if file.name.upper().startswith(("LICENSE", "LICENCE", "COPYING")):
+            return file.read_binary()
+    raise BuildError(f"no licence file in the installed {distribution} distribution")
 
 
 def _rewrite_script(bundle: Bundle, package: str) -> str:
@@ -313,25 +310,34 @@ def _normalized_description(xml: bytes, digest: str, model: str) -> bytes:
     root = ElementTree.fromstring(xml)
     root.set("guid", "{" + str(uuid.uuid5(GUID_NAMESPACE, f"{model}:{digest}")) + "}")
     root.attrib.pop("generationDateAndTime", None)
+    cosimulation = root.find("CoSimulation")
+    if cosimulation is None:
+        raise BuildError(f"pythonfmu's model description of {model} has no CoSimulation element")
+    cosimulation.set("needsExecutionTool", "false")  # the FMU carries its runtime
     ElementTree.indent(root, space="  ")
     return ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True) + b"\n"
 
 
-def _write_normalized(raw_fmu: Path, target: Path, bundle: Bundle, digest: str, shim: bytes) -> None:
-    """Copy the archive with the shim in front of pythonfmu's linux64 binary, a deterministic
-    description, fixed timestamps and sorted entries."""
+def _write_normalized(
+    raw_fmu: Path, target: Path, bundle: Bundle, digest: str, native: dict[str, bytes]
+) -> None:
+    """Copy the archive with the shim in front of pythonfmu's linux64 binary, the runtime and the
+    licences added, the win64 binary left out, a deterministic description, fixed timestamps and
+    sorted entries."""
     with zipfile.ZipFile(raw_fmu) as archive:
-        entries = {name: archive.read(name) for name in archive.namelist() if not name.endswith("/")}
+        entries = {
+            name: archive.read(name)
+            for name in archive.namelist()
+            if not name.endswith("/") and not name.startswith("binaries/win64/")
+        }
     binary = f"binaries/linux64/{bundle.model}.so"
     if binary not in entries:
         raise BuildError(f"pythonfmu's archive for {bundle.model} has no {binary}")
     entries[f"binaries/linux64/{bundle.model}_pythonfmu.so"] = entries[binary]
-    entries[binary] = shim
-    entries[PYTHON_ENV] = python_env_record().encode()
+    entries.update(native)
     entries["modelDescription.xml"] = _normalized_description(
         entries["modelDescription.xml"], digest, bundle.model
     )
-    entries["resources/requirements.txt"] = requirements(bundle).encode()
     with zipfile.ZipFile(target, "w", compression=zipfile.ZIP_DEFLATED) as archive:
         for name in sorted(entries):
             info = zipfile.ZipInfo(name, date_time=ZIP_DATE)
@@ -343,10 +349,16 @@ def _write_normalized(raw_fmu: Path, target: Path, bundle: Bundle, digest: str, 
 def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT) -> Path:
     """Build one FMU into ``dest/<model>.fmu`` from the sources under ``root``."""
     bundle = collect_bundle(model, root)
-    digest = bundle.digest(native_identity(root))
     dest = Path(dest)
     dest.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=f"ftc_build_{model}_") as tmp:
+        shim = compile_shim(root, _ensure_runtime(), Path(tmp))
+        native = _runtime(bundle) | {f"binaries/linux64/{model}.so": shim}
+        native["documentation/licenses/pythonfmu-LICENSE.txt"] = _licence("pythonfmu")
+        native_digest = hashlib.sha256()
+        for name in sorted(native):
+            native_digest.update(name.encode() + b"\0" + hashlib.sha256(native[name]).digest())
+        digest = bundle.digest(native_digest.hexdigest())
         script, package_dir = _stage(bundle, digest, Path(tmp) / "stage")
         with _isolated_imports():
             try:
@@ -357,9 +369,8 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT) -> Path:
                 raise BuildError(
                     f"pythonfmu could not build {model} from {bundle.script}: {error}"
                 ) from error
-        shim = compile_shim(root / SHIM_SOURCE, Path(tmp))
         target = dest / f"{model}.fmu"
-        _write_normalized(Path(raw), target, bundle, digest, shim)
+        _write_normalized(Path(raw), target, bundle, digest, native)
     return target
 
 

@@ -90,13 +90,13 @@ def second_order_transcription(state, x, yd, p: ControllerParameters):
     a1, a2 = p.alpha * 2 - 1, p.beta * 2 - 1
 
     X1 = np.array([x1, yd0, yd1, r])
-    P1 = rbf_basis(X1, p.centers, p.width)
+    P1 = np.array(rbf_basis(X1, p.centers, p.width))
     ptp1 = float(P1 @ P1)
     z1 = x1 - yd0
     zeta1 = -k[0] * power(z1, a1) - p.q[0] * power(z1, a2) - eta1 * z1 * ptp1 / (2 * p.a[0] ** 2)
 
     X2 = np.array([x1, x2, eta1, yd0, yd1, yd2, r])
-    P2 = rbf_basis(X2, p.centers, p.width)
+    P2 = np.array(rbf_basis(X2, p.centers, p.width))
     ptp2 = float(P2 @ P2)
     z2 = x2 - zeta1
     zeta2 = -k[1] * power(z2, a1) - p.q[1] * power(z2, a2) - eta2 * z2 * ptp2 / (2 * p.a[1] ** 2)

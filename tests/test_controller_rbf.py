@@ -32,6 +32,6 @@ def test_energy_equals_squared_norm_of_basis(dim: int) -> None:
     for width in (0.5, 2.0, 3.0):
         for _ in range(20):
             X = rng.uniform(-3.0, 3.0, size=dim)
-            basis = rbf_basis(X, DEFAULT_CENTERS, width)
+            basis = np.array(rbf_basis(X, DEFAULT_CENTERS, width))
             got = rbf_energy(float(np.sum(X)), float(np.sum(X * X)), dim, DEFAULT_CENTERS, width)
             assert got == pytest.approx(float(np.sum(basis**2)), rel=1e-12, abs=1e-300)

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import ast
-import importlib.metadata
+import hashlib
+import io
 import shutil
+import subprocess
 import sys
-import sysconfig
+import tempfile
 import zipfile
 from pathlib import Path
 
@@ -15,6 +17,7 @@ import pytest
 import pythonfmu
 from fmu_helpers import MODELS
 
+from fmu_src import runtime
 from fmu_src.build import CLASS_LINE, REPO_ROOT, BuildError, build_all, build_fmu, main
 
 pytestmark = pytest.mark.system
@@ -48,12 +51,11 @@ def test_guid_is_deterministic_per_source(fmus: dict, tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("model", MODELS)
-def test_bundle_layout_and_requirements(fmus: dict, model: str) -> None:
+def test_bundle_layout(fmus: dict, model: str) -> None:
     with zipfile.ZipFile(fmus[model]) as archive:
         names = archive.namelist()
         module = archive.read("resources/slavemodule.txt").decode().strip()
         script = archive.read(f"resources/{module}.py").decode()
-        requirements = archive.read("resources/requirements.txt").decode()
         sources = {n: archive.read(n).decode() for n in names if n.endswith(".py") and "/pythonfmu/" not in n}
     digest = module.rsplit("_", 1)[1]
     package = f"_ftc_{model.lower()}_{digest}"
@@ -71,11 +73,16 @@ def test_bundle_layout_and_requirements(fmus: dict, model: str) -> None:
             ):
                 assert node.module.startswith(package + ".fmu_src"), name
     assert all(n.startswith(f"resources/{package}/") for n in sources if n != f"resources/{module}.py")
-    pinned = [line for line in requirements.splitlines() if line and not line.startswith("#")]
-    if model == "FixedTimeController":  # controller.rbf imports numpy
-        assert pinned == [f"numpy=={importlib.metadata.version('numpy')}"]
-    else:
-        assert pinned == []
+    assert "resources/requirements.txt" not in names  # nothing to install: no third-party package
+
+
+def test_a_third_party_import_is_refused(tmp_path: Path) -> None:
+    """An FMU carries no third-party package: a bundled module importing NumPy is a build error."""
+    root = source_copy(tmp_path)
+    rbf = root / "controller" / "rbf.py"
+    rbf.write_text(rbf.read_text().replace("import math\n", "import math\n\nimport numpy\n", 1))
+    with pytest.raises(BuildError, match=r"FixedTimeController imports numpy: an FMU carries no third-party"):
+        build_fmu("FixedTimeController", tmp_path / "out", root=root)
 
 
 def test_absolute_import_in_a_bundled_module_is_refused(tmp_path: Path) -> None:
@@ -106,37 +113,76 @@ def test_command_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
     assert (tmp_path / "Actuator.fmu").is_file()
 
 
-def test_linux64_binary_is_the_shim_with_pythonfmus_binary_beside_it(fmus: dict) -> None:
-    """linux64: the shim, pythonfmu's own binary unchanged under <model>_pythonfmu.so and the
-    building interpreter's Python; win64: pythonfmu's DLL unchanged."""
+def debian_md5sums(deb: Path) -> dict[str, str]:
+    """Debian's own manifest of a package: file (without the leading /) -> MD5."""
+    command = ["dpkg-deb", "-I", str(deb), "md5sums"]
+    listing = subprocess.run(command, capture_output=True, text=True, check=True)
+    return {path: md5 for md5, path in (line.split(None, 1) for line in listing.stdout.splitlines())}
+
+
+def test_linux64_is_the_shim_pythonfmus_binary_and_debians_runtime(fmus: dict) -> None:
+    """linux64: the shim, pythonfmu's own binary unchanged under <model>_pythonfmu.so, and
+    Debian's libpython, expat and zlib byte for byte as Debian's package manifests list them; no
+    win64 (pythonfmu's DLL needs an installed Python); the licences beside them."""
     shipped = Path(pythonfmu.__file__).parent / "resources" / "binaries"
-    libdir, soname = sysconfig.get_config_var("LIBDIR"), sysconfig.get_config_var("INSTSONAME")
-    paths = sysconfig.get_paths()
+    debs = REPO_ROOT / "build" / "runtime" / "debs"
+    manifests: dict[str, str] = {}
+    for name, _, _ in runtime.PACKAGES:
+        manifests |= debian_md5sums(next(debs.glob(f"{name}_*.deb")))
     for model, fmu in fmus.items():
         with zipfile.ZipFile(fmu) as archive:
-            linux = {n for n in archive.namelist() if n.startswith("binaries/linux64/")}
-            expected = (f"{model}.so", f"{model}_pythonfmu.so", "python_env.txt")
-            assert linux == {f"binaries/linux64/{name}" for name in expected}
+            names = archive.namelist()
+            platforms = {n.split("/")[1] for n in names if n.startswith("binaries/")}
+            assert platforms == {"linux64"}
             inner = archive.read(f"binaries/linux64/{model}_pythonfmu.so")
             assert inner == (shipped / "linux64" / "libpythonfmu-export.so").read_bytes()
             assert archive.read(f"binaries/linux64/{model}.so") != inner
-            dll = (shipped / "win64" / "pythonfmu-export.dll").read_bytes()
-            assert archive.read(f"binaries/win64/{model}.dll") == dll
-            record = archive.read("binaries/linux64/python_env.txt").decode().splitlines()
-        values = [line.split("=", 1) for line in record if not line.startswith("#")]
-        assert ["version", f"{sys.version_info.major}.{sys.version_info.minor}"] in values
-        assert ["library", str(Path(libdir, soname))] in values and Path(libdir, soname).is_file()
-        assert ["home", sys.base_prefix] in values
-        site = list(dict.fromkeys((paths["purelib"], paths["platlib"])))
-        assert [v for k, v in values if k == "path"] == site
+            for source, bundled in runtime.LIBRARIES:
+                data = archive.read(f"binaries/linux64/python/lib/{bundled}")
+                assert hashlib.md5(data).hexdigest() == manifests[source], bundled
+            licences = {n.rsplit("/", 1)[1] for n in names if n.startswith("documentation/licenses/")}
+            assert {"Python-LICENSE.txt", "pythonfmu-LICENSE.txt", "expat-debian-copyright.txt",
+                    "zlib-debian-copyright.txt"} <= licences
+            assert b"PYTHON SOFTWARE FOUNDATION LICENSE VERSION 2" in archive.read(
+                "documentation/licenses/Python-LICENSE.txt")
+            description = archive.read("modelDescription.xml").decode()
+        assert 'needsExecutionTool="false"' in description
 
 
-def test_shim_source_is_part_of_the_guid(fmus: dict, tmp_path: Path) -> None:
+def test_no_member_holds_a_path_of_the_build_machine(fmus: dict) -> None:
+    """Nothing of where the FMU was built: not the sources' folder, the interpreter's prefixes, the
+    home folder or the build's temporary folders."""
+    paths = {str(REPO_ROOT), sys.prefix, sys.base_prefix, str(Path.home()), tempfile.gettempdir() + "/ftc_"}
+    for model, fmu in fmus.items():
+        with zipfile.ZipFile(fmu) as archive:
+            for name in archive.namelist():
+                data = archive.read(name)
+                if name.endswith(".zip"):  # the standard library: look inside
+                    with zipfile.ZipFile(io.BytesIO(data)) as inner:
+                        data = b"".join(inner.read(n) for n in inner.namelist())
+                found = [p for p in paths if p.encode() in data]
+                assert not found, f"{model}: {name} holds {found}"
+
+
+def test_rebuilt_elsewhere_gives_the_same_bytes(fmus: dict, tmp_path: Path) -> None:
+    """The sources copied to another folder build the same FMU, GUID included: the GUID depends
+    only on what is bundled."""
+    root = source_copy(tmp_path)
+    again = build_fmu("Actuator", tmp_path / "out", root=root)
+    assert again.read_bytes() == fmus["Actuator"].read_bytes()
+
+
+def test_the_guid_follows_the_shims_bytes_not_its_comments(fmus: dict, tmp_path: Path) -> None:
+    """The GUID is a digest of what is bundled: a changed message in the shim changes it, a
+    comment (the same binary) does not."""
+    guid = fmpy.read_model_description(str(fmus["Reference"])).guid
     root = source_copy(tmp_path)
     shim = root / "fmu_src" / "shim" / "fmi2_shim.c"
     shim.write_text(shim.read_text() + "\n/* changed */\n")
-    changed = build_fmu("Reference", tmp_path / "out", root=root)
-    guid = fmpy.read_model_description(str(fmus["Reference"])).guid
+    same = build_fmu("Reference", tmp_path / "comment", root=root)
+    assert fmpy.read_model_description(str(same)).guid == guid
+    shim.write_text(shim.read_text().replace('"fmi2 shim: out of memory"', '"fmi2 shim: no memory"'))
+    changed = build_fmu("Reference", tmp_path / "code", root=root)
     assert fmpy.read_model_description(str(changed)).guid != guid
 
 

@@ -1,42 +1,44 @@
-/* FMI 2.0 Co-Simulation shim in front of pythonfmu's binary, so that any FMI host loads the FMU.
+/* FMI 2.0 Co-Simulation shim in front of pythonfmu's binary: the FMU runs in any FMI host, with or
+   without Python on the machine.
 
    pythonfmu 0.7.0's binaries/linux64/<model>.so does not link libpython: a host without Python
    in its process cannot dlopen it (undefined symbol: _Py_NoneStruct). The build installs this
-   shim as binaries/linux64/<model>.so and keeps pythonfmu's binary beside it as
-   <model>_pythonfmu.so. At the first fmi2Instantiate the shim:
+   shim as binaries/linux64/<model>.so, keeps pythonfmu's binary beside it as
+   <model>_pythonfmu.so, and bundles a CPython runtime in binaries/linux64/python/ (libpython,
+   the two libraries it links, a zipped subset of the standard library; fmu_src/runtime.py).
+   At the first fmi2Instantiate the shim:
 
-   1. looks for Python in the process: dlsym(RTLD_DEFAULT, "Py_IsInitialized");
-   2. if there is none, loads libpython with RTLD_NOW | RTLD_GLOBAL (so pythonfmu's undefined
-      Python symbols resolve): FTC_PYTHON_LIBRARY if set, else the path recorded at build time in
-      python_env.txt beside the shim;
-   3. if Python is not initialized, initializes it (Py_InitializeEx(0): no signal handlers, the
-      host keeps SIGINT), with PYTHONHOME set to the recorded home during initialization when the
-      libpython in use is the recorded one and PYTHONHOME is unset (else an embedded Python
-      takes the stdlib of whatever python3 is first on PATH), adds the site directories
-      (FTC_PYTHON_PATH, colon-separated, else the recorded ones) with site.addsitedir ahead of
-      the interpreter's own site-packages, as a virtual environment's come first, and releases
-      the GIL. pythonfmu then finds Python initialized, so it neither initializes nor finalizes
-      it, and takes the GIL with PyGILState_Ensure as it does in a Python host. A lock on the
-      libpython file keeps FMUs instantiated in parallel threads from starting Python twice;
+   1. looks for Python in the process: dlsym(RTLD_DEFAULT, "Py_IsInitialized"). A Python host
+      (fmpy, libcosimpy, OMSimulator's Python API, any version) keeps its own interpreter: the
+      FMU's code is plain Python that runs on 3.10 and later;
+   2. if there is none, loads the bundled libpython with RTLD_NOW | RTLD_GLOBAL (so pythonfmu's
+      undefined Python symbols resolve) by its soname: the shim's DT_RUNPATH is
+      $ORIGIN/python/lib, and a libpython3.11 another FMU's shim loaded already is found by
+      soname first, so one process holds one libpython whatever the number of FMUs. zlib and
+      expat, which libpython links, are loaded the same way before it;
+   3. if Python is not initialized, starts it isolated (start_python.c: PyConfig isolated mode,
+      home and module search path inside this FMU's folder, no site, no environment variable,
+      no signal handler, no bytecode written) and releases the GIL. pythonfmu then finds Python
+      initialized, so it neither initializes nor finalizes it, and takes the GIL with
+      PyGILState_Ensure as it does in a Python host. A lock on the libpython file keeps FMUs
+      instantiated in parallel threads from starting Python twice;
    4. opens <model>_pythonfmu.so with RTLD_NOW | RTLD_LOCAL and forwards the FMI calls to it
       (fmi2GetTypesPlatform and fmi2GetVersion it answers itself, "default" and "2.0", so that
       a host may call them before anything is loaded), except the calls of every communication
       step to the project's own slaves, which it makes itself on the same Python objects (see
       "Direct calls" below).
 
-   When Python is already initialized in the process (fmpy, libcosimpy, OMSimulator's Python
-   API), steps 2-3 do nothing. When something is missing, fmi2Instantiate logs one message
-   naming the model and everything it tried (host logger and stderr) and returns NULL. At unload
-   and at exit the shim works around a double free in pythonfmu's binary (see unload()).
+   When something is missing, fmi2Instantiate logs one message naming the model and what failed
+   (host logger and stderr) and returns NULL. At unload and at exit the shim works around a
+   double free in pythonfmu's binary (see unload()).
 
-   Needs only a C compiler and libc: the Python C-API functions used are looked up with dlsym,
-   so the shim does not depend on Python headers or on one Python version. */
+   Needs a C compiler, libc and the pinned runtime's headers (for start_python.c only): the
+   Python C-API functions are looked up with dlsym, so the shim links no libpython. */
 
 #define _GNU_SOURCE
 #include <dlfcn.h>
 #include <fcntl.h>
 #include <pthread.h>
-#include <stdarg.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -45,10 +47,11 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "start_python.h"
+
 #define EXPORT __attribute__((visibility("default")))
-#define ENV_FILE "python_env.txt"
+#define RUNTIME_DIR "python"
 #define INNER_SUFFIX "_pythonfmu.so"
-#define MAX_DIRS 16
 #define TEXT 4096
 
 /* FMI 2.0 types (fmi2TypesPlatform.h, fmi2FunctionTypes.h), so that no header is needed. */
@@ -167,49 +170,9 @@ static void resolve_python_api(void *python);
 static pthread_mutex_t load_lock = PTHREAD_MUTEX_INITIALIZER;
 static int loaded;            /* 0: not tried, 1: pythonfmu's binary is ready, -1: failed */
 static void *inner;           /* handle of <model>_pythonfmu.so */
-static int started_python;    /* 1 if this shim initialized Python */
 static char model[256];       /* model identifier: the shim's file name without .so */
 static char failure[TEXT];    /* the one message of a failed load() */
-static char warnings[TEXT];   /* non-fatal findings of load(), logged at every instantiate */
-static char python_info[TEXT]; /* "Python X from LIB, site dirs ..." when this shim started Python */
-
-/* What the build recorded in python_env.txt. */
-struct record {
-    char file[TEXT];
-    int found;
-    char version[32];
-    char library[TEXT];
-    char home[TEXT];
-    char paths[MAX_DIRS][TEXT];
-    int n_paths;
-};
-
-static void append(char *buffer, const char *format, ...) __attribute__((format(printf, 2, 3)));
-static void append(char *buffer, const char *format, ...) {
-    size_t used = strlen(buffer);
-    if (used + 1 >= TEXT) return;
-    va_list args;
-    va_start(args, format);
-    vsnprintf(buffer + used, TEXT - used, format, args);
-    va_end(args);
-}
-
-static int is_file(const char *path) {
-    struct stat info;
-    return stat(path, &info) == 0 && S_ISREG(info.st_mode);
-}
-
-static int is_dir(const char *path) {
-    struct stat info;
-    return stat(path, &info) == 0 && S_ISDIR(info.st_mode);
-}
-
-/* Whether two paths name one file (symbolic links followed). */
-static int same_file(const char *a, const char *b) {
-    struct stat sa, sb;
-    return a[0] && b[0] && stat(a, &sa) == 0 && stat(b, &sb) == 0 && sa.st_dev == sb.st_dev &&
-           sa.st_ino == sb.st_ino;
-}
+static char python_info[TEXT]; /* "Python X.Y.Z bundled with the FMU" or "of the host process" */
 
 /* dlerror() without a leading "<path>: " (the message names the path already). */
 static const char *dl_reason(const char *path) {
@@ -220,129 +183,12 @@ static const char *dl_reason(const char *path) {
     return error;
 }
 
-/* Reads key=value lines ('#' starts a comment; "path" may repeat). */
-static void read_record(const char *dir, struct record *r) {
-    snprintf(r->file, sizeof r->file, "%s/%s", dir, ENV_FILE);
-    FILE *file = fopen(r->file, "r");
-    if (!file) return;
-    r->found = 1;
-    char line[TEXT];
-    while (fgets(line, sizeof line, file)) {
-        line[strcspn(line, "\r\n")] = '\0';
-        char *value = strchr(line, '=');
-        if (line[0] == '#' || !value) continue;
-        *value++ = '\0';
-        if (strcmp(line, "version") == 0) snprintf(r->version, sizeof r->version, "%s", value);
-        else if (strcmp(line, "library") == 0) snprintf(r->library, sizeof r->library, "%s", value);
-        else if (strcmp(line, "home") == 0) snprintf(r->home, sizeof r->home, "%s", value);
-        else if (strcmp(line, "path") == 0 && r->n_paths < MAX_DIRS)
-            snprintf(r->paths[r->n_paths++], TEXT, "%s", value);
-    }
-    fclose(file);
-}
-
-/* Python source that adds the site directories ahead of the interpreter's own site-packages
-   (as a virtual environment's come first), processing their .pth files. The paths travel as hex
-   so that no quoting can break the source. */
-static int site_code(char *code, size_t size, char dirs[][TEXT], int n, int set_home) {
-    static const char head[] =
-        "def _ftc_add_site_dirs(dirs, set_home):\n"
-        "    import os, site, sys\n"
-        "    if set_home:\n"
-        "        os.environ.pop('PYTHONHOME', None)  # set only for the initialization\n"
-        "    n = len(sys.path)\n"
-        "    for d in dirs:\n"
-        "        site.addsitedir(os.fsdecode(bytes.fromhex(d)))\n"
-        "    added = sys.path[n:]\n"
-        "    del sys.path[n:]\n"
-        "    base = set(site.getsitepackages())\n"
-        "    i = next((k for k, p in enumerate(sys.path) if p in base), len(sys.path))\n"
-        "    sys.path[i:i] = added\n"
-        "_ftc_add_site_dirs([";
-    char tail[64];
-    snprintf(tail, sizeof tail, "], %s)\ndel _ftc_add_site_dirs\n", set_home ? "True" : "False");
-    size_t used = (size_t)snprintf(code, size, "%s", head);
-    for (int i = 0; i < n; i++) {
-        if (used + 2 * strlen(dirs[i]) + 4 + sizeof tail >= size) return -1;
-        code[used++] = '\'';
-        for (const unsigned char *p = (const unsigned char *)dirs[i]; *p; p++)
-            used += (size_t)snprintf(code + used, size - used, "%02x", *p);
-        code[used++] = '\'';
-        code[used++] = ',';
-    }
-    if (used + sizeof tail >= size) return -1;
-    snprintf(code + used, size - used, "%s", tail);
-    return 0;
-}
-
-/* Initializes Python in this process (libpython already loaded globally) and releases the GIL. */
-static int start_python(void *python, const struct record *r, const char *library, int recorded_library) {
-    void (*initialize)(int) = (void (*)(int))dlsym(python, "Py_InitializeEx");
-    int (*is_initialized)(void) = (int (*)(void))dlsym(python, "Py_IsInitialized");
-    int (*run)(const char *) = (int (*)(const char *))dlsym(python, "PyRun_SimpleString");
-    void *(*save_thread)(void) = (void *(*)(void))dlsym(python, "PyEval_SaveThread");
-    const char *(*get_version)(void) = (const char *(*)(void))dlsym(python, "Py_GetVersion");
-    if (!initialize || !is_initialized || !run || !save_thread || !get_version) {
-        snprintf(failure, TEXT, "%s: %s is not a usable libpython (Py_InitializeEx, PyRun_SimpleString, "
-                 "PyEval_SaveThread or Py_GetVersion missing)", model, library);
-        return -1;
-    }
-
-    /* Dirs to add: FTC_PYTHON_PATH replaces the recorded ones. Static (as the record): called once,
-       under load_lock, and kept off the stack of host threads that may be small. */
-    static char dirs[MAX_DIRS][TEXT];
-    int n = 0;
-    const char *env_path = getenv("FTC_PYTHON_PATH");
-    if (env_path && *env_path) {
-        const char *p = env_path;
-        while (*p && n < MAX_DIRS) {
-            size_t len = strcspn(p, ":");
-            if (len && len < TEXT) snprintf(dirs[n++], TEXT, "%.*s", (int)len, p);
-            p += len + (p[len] == ':');
-        }
-    } else {
-        for (int i = 0; i < r->n_paths; i++) snprintf(dirs[n++], TEXT, "%s", r->paths[i]);
-    }
-    for (int i = 0; i < n; i++)
-        if (!is_dir(dirs[i]))
-            append(warnings, "%s%s: site directory %s (%s) does not exist; packages of "
-                   "resources/requirements.txt may not import", warnings[0] ? "; " : "", model, dirs[i],
-                   env_path && *env_path ? "from FTC_PYTHON_PATH" : "recorded at build");
-
-    /* The recorded home belongs to the recorded libpython only; PYTHONHOME, if set, wins. */
-    const char *home = NULL;
-    if (recorded_library && !getenv("PYTHONHOME") && r->home[0]) {
-        char landmark[TEXT + 64];
-        snprintf(landmark, sizeof landmark, "%.*s/lib/python%s/os.py", (int)strcspn(r->home, ":"), r->home,
-                 r->version); /* home may be PYTHONHOME's prefix:exec_prefix */
-        if (is_file(landmark)) home = r->home;
-    }
-    if (home) setenv("PYTHONHOME", home, 1);
-    initialize(0); /* 0: keep the host's signal handlers */
-    if (home) unsetenv("PYTHONHOME");
-    if (!is_initialized()) {
-        snprintf(failure, TEXT, "%s: Py_InitializeEx of %s failed", model, library);
-        return -1;
-    }
-
-    static char code[MAX_DIRS * 2 * TEXT + 1024];
-    if (site_code(code, sizeof code, dirs, n, home != NULL) != 0 || run(code) != 0) {
-        snprintf(failure, TEXT, "%s: could not add the site directories to sys.path in %s "
-                 "(traceback on stderr)", model, library);
-        save_thread();
-        return -1;
-    }
-    const char *version = get_version();
-    if (r->version[0] && (strncmp(version, r->version, strlen(r->version)) != 0 ||
-                          version[strlen(r->version)] != '.'))
-        append(warnings, "%s%s: Python %.*s from %s is not the build's %s; compiled packages (numpy) "
-               "of another version do not import", warnings[0] ? "; " : "", model,
-               (int)strcspn(version, " "), version, library, r->version);
-    snprintf(python_info, TEXT, "Python %.*s from %s", (int)strcspn(version, " "), version, library);
-    for (int i = 0; i < n; i++) append(python_info, "%s%s", i ? ":" : ", site directories ", dirs[i]);
-    save_thread(); /* release the GIL: pythonfmu takes it with PyGILState_Ensure */
-    started_python = 1;
-    return 0;
+/* Loads a library of the runtime by soname, globally: one already in the process is reused, else
+   the search reaches the shim's DT_RUNPATH ($ORIGIN/python/lib), the bundled copy. */
+static void *load_runtime_library(const char *soname) {
+    void *handle = dlopen(soname, RTLD_NOW | RTLD_GLOBAL);
+    if (!handle) snprintf(failure, TEXT, "%s: cannot load the bundled %s: %s", model, soname, dl_reason(soname));
+    return handle;
 }
 
 /* Makes Python available if needed, then opens pythonfmu's binary. Called once, under load_lock. */
@@ -362,55 +208,47 @@ static int load(void) {
     if (slash) *slash = '\0';
     else snprintf(dir, sizeof dir, ".");
 
-    static struct record r;
-    read_record(dir, &r);
-
-    void *python = NULL;
-    const char *library = "the process";
+    void *python = RTLD_DEFAULT;
+    int own = 0; /* Python comes from the bundled runtime */
     if (!dlsym(RTLD_DEFAULT, "Py_IsInitialized")) {
-        const char *env_library = getenv("FTC_PYTHON_LIBRARY");
-        char tried[TEXT] = "";
-        if (env_library && *env_library) {
-            library = env_library;
-            python = dlopen(library, RTLD_NOW | RTLD_GLOBAL);
-            if (!python)
-                snprintf(tried, TEXT, "FTC_PYTHON_LIBRARY=%s (%s); not tried: %s (recorded at build in %s, "
-                         "overridden)", library, dl_reason(library), r.library[0] ? r.library : "none",
-                         r.file);
-        } else if (!r.found) {
-            snprintf(tried, TEXT, "FTC_PYTHON_LIBRARY (unset), %s (missing: no recorded libpython)", r.file);
-        } else if (!r.library[0]) {
-            snprintf(tried, TEXT, "FTC_PYTHON_LIBRARY (unset), %s (no library= line)", r.file);
-        } else {
-            library = r.library;
-            python = dlopen(library, RTLD_NOW | RTLD_GLOBAL);
-            if (!python)
-                snprintf(tried, TEXT, "FTC_PYTHON_LIBRARY (unset), %s (recorded at build in %s: %s)", library,
-                         r.file, dl_reason(library));
-        }
-        if (!python) {
-            snprintf(failure, TEXT, "%s: cannot load libpython: tried %s; set FTC_PYTHON_LIBRARY to a shared "
-                     "libpython%s and FTC_PYTHON_PATH to the site-packages holding the packages of "
-                     "resources/requirements.txt", model, tried, r.version[0] ? r.version : "3");
+        if (!load_runtime_library("libz.so.1") || !load_runtime_library("libexpat.so.1") ||
+            !(python = load_runtime_library(FTC_LIBPYTHON)))
             return -1;
-        }
-    } else {
-        python = RTLD_DEFAULT;
+        own = 1;
     }
     int (*is_initialized)(void) = (int (*)(void))dlsym(python, "Py_IsInitialized");
     if (!is_initialized) {
-        snprintf(failure, TEXT, "%s: %s has no Py_IsInitialized: not a libpython", model, library);
+        snprintf(failure, TEXT, "%s: %s has no Py_IsInitialized: not a libpython", model, FTC_LIBPYTHON);
         return -1;
     }
-    /* The shims of two FMUs may start at once in different threads, and the second may already see
-       the libpython the first loaded: a lock on the file that defines Py_IsInitialized makes the
-       first initialize Python completely (site directories included) before the other looks. */
+    /* The shims of two FMUs may start at once in different threads and see the same libpython: a
+       lock on the file that defines Py_IsInitialized makes the first initialize Python completely
+       before the other looks. */
     Dl_info defining;
+    const char *library = FTC_LIBPYTHON;
     if (dladdr((void *)is_initialized, &defining) && defining.dli_fname && defining.dli_fname[0])
         library = defining.dli_fname;
     int lock = open(library, O_RDONLY | O_CLOEXEC);
     if (lock >= 0) flock(lock, LOCK_EX);
-    int status = is_initialized() ? 0 : start_python(python, &r, library, same_file(library, r.library));
+    int status = 0;
+    if (!is_initialized()) {
+        if (own) {
+            char home[TEXT + 16], reason[TEXT];
+            snprintf(home, sizeof home, "%s/%s", dir, RUNTIME_DIR);
+            status = ftc_start_python(python, home, reason, sizeof reason);
+            if (status != 0)
+                snprintf(failure, TEXT, "%s: cannot start the bundled Python in %s: %s", model, home, reason);
+        } else { /* the host loaded a libpython of its own without starting it: start that one */
+            void (*initialize)(int) = (void (*)(int))dlsym(python, "Py_InitializeEx");
+            void *(*save_thread)(void) = (void *(*)(void))dlsym(python, "PyEval_SaveThread");
+            if (initialize && save_thread) {
+                initialize(0); /* 0: keep the host's signal handlers */
+                save_thread();
+            }
+            status = is_initialized() ? 0 : -1;
+            if (status != 0) snprintf(failure, TEXT, "%s: cannot initialize the host's Python (%s)", model, library);
+        }
+    }
     if (lock >= 0) close(lock); /* releases the lock */
     if (status != 0) return -1;
 
@@ -433,6 +271,9 @@ static int load(void) {
     FMI2_FORWARDED(RESOLVE)
     atexit(unload); /* after pythonfmu's static destructors were registered: runs before them */
     resolve_python_api(python);
+    const char *(*get_version)(void) = (const char *(*)(void))dlsym(python, "Py_GetVersion");
+    snprintf(python_info, TEXT, "Python %.*s %s", get_version ? (int)strcspn(get_version(), " ") : 1,
+             get_version ? get_version() : "?", own ? "bundled with the FMU" : "of the host process");
     return 0;
 }
 
@@ -749,18 +590,16 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
     pthread_mutex_lock(&load_lock);
     if (loaded == 0) loaded = load() == 0 ? 1 : -1;
     pthread_mutex_unlock(&load_lock);
-    if (warnings[0]) report(functions, instanceName, fmi2Warning, warnings);
     if (loaded < 0) {
         report(functions, instanceName, fmi2Error, failure);
         return NULL;
     }
     fmi2Component c = inner_fmi2Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation, functions,
                                             visible, loggingOn);
-    if (!c && started_python) {
+    if (!c) {
         char message[2 * TEXT];
         snprintf(message, sizeof message, "%s: pythonfmu could not instantiate %s in %s; instantiate with "
-                 "logging on for its reason (e.g. a package of resources/requirements.txt that does not "
-                 "import)", model, instanceName ? instanceName : "the model", python_info);
+                 "logging on for its reason", model, instanceName ? instanceName : "the model", python_info);
         report(functions, instanceName, fmi2Error, message);
     }
     if (!c) return NULL;
