@@ -5,7 +5,7 @@ split per FMU call, and the same archives run by libcosim, all in one run.
         [--before c566841] [--master gauss-seidel|jacobi]
 
 Builds, into a temporary folder, the current FMUs and the FMUs of revision ``--before`` (default:
-the last commit before issue 10; sources taken with ``git archive``, built by the current
+the last commit before issue 10; sources taken with ``git archive``, built by that revision's own
 ``fmu_src.build``), and packs each scenario of ``ssp/`` with either set. Then, per scenario:
 
 * ``before``: the old FMUs (plants: RK4 with 40 sub-steps per 1 ms; controller: the general-n
@@ -35,6 +35,7 @@ from __future__ import annotations
 import argparse
 import os
 import subprocess
+import sys
 import tarfile
 import tempfile
 import time
@@ -44,7 +45,6 @@ from contextlib import ExitStack
 from pathlib import Path
 
 import orchestrator
-from fmu_src.build import build_all
 from orchestrator.crosscheck import run_libcosim
 from orchestrator.experiments.scenarios import SCENARIO_DIR, build_scenarios, component_sources
 from orchestrator.master import MASTERS
@@ -116,8 +116,9 @@ def loop(scenario: Path, stop: float, master: str, overrides: Mapping[str, objec
 
 
 def build_before(revision: str, names: list[str], dest: Path) -> dict[str, Path]:
-    """The FMUs of ``revision`` (its fmu_src/ and controller/, built by the current build code) packed
-    with today's scenario sources; returns scenario -> archive."""
+    """The FMUs of ``revision`` (its fmu_src/ and controller/, built by that revision's own
+    ``fmu_src.build``, as it shipped them) packed with today's scenario sources; returns
+    scenario -> archive."""
     source = dest / "src"
     source.mkdir(parents=True)
     archive = dest / "src.tar"
@@ -126,7 +127,9 @@ def build_before(revision: str, names: list[str], dest: Path) -> dict[str, Path]
                        check=True)
     with tarfile.open(archive) as tar:
         tar.extractall(source, filter="data")
-    fmus = {p.name: p for p in build_all(dest / "fmus", root=source)}
+    subprocess.run([sys.executable, "-m", "fmu_src.build", str(dest / "fmus")], cwd=source, check=True,
+                   stdout=subprocess.DEVNULL, env=os.environ | {"PYTHONPATH": str(source)})
+    fmus = {p.name: p for p in sorted((dest / "fmus").glob("*.fmu"))}
     return {name: pack_ssp(SCENARIO_DIR / name, {c: fmus[c] for c in component_sources(SCENARIO_DIR / name)},
                            dest / "ssp" / f"{name}.ssp")
             for name in names}

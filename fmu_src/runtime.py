@@ -8,8 +8,8 @@ The same ``.deb`` files give the same bytes, and every FMU ships their licences.
 
 What goes into an FMU (``binaries/linux64/python/``, see :func:`runtime_members`):
 
-* ``lib/libpython3.11.so.1.0``, ``lib/libexpat.so.1``, ``lib/libz.so.1``: unmodified from the
-  packages (the shim loads expat and zlib first, by path, when the process has none loaded);
+* ``lib/libpython3.11.so.1.0``, ``fallback/libexpat.so.1``, ``fallback/libz.so.1``: unmodified
+  from the packages (the shim loads the system's expat and zlib when there are, else these);
 * ``python311.zip``: only the standard-library modules the FMU's code can import (the import
   closure of its script, found with :mod:`modulefinder` over the Debian standard library),
   compiled to ``.pyc`` when the building interpreter is a 3.11 (else the ``.py`` sources);
@@ -72,10 +72,14 @@ PACKAGES: tuple[tuple[str, str, str], ...] = (
     ("libexpat1", "2.5.0-1+deb12u2", "2255e62fc22a86d2c544b8a3f516da9aee19383ad5742722ab4ce7f66a30dbc8"),
     ("zlib1g", "1:1.2.13.dfsg-1", "d7dd1d1411fedf27f5e27650a6eff20ef294077b568f4c8c5e51466dc7c08ce4"),
 )
-LIBRARIES = (  # (file in the unpacked packages, name in the FMU), in the order the shim loads them
-    ("lib/x86_64-linux-gnu/libz.so.1.2.13", "libz.so.1"),
-    ("lib/x86_64-linux-gnu/libexpat.so.1.8.10", "libexpat.so.1"),
-    ("usr/lib/x86_64-linux-gnu/libpython3.11.so.1.0", "libpython3.11.so.1.0"),
+# (file in the unpacked packages, path in binaries/linux64/python/), in the order the shim loads
+# them. libpython's folder is the shim's DT_RUNPATH; zlib and expat are fallbacks, loaded only
+# where the system has none (the machine's own are preferred: Debian 12's expat needs glibc 2.36,
+# while libpython asks only for the expat API of 2012 and glibc 2.35).
+LIBRARIES = (
+    ("lib/x86_64-linux-gnu/libz.so.1.2.13", "fallback/libz.so.1"),
+    ("lib/x86_64-linux-gnu/libexpat.so.1.8.10", "fallback/libexpat.so.1"),
+    ("usr/lib/x86_64-linux-gnu/libpython3.11.so.1.0", "lib/libpython3.11.so.1.0"),
 )
 LICENSES = (  # (file in the unpacked packages, name under documentation/licenses/)
     ("usr/lib/python3.11/LICENSE.txt", "Python-LICENSE.txt"),
@@ -288,10 +292,10 @@ def runtime_members(runtime: Runtime, scripts: Iterable[Path], path: Iterable[Pa
     licences."""
     closure = stdlib_closure(runtime, scripts, path)
     base = "binaries/linux64/python/"
-    members = {f"{base}lib/{name}": (runtime.root / source).read_bytes() for source, name in LIBRARIES}
+    members = {base + name: (runtime.root / source).read_bytes() for source, name in LIBRARIES}
     pure = {n: p for n, p in closure.items() if p.suffix == ".py"}
     members[f"{base}python{TAG}.zip"] = _stdlib_zip(pure, runtime.stdlib)
-    allowed = SYSTEM_LIBRARIES | {name for _, name in LIBRARIES}
+    allowed = SYSTEM_LIBRARIES | {name.rsplit("/", 1)[1] for _, name in LIBRARIES}
     for name, file in sorted(closure.items()):
         if file.suffix != ".so":
             continue

@@ -72,10 +72,11 @@ def refusal() -> str | None:
     return None
 
 
-def hidden(argv: list[str], extra_env: dict[str, str] | None = None) -> list[str]:
+def hidden(argv: list[str], extra_env: dict[str, str] | None = None, also: tuple[str, ...] = ()) -> list[str]:
     """The command that runs ``argv`` on a colleague's machine (every Python hidden, clean
-    environment plus ``extra_env``)."""
+    environment plus ``extra_env``; the files ``also`` hidden too)."""
     dirs, files = _covered()
+    files = sorted(set(files) | {str(Path(f).resolve()) for f in also if Path(f).exists()})
     empty = Path(tempfile.mkdtemp(prefix="colleague_")) / "empty"
     empty.write_bytes(b"")
     mounts = [f"mount -t tmpfs -o size=64k,mode=755 none {shlex.quote(d)}" for d in dirs]

@@ -138,7 +138,7 @@ def test_linux64_is_the_shim_pythonfmus_binary_and_debians_runtime(fmus: dict) -
             assert inner == (shipped / "linux64" / "libpythonfmu-export.so").read_bytes()
             assert archive.read(f"binaries/linux64/{model}.so") != inner
             for source, bundled in runtime.LIBRARIES:
-                data = archive.read(f"binaries/linux64/python/lib/{bundled}")
+                data = archive.read(f"binaries/linux64/python/{bundled}")
                 assert hashlib.md5(data).hexdigest() == manifests[source], bundled
             licences = {n.rsplit("/", 1)[1] for n in names if n.startswith("documentation/licenses/")}
             assert {"Python-LICENSE.txt", "pythonfmu-LICENSE.txt", "expat-debian-copyright.txt",

@@ -8,6 +8,7 @@ in fmu_helpers, and bit for bit against the same calls made from fmpy in this pr
 from __future__ import annotations
 
 import ctypes
+import glob
 import math
 import shutil
 import subprocess
@@ -77,11 +78,14 @@ def run_host(
     return collect(host_run(command, env), vr, gets)
 
 
-def host_run(command: list[str], env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
-    """``command`` on a colleague's machine with ``env`` (PATH=/usr/bin:/bin plus what is given)."""
+def host_run(
+    command: list[str], env: dict[str, str] | None = None, also: tuple[str, ...] = ()
+) -> subprocess.CompletedProcess:
+    """``command`` on a colleague's machine with ``env`` (PATH=/usr/bin:/bin plus what is given),
+    the files ``also`` hidden too."""
     extra = {k: v for k, v in (env or {}).items() if k != "PATH"}
     if COLLEAGUE:
-        return subprocess.run(hidden(command, extra), capture_output=True, text=True, timeout=120)
+        return subprocess.run(hidden(command, extra, also), capture_output=True, text=True, timeout=120)
     return subprocess.run(command, env=CLEAN_ENV | extra, capture_output=True, text=True, timeout=120)
 
 
@@ -194,6 +198,23 @@ def test_missing_runtime_is_one_message_and_no_instance(host: Path, unzipped: di
     assert printed[0].startswith("FixedTimeController: cannot load the bundled libpython3.11.so.1.0: ")
     # the loader's reason: not found, or (colleague's machine) the system's copy is an empty file
     assert "No such file" in printed[0] or "file too short" in printed[0], printed[0]
+
+
+@pytest.mark.skipif(not COLLEAGUE, reason="needs a private mount namespace to hide the system's libraries")
+def test_without_the_systems_expat_and_zlib_the_fmus_copies_serve(host: Path, unzipped: dict) -> None:
+    """libpython links expat and zlib: the shim takes the machine's, and the FMU's own copies
+    (binaries/linux64/python/fallback/) where the machine has none."""
+    folder = unzipped["FixedTimeController"]
+    md = fmpy.read_model_description(str(folder))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    binary = folder / "binaries" / "linux64" / "FixedTimeController.so"
+    command = [str(host), str(binary), (folder / "resources").as_uri(), md.guid, str(STEPS), repr(H)]
+    command += [f"{vr[n]}=0.0" for n in ("x1", "x2", "yd", "yd_dot", "yd_ddot")] + [str(vr["r"])]
+    libs = "/usr/lib/x86_64-linux-gnu"
+    system = tuple(glob.glob(f"{libs}/libexpat.so.1*") + glob.glob(f"{libs}/libz.so.1*"))
+    result, got = collect(host_run(command, also=system), vr, ["r"])
+    check_ok(result)
+    assert got["r"] == pytest.approx(0.625 * (1 - math.exp(-T)), rel=1e-12)
 
 
 def test_the_environment_does_not_reach_the_runtime(host: Path, unzipped: dict, tmp_path: Path) -> None:

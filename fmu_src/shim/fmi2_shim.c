@@ -184,10 +184,15 @@ static const char *dl_reason(const char *path) {
 }
 
 /* Loads a library of the runtime by soname, globally: one already in the process is reused, else
-   the search reaches the shim's DT_RUNPATH ($ORIGIN/python/lib), the bundled copy. */
-static void *load_runtime_library(const char *soname) {
+   the search reaches the shim's DT_RUNPATH ($ORIGIN/python/lib, holding libpython only) and then
+   the system's folders; `fallback` (a path), if given, is loaded where that finds nothing. */
+static void *load_runtime_library(const char *soname, const char *fallback) {
     void *handle = dlopen(soname, RTLD_NOW | RTLD_GLOBAL);
-    if (!handle) snprintf(failure, TEXT, "%s: cannot load the bundled %s: %s", model, soname, dl_reason(soname));
+    if (!handle && fallback) handle = dlopen(fallback, RTLD_NOW | RTLD_GLOBAL);
+    if (!handle) {
+        const char *name = fallback ? fallback : soname;
+        snprintf(failure, TEXT, "%s: cannot load the bundled %s: %s", model, soname, dl_reason(name));
+    }
     return handle;
 }
 
@@ -211,8 +216,11 @@ static int load(void) {
     void *python = RTLD_DEFAULT;
     int own = 0; /* Python comes from the bundled runtime */
     if (!dlsym(RTLD_DEFAULT, "Py_IsInitialized")) {
-        if (!load_runtime_library("libz.so.1") || !load_runtime_library("libexpat.so.1") ||
-            !(python = load_runtime_library(FTC_LIBPYTHON)))
+        char zlib[TEXT + 64], expat[TEXT + 64];
+        snprintf(zlib, sizeof zlib, "%s/%s/fallback/libz.so.1", dir, RUNTIME_DIR);
+        snprintf(expat, sizeof expat, "%s/%s/fallback/libexpat.so.1", dir, RUNTIME_DIR);
+        if (!load_runtime_library("libz.so.1", zlib) || !load_runtime_library("libexpat.so.1", expat) ||
+            !(python = load_runtime_library(FTC_LIBPYTHON, NULL)))
             return -1;
         own = 1;
     }
