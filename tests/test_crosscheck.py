@@ -165,7 +165,7 @@ def test_each_tool_is_compared_with_our_master_of_its_semantics() -> None:
     """Delayed tools (libcosim, Ecos) with jacobi, delay-free ones (OMSimulator) with gauss-seidel."""
     assert {k: reference_master(t.delayed) for k, t in TOOLS.items()} == {
         "libcosim": "jacobi", "ecospy": "jacobi", "ecos": "jacobi", "omsimulator": "gauss-seidel",
-        "omsimulator-py": "gauss-seidel"}
+        "omsimulator-nopython": "gauss-seidel", "omsimulator-py": "gauss-seidel"}
     assert [t.key for t in select_tools(["ecos", "libcosim"])] == ["libcosim", "ecos"]
 
 

@@ -19,7 +19,6 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
-from colleague import hidden, refusal
 from fmu_helpers import (
     dead_zone_formula,
     example1,
@@ -29,6 +28,8 @@ from fmu_helpers import (
     solve_held,
     uf_formula,
 )
+
+from orchestrator.crosscheck.colleague import hidden, refusal
 
 CC = shutil.which("cc") or shutil.which("gcc")
 CLEAN_ENV = {"PATH": "/usr/bin:/bin"}

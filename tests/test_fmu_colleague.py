@@ -16,7 +16,8 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
-from colleague import PYTHON_PROBE, hidden, refusal
+
+from orchestrator.crosscheck.colleague import PYTHON_PROBE, hidden, refusal
 
 pytestmark = pytest.mark.system
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from .ecos import EcosCliTool, EcospyTool
 from .libcosim import LibcosimError, LibcosimTool, run_libcosim
-from .omsimulator import OMSimulatorCliTool, OMSimulatorPythonTool
+from .omsimulator import OMSimulatorCliTool, OMSimulatorNoPythonTool, OMSimulatorPythonTool
 from .tools import Scenario, Tolerance, Tool, ToolRun
 
 __all__ = ["TOOLS", "LibcosimError", "Scenario", "Tolerance", "Tool", "ToolRun", "run_libcosim",
@@ -17,7 +17,7 @@ __all__ = ["TOOLS", "LibcosimError", "Scenario", "Tolerance", "Tool", "ToolRun",
 
 # Every supported tool, in the matrix's order (key -> adapter class).
 TOOLS: dict[str, type[Tool]] = {t.key: t for t in (LibcosimTool, EcospyTool, EcosCliTool, OMSimulatorCliTool,
-                                                   OMSimulatorPythonTool)}
+                                                   OMSimulatorNoPythonTool, OMSimulatorPythonTool)}
 
 
 def select_tools(keys: list[str] | None = None) -> list[Tool]:

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..fmi import interpreter_guard
+from . import colleague
 from . import tools as base
 from .tools import (
     AMPLIFIED,
@@ -45,7 +46,7 @@ from .tools import (
     table_result,
 )
 
-__all__ = ["OMSimulatorCliTool", "OMSimulatorPythonTool", "home"]
+__all__ = ["OMSimulatorCliTool", "OMSimulatorNoPythonTool", "OMSimulatorPythonTool", "home"]
 
 ENV = "OMSIMULATOR_HOME"
 DEFAULT_HOME = Path(__file__).resolve().parents[2].parent / "shared" / "tools" / "omsimulator"
@@ -113,6 +114,20 @@ class OMSimulatorCliTool(Tool):
         result, named = _read_result(csv, scenario, columns)
         parameters = {c: float(named[c][-1]) for c in scenario.parameters if c in named and len(named[c])}
         return ToolRun(result, wall, error, parameters, ["OMSimulator's CSV has 12 significant digits"])
+
+
+class OMSimulatorNoPythonTool(OMSimulatorCliTool):
+    """``bin/OMSimulator`` on a colleague's machine: every Python of this one hidden in a private
+    mount namespace (``colleague.py``), so the FMUs can only run on the runtime they carry."""
+
+    key = "omsimulator-nopython"
+    title = "OMSimulator 3 (CLI), no Python on the machine"
+
+    def missing(self) -> str | None:
+        return super().missing() or colleague.refusal()
+
+    def command(self, scenario: Scenario, workdir: Path) -> list[str]:
+        return colleague.hidden(super().command(scenario, workdir))
 
 
 @contextlib.contextmanager

@@ -1,5 +1,5 @@
-"""A colleague's machine on this one: a private mount namespace in which every Python of the
-machine (interpreters, libpython, standard libraries, site-packages, virtual environments, the
+"""A colleague's machine on this one, for the FMUs' hosts: a private mount namespace in which every
+Python of the machine (interpreters, libpython, standard libraries, site-packages, virtual environments, the
 build's unpacked runtime) is covered by an empty tmpfs or an empty file, entered with
 ``env -i PATH=/usr/bin:/bin``. What runs inside sees a Linux with no Python at all.
 
@@ -18,7 +18,7 @@ from pathlib import Path
 
 __all__ = ["PYTHON_PROBE", "hidden", "refusal"]
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 CLEAN_PATH = "/usr/bin:/bin"
 DIRECTORY_PATTERNS = (
     "/usr/lib/python*",
