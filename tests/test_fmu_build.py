@@ -5,6 +5,8 @@ from __future__ import annotations
 import ast
 import hashlib
 import io
+import os
+import re
 import shutil
 import subprocess
 import sys
@@ -192,3 +194,29 @@ def test_no_c_compiler_is_a_build_error(tmp_path: Path, monkeypatch: pytest.Monk
     with pytest.raises(BuildError, match=r"no C compiler \(CC, cc or gcc on PATH\) to build the FMI shim"):
         build_fmu("Reference", tmp_path / "out")
     assert not (tmp_path / "out" / "Reference.fmu").exists()
+
+
+def newest_symbol_versions(data: bytes, tmp: Path) -> dict[str, tuple[int, ...]]:
+    """The newest GLIBC/GLIBCXX/CXXABI symbol version an ELF object asks for (objdump -T)."""
+    path = tmp / "object.so"
+    path.write_bytes(data)
+    dump = subprocess.run(["objdump", "-T", str(path)], capture_output=True, text=True, check=True).stdout
+    newest: dict[str, tuple[int, ...]] = {}
+    for family, version in re.findall(r"\b(GLIBC|GLIBCXX|CXXABI)_([0-9.]+)\b", dump):
+        newest[family] = max(newest.get(family, ()), tuple(int(p) for p in version.split(".")))
+    return newest
+
+
+@pytest.mark.skipif(shutil.which("objdump") is None, reason="needs objdump (binutils)")
+def test_platform_floor_is_glibc_2_35_and_gcc_12s_libstdcxx(fmus: dict, tmp_path: Path) -> None:
+    """The README's floor: no bundled object asks for more than glibc 2.35 and GCC 12's
+    libstdc++, but the fallback expat (only loaded where the machine has none), which asks for the
+    build machine's glibc at most."""
+    machine = tuple(int(p) for p in os.confstr("CS_GNU_LIBC_VERSION").split()[1].split("."))
+    with zipfile.ZipFile(fmus["FixedTimeController"]) as archive:
+        objects = [n for n in archive.namelist() if n.startswith("binaries/") and ".so" in n]
+        for name in objects:
+            newest = newest_symbol_versions(archive.read(name), tmp_path)
+            limit = machine if "/fallback/" in name else (2, 35)
+            assert newest.get("GLIBC", ()) <= limit, (name, newest)
+            assert newest.get("GLIBCXX", ()) <= (3, 4, 30), (name, newest)
