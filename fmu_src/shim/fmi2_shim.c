@@ -196,6 +196,19 @@ static void *load_runtime_library(const char *soname, const char *fallback) {
     return handle;
 }
 
+/* Whether `library` is an FMU's bundled libpython (<home>/lib/<libpython> beside <home>/python311.zip);
+   if so, writes <home>. */
+static int bundled_home(const char *library, char home[TEXT]) {
+    const char *suffix = "/lib/" FTC_LIBPYTHON;
+    size_t n = strlen(library), m = strlen(suffix);
+    if (n <= m || n - m >= TEXT || strcmp(library + n - m, suffix) != 0) return 0;
+    snprintf(home, TEXT, "%.*s", (int)(n - m), library);
+    char zip[TEXT + 32];
+    snprintf(zip, sizeof zip, "%s/python" FTC_TAG ".zip", home);
+    struct stat info;
+    return stat(zip, &info) == 0 && S_ISREG(info.st_mode);
+}
+
 /* Makes Python available if needed, then opens pythonfmu's binary. Called once, under load_lock. */
 static int load(void) {
     Dl_info self;
@@ -214,7 +227,7 @@ static int load(void) {
     else snprintf(dir, sizeof dir, ".");
 
     void *python = RTLD_DEFAULT;
-    int own = 0; /* Python comes from the bundled runtime */
+    int own; /* Python is an FMU's bundled runtime (this one's or another's), not the host's */
     if (!dlsym(RTLD_DEFAULT, "Py_IsInitialized")) {
         char zlib[TEXT + 64], expat[TEXT + 64];
         snprintf(zlib, sizeof zlib, "%s/%s/fallback/libz.so.1", dir, RUNTIME_DIR);
@@ -222,27 +235,29 @@ static int load(void) {
         if (!load_runtime_library("libz.so.1", zlib) || !load_runtime_library("libexpat.so.1", expat) ||
             !(python = load_runtime_library(FTC_LIBPYTHON, NULL)))
             return -1;
-        own = 1;
     }
     int (*is_initialized)(void) = (int (*)(void))dlsym(python, "Py_IsInitialized");
     if (!is_initialized) {
         snprintf(failure, TEXT, "%s: %s has no Py_IsInitialized: not a libpython", model, FTC_LIBPYTHON);
         return -1;
     }
-    /* The shims of two FMUs may start at once in different threads and see the same libpython: a
-       lock on the file that defines Py_IsInitialized makes the first initialize Python completely
-       before the other looks. */
+    /* The shims of two FMUs may start at once in different threads: the second may find the
+       libpython the first loaded before the first started it. So whether Python is an FMU's own
+       runtime is decided by the file that defines it (<home>/lib/libpython... beside
+       <home>/python311.zip), whoever loaded it, and a lock on that file makes the first start it
+       completely before the other looks. */
     Dl_info defining;
     const char *library = FTC_LIBPYTHON;
     if (dladdr((void *)is_initialized, &defining) && defining.dli_fname && defining.dli_fname[0])
         library = defining.dli_fname;
+    char home[TEXT];
+    own = bundled_home(library, home);
     int lock = open(library, O_RDONLY | O_CLOEXEC);
     if (lock >= 0) flock(lock, LOCK_EX);
     int status = 0;
     if (!is_initialized()) {
         if (own) {
-            char home[TEXT + 16], reason[TEXT];
-            snprintf(home, sizeof home, "%s/%s", dir, RUNTIME_DIR);
+            char reason[TEXT];
             status = ftc_start_python(python, home, reason, sizeof reason);
             if (status != 0)
                 snprintf(failure, TEXT, "%s: cannot start the bundled Python in %s: %s", model, home, reason);
