@@ -424,7 +424,7 @@ def write_baselines(names: Iterable[str] | None = None, dest: str | os.PathLike 
     with tempfile.TemporaryDirectory(prefix="baselines-") as work:
         archives = build_scenarios(names, work, sources)
         for name, archive in archives.items():
-            result = run(archive)
+            result = run(archive).rows
             written.append(write_baseline(resample(result, grid, output_columns(archive)),
                                           Path(dest) / f"{name}.csv"))
     return written
