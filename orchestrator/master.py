@@ -52,12 +52,13 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .errors import Interrupted, NonFiniteError, SimulationError, TimeLimitError
-from .fmi import FAILED, Instance, MessageLog, interpreter_guard
+from .fmi import FAILED, Instance, InstanceBase, MessageLog, interpreter_guard
 from .results import NonFiniteError as NonFiniteRow
 from .results import Recorder
 from .system import ComponentModel, PortRef, System
 
-__all__ = ["GRACE", "MASTERS", "MAX_TIME", "NS_PER_S", "GaussSeidel", "Jacobi", "Master", "grid", "time_grid"]
+__all__ = ["GRACE", "MASTERS", "MAX_TIME", "NS_PER_S", "GaussSeidel", "InstanceFactory", "Jacobi", "Master",
+           "grid", "open_instance", "time_grid"]
 
 NS_PER_S = 1_000_000_000
 MAX_TIME = (2**63 - 1) / NS_PER_S / 2  # s: t0 + n*h stays within int64 nanoseconds (292 years / 2)
@@ -178,7 +179,7 @@ class Operation(NamedTuple):
     connections into some of its inputs and write them, as one batched FMI call."""
 
     is_set: bool
-    instance: Instance
+    instance: InstanceBase
     function: Callable[..., int]  # the instance's fmi2SetReal or fmi2GetReal
     vrs: ctypes.Array
     n_values: int
@@ -187,13 +188,38 @@ class Operation(NamedTuple):
     scaled: tuple[Scaled, ...]
 
 
+def open_instance(comp: ComponentModel, workdir: str, messages: MessageLog, time: float) -> InstanceBase:
+    """The real instance of ``comp``: its FMU extracted into ``workdir`` and instantiated."""
+    return Instance.open(comp.name, comp.fmu, comp.model.guid, comp.model.coSimulation.modelIdentifier,
+                         workdir, messages, time)
+
+
+InstanceFactory = Callable[[ComponentModel, str, MessageLog, float], InstanceBase]
+
+
 class Master:
     """Base class: the lifecycle and everything both algorithms share.
+
+    The contract of a subclass (registered by name in :data:`MASTERS`):
+
+    * ``name``: the name ``--master`` takes;
+    * ``_initialize_impl(t0)``: called in initialization mode, after every instance's start values
+      and ``setup``; it must leave every instance in step mode (``exit_initialization``) with
+      ``values`` holding consistent outputs and inputs at t0 (the row the base class records);
+    * ``_step_impl(t, h, t_next)``: advance every instance from ``t`` by ``h`` and leave ``values``
+      as the row at ``t_next`` (``values[0] = t_next``); the base class records it.
+
+    Both call only the instance interface of :class:`~orchestrator.fmi.InstanceBase` (``step``,
+    ``read_outputs``, ``write_inputs``, :meth:`_propagate`, :meth:`_transfer_all`) and let a failed
+    call raise its SimulationError: the base class owns the grid (``t_k = t0 + k h`` in integer
+    nanoseconds), recording, the checks for non-finite values, the wall-clock limit and signals,
+    and cleanup on every path.
 
     ``progress`` (if given) is called with the number of steps done, about every 1 % of the run.
     ``keep`` False (with an ``output``): rows are only streamed to the CSV and ``run`` returns a
     preview for plotting (:class:`~orchestrator.results.Recorder`), so memory stays flat however
-    long the run. ``timeout``: wall-clock limit of the run in seconds.
+    long the run. ``timeout``: wall-clock limit of the run in seconds. ``instances`` makes the
+    instance of each component (default :func:`open_instance`; a fake in the fast unit tests).
     """
 
     name = ""
@@ -201,7 +227,7 @@ class Master:
     def __init__(self, system: System, start_time: float, stop_time: float, step: float,
                  output: str | os.PathLike | None = None,
                  progress: Callable[[int, int], None] | None = None, keep: bool = True,
-                 timeout: float | None = None) -> None:
+                 timeout: float | None = None, instances: InstanceFactory = open_instance) -> None:
         self.system = system
         self._t0, self._h, self.n = grid(start_time, stop_time, step)
         self.start_time = self._t0 / NS_PER_S
@@ -210,7 +236,8 @@ class Master:
         self.progress = progress
         self.keep = keep
         self.timeout = timeout
-        self.instances: list[Instance] = []
+        self.open_instance = instances
+        self.instances: list[InstanceBase] = []
         self.recorder: Recorder | None = None
         self.messages = MessageLog()
 
@@ -288,12 +315,15 @@ class Master:
         return exc
 
     def _non_finite(self, exc: NonFiniteRow) -> NonFiniteError:
-        """The NonFiniteError naming the component, variable and time of a non-finite value."""
-        name = self.columns[exc.column]
-        port = PortRef.parse(name)
-        kind = "output" if exc.column >= self._first_output else "input"
+        """The NonFiniteError naming the component, variable and time of a non-finite value: of
+        the outputs of that row, the first read in propagation order (the values after it may only
+        have passed it on through a direct feedthrough), else the column the recorder found."""
         assert self.recorder is not None
-        value = float(self.recorder.data[exc.row - self.recorder._base, exc.column])
+        row = self.recorder.data[exc.row - self.recorder._base]
+        column = next((c for c in self._output_order if not math.isfinite(row[c])), exc.column)
+        port = PortRef.parse(self.columns[column])
+        kind = "output" if column >= self._first_output else "input"
+        value = float(row[column])
         return NonFiniteError(port.component, port.connector, kind, value, self.time(exc.row))
 
     def setup(self, stack: ExitStack) -> None:
@@ -302,9 +332,7 @@ class Master:
         stack.callback(shutil.rmtree, workdir, ignore_errors=True)
         stack.enter_context(interpreter_guard())
         for comp in self.system.components.values():
-            identifier = comp.model.coSimulation.modelIdentifier
-            instance = Instance.open(comp.name, comp.fmu, comp.model.guid, identifier, workdir, self.messages,
-                                     self.start_time)
+            instance = self.open_instance(comp, workdir, self.messages, self.start_time)
             stack.callback(instance.release)
             self.instances.append(instance)
         self._layout()
@@ -369,6 +397,11 @@ class Master:
             for o in comp.outputs:
                 slot[PortRef(comp.name, o)] = len(slot) + 1
         self.columns = columns
+        index = {name: j for j, name in enumerate(columns)}
+        read = [op.component for op in system.schedule if op.kind == "get"]
+        read += [name for name in system.components if name not in read]
+        self._output_order = [index[str(PortRef(name, o))] for name in read
+                              for o in system.components[name].outputs]
         self.values = np.zeros(len(columns))
         for comp in system.components.values():
             variables = comp.variables
@@ -443,13 +476,11 @@ class Master:
                     v[dst] = v[src]
                 for dst, src, factor, offset in scaled:
                     v[dst] = factor * v[src] + offset
-                status = fn(inst.c, vr, n, ptr)
-                if status >= FAILED:
-                    inst.fail("fmi2SetReal", status, t)
-            elif n:
-                status = fn(inst.c, vr, n, ptr)
-                if status >= FAILED:
-                    inst.fail("fmi2GetReal", status, t)
+            elif not n:
+                continue
+            status = fn(inst.c, vr, n, ptr)
+            if status >= FAILED:
+                inst.fail("fmi2SetReal" if is_set else "fmi2GetReal", status, t)
 
 
 class GaussSeidel(Master):
@@ -465,9 +496,7 @@ class GaussSeidel(Master):
 
     def _step_impl(self, t: float, h: float, t_next: float) -> None:
         for inst in self.instances:
-            status = inst.do_step(inst.c, t, h, 1)
-            if status >= FAILED:
-                inst.fail("fmi2DoStep", status, t)
+            inst.step(t, h)
         self.values[0] = t_next
         self._propagate(t_next)
 
@@ -492,17 +521,9 @@ class Jacobi(Master):
 
     def _step_impl(self, t: float, h: float, t_next: float) -> None:
         for inst in self.instances:
-            c = inst.c
-            if inst.in_vr._length_:
-                status = inst.set_real(c, inst.in_vr, inst.in_vr._length_, inst.in_ptr)
-                if status >= FAILED:
-                    inst.fail("fmi2SetReal", status, t)
-            status = inst.do_step(c, t, h, 1)
-            if status >= FAILED:
-                inst.fail("fmi2DoStep", status, t)
-            status = inst.get_real(c, inst.out_vr, inst.out_vr._length_, inst.out_ptr)
-            if status >= FAILED:
-                inst.fail("fmi2GetReal", status, t)
+            inst.write_inputs(t)
+            inst.step(t, h)
+            inst.read_outputs(t)
         self.values[0] = t_next
         self._transfer_all()
 
