@@ -30,6 +30,7 @@ from .errors import (
     SimulationError,
     UsageError,
 )
+from .inspection import inspect_scenario
 from .plots import plot_run
 from .provenance import overrides_text, read_provenance
 from .results import read_result
@@ -48,6 +49,7 @@ Run SSP co-simulation scenarios (controller + actuator + plant FMUs) with fmpy.
   orchestrate build                    build the FMUs and pack ssp/<name>/ into build/ssp/<name>.ssp
   orchestrate run example1             simulate; writes results/example1.csv and .png
   orchestrate validate example1        every check before a simulation, all problems at once
+  orchestrate inspect example1         components, variables (units, ranges, values), connections
   orchestrate metrics results/example1.csv   tracking metrics (RAE, MSE, RMSE, MAE, ...)
   orchestrate plot results/example1.csv      plot a result file
   orchestrate compare RESULT.csv BASELINE.csv  regression check against a baseline
@@ -91,6 +93,15 @@ component and connector or variable:
 exit status: 0 no error (warnings allowed), 1 errors found, 2 usage error.
 """
 
+INSPECT_HELP = """\
+List what SCENARIO (as for 'run') holds, without running it: each component's FMU, FMI version
+and generation tool; every input, output and parameter with type, unit, range, the FMU's start
+value, the value a run applies and where it comes from (FMU, the SSD's parameter sets, a
+--parameter-set file, --set); the connections; the start, stop time and step and where each comes
+from. What cannot be read is listed at the end.
+
+exit status: 0 read without problems, 1 problems listed, 2 usage error.
+"""
 
 Handler = Callable[[argparse.Namespace], int]
 
@@ -151,6 +162,10 @@ def _parser() -> argparse.ArgumentParser:
 
     p = add_command(sub, "validate", _validate, help="check a scenario without simulating",
                     description=VALIDATE_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    _scenario_arguments(p)
+
+    p = add_command(sub, "inspect", _inspect, help="list a scenario's components, variables, connections",
+                    description=INSPECT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     _scenario_arguments(p)
 
     p = add_command(sub, "plot", _plot, help="plot a result file")
@@ -407,6 +422,14 @@ def _validate(args: argparse.Namespace) -> int:
     print(f"ok: {scenario}: {report.components} components, {report.connections} connections, "
           f"{report.parameters} parameters checked")
     return 0
+
+
+def _inspect(args: argparse.Namespace) -> int:
+    scenario = resolve_scenario(args.scenario)
+    report = inspect_scenario(scenario, parameter_sets=args.parameter_set, overrides=_overrides(args.set),
+                              fmu_dirs=fmu_dirs(scenario), limits=_limits(args))
+    print("\n".join(report.lines()))
+    return 1 if report.problems else 0
 
 
 def _plot(args: argparse.Namespace) -> int:

@@ -54,6 +54,7 @@ class ComponentModel:
     inputs: list[str]
     start_values: dict[str, float | int | bool | str] = field(default_factory=dict)
     feedthrough: dict[str, set[str]] = field(default_factory=dict)
+    origins: dict[str, str] = field(default_factory=dict)  # variable -> where its start value came from
 
     @property
     def variables(self) -> dict:
@@ -321,6 +322,7 @@ class System:
                 problems.append(f"{origin}: {ref} = {value!r} {outside}")
             else:
                 comp.start_values[ref.connector] = value
+                comp.origins[ref.connector] = origin
 
     def _check_inputs(self, problems: list[str], partial: Collection[str]) -> None:
         """An input that no connection feeds: an error without a start value; otherwise a warning
