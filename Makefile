@@ -4,6 +4,10 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 ORCH   := $(VENV)/bin/orchestrate
 STAMP  := $(VENV)/.installed
+BUILT  := build/.built
+# what 'orchestrate build' makes the FMUs and scenarios from: a build newer than all of them is reused
+SOURCES := $(shell find controller fmu_src ssp -type f -not -path '*/__pycache__/*' -not -name '*.pyc' \
+                     -not -name '.*' 2>/dev/null)
 
 .PHONY: run test unit build lint crosscheck table study report baselines bench clean
 
@@ -13,9 +17,13 @@ $(STAMP): pyproject.toml constraints.txt
 	$(PY) -m pip install --quiet -e '.[test]' -c constraints.txt
 	touch $(STAMP)
 
-## build: the five FMUs into build/fmus/, every scenario into build/ssp/<name>.ssp
-build: $(STAMP)
+## build: the five FMUs into build/fmus/, every scenario into build/ssp/<name>.ssp (again only
+## when a source or the installation is newer than the last build)
+build: $(BUILT)
+
+$(BUILT): $(STAMP) $(SOURCES)
 	$(ORCH) build
+	@mkdir -p $(dir $(BUILT)) && touch $(BUILT)
 
 ## run: the pendulum scenario, its metrics, and where the CSV and the plot went
 run: build

@@ -32,7 +32,7 @@ from .master import MASTERS, Master
 from .result import RunOptions, RunResult
 from .ssp import DEFAULT_LIMITS, Limits
 from .system import PortRef, System
-from .validate import DEFAULT_STEP, check_scenario, timing
+from .validate import DEFAULT_STEP, check_scenario, no_step, timing
 
 __all__ = ["DEFAULT_STEP", "MASTERS", "Interrupted", "Limits", "NonFiniteError", "OrchestratorError",
            "PortRef", "RunOptions", "RunResult", "ScenarioError", "ScenarioWarning", "SimulationError",
@@ -105,7 +105,10 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
         start, stop, h = timing(system.structure, options.stop_time, options.step, options.start_time)
         if options.strict and system.unconnected:
             raise ScenarioError(system.unconnected)
-        for message in system.unconnected:
+        defaulted = [no_step(system.structure)] if options.step is None and no_step(system.structure) else []
+        if options.strict and defaulted:
+            raise ScenarioError(defaulted)
+        for message in [*system.unconnected, *defaulted]:
             warnings.warn(message, ScenarioWarning, stacklevel=2)
         record = provenance.describe(scenario, system, start=start, stop=stop, step=h, master=options.master,
                                      parameter_sets=options.parameter_sets, overrides=options.overrides)

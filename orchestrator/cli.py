@@ -306,18 +306,30 @@ class _Progress:
 
 class _LastMessage(logging.Handler):
     """Keeps the last warning or error logged (FMUs written in Python log in our process), so a
-    failure is reported on one line with the FMU's own explanation; prints them with --verbose."""
+    failure is reported on one line with the FMU's own explanation. Warnings are printed as they
+    come (each distinct one once, at most ``MAX_WARNINGS``; errors end up in the failure's line);
+    --verbose prints every message."""
+
+    MAX_WARNINGS = 10
 
     def __init__(self, verbose: bool) -> None:
         super().__init__(logging.INFO if verbose else logging.WARNING)
         self.verbose = verbose
         self.last = ""
+        self.shown: set[str] = set()
 
     def emit(self, record: logging.LogRecord) -> None:
+        text = record.getMessage().strip()
         if record.levelno >= logging.WARNING:
-            self.last = record.getMessage().strip().splitlines()[-1] if record.getMessage().strip() else ""
+            self.last = text.splitlines()[-1] if text else ""
         if self.verbose:
             print(f"{record.name}: {record.getMessage()}", file=sys.stderr)
+        elif record.levelno == logging.WARNING and text not in self.shown:
+            self.shown.add(text)
+            if len(self.shown) <= self.MAX_WARNINGS:
+                print(f"orchestrate: warning: {text}", file=sys.stderr)
+            elif len(self.shown) == self.MAX_WARNINGS + 1:
+                print("orchestrate: warning: more FMU warnings (--verbose shows them)", file=sys.stderr)
 
 
 def _options(args: argparse.Namespace, scenario: Path, output: Path) -> RunOptions:

@@ -255,11 +255,23 @@ class System:
             return self._resolve(declared)
         return _unit_def(comp.model, var) if _unit_name(var) is not None else None
 
+    @staticmethod
+    def _twice(ps: ParameterSet, problems: list[str]) -> None:
+        """A parameter named twice in one set: which value applies would be the file's order."""
+        seen: dict[str, object] = {}
+        for p in ps.parameters:
+            if p.name in seen:
+                problems.append(f"{ps.origin}: parameter '{p.name}' is given twice ({seen[p.name]!r} and "
+                                f"{p.value!r}); give it once")
+            seen.setdefault(p.name, p.value)
+
     def _apply(self, component: str, ps: ParameterSet, problems: list[str]) -> None:
+        self._twice(ps, problems)
         for p in ps.parameters:
             self._set_start(PortRef(component, p.name), p, ps.origin, problems, ps.units)
 
     def _apply_prefixed(self, ps: ParameterSet, problems: list[str]) -> None:
+        self._twice(ps, problems)
         for p in ps.parameters:
             try:
                 ref = PortRef.parse(p.name)
@@ -300,6 +312,9 @@ class System:
             problems.append(f"{origin}: component '{ref.component}' has no variable '{ref.connector}'")
         elif var.causality not in SETTABLE or var.variability == "constant":
             problems.append(f"{origin}: {ref} is a {var.variability} {var.causality}, it cannot be set")
+        elif ref in self.links:
+            problems.append(f"{origin}: {ref} is an input fed by {self.links[ref].start}: a value given for "
+                            "it would be overwritten at once (set a parameter of a component instead)")
         elif var.type != p.type and not (var.type == "Real" and p.type == "Integer"):
             problems.append(f"{origin}: {ref} is {var.type} but the value given is {p.type}")
         else:

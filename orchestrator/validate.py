@@ -34,9 +34,20 @@ from .ssp import (
 )
 from .system import System
 
-__all__ = ["DEFAULT_STEP", "Problem", "Validation", "check_scenario", "timing", "validate"]
+__all__ = ["DEFAULT_STEP", "STEP_ANNOTATIONS", "Problem", "Validation", "check_scenario", "no_step", "timing",
+           "validate"]
 
 DEFAULT_STEP = 1e-3
+STEP_ANNOTATIONS = ("a step annotation: libcosim's osp:FixedStepAlgorithm baseStepSize in the "
+                    "DefaultExperiment, or OMSimulator's oms:FixedStepMaster stepSize in the System")
+
+
+def no_step(structure: SystemStructure) -> str:
+    """Why a run of ``structure`` would take the default step ('' when the SSD gives one)."""
+    if structure.experiment.step is not None:
+        return ""
+    return (f"{structure.ssd_file}: no communication step: the SSD has no {STEP_ANNOTATIONS}; "
+            f"running at the default {DEFAULT_STEP:g} s (give --step)")
 
 
 @dataclass(frozen=True)
@@ -152,6 +163,8 @@ def validate(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.P
     if system is None:
         return Validation(str(scenario), tuple(Problem(e) for e in errors))
     structure = system.structure
+    if no_step(structure):
+        warnings.append(no_step(structure))
     if structure.experiment.stop_time is None:
         warnings.append(f"{system.ssd}: no stopTime in DefaultExperiment; 'run' needs --stop-time")
     else:

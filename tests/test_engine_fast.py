@@ -21,7 +21,15 @@ from fmpy.model_description import CoSimulation, ModelDescription, ModelVariable
 from orchestrator.errors import NonFiniteError, ScenarioError, SimulationError
 from orchestrator.fmi import InstanceBase
 from orchestrator.master import MASTERS, Master
-from orchestrator.ssp import Component, Connection, Connector, Experiment, SystemStructure
+from orchestrator.ssp import (
+    Component,
+    Connection,
+    Connector,
+    Experiment,
+    Parameter,
+    ParameterSet,
+    SystemStructure,
+)
 from orchestrator.system import System
 
 H, K, X0 = 0.1, -2.0, 1.0
@@ -225,3 +233,37 @@ def test_a_failed_get_names_the_call():
     runner = master("gauss-seidel", loop_system(), [], faults={("gain", "get", 2): fmi2Error})
     with pytest.raises(SimulationError, match=r"^gain: fmi2GetReal returned fmi2Error at t=0\.200 s$"):
         runner.run()
+
+
+# -- no silent defaults (issue 22) ------------------------------------------------------------------
+def test_a_value_for_a_connected_input_is_refused():
+    """Before: --set gain.u=5 on the loop was accepted, recorded in provenance and the plot title,
+    and overwritten by integrator.x at the first propagation."""
+    expected = r"^--set: gain\.u is an input fed by integrator\.x: a value given"
+    with pytest.raises(ScenarioError, match=expected):
+        System(loop_system().structure, overrides={"gain.u": 5.0},
+               model_descriptions={Path("Integrator.fmu"): INTEGRATOR, Path("Gain.fmu"): GAIN})
+
+
+def test_a_parameter_given_twice_in_one_set_is_refused():
+    """Before: the second value won in silence."""
+    twice = ParameterSet("mine.ssv", (Parameter("gain.k", "Real", 2.0), Parameter("gain.k", "Real", 3.0)))
+    expected = r"^mine\.ssv: parameter 'gain\.k' is given twice \(2\.0 and 3\.0\)"
+    with pytest.raises(ScenarioError, match=expected):
+        System(loop_system().structure, [twice],
+               model_descriptions={Path("Integrator.fmu"): INTEGRATOR, Path("Gain.fmu"): GAIN})
+
+
+def test_packing_the_same_files_gives_the_same_bytes(tmp_path):
+    """Before: every build wrote the files' modification times into the .ssp."""
+    import os
+
+    from orchestrator.ssp import pack_ssp
+
+    (tmp_path / "s").mkdir()
+    (tmp_path / "s" / "SystemStructure.ssd").write_text("<ssd/>")
+    (tmp_path / "A.fmu").write_bytes(b"fmu bytes" * 100)
+    first = pack_ssp(tmp_path / "s", {"A.fmu": tmp_path / "A.fmu"}, tmp_path / "one.ssp").read_bytes()
+    for f in (tmp_path / "s" / "SystemStructure.ssd", tmp_path / "A.fmu"):
+        os.utime(f, (1e9, 1e9))  # as a later build leaves them: other times, same bytes
+    assert pack_ssp(tmp_path / "s", {"A.fmu": tmp_path / "A.fmu"}, tmp_path / "two.ssp").read_bytes() == first
