@@ -125,16 +125,17 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
             provenance.write_provenance(output, record)
         runner = MASTERS[options.master](system, start, stop, h, stream, progress,
                                          keep=options.keep or output is None, timeout=options.timeout)
+        texts = descriptions(system)
         try:
             runner.run()
         except (SimulationError, KeyboardInterrupt, OSError) as exc:
             status = ("timeout" if isinstance(exc, TimeLimitError) else
                       "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed")
-            result = _finish(runner, record, status, str(exc), output, stream, selection)
+            result = _finish(runner, record, status, str(exc), output, stream, selection, texts)
             if isinstance(exc, (SimulationError, Interrupted)):
                 exc.result = result
             raise
-        return _finish(runner, record, "complete", "", output, stream, selection)
+        return _finish(runner, record, "complete", "", output, stream, selection, texts)
 
 
 def system_columns(system: System) -> list[str]:
@@ -143,9 +144,23 @@ def system_columns(system: System) -> list[str]:
             for c in (*comp.inputs, *comp.outputs)]
 
 
+def descriptions(system: System) -> dict[str, str]:
+    """Each column's description and unit as Dymola writes them into a result file:
+    ``Plant output [rad]`` (the FMU's description; the unit in brackets when it declares one)."""
+    units = provenance.column_units(system)
+    texts = {}
+    for name, comp in system.components.items():
+        variables = comp.variables
+        for k in (*comp.inputs, *comp.outputs):
+            column = str(PortRef(name, k))
+            text, unit = variables[k].description or "", units.get(column)
+            texts[column] = f"{text} [{unit}]".strip() if unit else text
+    return texts
+
+
 def _finish(runner: Master, record: dict[str, object], status: str, message: str,
             output: str | os.PathLike | None, stream: str | os.PathLike | None,
-            selection: formats.Selection) -> RunResult:
+            selection: formats.Selection, texts: Mapping[str, str]) -> RunResult:
     """The result of a run that ended with ``status``; with an ``output``, its rows written in the
     format asked for and the provenance finished."""
     recorder = runner.recorder
@@ -158,7 +173,7 @@ def _finish(runner: Master, record: dict[str, object], status: str, message: str
     outputs: dict[str, Path] = {}
     if output is not None and stream is not None:
         if count and Path(stream).is_file():
-            formats.write_selected(stream, output, selection)  # the rows kept, in the format asked for
+            formats.write_selected(stream, output, selection, texts)  # the rows kept, in the format asked for
             outputs["result"] = Path(output)
         outputs["provenance"] = provenance.write_provenance(output, record)
     return RunResult(status, message, rows, count, last, record, outputs,

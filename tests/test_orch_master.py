@@ -154,7 +154,7 @@ def test_cli_run_metrics_plot_and_usage(loop, tmp_path, capsys):
     assert (tmp_path / "r.png").stat().st_size > 0
     assert main(["plot", str(out), "--output", str(tmp_path / "p.png")]) == 0
     assert main(["metrics", str(out)]) == 1  # no plant.y / reference.yd columns
-    assert "needs plant.y and reference.yd" in capsys.readouterr().err
+    assert "no column plant.y, reference.yd (choose with --signal and --reference" in capsys.readouterr().err
     for bad in (["run", str(loop), "--set", "gain.k"], ["run", str(loop), "--master", "nope"], [],
                 ["run", str(loop), "--stop-time", "nan"], ["run", str(loop), "--step", "inf"]):
         with pytest.raises(SystemExit) as info:
