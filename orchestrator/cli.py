@@ -272,8 +272,13 @@ def resolve_scenario(scenario: str) -> Path:
 
 
 def fmu_dirs(scenario: Path) -> list[Path]:
-    """Where a scenario source folder (no FMUs under resources/) takes its FMUs: build/fmus/."""
-    return [BUILD_DIR / "fmus"] if scenario.is_dir() and (BUILD_DIR / "fmus").is_dir() else []
+    """Where a scenario source folder (no FMUs under resources/) takes its FMUs: the build/fmus/
+    of its project (``PROJECT/ssp/NAME`` -> ``PROJECT/build/fmus``), whatever the working
+    directory, else build/fmus/ of the working directory."""
+    if not scenario.is_dir():
+        return []
+    candidates = [scenario.resolve().parent.parent / BUILD_DIR / "fmus", BUILD_DIR / "fmus"]
+    return [d for d in candidates if d.is_dir()][:1]
 
 
 def scenario_checks(scenario: Path) -> list[str]:

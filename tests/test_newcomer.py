@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from fmpy.util import read_csv
 from orch_helpers import loop_scenario
 
 import orchestrator
@@ -86,3 +87,19 @@ def test_fmu_warnings_are_shown_without_verbose(built, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "orchestrate: warning: controller (FixedTimeController): communication step 0.0005 s" in err
     assert err.count("differs from sample_time") == 1
+
+
+@pytest.mark.system
+def test_a_scenario_folder_finds_its_projects_fmus_from_any_directory(test_fmus, tmp_path, monkeypatch):
+    """Before: ssp/NAME looked for build/fmus/ in the working directory only ('no FMU')."""
+    project = tmp_path / "project"
+    source = loop_scenario(project / "ssp" / "loop", test_fmus, stop=0.05, pack=False)
+    (project / "build" / "fmus").mkdir(parents=True)
+    for fmu in (source / "resources").glob("*.fmu"):  # as 'orchestrate build' lays them out
+        fmu.rename(project / "build" / "fmus" / fmu.name)
+    (source / "resources").rmdir()
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    assert main(["run", str(source), "--quiet", "--no-plot", "--output", "r.csv"]) == 0
+    assert len(read_csv("r.csv")) == 6
