@@ -28,6 +28,7 @@ from .errors import (
     TimeLimitError,
     UsageError,
 )
+from .inputs import read_inputs
 from .master import MASTERS, Master
 from .result import RunOptions, RunResult
 from .ssp import DEFAULT_LIMITS, Limits
@@ -103,15 +104,24 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
     with open_system(scenario, parameter_sets=options.parameter_sets, overrides=options.overrides,
                      fmu_dirs=options.fmu_dirs, limits=options.limits) as system:
         start, stop, h = timing(system.structure, options.stop_time, options.step, options.start_time)
-        if options.strict and system.unconnected:
-            raise ScenarioError(system.unconnected)
+        series, noted = (None, []) if options.input_file is None else read_inputs(options.input_file, system,
+                                                                                 start, stop)
+        driven = set(series.ports) if series is not None else set()
+        unconnected = [m for m, port in zip(system.unconnected, system.unconnected_ports, strict=True)
+                       if port not in driven]
+        if options.strict and unconnected:
+            raise ScenarioError(unconnected)
         defaulted = [no_step(system.structure)] if options.step is None and no_step(system.structure) else []
         if options.strict and defaulted:
             raise ScenarioError(defaulted)
-        for message in [*system.unconnected, *defaulted]:
+        for message in [*unconnected, *defaulted, *noted]:
             warnings.warn(message, ScenarioWarning, stacklevel=2)
         record = provenance.describe(scenario, system, start=start, stop=stop, step=h, master=options.master,
                                      parameter_sets=options.parameter_sets, overrides=options.overrides)
+        if options.input_file is not None:
+            record["input_file"] = {"path": str(Path(options.input_file).resolve()),
+                                    "sha256": provenance.digest(options.input_file),
+                                    "inputs": [str(p) for p in driven]}
         stream = None
         if output is not None:  # the master streams a CSV; other formats and selections come from it
             formats.check_output(output, h, selection)
@@ -124,7 +134,8 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
                                 "interval": selection.interval, "left_out": list(selection.drop)}
             provenance.write_provenance(output, record)
         runner = MASTERS[options.master](system, start, stop, h, stream, progress,
-                                         keep=options.keep or output is None, timeout=options.timeout)
+                                         keep=options.keep or output is None, timeout=options.timeout,
+                                         inputs=series)
         texts = descriptions(system)
         try:
             runner.run()

@@ -143,6 +143,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="columns to write, shell patterns such as 'plant.*' (repeatable; default: all)")
     p.add_argument("--output-interval", type=float, metavar="S",
                    help="write every row at t0 + k S only (a multiple of the step; default: every step)")
+    p.add_argument("--input-file", type=Path, metavar="FILE.csv",
+                   help="time series for inputs no connection feeds: 'time' then <component>.<input> columns "
+                        "(FMPy's convention; continuous inputs interpolated linearly, discrete ones held)")
     p.add_argument("--no-inputs", action="store_true",
                    help="leave out input columns that only repeat the output connected to them")
     p.add_argument("--plot", type=Path, metavar="FILE.png", help="plot file (default: results/<name>.png)")
@@ -344,7 +347,7 @@ def _options(args: argparse.Namespace, scenario: Path, output: Path) -> RunOptio
                       output=output, output_variables=args.output_variables,
                       output_interval=args.output_interval, no_inputs=args.no_inputs, keep=False,
                       strict=args.strict, timeout=args.timeout, fmu_dirs=fmu_dirs(scenario),
-                      limits=_limits(args))
+                      limits=_limits(args), input_file=args.input_file)
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -53,6 +53,7 @@ import numpy as np
 
 from .errors import Interrupted, NonFiniteError, SimulationError, TimeLimitError
 from .fmi import FAILED, Instance, InstanceBase, MessageLog, interpreter_guard
+from .inputs import InputSeries
 from .results import NonFiniteError as NonFiniteRow
 from .results import Recorder
 from .system import ComponentModel, PortRef, System
@@ -174,6 +175,18 @@ class Scaled(NamedTuple):
     offset: float
 
 
+class Driven(NamedTuple):
+    """The inputs of one instance that an input file drives: one batched fmi2SetReal of the
+    ``values[where]`` slice, filled from the series' ``columns``."""
+
+    instance: InstanceBase
+    vrs: ctypes.Array
+    n_values: int
+    values: ctypes.Array
+    where: slice
+    columns: list[int]
+
+
 class Operation(NamedTuple):
     """One step of the propagation at a communication point: read an FMU's outputs, or transfer
     connections into some of its inputs and write them, as one batched FMI call."""
@@ -220,6 +233,9 @@ class Master:
     preview for plotting (:class:`~orchestrator.results.Recorder`), so memory stays flat however
     long the run. ``timeout``: wall-clock limit of the run in seconds. ``instances`` makes the
     instance of each component (default :func:`open_instance`; a fake in the fast unit tests).
+    ``inputs`` drives unconnected inputs (:mod:`orchestrator.inputs`): set at t0 in initialization
+    mode, then at each t_k+1 before its outputs are read (gauss-seidel) or after the step's transfer
+    (jacobi, whose FMUs then use them in the next step, like every value it exchanges).
     """
 
     name = ""
@@ -227,7 +243,8 @@ class Master:
     def __init__(self, system: System, start_time: float, stop_time: float, step: float,
                  output: str | os.PathLike | None = None,
                  progress: Callable[[int, int], None] | None = None, keep: bool = True,
-                 timeout: float | None = None, instances: InstanceFactory = open_instance) -> None:
+                 timeout: float | None = None, instances: InstanceFactory = open_instance,
+                 inputs: InputSeries | None = None) -> None:
         self.system = system
         self._t0, self._h, self.n = grid(start_time, stop_time, step)
         self.start_time = self._t0 / NS_PER_S
@@ -237,6 +254,8 @@ class Master:
         self.keep = keep
         self.timeout = timeout
         self.open_instance = instances
+        self.inputs = inputs
+        self._driven: list[Driven] = []
         self.instances: list[InstanceBase] = []
         self.recorder: Recorder | None = None
         self.messages = MessageLog()
@@ -347,6 +366,7 @@ class Master:
             inst.set_start_values(start_values, t0)
             inst.setup(t0, stop)
             inst.set_start_values(start_values, t0)
+        self._drive(t0)
         self._initialize_impl(t0)
         assert self.recorder is not None  # setup() creates it
         self.recorder.append(self.values)
@@ -384,8 +404,10 @@ class Master:
                 if op.kind == "set" and op.component == comp.name:
                     input_order += [PortRef(op.component, i) for i in op.inputs]
         n_connected = len(input_order)
-        for comp in system.components.values():
-            input_order += [p for p in (PortRef(comp.name, i) for i in comp.inputs) if p not in system.links]
+        driven = list(self.inputs.ports) if self.inputs is not None else []
+        for comp in system.components.values():  # unconnected: those an input file drives first
+            free = [p for p in (PortRef(comp.name, i) for i in comp.inputs) if p not in system.links]
+            input_order += [p for p in free if p in driven] + [p for p in free if p not in driven]
         columns += [str(p) for p in input_order]
         slot = {p: 1 + j for j, p in enumerate(input_order)}
         out_slice: dict[str, slice] = {}
@@ -420,6 +442,13 @@ class Master:
             if mine:
                 inst.in_vr = self._vrs(comp, [input_order[j].connector for j in mine])
                 inst.in_ptr = self._view(slice(1 + mine[0], 2 + mine[-1]))
+        for inst in self.instances:
+            fed = [p for p in input_order[n_connected:] if p.component == inst.name and p in driven]
+            if fed:
+                comp = system.components[inst.name]
+                where = slice(slot[fed[0]], slot[fed[0]] + len(fed))
+                self._driven.append(Driven(inst, self._vrs(comp, [p.connector for p in fed]), len(fed),
+                                           self._view(where), where, [driven.index(p) for p in fed]))
         self._ops: list[Operation] = []
         for op in system.schedule:
             inst = by_name[op.component]
@@ -460,6 +489,18 @@ class Master:
         n = part.stop - part.start
         return (c_double * n).from_buffer(self.values, part.start * self.values.itemsize)
 
+    def _drive(self, t: float) -> None:
+        """Set the inputs the input file drives to their values at ``t``."""
+        if not self._driven:
+            return
+        assert self.inputs is not None  # _driven is laid out from it
+        u = self.inputs.at(t)
+        for inst, vr, n, ptr, where, columns in self._driven:
+            self.values[where] = u[columns]
+            status = inst.set_real(inst.c, vr, n, ptr)
+            if status >= FAILED:
+                inst.fail("fmi2SetReal", status, t)
+
     def _transfer_all(self) -> None:
         v = self._cvalues
         for dst, src in self._all_copy:
@@ -498,6 +539,7 @@ class GaussSeidel(Master):
         for inst in self.instances:
             inst.step(t, h)
         self.values[0] = t_next
+        self._drive(t_next)
         self._propagate(t_next)
 
 
@@ -526,6 +568,7 @@ class Jacobi(Master):
             inst.read_outputs(t)
         self.values[0] = t_next
         self._transfer_all()
+        self._drive(t_next)
 
 
 MASTERS: dict[str, type[Master]] = {"gauss-seidel": GaussSeidel, "jacobi": Jacobi}

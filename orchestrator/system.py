@@ -344,6 +344,7 @@ class System:
         in ``unconnected`` (also in ``warnings``) unless a parameter set or override gave it a value,
         since every pythonfmu input has a start value and a deleted connection would go unnoticed."""
         self.unconnected: list[str] = []
+        self.unconnected_ports: list[PortRef] = []  # the input each message of ``unconnected`` names
         for comp in self.components.values():
             if comp.name in partial:
                 continue
@@ -357,6 +358,7 @@ class System:
                 else:
                     self.unconnected.append(f"{where} is not connected: it keeps the FMU's start "
                                             f"value {v.start} for the whole run")
+                    self.unconnected_ports.append(ref)
         self.warnings.extend(self.unconnected)
 
     # -- propagation order --------------------------------------------------------------------

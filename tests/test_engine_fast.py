@@ -30,7 +30,7 @@ from orchestrator.ssp import (
     ParameterSet,
     SystemStructure,
 )
-from orchestrator.system import System
+from orchestrator.system import PortRef, System
 
 H, K, X0 = 0.1, -2.0, 1.0
 
@@ -267,3 +267,44 @@ def test_packing_the_same_files_gives_the_same_bytes(tmp_path):
     for f in (tmp_path / "s" / "SystemStructure.ssd", tmp_path / "A.fmu"):
         os.utime(f, (1e9, 1e9))  # as a later build leaves them: other times, same bytes
     assert pack_ssp(tmp_path / "s", {"A.fmu": tmp_path / "A.fmu"}, tmp_path / "two.ssp").read_bytes() == first
+
+
+# -- input time series (--input-file) ---------------------------------------------------------------
+def lone_gain() -> System:
+    """One gain, y = 3 u, its input fed by no connection."""
+    components = (Component("gain", Path("Gain.fmu"), (Connector("u", "input", "Real"),
+                                                       Connector("y", "output", "Real"))),)
+    structure = SystemStructure("one", components, (), Experiment(0.0, 1.0, H), ssd_file="one.ssd")
+    return System(structure, overrides={"gain.k": 3.0}, model_descriptions={Path("Gain.fmu"): GAIN})
+
+
+@pytest.mark.parametrize("name", list(MASTERS))
+def test_an_input_series_drives_an_unconnected_input(name):
+    """u(t) = 1 + 2t between rows 0.25 s apart (linear interpolation is exact on it) and 5 after
+    t = 0.75 (held: the file ends there). Gauss-seidel reads y after setting u at the same point;
+    jacobi's FMU uses u(t_k) in the step to t_k+1, like every value it exchanges."""
+    from orchestrator.inputs import InputSeries
+
+    series = InputSeries((PortRef("gain", "u"),), np.array([0.0, 0.25, 0.5, 0.75]),
+                         np.array([[1.0], [1.5], [2.0], [5.0]]), (False,))
+    log: list[tuple] = []
+
+    def fake(comp, workdir, messages, time):
+        return Fake(comp.name, comp.model, log, {})
+
+    rows = MASTERS[name](lone_gain(), 0.0, 1.0, H, instances=fake, inputs=series).run()
+    u = np.interp(rows["time"], series.time, series.values[:, 0])
+    np.testing.assert_allclose(rows["gain.u"], u, rtol=1e-15)
+    if name == "gauss-seidel":
+        np.testing.assert_allclose(rows["gain.y"], 3 * u, rtol=1e-15)
+    else:
+        np.testing.assert_allclose(rows["gain.y"][1:], 3 * u[:-1], rtol=1e-15)
+    sets = [e for e in log if e[0] == "set"]
+    assert len(sets) == 11 and all(e[1:] == ("gain", ("u",)) for e in sets)  # t0, then every step
+
+
+def test_a_discrete_input_holds_its_value_between_rows():
+    from orchestrator.inputs import InputSeries
+
+    series = InputSeries((PortRef("a", "u"),), np.array([0.0, 0.5]), np.array([[1.0], [2.0]]), (True,))
+    assert [series.at(t)[0] for t in (0.0, 0.2, 0.49999, 0.5, 0.9)] == [1.0, 1.0, 1.0, 2.0, 2.0]

@@ -110,3 +110,37 @@ def test_the_default_figure_of_a_users_scenario_shows_every_output_by_component(
     assert main(["run", str(loop), "--quiet", "--output", str(tmp_path / "l.csv"),
                  "--plot-variables", "integrator.*"]) == 0
     assert (tmp_path / "l.png").stat().st_size > 5000
+
+
+def test_input_file_drives_an_unconnected_input_of_a_real_fmu(test_fmus, tmp_path, capsys):
+    """The loop's free sine source replaced by a file: a lone gain (y = k u) whose u no connection
+    feeds, driven by u(t) = 1 + 2t (rows 0.25 s apart: interpolation is exact)."""
+    from orchestrator.ssp import Experiment, SystemStructure, component, pack_ssp, write_ssd
+
+    folder = tmp_path / "one"
+    gain = component("gain", "Gain.fmu", [("u", "input", "Real"), ("y", "output", "Real")], {"k": 3.0})
+    write_ssd(folder, SystemStructure("one", (gain,), (), Experiment(0.0, 0.5, H)))
+    archive = pack_ssp(folder, {"Gain.fmu": test_fmus["Gain"]}, tmp_path / "one.ssp")
+    inputs = tmp_path / "u.csv"
+    inputs.write_text("time,gain.u\n0.0,1.0\n0.25,1.5\n0.5,2.0\n")
+    result = orchestrator.run(archive, RunOptions(input_file=inputs))  # no 'not connected' warning
+    t = result.rows["time"]
+    np.testing.assert_allclose(result.rows["gain.u"], 1 + 2 * t, rtol=1e-14)
+    np.testing.assert_allclose(result.rows["gain.y"], 3 * (1 + 2 * t), rtol=1e-14)
+    assert result.provenance["input_file"]["inputs"] == ["gain.u"]
+    assert main(["run", str(archive), "--quiet", "--no-plot", "--input-file", str(inputs),
+                 "--output", str(tmp_path / "r.csv")]) == 0
+    np.testing.assert_allclose(read_csv(tmp_path / "r.csv")["gain.y"], 3 * (1 + 2 * t), rtol=1e-14)
+    (tmp_path / "bad.csv").write_text("time,gain.y,gain.v\n0.0,1.0,1.0\n0.5,1.0,1.0\n")
+    with pytest.raises(UsageError, match=r"'gain.y' is not a Real input of the scenario; 'gain.v' is not a "
+                                         r"Real input of the scenario \(inputs it can drive: gain.u\)"):
+        orchestrator.run(archive, RunOptions(input_file=tmp_path / "bad.csv"))
+    (tmp_path / "short.csv").write_text("time,gain.u\n0.0,1.0\n0.25,1.5\n")
+    with pytest.warns(orchestrator.ScenarioWarning, match=r"covers t = 0 .. 0.25 s of the run's 0 .. 0.5 s"):
+        orchestrator.run(archive, RunOptions(input_file=tmp_path / "short.csv"))
+
+
+def test_input_file_refuses_a_connected_input(loop, tmp_path):
+    (tmp_path / "u.csv").write_text("time,gain.u\n0.0,1.0\n1.0,1.0\n")
+    with pytest.raises(UsageError, match=r"'gain.u' is fed by integrator.x \(inputs it can drive: none\)"):
+        orchestrator.run(loop, RunOptions(input_file=tmp_path / "u.csv"))
