@@ -8,6 +8,7 @@ validate runs ssp and system as far as they go and reports everything (``orchest
 
 from __future__ import annotations
 
+import fnmatch
 import os
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -29,7 +30,7 @@ from .errors import (
     UsageError,
 )
 from .inputs import read_inputs
-from .master import MASTERS, Master
+from .master import MASTERS, Master, tracing
 from .result import RunOptions, RunResult
 from .ssp import DEFAULT_LIMITS, Limits
 from .system import PortRef, System
@@ -133,9 +134,13 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
             record["output"] = {"format": Path(output).suffix.lower(), "variables": list(selection.variables),
                                 "interval": selection.interval, "left_out": list(selection.drop)}
             provenance.write_provenance(output, record)
+        unmatched = [p for p in options.fmi_log if not fnmatch.filter(system.components, p)]
+        if unmatched:
+            raise UsageError(f"--fmi-log: no component matches {', '.join(unmatched)} "
+                             f"(components: {', '.join(system.components)})")
         runner = MASTERS[options.master](system, start, stop, h, stream, progress,
                                          keep=options.keep or output is None, timeout=options.timeout,
-                                         inputs=series)
+                                         inputs=series, instances=tracing(options.fmi_log))
         texts = descriptions(system)
         try:
             runner.run()

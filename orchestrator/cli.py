@@ -30,6 +30,7 @@ from .errors import (
     SimulationError,
     UsageError,
 )
+from .fmi import CALLS
 from .inspection import inspect_scenario
 from .plots import plot_run
 from .provenance import overrides_text, read_provenance
@@ -159,6 +160,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="refuse the scenario when an input is not connected (default: a warning)")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
     p.add_argument("--verbose", action="store_true", help="show the FMUs' log messages as they come")
+    p.add_argument("--fmi-log", action="append", default=[], metavar="COMPONENT",
+                   help="print every FMI call of the components matching this shell pattern ('*': all) "
+                        "on stderr (repeatable)")
     p.add_argument("--timeout", type=float, metavar="SECONDS",
                    help="wall-clock limit of the run: stop at the next communication point (a step that "
                         "does not return is aborted 2 s later); exit status 1, rows kept")
@@ -347,7 +351,7 @@ def _options(args: argparse.Namespace, scenario: Path, output: Path) -> RunOptio
                       output=output, output_variables=args.output_variables,
                       output_interval=args.output_interval, no_inputs=args.no_inputs, keep=False,
                       strict=args.strict, timeout=args.timeout, fmu_dirs=fmu_dirs(scenario),
-                      limits=_limits(args), input_file=args.input_file)
+                      limits=_limits(args), input_file=args.input_file, fmi_log=args.fmi_log)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -364,6 +368,7 @@ def _run(args: argparse.Namespace) -> int:
     logging.getLogger().addHandler(messages)
     if args.verbose:
         logging.getLogger().setLevel(logging.INFO)
+    calls = _call_log(args.fmi_log)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ScenarioWarning)
@@ -388,6 +393,7 @@ def _run(args: argparse.Namespace) -> int:
         return 1
     finally:
         logging.getLogger().removeHandler(messages)
+        CALLS.removeHandler(calls)
     if plot is not None and not _plot_result(result, plot, name, args):
         return 1
     if not args.quiet:
@@ -395,6 +401,17 @@ def _run(args: argparse.Namespace) -> int:
         span = f"t = {result.rows['time'][0]:g} .. {result.time:g} s"
         print(f"{name}: {result.count} rows, {span} -> {output}{extra}")
     return 0
+
+
+def _call_log(patterns: Sequence[str]) -> logging.Handler:
+    """The handler that prints the traced FMI calls (``--fmi-log``) on stderr, one per line."""
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("fmi: %(message)s"))
+    if patterns:
+        CALLS.setLevel(logging.INFO)
+        CALLS.propagate = False  # printed here only, also with --verbose
+        CALLS.addHandler(handler)
+    return handler
 
 
 def _plot_result(result: RunResult, plot: Path, name: str, args: argparse.Namespace) -> bool:

@@ -35,7 +35,7 @@ from fmpy.fmi2 import (
 
 from .errors import SimulationError
 
-__all__ = ["FAILED", "Instance", "InstanceBase", "MessageLog", "interpreter_guard"]
+__all__ = ["CALLS", "FAILED", "Instance", "InstanceBase", "MessageLog", "interpreter_guard", "trace"]
 
 log = logging.getLogger(__name__)
 
@@ -242,3 +242,59 @@ class Instance(InstanceBase):
             self.fmu.freeInstance()
         except Exception:  # noqa: BLE001
             log.warning("%s: fmi2FreeInstance failed during cleanup", self.name)
+
+
+CALLS = logging.getLogger("orchestrator.fmi.calls")
+
+
+def _status(status: int) -> str:
+    names = SimulationError.STATUS_NAMES
+    return names[status] if 0 <= status < len(names) else str(status)
+
+
+def trace(instance: InstanceBase) -> InstanceBase:
+    """Log every FMI call ``instance`` makes from now on to the logger ``orchestrator.fmi.calls``
+    (level INFO), one line each: ``plant: fmi2DoStep(t=0.001, h=0.001) -> fmi2OK``, with the value
+    references and values of fmi2GetReal/fmi2SetReal. Returns the instance."""
+    name = instance.name
+    do_step, get_real, set_real = instance.do_step, instance.get_real, instance.set_real
+
+    def traced_step(c: object, t: float, h: float, new_step: int) -> int:
+        status = do_step(c, t, h, new_step)
+        CALLS.info("%s: fmi2DoStep(t=%r, h=%r) -> %s", name, t, h, _status(status))
+        return status
+
+    def traced_get(c: object, vr: ctypes.Array, n: int, values: ctypes.Array) -> int:
+        status = get_real(c, vr, n, values)
+        CALLS.info("%s: fmi2GetReal(vr=%s) -> %s %s", name, list(vr[:n]), list(values[:n]), _status(status))
+        return status
+
+    def traced_set(c: object, vr: ctypes.Array, n: int, values: ctypes.Array) -> int:
+        status = set_real(c, vr, n, values)
+        CALLS.info("%s: fmi2SetReal(vr=%s, values=%s) -> %s", name, list(vr[:n]), list(values[:n]),
+                   _status(status))
+        return status
+
+    instance.do_step, instance.get_real, instance.set_real = traced_step, traced_get, traced_set
+    for method, function in (("set_start_values", "fmi2Set* (start values)"),
+                             ("setup", "fmi2SetupExperiment + fmi2EnterInitializationMode"),
+                             ("exit_initialization", "fmi2ExitInitializationMode"),
+                             ("terminate", "fmi2Terminate")):
+        setattr(instance, method, _logged(name, function, getattr(instance, method)))
+    return instance
+
+
+def _logged(name: str, function: str, method: Callable[..., None]) -> Callable[..., None]:
+    def call(*args: object) -> None:
+        try:
+            method(*args)
+        except SimulationError as exc:
+            CALLS.info("%s: %s%s -> %s", name, function, _args(args), exc.status)
+            raise
+        CALLS.info("%s: %s%s -> fmi2OK", name, function, _args(args))
+    return call
+
+
+def _args(args: tuple[object, ...]) -> str:
+    shown = [repr({k: v[2] for k, v in a.items()}) if isinstance(a, Mapping) else repr(a) for a in args]
+    return f"({', '.join(shown)})"

@@ -36,6 +36,7 @@ checked calls, statuses, cleanup) are :mod:`orchestrator.fmi`'s.
 from __future__ import annotations
 
 import ctypes
+import fnmatch
 import math
 import os
 import shutil
@@ -52,14 +53,14 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .errors import Interrupted, NonFiniteError, SimulationError, TimeLimitError
-from .fmi import FAILED, Instance, InstanceBase, MessageLog, interpreter_guard
+from .fmi import CALLS, FAILED, Instance, InstanceBase, MessageLog, interpreter_guard, trace
 from .inputs import InputSeries
 from .results import NonFiniteError as NonFiniteRow
 from .results import Recorder
 from .system import ComponentModel, PortRef, System
 
 __all__ = ["GRACE", "MASTERS", "MAX_TIME", "NS_PER_S", "GaussSeidel", "InstanceFactory", "Jacobi", "Master",
-           "grid", "open_instance", "time_grid"]
+           "grid", "open_instance", "time_grid", "tracing"]
 
 NS_PER_S = 1_000_000_000
 MAX_TIME = (2**63 - 1) / NS_PER_S / 2  # s: t0 + n*h stays within int64 nanoseconds (292 years / 2)
@@ -208,6 +209,18 @@ def open_instance(comp: ComponentModel, workdir: str, messages: MessageLog, time
 
 
 InstanceFactory = Callable[[ComponentModel, str, MessageLog, float], InstanceBase]
+
+
+def tracing(patterns: Sequence[str], factory: InstanceFactory = open_instance) -> InstanceFactory:
+    """``factory`` whose instances of the components matching ``patterns`` (shell patterns) log
+    every FMI call (:func:`orchestrator.fmi.trace`, ``--fmi-log``)."""
+    def open_traced(comp: ComponentModel, workdir: str, messages: MessageLog, time: float) -> InstanceBase:
+        instance = factory(comp, workdir, messages, time)
+        if any(fnmatch.fnmatchcase(comp.name, p) for p in patterns):
+            CALLS.info("%s: fmi2Instantiate(%s) -> ok", comp.name, comp.fmu.name)
+            trace(instance)
+        return instance
+    return open_traced
 
 
 class Master:

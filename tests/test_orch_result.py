@@ -144,3 +144,23 @@ def test_input_file_refuses_a_connected_input(loop, tmp_path):
     (tmp_path / "u.csv").write_text("time,gain.u\n0.0,1.0\n1.0,1.0\n")
     with pytest.raises(UsageError, match=r"'gain.u' is fed by integrator.x \(inputs it can drive: none\)"):
         orchestrator.run(loop, RunOptions(input_file=tmp_path / "u.csv"))
+
+
+def test_fmi_log_traces_the_calls_of_the_chosen_components(loop, tmp_path, capsys):
+    out = tmp_path / "r.csv"
+    assert main(["run", str(loop), "--stop-time", "0.02", "--quiet", "--no-plot", "--output", str(out),
+                 "--fmi-log", "gain"]) == 0
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("fmi: ")]
+    assert lines[0] == "fmi: gain: fmi2Instantiate(Gain.fmu) -> ok"
+    assert all(line.startswith("fmi: gain: ") for line in lines)  # the integrator is not traced
+    steps = [line for line in lines if "fmi2DoStep" in line]
+    assert steps == ["fmi: gain: fmi2DoStep(t=0.0, h=0.01) -> fmi2OK",
+                     "fmi: gain: fmi2DoStep(t=0.01, h=0.01) -> fmi2OK"]
+    functions = [line.split(": ")[2].split("(")[0] for line in lines]
+    assert functions.index("fmi2SetupExperiment + fmi2EnterInitializationMode") < functions.index(
+        "fmi2ExitInitializationMode") < functions.index("fmi2DoStep") < functions.index("fmi2Terminate")
+    gets = [line for line in lines if "fmi2GetReal" in line]
+    assert gets and all(line.endswith("fmi2OK") for line in gets)
+    with pytest.raises(SystemExit) as exit_:
+        main(["run", str(loop), "--quiet", "--no-plot", "--output", str(out), "--fmi-log", "gian"])
+    assert exit_.value.code == 2 and "--fmi-log: no component matches gian" in capsys.readouterr().err
