@@ -29,7 +29,7 @@ from .errors import (
     TimeLimitError,
     UsageError,
 )
-from .inputs import read_inputs
+from .inputs import InputSeries, read_inputs
 from .master import MASTERS, Master, tracing
 from .result import RunOptions, RunResult
 from .ssp import DEFAULT_LIMITS, Limits
@@ -105,24 +105,13 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
     with open_system(scenario, parameter_sets=options.parameter_sets, overrides=options.overrides,
                      fmu_dirs=options.fmu_dirs, limits=options.limits) as system:
         start, stop, h = timing(system.structure, options.stop_time, options.step, options.start_time)
-        series, noted = (None, []) if options.input_file is None else read_inputs(options.input_file, system,
-                                                                                 start, stop)
-        driven = set(series.ports) if series is not None else set()
-        unconnected = [m for m, port in zip(system.unconnected, system.unconnected_ports, strict=True)
-                       if port not in driven]
-        if options.strict and unconnected:
-            raise ScenarioError(unconnected)
-        defaulted = [no_step(system.structure)] if options.step is None and no_step(system.structure) else []
-        if options.strict and defaulted:
-            raise ScenarioError(defaulted)
-        for message in [*unconnected, *defaulted, *noted]:
-            warnings.warn(message, ScenarioWarning, stacklevel=2)
+        series = _before_the_run(system, options, start, stop)
         record = provenance.describe(scenario, system, start=start, stop=stop, step=h, master=options.master,
                                      parameter_sets=options.parameter_sets, overrides=options.overrides)
-        if options.input_file is not None:
+        if options.input_file is not None and series is not None:
             record["input_file"] = {"path": str(Path(options.input_file).resolve()),
                                     "sha256": provenance.digest(options.input_file),
-                                    "inputs": [str(p) for p in driven]}
+                                    "inputs": [str(p) for p in series.ports]}
         stream = None
         if output is not None:  # the master streams a CSV; other formats and selections come from it
             formats.check_output(output, h, selection)
@@ -134,10 +123,6 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
             record["output"] = {"format": Path(output).suffix.lower(), "variables": list(selection.variables),
                                 "interval": selection.interval, "left_out": list(selection.drop)}
             provenance.write_provenance(output, record)
-        unmatched = [p for p in options.fmi_log if not fnmatch.filter(system.components, p)]
-        if unmatched:
-            raise UsageError(f"--fmi-log: no component matches {', '.join(unmatched)} "
-                             f"(components: {', '.join(system.components)})")
         runner = MASTERS[options.master](system, start, stop, h, stream, progress,
                                          keep=options.keep or output is None, timeout=options.timeout,
                                          inputs=series, instances=tracing(options.fmi_log))
@@ -152,6 +137,27 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
                 exc.result = result
             raise
         return _finish(runner, record, "complete", "", output, stream, selection, texts)
+
+
+def _before_the_run(system: System, options: RunOptions, start: float, stop: float) -> InputSeries | None:
+    """What must hold before anything runs or is written: the input file read, the --fmi-log
+    patterns matching components; ScenarioWarnings (``strict``: a ScenarioError) for inputs left
+    at their start value and a step the SSD does not give. Returns the input series."""
+    unmatched = [p for p in options.fmi_log if not fnmatch.filter(system.components, p)]
+    if unmatched:
+        raise UsageError(f"--fmi-log: no component matches {', '.join(unmatched)} "
+                         f"(components: {', '.join(system.components)})")
+    series, noted = (None, []) if options.input_file is None else read_inputs(options.input_file, system,
+                                                                             start, stop)
+    driven = set(series.ports) if series is not None else set()
+    unconnected = [m for m, port in zip(system.unconnected, system.unconnected_ports, strict=True)
+                   if port not in driven]
+    defaulted = [no_step(system.structure)] if options.step is None and no_step(system.structure) else []
+    if options.strict and (unconnected or defaulted):
+        raise ScenarioError([*unconnected, *defaulted])
+    for message in [*unconnected, *defaulted, *noted]:
+        warnings.warn(message, ScenarioWarning, stacklevel=3)
+    return series
 
 
 def system_columns(system: System) -> list[str]:

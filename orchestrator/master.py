@@ -409,18 +409,7 @@ class Master:
         """Place time, inputs and outputs in ``values`` and prepare the batched call arrays."""
         system = self.system
         columns = ["time"]
-        by_name = {inst.name: inst for inst in self.instances}
-        # connected inputs in schedule order (each set operation a contiguous slice), then the rest
-        input_order: list[PortRef] = []
-        for comp in system.components.values():
-            for op in system.schedule:
-                if op.kind == "set" and op.component == comp.name:
-                    input_order += [PortRef(op.component, i) for i in op.inputs]
-        n_connected = len(input_order)
-        driven = list(self.inputs.ports) if self.inputs is not None else []
-        for comp in system.components.values():  # unconnected: those an input file drives first
-            free = [p for p in (PortRef(comp.name, i) for i in comp.inputs) if p not in system.links]
-            input_order += [p for p in free if p in driven] + [p for p in free if p not in driven]
+        input_order, n_connected = self._input_order()
         columns += [str(p) for p in input_order]
         slot = {p: 1 + j for j, p in enumerate(input_order)}
         out_slice: dict[str, slice] = {}
@@ -455,13 +444,43 @@ class Master:
             if mine:
                 inst.in_vr = self._vrs(comp, [input_order[j].connector for j in mine])
                 inst.in_ptr = self._view(slice(1 + mine[0], 2 + mine[-1]))
+        self._layout_driven(input_order[n_connected:], slot)
+        self._layout_ops(slot)
+
+    def _input_order(self) -> tuple[list[PortRef], int]:
+        """The inputs' places in ``values`` and how many are connected: connected inputs in schedule
+        order (each set operation a contiguous slice), then per component the unconnected ones,
+        those an input file drives first (each instance's a contiguous slice)."""
+        system = self.system
+        order: list[PortRef] = []
+        for comp in system.components.values():
+            for op in system.schedule:
+                if op.kind == "set" and op.component == comp.name:
+                    order += [PortRef(op.component, i) for i in op.inputs]
+        n_connected = len(order)
+        driven = set(self.inputs.ports) if self.inputs is not None else set()
+        for comp in system.components.values():
+            free = [p for p in (PortRef(comp.name, i) for i in comp.inputs) if p not in system.links]
+            order += [p for p in free if p in driven] + [p for p in free if p not in driven]
+        return order, n_connected
+
+    def _layout_driven(self, unconnected: list[PortRef], slot: dict[PortRef, int]) -> None:
+        """The batched fmi2SetReal of the inputs an input file drives, per instance."""
+        if self.inputs is None:
+            return
+        driven = list(self.inputs.ports)
         for inst in self.instances:
-            fed = [p for p in input_order[n_connected:] if p.component == inst.name and p in driven]
+            fed = [p for p in unconnected if p.component == inst.name and p in driven]
             if fed:
-                comp = system.components[inst.name]
+                comp = self.system.components[inst.name]
                 where = slice(slot[fed[0]], slot[fed[0]] + len(fed))
                 self._driven.append(Driven(inst, self._vrs(comp, [p.connector for p in fed]), len(fed),
                                            self._view(where), where, [driven.index(p) for p in fed]))
+
+    def _layout_ops(self, slot: dict[PortRef, int]) -> None:
+        """The propagation at a communication point (gauss-seidel) as batched calls."""
+        system = self.system
+        by_name = {inst.name: inst for inst in self.instances}
         self._ops: list[Operation] = []
         for op in system.schedule:
             inst = by_name[op.component]
