@@ -46,11 +46,33 @@ def open_system(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | o
                 overrides: Mapping[str, object] | None = None,
                 fmu_dirs: Iterable[str | os.PathLike] = (),
                 limits: Limits = DEFAULT_LIMITS) -> Iterator[System]:
-    """Open, read and validate a scenario (``.ssp`` archive or folder); an archive stays unpacked
-    until the ``with`` block ends. FMUs missing from the scenario are looked up by file name in
-    ``fmu_dirs`` (a source folder with the built FMUs); an archive and its FMUs must stay within
-    ``limits`` (:class:`~orchestrator.ssp.Limits`). Raises ScenarioError listing every problem
-    found (the checks of :func:`orchestrator.validate.validate`, without its warnings)."""
+    """Open, read and validate a scenario; an archive stays unpacked until the ``with`` block ends.
+
+    Parameters
+    ----------
+    scenario : path
+        ``.ssp`` archive or folder holding ``SystemStructure.ssd``.
+    parameter_sets : iterable of path
+        ``.ssv`` files naming parameters ``<component>.<variable>``, after the SSD's own.
+    overrides : mapping, optional
+        ``{"component.variable": value}``, applied last.
+    fmu_dirs : iterable of path
+        Where FMUs missing from the scenario are looked up by file name (a source folder with
+        the built FMUs).
+    limits : Limits
+        What an archive and its FMUs may unpack to (:class:`~orchestrator.ssp.Limits`).
+
+    Yields
+    ------
+    System
+        The validated system (:class:`~orchestrator.system.System`).
+
+    Raises
+    ------
+    ScenarioError
+        Every problem found (the checks of :func:`orchestrator.validate.validate`, without its
+        warnings).
+    """
     with ExitStack() as stack:
         system, errors, _ = check_scenario(scenario, stack, parameter_sets=parameter_sets,
                                            overrides=overrides, fmu_dirs=fmu_dirs, limits=limits)

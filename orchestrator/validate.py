@@ -154,8 +154,21 @@ def timing(structure: SystemStructure, stop_time: float | None = None,
 def validate(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.PathLike] = (),
              overrides: Mapping[str, object] | None = None,
              fmu_dirs: Iterable[str | os.PathLike] = (), limits: Limits = DEFAULT_LIMITS) -> Validation:
-    """Check a scenario (``.ssp`` archive or folder, with the same parameter files and overrides as
-    ``run``) without simulating and report every problem found. Nothing is written next to it."""
+    """Check a scenario without simulating and report every problem found; nothing is written.
+
+    Parameters
+    ----------
+    scenario : path
+        ``.ssp`` archive or folder holding ``SystemStructure.ssd``.
+    parameter_sets, overrides, fmu_dirs, limits
+        As for :func:`orchestrator.open_system` (what ``run`` would get).
+
+    Returns
+    -------
+    Validation
+        Errors (what ``run`` refuses) and warnings, one :class:`Problem` each, and how much was
+        checked.
+    """
     with ExitStack() as stack:
         system, errors, warnings = check_scenario(scenario, stack, parameter_sets=parameter_sets,
                                                   overrides=overrides, fmu_warnings=True, fmu_dirs=fmu_dirs,

@@ -103,3 +103,16 @@ def test_a_scenario_folder_finds_its_projects_fmus_from_any_directory(test_fmus,
     monkeypatch.chdir(elsewhere)
     assert main(["run", str(source), "--quiet", "--no-plot", "--output", "r.csv"]) == 0
     assert len(read_csv("r.csv")) == 6
+
+
+@pytest.mark.system
+def test_crosscheck_says_what_an_archive_misses(test_fmus, tmp_path):
+    """Before: 'needs a DefaultExperiment stopTime and a step annotation' whichever was missing."""
+    from orchestrator.crosscheck.tools import Scenario
+
+    archive = loop_scenario(tmp_path / "loop", test_fmus, stop=0.01, step=None)
+    expected = ("other tools need a step annotation: libcosim's osp:FixedStepAlgorithm baseStepSize in "
+                "the DefaultExperiment, or OMSimulator's oms:FixedStepMaster stepSize in the System; "
+                "it has none$")
+    with pytest.raises(ValueError, match=expected):
+        Scenario.read(archive)
