@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from fmpy.util import read_csv
 from orch_helpers import loop_scenario
 
 import orchestrator
@@ -97,3 +98,26 @@ def test_inspect_of_a_scenario_with_a_parameter_set_names_the_file(test_fmus, tm
     variables = {v.name: v for _, _, vs in report.components for v in vs}
     assert variables["x0"].value == 4.0 and variables["x0"].origin == "--parameter-set mine.ssv"
     assert variables["k"].value == -2.0 and variables["k"].origin == "SSD (gain.ssv)"
+
+
+@needs_reference_fmus
+def test_a_users_scenario_gets_metrics_and_compare_without_the_papers_names(tmp_path, capsys):
+    """Done-when of issue 22: plot, inspect (above), metrics on the signals it names and compare,
+    no file of the paper involved. Oracle for the metrics: SPEC section 4's RAE and MAE computed
+    here from the CSV's columns (e = through - x0 = x0 + 0.5, as through = 2 x0 + 0.5)."""
+    archive = own_scenario(tmp_path / "vdp")
+    full, coarse = tmp_path / "full.csv", tmp_path / "coarse.csv"
+    for out, extra in ((full, []), (coarse, ["--output-interval", "0.1"])):
+        assert main(["run", str(archive), "--quiet", "--no-plot", "--output", str(out), *extra]) == 0
+    capsys.readouterr()
+    assert main(["metrics", str(full), "--signal", "through.Float64_continuous_output",
+                 "--reference", "vdp.x0"]) == 0
+    row = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| full |")][0]
+    data = read_csv(full)
+    y, e = data["through.Float64_continuous_output"], data["vdp.x0"] + 0.5
+    rae, mae = np.sqrt(np.sum(e**2) / np.sum(y**2)), np.mean(np.abs(e))
+    cells = [float(cell) for cell in row.split("|")[2:6]]
+    assert cells[0] == pytest.approx(rae, rel=1e-3) and cells[3] == pytest.approx(mae, rel=1e-3)
+    assert main(["compare", str(coarse), str(full)]) == 0  # decimated against its full-rate self
+    assert "PASS: 4 of 4 signals inside their tubes at the 21 times both have" in capsys.readouterr().out
+    assert main(["compare", str(full), str(full), "--tol", "vdp.x0=1e-12"]) == 0
