@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import os
 import platform
 import sys
 import warnings
@@ -261,6 +262,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OrchestratorError as exc:
         print(f"orchestrate: error: {exc}", file=sys.stderr)
         return exc.exit_status
+    except BrokenPipeError:  # 'orchestrate inspect X | head': the reader left; no traceback
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 BUILD_DIR = Path("build")

@@ -116,3 +116,13 @@ def test_crosscheck_says_what_an_archive_misses(test_fmus, tmp_path):
                 "it has none$")
     with pytest.raises(ValueError, match=expected):
         Scenario.read(archive)
+
+
+@pytest.mark.system
+def test_inspect_into_a_reader_that_left_ends_without_a_traceback(built):
+    """Before: 'orchestrate inspect pendulum | head' could end with a BrokenPipeError traceback.
+    'true' leaves before orchestrate writes, so every write meets a closed pipe."""
+    command = (f"{Path(sys.executable).with_name('orchestrate')} inspect {built / 'ssp' / 'pendulum.ssp'} "
+               "| true")
+    r = subprocess.run(["bash", "-o", "pipefail", "-c", command], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and r.stderr == "", r.stderr
