@@ -8,6 +8,10 @@ STAMP  := $(VENV)/.installed
 ALT_PYTHON ?= $(firstword $(wildcard /usr/bin/python3.12 /usr/local/bin/python3.12 $(HOME)/.pyenv/versions/3.12*/bin/python3.12))
 ALT_VENV   := .venv-alt
 ALT_STAMP  := $(ALT_VENV)/.installed
+BUILT  := build/.built
+# what 'orchestrate build' makes the FMUs and scenarios from: a build newer than all of them is reused
+SOURCES := $(shell find controller fmu_src ssp -type f -not -path '*/__pycache__/*' -not -name '*.pyc' \
+                     -not -name '.*' 2>/dev/null)
 
 .PHONY: run test unit build lint crosscheck table study report baselines bench clean
 
@@ -25,9 +29,13 @@ $(ALT_STAMP): constraints.txt
 	else echo "no python3.12 found: the second-Python test will skip"; fi
 
 ## build: the five FMUs (each with its own Python runtime, fetched once into build/runtime/) into
-## build/fmus/, every scenario into build/ssp/<name>.ssp
-build: $(STAMP)
+## build/fmus/, every scenario into build/ssp/<name>.ssp (again only when a source or the
+## installation is newer than the last build)
+build: $(BUILT)
+
+$(BUILT): $(STAMP) $(SOURCES)
 	$(ORCH) build
+	@mkdir -p $(dir $(BUILT)) && touch $(BUILT)
 
 ## run: the pendulum scenario, its metrics, and where the CSV and the plot went
 run: build

@@ -25,6 +25,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import orchestrator
+from orchestrator import RunOptions
 from orchestrator.campaign import read_design, read_table, sweep
 from orchestrator.experiments.campaigns import TRACKING
 
@@ -111,7 +112,7 @@ def main() -> None:
         bare = []
         for x in values[:3]:
             started = time.perf_counter()
-            orchestrator.run(scenario, stop_time=args.stop_time, overrides={"plant.x1_0": x})
+            orchestrator.run(scenario, RunOptions(stop_time=args.stop_time, overrides={"plant.x1_0": x}))
             bare.append(time.perf_counter() - started)
         t_bare = statistics.median(bare)
         print(f"bare orchestrator.run, {args.stop_time:g} s: {t_bare:.3f} s (median of {len(bare)})")

@@ -1,4 +1,5 @@
-"""fmpy-based SSP co-simulation orchestrator: ``orchestrator.run(scenario, ...)`` or ``orchestrate``.
+"""fmpy-based SSP co-simulation orchestrator: ``orchestrator.run(scenario, RunOptions(...))`` or
+``orchestrate`` (also ``python -m orchestrator``).
 
 Data flows top to bottom through the modules: ssp (read the archive) -> system (validated
 components, connections, propagation order) -> master (FMI stepping) -> results (CSV + array);
@@ -7,9 +8,10 @@ validate runs ssp and system as far as they go and reports everything (``orchest
 
 from __future__ import annotations
 
+import fnmatch
 import os
 import warnings
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import ExitStack, contextmanager
 from dataclasses import replace
 from pathlib import Path
@@ -27,14 +29,16 @@ from .errors import (
     TimeLimitError,
     UsageError,
 )
-from .master import MASTERS
+from .inputs import InputSeries, read_inputs
+from .master import MASTERS, Master, tracing
+from .result import RunOptions, RunResult
 from .ssp import DEFAULT_LIMITS, Limits
 from .system import PortRef, System
-from .validate import DEFAULT_STEP, check_scenario, timing
+from .validate import DEFAULT_STEP, check_scenario, no_step, timing
 
 __all__ = ["DEFAULT_STEP", "MASTERS", "Interrupted", "Limits", "NonFiniteError", "OrchestratorError",
-           "PortRef", "ScenarioError", "ScenarioWarning", "SimulationError", "TimeLimitError", "UsageError",
-           "open_system", "run"]
+           "PortRef", "RunOptions", "RunResult", "ScenarioError", "ScenarioWarning", "SimulationError",
+           "TimeLimitError", "UsageError", "open_system", "run", "system_columns"]
 
 
 @contextmanager
@@ -42,11 +46,33 @@ def open_system(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | o
                 overrides: Mapping[str, object] | None = None,
                 fmu_dirs: Iterable[str | os.PathLike] = (),
                 limits: Limits = DEFAULT_LIMITS) -> Iterator[System]:
-    """Open, read and validate a scenario (``.ssp`` archive or folder); an archive stays unpacked
-    until the ``with`` block ends. FMUs missing from the scenario are looked up by file name in
-    ``fmu_dirs`` (a source folder with the built FMUs); an archive and its FMUs must stay within
-    ``limits`` (:class:`~orchestrator.ssp.Limits`). Raises ScenarioError listing every problem
-    found (the checks of :func:`orchestrator.validate.validate`, without its warnings)."""
+    """Open, read and validate a scenario; an archive stays unpacked until the ``with`` block ends.
+
+    Parameters
+    ----------
+    scenario : path
+        ``.ssp`` archive or folder holding ``SystemStructure.ssd``.
+    parameter_sets : iterable of path
+        ``.ssv`` files naming parameters ``<component>.<variable>``, after the SSD's own.
+    overrides : mapping, optional
+        ``{"component.variable": value}``, applied last.
+    fmu_dirs : iterable of path
+        Where FMUs missing from the scenario are looked up by file name (a source folder with
+        the built FMUs).
+    limits : Limits
+        What an archive and its FMUs may unpack to (:class:`~orchestrator.ssp.Limits`).
+
+    Yields
+    ------
+    System
+        The validated system (:class:`~orchestrator.system.System`).
+
+    Raises
+    ------
+    ScenarioError
+        Every problem found (the checks of :func:`orchestrator.validate.validate`, without its
+        warnings).
+    """
     with ExitStack() as stack:
         system, errors, _ = check_scenario(scenario, stack, parameter_sets=parameter_sets,
                                            overrides=overrides, fmu_dirs=fmu_dirs, limits=limits)
@@ -55,77 +81,144 @@ def open_system(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | o
         yield system
 
 
-def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: float | None = None,
-        parameter_sets: Iterable[str | os.PathLike] = (), overrides: Mapping[str, object] | None = None,
-        master: str = "gauss-seidel", output: str | os.PathLike | None = None,
-        progress: Callable[[int, int], None] | None = None, start_time: float | None = None,
-        strict: bool = False, fmu_dirs: Iterable[str | os.PathLike] = (), keep: bool = True,
-        timeout: float | None = None, limits: Limits = DEFAULT_LIMITS,
-        output_variables: Sequence[str] = (), output_interval: float | None = None,
-        no_inputs: bool = False) -> np.ndarray:
-    """Run a scenario (``.ssp`` archive or folder) and return the results as a structured array
-    with a ``time`` field and one ``<component>.<connector>`` field per connector.
+def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
+        progress: Callable[[int, int], None] | None = None) -> RunResult:
+    """Run a scenario and return its :class:`RunResult`.
 
-    Start time, stop time and step default to the SSD's DefaultExperiment and step annotation (1 ms
-    if none); the step must divide the run (:func:`orchestrator.validate.timing`).
-    ``parameter_sets`` are ``.ssv`` files naming parameters ``<component>.<variable>``, applied after
-    the SSD's bindings; ``overrides`` (``{"controller.k1": 12}``) apply last. ``output``: CSV file
-    written as the run goes, with its provenance in ``<output>.json``
-    (:mod:`orchestrator.provenance`). An input that no connection feeds and no value was given for is a
-    ScenarioWarning (``strict``: a ScenarioError). ``fmu_dirs``, ``limits``: as for :func:`open_system`.
-    ``keep`` False (with an ``output``): the rows are only streamed to the CSV, memory stays flat
-    however long the run, and the array returned is a preview for plotting (at most 4000 rows: each
-    column's extremes per bucket of rows). ``timeout``: wall-clock limit in seconds.
-    Raises ScenarioError for a bad set-up; SimulationError when an FMU fails, NonFiniteError when
-    a value is NaN or infinite, TimeLimitError at the ``timeout``, Interrupted on SIGINT/SIGTERM
-    (a KeyboardInterrupt), each with the rows kept in ``.result`` and their number in ``.rows``.
+    Parameters
+    ----------
+    scenario : path
+        A ``.ssp`` archive or a folder holding ``SystemStructure.ssd``.
+    options : RunOptions, optional
+        Timing, parameters, master, output file, limits (:class:`RunOptions`; default: the
+        scenario's own experiment, no output file).
+    progress : callable, optional
+        ``progress(done, total)``, called about every 1 % of the steps.
 
-    Output control (:mod:`orchestrator.formats`): the format is chosen by the extension of
-    ``output`` (``.csv``, ``.parquet``, ``.mat``; others are a UsageError before anything runs);
-    ``output_variables`` (fnmatch patterns), ``output_interval`` (a multiple of the step) and
-    ``no_inputs`` (leave out input columns that only repeat their source) select what the file
-    holds; the array returned is not affected.
+    Returns
+    -------
+    RunResult
+        ``status`` ``complete``, the rows as a structured array (``time`` first, one
+        ``<component>.<connector>`` field per connector), provenance and the files written.
+
+    Raises
+    ------
+    ScenarioError
+        A bad set-up (nothing ran, nothing was written).
+    UsageError
+        An option that cannot apply to this scenario (e.g. an ``output_variables`` pattern that
+        matches no column), found before the first step.
+    SimulationError
+        An FMU call failed (NonFiniteError: a value is NaN or infinite; TimeLimitError: the
+        ``timeout``); Interrupted on SIGINT/SIGTERM. Each carries the :class:`RunResult` of the rows
+        kept in ``result``; the output file and its provenance hold them too.
+
+    Notes
+    -----
+    An input that no connection feeds and no value was given for is a ScenarioWarning
+    (``strict``: a ScenarioError). The output format is chosen by the extension of ``output``;
+    ``output_variables``, ``output_interval`` and ``no_inputs`` select what the file holds.
     """
-    selection = formats.Selection(tuple(output_variables), output_interval)
+    options = options if options is not None else RunOptions()
+    selection = formats.Selection(tuple(options.output_variables), options.output_interval)
+    output = options.output
     if output is not None:
         formats.check_output(output, selection=selection)
-    if master not in MASTERS:
-        raise ValueError(f"unknown master '{master}' (choose from {', '.join(MASTERS)})")
-    parameter_sets = list(parameter_sets)
-    with open_system(scenario, parameter_sets=parameter_sets, overrides=overrides,
-                     fmu_dirs=fmu_dirs) as system:
-        start, stop, h = timing(system.structure, stop_time, step, start_time)
-        if strict and system.unconnected:
-            raise ScenarioError(system.unconnected)
-        for message in system.unconnected:
-            warnings.warn(message, ScenarioWarning, stacklevel=2)
-        stream = output
+    with open_system(scenario, parameter_sets=options.parameter_sets, overrides=options.overrides,
+                     fmu_dirs=options.fmu_dirs, limits=options.limits) as system:
+        start, stop, h = timing(system.structure, options.stop_time, options.step, options.start_time)
+        series = _before_the_run(system, options, start, stop)
+        record = provenance.describe(scenario, system, start=start, stop=stop, step=h, master=options.master,
+                                     parameter_sets=options.parameter_sets, overrides=options.overrides)
+        if options.input_file is not None and series is not None:
+            record["input_file"] = {"path": str(Path(options.input_file).resolve()),
+                                    "sha256": provenance.digest(options.input_file),
+                                    "inputs": [str(p) for p in series.ports]}
+        stream = None
         if output is not None:  # the master streams a CSV; other formats and selections come from it
             formats.check_output(output, h, selection)
-            if no_inputs:
+            if options.no_inputs:
                 selection = replace(selection, drop=tuple(str(end) for end, link in system.links.items()
                                                           if not link.transformed))
+            selection.columns(["time", *system_columns(system)])  # a pattern matching nothing: now
             stream = formats.staging_path(output, selection)
-        runner = MASTERS[master](system, start, stop, h, stream, progress, keep=keep or output is None,
-                                 timeout=timeout)
-        if output is None:
-            return runner.run()
-        assert stream is not None  # the staging path of ``output``
-        record = provenance.describe(scenario, system, start=start, stop=stop, step=h, master=master,
-                                     parameter_sets=parameter_sets, overrides=overrides)
-        record["output"] = {"format": Path(output).suffix.lower(), "variables": list(selection.variables),
-                            "interval": selection.interval, "left_out": list(selection.drop)}
-        provenance.write_provenance(output, record)
+            record["output"] = {"format": Path(output).suffix.lower(), "variables": list(selection.variables),
+                                "interval": selection.interval, "left_out": list(selection.drop)}
+            provenance.write_provenance(output, record)
+        runner = MASTERS[options.master](system, start, stop, h, stream, progress,
+                                         keep=options.keep or output is None, timeout=options.timeout,
+                                         inputs=series, instances=tracing(options.fmi_log))
+        texts = descriptions(system)
         try:
-            result = runner.run()
+            runner.run()
         except (SimulationError, KeyboardInterrupt, OSError) as exc:
-            rows = runner.recorder.count if runner.recorder is not None else 0
-            status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
-            provenance.finish(output, record, status, rows, runner.time(rows - 1) if rows else None, str(exc))
-            if rows and Path(stream).is_file():
-                formats.write_selected(stream, output, selection)  # the rows kept, in the format asked for
+            status = ("timeout" if isinstance(exc, TimeLimitError) else
+                      "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed")
+            result = _finish(runner, record, status, str(exc), output, stream, selection, texts)
+            if isinstance(exc, (SimulationError, Interrupted)):
+                exc.result = result
             raise
-        formats.write_selected(stream, output, selection)
-        assert runner.recorder is not None  # created by the run
-        provenance.finish(output, record, "complete", runner.recorder.count, runner.time(runner.n))
-        return result
+        return _finish(runner, record, "complete", "", output, stream, selection, texts)
+
+
+def _before_the_run(system: System, options: RunOptions, start: float, stop: float) -> InputSeries | None:
+    """What must hold before anything runs or is written: the input file read, the --fmi-log
+    patterns matching components; ScenarioWarnings (``strict``: a ScenarioError) for inputs left
+    at their start value and a step the SSD does not give. Returns the input series."""
+    unmatched = [p for p in options.fmi_log if not fnmatch.filter(system.components, p)]
+    if unmatched:
+        raise UsageError(f"--fmi-log: no component matches {', '.join(unmatched)} "
+                         f"(components: {', '.join(system.components)})")
+    series, noted = (None, []) if options.input_file is None else read_inputs(options.input_file, system,
+                                                                             start, stop)
+    driven = set(series.ports) if series is not None else set()
+    unconnected = [m for m, port in zip(system.unconnected, system.unconnected_ports, strict=True)
+                   if port not in driven]
+    defaulted = [no_step(system.structure)] if options.step is None and no_step(system.structure) else []
+    if options.strict and (unconnected or defaulted):
+        raise ScenarioError([*unconnected, *defaulted])
+    for message in [*unconnected, *defaulted, *noted]:
+        warnings.warn(message, ScenarioWarning, stacklevel=3)
+    return series
+
+
+def system_columns(system: System) -> list[str]:
+    """Every connector of ``system`` as a result column names it (``component.connector``)."""
+    return [str(PortRef(name, c)) for name, comp in system.components.items()
+            for c in (*comp.inputs, *comp.outputs)]
+
+
+def descriptions(system: System) -> dict[str, str]:
+    """Each column's description and unit as Dymola writes them into a result file:
+    ``Plant output [rad]`` (the FMU's description; the unit in brackets when it declares one)."""
+    units = provenance.column_units(system)
+    texts = {}
+    for name, comp in system.components.items():
+        variables = comp.variables
+        for k in (*comp.inputs, *comp.outputs):
+            column = str(PortRef(name, k))
+            text, unit = variables[k].description or "", units.get(column)
+            texts[column] = f"{text} [{unit}]".strip() if unit else text
+    return texts
+
+
+def _finish(runner: Master, record: dict[str, object], status: str, message: str,
+            output: str | os.PathLike | None, stream: str | os.PathLike | None,
+            selection: formats.Selection, texts: Mapping[str, str]) -> RunResult:
+    """The result of a run that ended with ``status``; with an ``output``, its rows written in the
+    format asked for and the provenance finished."""
+    recorder = runner.recorder
+    count = recorder.count if recorder is not None else 0
+    rows = recorder.result() if recorder is not None else np.empty(0, [("time", np.float64)])
+    last = runner.time(count - 1) if count else None
+    record.update(status=status, rows=count, last_time=last)
+    if message:
+        record["message"] = message
+    outputs: dict[str, Path] = {}
+    if output is not None and stream is not None:
+        if count and Path(stream).is_file():
+            formats.write_selected(stream, output, selection, texts)  # the rows kept, in the format asked for
+            outputs["result"] = Path(output)
+        outputs["provenance"] = provenance.write_provenance(output, record)
+    return RunResult(status, message, rows, count, last, record, outputs,
+                     preview=recorder is not None and not recorder.keep)

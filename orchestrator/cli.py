@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import os
 import platform
 import sys
 import warnings
@@ -21,7 +22,7 @@ from importlib.metadata import PackageNotFoundError, entry_points, version
 from pathlib import Path
 from typing import TypedDict, Unpack
 
-from . import MASTERS, run
+from . import MASTERS, RunOptions, RunResult, run
 from .errors import (
     Interrupted,
     OrchestratorError,
@@ -30,24 +31,27 @@ from .errors import (
     SimulationError,
     UsageError,
 )
-from .formats import Selection, check_output
+from .fmi import CALLS
+from .inspection import inspect_scenario
 from .plots import plot_run
 from .provenance import overrides_text, read_provenance
 from .results import read_result
 from .ssp import DEFAULT_LIMITS, Limits
 from .validate import validate
 
-__all__ = ["COMMAND_GROUP", "add_command", "fmu_dirs", "main", "plot_title", "resolve_scenario",
-           "stale_build", "version_line"]
+__all__ = ["CHECK_GROUP", "COMMAND_GROUP", "add_command", "fmu_dirs", "main", "plot_title",
+           "resolve_scenario", "scenario_checks", "version_line"]
 
 COMMAND_GROUP = "orchestrate.commands"
+CHECK_GROUP = "orchestrate.checks"
 
 DESCRIPTION = """\
-Run SSP co-simulation scenarios (controller + actuator + plant FMUs) with fmpy.
+Run SSP co-simulation scenarios of FMI 2.0 co-simulation FMUs with fmpy.
 
   orchestrate build                    build the FMUs and pack ssp/<name>/ into build/ssp/<name>.ssp
   orchestrate run example1             simulate; writes results/example1.csv and .png
   orchestrate validate example1        every check before a simulation, all problems at once
+  orchestrate inspect example1         components, variables (units, ranges, values), connections
   orchestrate metrics results/example1.csv   tracking metrics (RAE, MSE, RMSE, MAE, ...)
   orchestrate plot results/example1.csv      plot a result file
   orchestrate compare RESULT.csv BASELINE.csv  regression check against a baseline
@@ -57,10 +61,11 @@ Run 'orchestrate COMMAND --help' for the options of a command.
 """
 RUN_HELP = """\
 SCENARIO is a .ssp archive, a folder holding SystemStructure.ssd, or the name of a built
-scenario (build/ssp/NAME.ssp). A built scenario whose sources (ssp/NAME/, fmu_src/, controller/)
-changed after the build is refused, naming the changed file. A scenario source folder (ssp/NAME)
-runs directly, with the FMUs of build/fmus/. Start, stop time and step come from the scenario
-unless given; the step must divide the run. An input no connection feeds is a warning.
+scenario (build/ssp/NAME.ssp). A scenario an application's check finds stale is refused, naming
+why (this project: a built scenario whose sources, ssp/NAME/, fmu_src/, controller/, changed after
+the build). A scenario source folder (ssp/NAME) runs directly, with the FMUs of build/fmus/.
+Start, stop time and step come from the scenario unless given; the step must divide the run. An
+input no connection feeds is a warning.
 Results go to results/<name>.csv (and .png), written as the run goes: a failed run keeps every
 row up to the failure.
 
@@ -90,6 +95,15 @@ component and connector or variable:
 exit status: 0 no error (warnings allowed), 1 errors found, 2 usage error.
 """
 
+INSPECT_HELP = """\
+List what SCENARIO (as for 'run') holds, without running it: each component's FMU, FMI version
+and generation tool; every input, output and parameter with type, unit, range, the FMU's start
+value, the value a run applies and where it comes from (FMU, the SSD's parameter sets, a
+--parameter-set file, --set); the connections; the start, stop time and step and where each comes
+from. What cannot be read is listed at the end.
+
+exit status: 0 read without problems, 1 problems listed, 2 usage error.
+"""
 
 Handler = Callable[[argparse.Namespace], int]
 
@@ -131,17 +145,25 @@ def _parser() -> argparse.ArgumentParser:
                    help="columns to write, shell patterns such as 'plant.*' (repeatable; default: all)")
     p.add_argument("--output-interval", type=float, metavar="S",
                    help="write every row at t0 + k S only (a multiple of the step; default: every step)")
+    p.add_argument("--input-file", type=Path, metavar="FILE.csv",
+                   help="time series for inputs no connection feeds: 'time' then <component>.<input> columns "
+                        "(FMPy's convention; continuous inputs interpolated linearly, discrete ones held)")
     p.add_argument("--no-inputs", action="store_true",
                    help="leave out input columns that only repeat the output connected to them")
     p.add_argument("--plot", type=Path, metavar="FILE.png", help="plot file (default: results/<name>.png)")
+    _plot_variables(p)
     p.add_argument("--no-plot", action="store_true", help="do not plot")
     p.add_argument("--master", choices=list(MASTERS), default="gauss-seidel", help="master algorithm")
     p.add_argument("--allow-stale", action="store_true",
-                   help="run a built scenario even when its sources changed after the build")
+                   help="run a scenario even when an application's check finds it stale (e.g. a build older "
+                        "than its sources)")
     p.add_argument("--strict", action="store_true",
                    help="refuse the scenario when an input is not connected (default: a warning)")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
     p.add_argument("--verbose", action="store_true", help="show the FMUs' log messages as they come")
+    p.add_argument("--fmi-log", action="append", default=[], metavar="COMPONENT",
+                   help="print every FMI call of the components matching this shell pattern ('*': all) "
+                        "on stderr (repeatable)")
     p.add_argument("--timeout", type=float, metavar="SECONDS",
                    help="wall-clock limit of the run: stop at the next communication point (a step that "
                         "does not return is aborted 2 s later); exit status 1, rows kept")
@@ -150,13 +172,24 @@ def _parser() -> argparse.ArgumentParser:
                     description=VALIDATE_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     _scenario_arguments(p)
 
+    p = add_command(sub, "inspect", _inspect, help="list a scenario's components, variables, connections",
+                    description=INSPECT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    _scenario_arguments(p)
+
     p = add_command(sub, "plot", _plot, help="plot a result file")
     p.add_argument("result", type=Path, metavar="RESULT.csv")
     p.add_argument("--output", type=Path, metavar="FILE.png", help="default: RESULT with .png")
+    _plot_variables(p)
 
     for entry in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
         entry.load()(sub)
     return parser
+
+
+def _plot_variables(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--plot-variables", action="append", default=[], metavar="PATTERN",
+                   help="signals to plot, shell patterns such as 'plant.*' (repeatable; default: a figure "
+                        "an application provides for the result, else every output, one panel per component)")
 
 
 def _scenario_arguments(p: argparse.ArgumentParser) -> None:
@@ -229,11 +262,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OrchestratorError as exc:
         print(f"orchestrate: error: {exc}", file=sys.stderr)
         return exc.exit_status
+    except BrokenPipeError:  # 'orchestrate inspect X | head': the reader left; no traceback
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 BUILD_DIR = Path("build")
-SOURCE_DIR = Path("ssp")
-FMU_SOURCES = (Path("fmu_src"), Path("controller"))  # what 'orchestrate build' makes the FMUs from
 
 
 def resolve_scenario(scenario: str) -> Path:
@@ -249,47 +283,25 @@ def resolve_scenario(scenario: str) -> Path:
 
 
 def fmu_dirs(scenario: Path) -> list[Path]:
-    """Where a scenario source folder (no FMUs under resources/) takes its FMUs: build/fmus/."""
-    return [BUILD_DIR / "fmus"] if scenario.is_dir() and (BUILD_DIR / "fmus").is_dir() else []
+    """Where a scenario source folder (no FMUs under resources/) takes its FMUs: the build/fmus/
+    of its project (``PROJECT/ssp/NAME`` -> ``PROJECT/build/fmus``), whatever the working
+    directory, else build/fmus/ of the working directory."""
+    if not scenario.is_dir():
+        return []
+    candidates = [scenario.resolve().parent.parent / BUILD_DIR / "fmus", BUILD_DIR / "fmus"]
+    return [d for d in candidates if d.is_dir()][:1]
 
 
-def _files(folder: Path) -> list[Path]:
-    return [f for f in folder.rglob("*") if f.is_file() and "__pycache__" not in f.parts
-            and not f.name.startswith(".")]
-
-
-def _newer(target: Path, sources: list[Path]) -> Path | None:
-    """The most recently modified file of ``sources`` (folders, walked) modified after ``target``."""
-    files = [f for folder in sources if folder.is_dir() for f in _files(folder)]
-    newest = max(files, key=lambda f: f.stat().st_mtime, default=None)
-    return newest if newest is not None and newest.stat().st_mtime > target.stat().st_mtime else None
-
-
-def stale_build(scenario: Path) -> str:
-    """Why the build that ``scenario`` runs from is older than its sources ('' when it is not): a
-    built archive build/ssp/NAME.ssp against ssp/NAME/ and the FMU sources, a source folder's
-    FMUs in build/fmus/ against the FMU sources (paths relative to the working directory, as
-    'orchestrate build' writes them)."""
-    if scenario.is_file() and scenario.suffix == ".ssp":
-        archive = BUILD_DIR / "ssp" / scenario.name
-        if not (archive.is_file() and archive.resolve() == scenario.resolve()):
-            return ""
-        folder = SOURCE_DIR / scenario.stem
-        changed = _newer(archive, [folder, *FMU_SOURCES])
-        if changed is None:
-            return ""
-        other = (f", or run the source folder {folder} (with the FMUs of {BUILD_DIR / 'fmus'})"
-                 if changed.is_relative_to(folder) else "")
-        return (f"{archive} is older than {changed} (changed after the build): run 'orchestrate build' "
-                f"again{other}, or give --allow-stale")
-    dirs = fmu_dirs(scenario)
-    if dirs and not any((scenario / "resources").glob("*.fmu")):
-        fmus = sorted(dirs[0].glob("*.fmu"), key=lambda f: f.stat().st_mtime)
-        changed = _newer(fmus[0], list(FMU_SOURCES)) if fmus else None
-        if changed is not None:
-            return (f"{fmus[0]} is older than {changed} (changed after the build): run 'orchestrate build' "
-                    "again, or give --allow-stale")
-    return ""
+def scenario_checks(scenario: Path) -> list[str]:
+    """What the applications' checks (entry-point group ``orchestrate.checks``: functions
+    ``check(scenario) -> str``, '' when fine) find wrong with running ``scenario`` as it is, e.g.
+    a build older than its sources (:mod:`orchestrator.experiments.builds`)."""
+    found = []
+    for entry in sorted(entry_points(group=CHECK_GROUP), key=lambda e: e.name):
+        problem = entry.load()(scenario)
+        if problem:
+            found.append(problem)
+    return found
 
 
 class _Progress:
@@ -310,64 +322,73 @@ class _Progress:
 
 class _LastMessage(logging.Handler):
     """Keeps the last warning or error logged (FMUs written in Python log in our process), so a
-    failure is reported on one line with the FMU's own explanation; prints them with --verbose."""
+    failure is reported on one line with the FMU's own explanation. Warnings are printed as they
+    come (each distinct one once, at most ``MAX_WARNINGS``; errors end up in the failure's line);
+    --verbose prints every message."""
+
+    MAX_WARNINGS = 10
 
     def __init__(self, verbose: bool) -> None:
         super().__init__(logging.INFO if verbose else logging.WARNING)
         self.verbose = verbose
         self.last = ""
+        self.shown: set[str] = set()
 
     def emit(self, record: logging.LogRecord) -> None:
+        text = record.getMessage().strip()
         if record.levelno >= logging.WARNING:
-            self.last = record.getMessage().strip().splitlines()[-1] if record.getMessage().strip() else ""
+            self.last = text.splitlines()[-1] if text else ""
         if self.verbose:
             print(f"{record.name}: {record.getMessage()}", file=sys.stderr)
+        elif record.levelno == logging.WARNING and text not in self.shown:
+            self.shown.add(text)
+            if len(self.shown) <= self.MAX_WARNINGS:
+                print(f"orchestrate: warning: {text}", file=sys.stderr)
+            elif len(self.shown) == self.MAX_WARNINGS + 1:
+                print("orchestrate: warning: more FMU warnings (--verbose shows them)", file=sys.stderr)
+
+
+def _options(args: argparse.Namespace, scenario: Path, output: Path) -> RunOptions:
+    """The :class:`RunOptions` of 'run' (a value out of range is a UsageError naming the field)."""
+    return RunOptions(start_time=args.start_time, stop_time=args.stop_time, step=args.step,
+                      parameter_sets=args.parameter_set, overrides=_overrides(args.set), master=args.master,
+                      output=output, output_variables=args.output_variables,
+                      output_interval=args.output_interval, no_inputs=args.no_inputs, keep=False,
+                      strict=args.strict, timeout=args.timeout, fmu_dirs=fmu_dirs(scenario),
+                      limits=_limits(args), input_file=args.input_file, fmi_log=args.fmi_log)
 
 
 def _run(args: argparse.Namespace) -> int:
-    overrides = _overrides(args.set)
-    if args.step is not None and not (math.isfinite(args.step) and args.step > 0):
-        raise UsageError(f"--step must be positive and finite (got {args.step!r})")
-    for option, value in (("--stop-time", args.stop_time), ("--start-time", args.start_time)):
-        if value is not None and not math.isfinite(value):
-            raise UsageError(f"{option} must be finite (got {value!r})")
-    if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
-        raise UsageError(f"--timeout must be positive and finite (got {args.timeout!r})")
     scenario = resolve_scenario(args.scenario)
-    stale = stale_build(scenario)
-    if stale and not args.allow_stale:
-        raise ScenarioError(stale)
     name = scenario.stem if scenario.is_file() else scenario.resolve().name
     output = args.output or Path("results") / f"{name}.csv"
-    check_output(output, selection=Selection(tuple(args.output_variables), args.output_interval))
+    options = _options(args, scenario, output)
+    stale = scenario_checks(scenario)
+    if stale and not args.allow_stale:
+        raise ScenarioError(stale)
     plot = None if args.no_plot else args.plot or output.with_suffix(".png")
     progress = None if args.quiet or not sys.stderr.isatty() else _Progress(name)
     messages = _LastMessage(args.verbose)
     logging.getLogger().addHandler(messages)
     if args.verbose:
         logging.getLogger().setLevel(logging.INFO)
-    status = 0  # 130/143 when interrupted: the rows kept are plotted, then that status returned
+    calls = _call_log(args.fmi_log)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ScenarioWarning)
-            result = run(scenario, stop_time=args.stop_time, step=args.step,
-                         parameter_sets=args.parameter_set, overrides=overrides, master=args.master,
-                         output=output, progress=progress, start_time=args.start_time, strict=args.strict,
-                         fmu_dirs=fmu_dirs(scenario), keep=False, timeout=args.timeout, limits=_limits(args),
-                         output_variables=args.output_variables, output_interval=args.output_interval,
-                         no_inputs=args.no_inputs)
+            result = run(scenario, options, progress=progress)
         _print_warnings(caught)
-    except SimulationError as exc:
-        rows = getattr(exc, "rows", len(getattr(exc, "result", ())))
+    except (SimulationError, Interrupted) as exc:
+        result = exc.result
         detail = f" ({messages.last})" if messages.last and "(" not in str(exc) else ""
-        print(f"orchestrate: error: {exc}{detail}; {rows} rows kept in {output}", file=sys.stderr)
-        return 1
-    except Interrupted as exc:
-        stopped = f"orchestrate: {exc}; {exc.rows} rows kept in {output}"
-        if plot is None or exc.rows < 2:
+        prefix = "orchestrate: " if isinstance(exc, Interrupted) else "orchestrate: error: "
+        stopped = f"{prefix}{exc}{detail}; {result.count} rows kept in {output}"
+        if plot is None or result.count < 2:
             print(stopped, file=sys.stderr)
             return exc.exit_status
-        result, status = exc.result, exc.exit_status  # plot the rows kept, then say so
+        written = _plot_result(result, plot, name, args)
+        print(f"{stopped} (plot: {plot})" if written else stopped, file=sys.stderr)
+        return exc.exit_status
     except KeyboardInterrupt:
         print(f"orchestrate: interrupted; rows computed so far kept in {output}", file=sys.stderr)
         return 130
@@ -376,23 +397,37 @@ def _run(args: argparse.Namespace) -> int:
         return 1
     finally:
         logging.getLogger().removeHandler(messages)
-    if plot is not None:
-        try:
-            record = read_provenance(output)
-            plot_run(result, plot, plot_title(name, record, args.master), *_plot_context(record))
-        except OSError as exc:
-            print(f"orchestrate: error: cannot write the plot: {exc}; results kept in {output}",
-                  file=sys.stderr)
-            return status or 1
-    if status:
-        print(f"{stopped} (plot: {plot})", file=sys.stderr)
-        return status
+        CALLS.removeHandler(calls)
+    if plot is not None and not _plot_result(result, plot, name, args):
+        return 1
     if not args.quiet:
         extra = f" and {plot}" if plot is not None else ""
-        record = read_provenance(output) or {}
-        span = f"t = {result['time'][0]:g} .. {result['time'][-1]:g} s"
-        print(f"{name}: {record.get('rows', len(result))} rows, {span} -> {output}{extra}")
+        span = f"t = {result.rows['time'][0]:g} .. {result.time:g} s"
+        print(f"{name}: {result.count} rows, {span} -> {output}{extra}")
     return 0
+
+
+def _call_log(patterns: Sequence[str]) -> logging.Handler:
+    """The handler that prints the traced FMI calls (``--fmi-log``) on stderr, one per line."""
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("fmi: %(message)s"))
+    if patterns:
+        CALLS.setLevel(logging.INFO)
+        CALLS.propagate = False  # printed here only, also with --verbose
+        CALLS.addHandler(handler)
+    return handler
+
+
+def _plot_result(result: RunResult, plot: Path, name: str, args: argparse.Namespace) -> bool:
+    """Write the plot of a run; False (after one line on stderr) when it cannot be written."""
+    try:
+        plot_run(result.rows, plot, plot_title(name, result.provenance, args.master), result.units,
+                 variables=args.plot_variables, record=result.provenance)
+    except OSError as exc:
+        kept = result.outputs.get("result", "the output file")
+        print(f"orchestrate: error: cannot write the plot: {exc}; results kept in {kept}", file=sys.stderr)
+        return False
+    return True
 
 
 def _print_warnings(caught: Sequence[warnings.WarningMessage]) -> None:
@@ -412,21 +447,12 @@ def plot_title(name: str, record: dict | None, master: object = None) -> str:
     return f"{title}\n{changed}" if changed else title
 
 
-def _plot_context(record: dict | None) -> tuple[dict, float | None]:
-    """Column units and the fault time (``actuator.t_fault``) from a result's provenance."""
-    if record is None:
-        return {}, None
-    fault = (record.get("start_values") or {}).get("actuator.t_fault")
-    return record.get("units") or {}, float(fault) if isinstance(fault, (int, float)) else None
-
-
 def _validate(args: argparse.Namespace) -> int:
     overrides = _overrides(args.set)
     scenario = resolve_scenario(args.scenario)
     report = validate(scenario, parameter_sets=args.parameter_set, overrides=overrides,
                       fmu_dirs=fmu_dirs(scenario), limits=_limits(args))
-    stale = stale_build(scenario)
-    if stale:
+    for stale in scenario_checks(scenario):
         print(f"warning: {stale}")
     for problem in report.problems:
         print(problem)
@@ -439,11 +465,20 @@ def _validate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _inspect(args: argparse.Namespace) -> int:
+    scenario = resolve_scenario(args.scenario)
+    report = inspect_scenario(scenario, parameter_sets=args.parameter_set, overrides=_overrides(args.set),
+                              fmu_dirs=fmu_dirs(scenario), limits=_limits(args))
+    print("\n".join(report.lines()))
+    return 1 if report.problems else 0
+
+
 def _plot(args: argparse.Namespace) -> int:
     data = read_result(args.result)
     target = args.output or args.result.with_suffix(".png")
     record = read_provenance(args.result)
+    units = record.get("units") if record else None
     plot_run(data, target, plot_title(args.result.stem, record, record.get("master") if record else None),
-             *_plot_context(record))
+             units if isinstance(units, dict) else None, variables=args.plot_variables, record=record)
     print(target)
     return 0

@@ -42,8 +42,9 @@ class ScenarioError(OrchestratorError, ValueError):
 class SimulationError(OrchestratorError, RuntimeError):
     """An FMU call failed while the scenario ran.
 
-    Reads ``controller: fmi2DoStep returned fmi2Error at t=10.000 s``. Raised by a master, it
-    carries the rows kept: their number ``rows`` and ``result`` (as the run would have returned).
+    Reads ``controller: fmi2DoStep returned fmi2Error at t=10.000 s``. Raised by
+    :func:`orchestrator.run`, it carries the :class:`~orchestrator.result.RunResult` of the rows
+    kept in ``result`` (raised by a bare master: their number ``rows`` and the array ``result``).
     """
 
     rows: int = 0
@@ -92,7 +93,7 @@ class TimeLimitError(SimulationError):
 
 class Interrupted(KeyboardInterrupt):
     """SIGINT (Ctrl-C) or SIGTERM stopped the run at a communication point; the rows computed are
-    kept (``rows``, ``result`` as for SimulationError). ``exit_status`` is 128 + the signal number
+    kept (``result`` as for SimulationError). ``exit_status`` is 128 + the signal number
     (130, 143), as a shell reports it."""
 
     rows: int = 0

@@ -18,6 +18,7 @@ import sys
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from ctypes import POINTER, byref, c_double, c_int, c_size_t, c_uint, c_void_p
+from typing import NoReturn
 
 import fmpy
 from fmpy.fmi1 import FMICallException
@@ -34,7 +35,7 @@ from fmpy.fmi2 import (
 
 from .errors import SimulationError
 
-__all__ = ["FAILED", "Instance", "MessageLog", "interpreter_guard"]
+__all__ = ["CALLS", "FAILED", "Instance", "InstanceBase", "MessageLog", "interpreter_guard", "trace"]
 
 log = logging.getLogger(__name__)
 
@@ -89,15 +90,87 @@ class MessageLog:
             log.debug("%s: %s", name, text)
 
 
-class Instance:
-    """One FMU instance: fmpy's slave, its hot functions bound once, and the arrays of its batched
-    output read (``out_vr`` -> ``out_ptr``) and input write (``in_vr`` <- ``in_ptr``) that a master
-    lays out (ctypes arrays viewing the master's value buffer)."""
+class InstanceBase:
+    """What a master needs of an FMU instance, and the status handling written once.
+
+    The hot functions ``do_step(c, t, h, 1)``, ``get_real(c, vr, n, values)`` and
+    ``set_real(c, vr, n, values)`` return an FMI status (ctypes functions of the FMU's library
+    for :class:`Instance`, any callables for a fake); the master lays out ``out_vr``/``out_ptr``
+    and ``in_vr``/``in_ptr`` (ctypes arrays viewing its value buffer). A subclass provides the
+    rare calls: ``set_start_values``, ``setup``, ``exit_initialization``, ``terminate`` and
+    ``release``. Every failed call goes through :meth:`fail`.
+    """
+
+    do_step: Callable[..., int]
+    get_real: Callable[..., int]
+    set_real: Callable[..., int]
+
+    def __init__(self, name: str, messages: MessageLog) -> None:
+        self.name = name
+        self.messages = messages
+        self.c: object = None
+        self.initialized = False
+        self.broken = False  # returned fmi2Fatal: no further call is allowed
+        self.out_vr = (c_uint * 0)()
+        self.out_ptr = (c_double * 0)()
+        self.in_vr = (c_uint * 0)()
+        self.in_ptr = (c_double * 0)()
+
+    def fail(self, function: str, status: int, time: float) -> NoReturn:
+        """Raise the SimulationError of a failed call (after fmi2Fatal the instance is left alone)."""
+        if status >= fmi2Fatal:
+            self.broken = True
+        raise SimulationError(self.name, function, status, time, self.messages.last.get(self.name, ""))
+
+    # -- hot calls on the prepared arrays -----------------------------------------------------
+    def step(self, time: float, h: float) -> None:
+        """fmi2DoStep from ``time`` over ``h``."""
+        status = self.do_step(self.c, time, h, 1)
+        if status >= FAILED:
+            self.fail("fmi2DoStep", status, time)
+
+    def read_outputs(self, time: float) -> None:
+        """fmi2GetReal of every output into ``out_ptr``."""
+        if len(self.out_vr):
+            status = self.get_real(self.c, self.out_vr, len(self.out_vr), self.out_ptr)
+            if status >= FAILED:
+                self.fail("fmi2GetReal", status, time)
+
+    def write_inputs(self, time: float) -> None:
+        """fmi2SetReal of every connected input from ``in_ptr``."""
+        if len(self.in_vr):
+            status = self.set_real(self.c, self.in_vr, len(self.in_vr), self.in_ptr)
+            if status >= FAILED:
+                self.fail("fmi2SetReal", status, time)
+
+    # -- the rare calls, provided by a subclass ------------------------------------------------
+    def set_start_values(self, values: Mapping[str, tuple[str, int, object]], time: float) -> None:
+        """Set parameters and start values ``name -> (type, value reference, value)``."""
+        raise NotImplementedError
+
+    def setup(self, start: float, stop: float) -> None:
+        """fmi2SetupExperiment then fmi2EnterInitializationMode."""
+        raise NotImplementedError
+
+    def exit_initialization(self, time: float) -> None:
+        """fmi2ExitInitializationMode."""
+        raise NotImplementedError
+
+    def terminate(self, time: float) -> None:
+        """fmi2Terminate."""
+        raise NotImplementedError
+
+    def release(self) -> None:
+        """Terminate (if still running and usable) and free the instance; never raises."""
+        raise NotImplementedError
+
+
+class Instance(InstanceBase):
+    """One FMU instance: fmpy's slave and its hot functions bound once from the FMU's library."""
 
     def __init__(self, name: str, fmu: FMU2Slave, messages: MessageLog) -> None:
-        self.name = name
+        super().__init__(name, messages)
         self.fmu = fmu
-        self.messages = messages
         self.c = c_void_p(fmu.component)
         lib = ctypes.PyDLL(fmu.dll._name, handle=fmu.dll._handle)
         self.do_step = lib.fmi2DoStep
@@ -105,12 +178,6 @@ class Instance:
         self.get_real, self.set_real = lib.fmi2GetReal, lib.fmi2SetReal
         for f in (self.get_real, self.set_real):
             f.argtypes, f.restype = [c_void_p, POINTER(c_uint), c_size_t, POINTER(c_double)], c_int
-        self.initialized = False
-        self.broken = False  # returned fmi2Fatal: no further call is allowed
-        self.out_vr = (c_uint * 0)()
-        self.out_ptr = (c_double * 0)()
-        self.in_vr = (c_uint * 0)()
-        self.in_ptr = (c_double * 0)()
 
     @classmethod
     def open(cls, name: str, fmu_path: str | os.PathLike, guid: str, model_identifier: str, workdir: str,
@@ -133,12 +200,6 @@ class Instance:
             method(*args)
         except FMICallException as exc:
             self.fail(function, exc.status, time)
-
-    def fail(self, function: str, status: int, time: float) -> None:
-        """Raise the SimulationError of a failed call (after fmi2Fatal the instance is left alone)."""
-        if status >= fmi2Fatal:
-            self.broken = True
-        raise SimulationError(self.name, function, status, time, self.messages.last.get(self.name, ""))
 
     def set_start_values(self, values: Mapping[str, tuple[str, int, object]], time: float) -> None:
         """Set parameters and start values ``name -> (type, value reference, value)``, one call per type."""
@@ -164,19 +225,6 @@ class Instance:
         self.initialized = False
         self.call("fmi2Terminate", time, self.fmu.terminate)
 
-    # -- hot calls on the prepared arrays -----------------------------------------------------
-    def read_outputs(self, time: float) -> None:
-        if len(self.out_vr):
-            status = self.get_real(self.c, self.out_vr, len(self.out_vr), self.out_ptr)
-            if status >= FAILED:
-                self.fail("fmi2GetReal", status, time)
-
-    def write_inputs(self, time: float) -> None:
-        if len(self.in_vr):
-            status = self.set_real(self.c, self.in_vr, len(self.in_vr), self.in_ptr)
-            if status >= FAILED:
-                self.fail("fmi2SetReal", status, time)
-
     def release(self) -> None:
         """Terminate (if still running and usable) and free the instance; never raises.
 
@@ -194,3 +242,59 @@ class Instance:
             self.fmu.freeInstance()
         except Exception:  # noqa: BLE001
             log.warning("%s: fmi2FreeInstance failed during cleanup", self.name)
+
+
+CALLS = logging.getLogger("orchestrator.fmi.calls")
+
+
+def _status(status: int) -> str:
+    names = SimulationError.STATUS_NAMES
+    return names[status] if 0 <= status < len(names) else str(status)
+
+
+def trace(instance: InstanceBase) -> InstanceBase:
+    """Log every FMI call ``instance`` makes from now on to the logger ``orchestrator.fmi.calls``
+    (level INFO), one line each: ``plant: fmi2DoStep(t=0.001, h=0.001) -> fmi2OK``, with the value
+    references and values of fmi2GetReal/fmi2SetReal. Returns the instance."""
+    name = instance.name
+    do_step, get_real, set_real = instance.do_step, instance.get_real, instance.set_real
+
+    def traced_step(c: object, t: float, h: float, new_step: int) -> int:
+        status = do_step(c, t, h, new_step)
+        CALLS.info("%s: fmi2DoStep(t=%r, h=%r) -> %s", name, t, h, _status(status))
+        return status
+
+    def traced_get(c: object, vr: ctypes.Array, n: int, values: ctypes.Array) -> int:
+        status = get_real(c, vr, n, values)
+        CALLS.info("%s: fmi2GetReal(vr=%s) -> %s %s", name, list(vr[:n]), list(values[:n]), _status(status))
+        return status
+
+    def traced_set(c: object, vr: ctypes.Array, n: int, values: ctypes.Array) -> int:
+        status = set_real(c, vr, n, values)
+        CALLS.info("%s: fmi2SetReal(vr=%s, values=%s) -> %s", name, list(vr[:n]), list(values[:n]),
+                   _status(status))
+        return status
+
+    instance.do_step, instance.get_real, instance.set_real = traced_step, traced_get, traced_set
+    for method, function in (("set_start_values", "fmi2Set* (start values)"),
+                             ("setup", "fmi2SetupExperiment + fmi2EnterInitializationMode"),
+                             ("exit_initialization", "fmi2ExitInitializationMode"),
+                             ("terminate", "fmi2Terminate")):
+        setattr(instance, method, _logged(name, function, getattr(instance, method)))
+    return instance
+
+
+def _logged(name: str, function: str, method: Callable[..., None]) -> Callable[..., None]:
+    def call(*args: object) -> None:
+        try:
+            method(*args)
+        except SimulationError as exc:
+            CALLS.info("%s: %s%s -> %s", name, function, _args(args), exc.status)
+            raise
+        CALLS.info("%s: %s%s -> fmi2OK", name, function, _args(args))
+    return call
+
+
+def _args(args: tuple[object, ...]) -> str:
+    shown = [repr({k: v[2] for k, v in a.items()}) if isinstance(a, Mapping) else repr(a) for a in args]
+    return f"({', '.join(shown)})"

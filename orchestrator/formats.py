@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import fnmatch
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,7 +27,8 @@ import numpy as np
 from . import files
 from .errors import UsageError
 
-__all__ = ["FORMATS", "Selection", "check_output", "read_table", "staging_path", "write_selected"]
+__all__ = ["FORMATS", "Selection", "check_output", "read_table", "read_tool_csv", "staging_path",
+           "write_selected"]
 
 FORMATS = (".csv", ".parquet", ".mat")
 NS_PER_S = 1_000_000_000
@@ -95,10 +96,11 @@ def staging_path(output: str | os.PathLike, selection: Selection = Selection()) 
 
 
 def write_selected(csv: str | os.PathLike, output: str | os.PathLike,
-                   selection: Selection = Selection()) -> Path:
+                   selection: Selection = Selection(), descriptions: Mapping[str, str] | None = None) -> Path:
     """Write the selected columns and rows of the result CSV ``csv`` to ``output`` in the format
     of its extension (written to a temporary name, then renamed), and remove ``csv`` when it is
-    not ``output`` itself. Returns ``output``."""
+    not ``output`` itself. ``descriptions`` (column -> text, e.g. ``Plant output [rad]``) go into a
+    ``.mat`` file's ``description`` matrix. Returns ``output``."""
     from fmpy.util import read_csv
 
     csv, output = Path(csv), Path(output)
@@ -116,7 +118,7 @@ def write_selected(csv: str | os.PathLike, output: str | os.PathLike,
             table = pa.table({c: np.ascontiguousarray(data[c], dtype=np.float64) for c in columns})
             pq.write_table(table, partial)
         elif suffix == ".mat":
-            _write_mat(partial, data, columns)
+            _write_mat(partial, data, columns, descriptions or {})
         else:
             with open(partial, "w", encoding="utf-8", newline="\n") as out:
                 out.write(",".join(columns) + "\n")
@@ -136,9 +138,10 @@ def _chars(texts: Sequence[str]) -> np.ndarray:
     return matrix
 
 
-def _write_mat(path: Path, data: np.ndarray, columns: list[str]) -> None:
+def _write_mat(path: Path, data: np.ndarray, columns: list[str], descriptions: Mapping[str, str]) -> None:
     """The Dymola trajectory format (1.1, binTrans): every signal in ``data_2`` (one row per
-    variable, time first), ``data_1`` the time span, ``dataInfo`` as OMSimulator writes it."""
+    variable, time first), ``data_1`` the time span, ``dataInfo`` as OMSimulator writes it, and
+    each column's description with its unit in brackets (``Plant output [rad]``), as Dymola does."""
     from scipy.io import savemat
 
     aclass = np.full((4, 11), " ", dtype="U1")
@@ -152,8 +155,8 @@ def _write_mat(path: Path, data: np.ndarray, columns: list[str]) -> None:
     span = np.array([[time[0], time[-1]]]) if len(time) else np.zeros((1, 2))
     with open(path, "wb") as stream:
         values = np.array([data[c] for c in columns], dtype=np.float64).reshape(len(columns), -1)
-        descriptions = _chars([""] * len(columns))
-        savemat(stream, {"Aclass": aclass, "name": _chars(columns), "description": descriptions,
+        texts = _chars([descriptions.get(c, "Simulation time [s]" if c == "time" else "") for c in columns])
+        savemat(stream, {"Aclass": aclass, "name": _chars(columns), "description": texts,
                          "dataInfo": info, "data_1": span, "data_2": values}, format="4")
 
 
@@ -185,4 +188,34 @@ def read_table(path: str | os.PathLike) -> np.ndarray:
     result = np.zeros(len(next(iter(columns.values()))), dtype=[(n, np.float64) for n in columns])
     for name, values in columns.items():
         result[name] = values
+    return result
+
+
+def read_tool_csv(path: str | os.PathLike) -> np.ndarray:
+    """A result CSV another tool wrote, read with pyarrow (quoted names, blanks after commas), as
+    a structured array: OMSimulator names its columns ``<model>.<system>.<component>.<variable>``
+    and writes a row per event iteration, so names whose every non-time column shares the leading
+    segments beyond ``component.variable`` lose them, and of the rows of one time point the last
+    is kept (the values the step ended with). ValueError when it is not a table of numbers."""
+    import pyarrow.csv as pacsv
+
+    try:
+        table = pacsv.read_csv(Path(path))
+    except Exception as exc:  # noqa: BLE001 - pyarrow raises its own ArrowInvalid
+        raise ValueError(str(exc).splitlines()[0]) from exc
+    names = list(table.column_names)
+    signals = [n.split(".") for n in names if n != "time"]
+    drop = 0
+    while signals and all(len(s) > drop + 2 and s[drop] == signals[0][drop] for s in signals):
+        drop += 1
+    columns = {n if n == "time" else ".".join(n.split(".")[drop:]): table[n].to_numpy().astype(np.float64)
+               for n in names}
+    if len(columns) != len(names):
+        raise ValueError("two columns have one name")
+    result = np.zeros(table.num_rows, dtype=[(n, np.float64) for n in columns])
+    for name, values in columns.items():
+        result[name] = values
+    if "time" in columns and len(result) > 1 and np.all(np.diff(result["time"]) >= 0):
+        last = np.append(np.diff(result["time"]) > 0, True)  # the last row of each time point
+        result = result[last]
     return result

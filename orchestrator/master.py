@@ -36,6 +36,7 @@ checked calls, statuses, cleanup) are :mod:`orchestrator.fmi`'s.
 from __future__ import annotations
 
 import ctypes
+import fnmatch
 import math
 import os
 import shutil
@@ -52,12 +53,14 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .errors import Interrupted, NonFiniteError, SimulationError, TimeLimitError
-from .fmi import FAILED, Instance, MessageLog, interpreter_guard
+from .fmi import CALLS, FAILED, Instance, InstanceBase, MessageLog, interpreter_guard, trace
+from .inputs import InputSeries
 from .results import NonFiniteError as NonFiniteRow
 from .results import Recorder
 from .system import ComponentModel, PortRef, System
 
-__all__ = ["GRACE", "MASTERS", "MAX_TIME", "NS_PER_S", "GaussSeidel", "Jacobi", "Master", "grid", "time_grid"]
+__all__ = ["GRACE", "MASTERS", "MAX_TIME", "NS_PER_S", "GaussSeidel", "InstanceFactory", "Jacobi", "Master",
+           "grid", "open_instance", "time_grid", "tracing"]
 
 NS_PER_S = 1_000_000_000
 MAX_TIME = (2**63 - 1) / NS_PER_S / 2  # s: t0 + n*h stays within int64 nanoseconds (292 years / 2)
@@ -173,12 +176,24 @@ class Scaled(NamedTuple):
     offset: float
 
 
+class Driven(NamedTuple):
+    """The inputs of one instance that an input file drives: one batched fmi2SetReal of the
+    ``values[where]`` slice, filled from the series' ``columns``."""
+
+    instance: InstanceBase
+    vrs: ctypes.Array
+    n_values: int
+    values: ctypes.Array
+    where: slice
+    columns: list[int]
+
+
 class Operation(NamedTuple):
     """One step of the propagation at a communication point: read an FMU's outputs, or transfer
     connections into some of its inputs and write them, as one batched FMI call."""
 
     is_set: bool
-    instance: Instance
+    instance: InstanceBase
     function: Callable[..., int]  # the instance's fmi2SetReal or fmi2GetReal
     vrs: ctypes.Array
     n_values: int
@@ -187,13 +202,53 @@ class Operation(NamedTuple):
     scaled: tuple[Scaled, ...]
 
 
+def open_instance(comp: ComponentModel, workdir: str, messages: MessageLog, time: float) -> InstanceBase:
+    """The real instance of ``comp``: its FMU extracted into ``workdir`` and instantiated."""
+    return Instance.open(comp.name, comp.fmu, comp.model.guid, comp.model.coSimulation.modelIdentifier,
+                         workdir, messages, time)
+
+
+InstanceFactory = Callable[[ComponentModel, str, MessageLog, float], InstanceBase]
+
+
+def tracing(patterns: Sequence[str], factory: InstanceFactory = open_instance) -> InstanceFactory:
+    """``factory`` whose instances of the components matching ``patterns`` (shell patterns) log
+    every FMI call (:func:`orchestrator.fmi.trace`, ``--fmi-log``)."""
+    def open_traced(comp: ComponentModel, workdir: str, messages: MessageLog, time: float) -> InstanceBase:
+        instance = factory(comp, workdir, messages, time)
+        if any(fnmatch.fnmatchcase(comp.name, p) for p in patterns):
+            CALLS.info("%s: fmi2Instantiate(%s) -> ok", comp.name, comp.fmu.name)
+            trace(instance)
+        return instance
+    return open_traced
+
+
 class Master:
     """Base class: the lifecycle and everything both algorithms share.
+
+    The contract of a subclass (registered by name in :data:`MASTERS`):
+
+    * ``name``: the name ``--master`` takes;
+    * ``_initialize_impl(t0)``: called in initialization mode, after every instance's start values
+      and ``setup``; it must leave every instance in step mode (``exit_initialization``) with
+      ``values`` holding consistent outputs and inputs at t0 (the row the base class records);
+    * ``_step_impl(t, h, t_next)``: advance every instance from ``t`` by ``h`` and leave ``values``
+      as the row at ``t_next`` (``values[0] = t_next``); the base class records it.
+
+    Both call only the instance interface of :class:`~orchestrator.fmi.InstanceBase` (``step``,
+    ``read_outputs``, ``write_inputs``, :meth:`_propagate`, :meth:`_transfer_all`) and let a failed
+    call raise its SimulationError: the base class owns the grid (``t_k = t0 + k h`` in integer
+    nanoseconds), recording, the checks for non-finite values, the wall-clock limit and signals,
+    and cleanup on every path.
 
     ``progress`` (if given) is called with the number of steps done, about every 1 % of the run.
     ``keep`` False (with an ``output``): rows are only streamed to the CSV and ``run`` returns a
     preview for plotting (:class:`~orchestrator.results.Recorder`), so memory stays flat however
-    long the run. ``timeout``: wall-clock limit of the run in seconds.
+    long the run. ``timeout``: wall-clock limit of the run in seconds. ``instances`` makes the
+    instance of each component (default :func:`open_instance`; a fake in the fast unit tests).
+    ``inputs`` drives unconnected inputs (:mod:`orchestrator.inputs`): set at t0 in initialization
+    mode, then at each t_k+1 before its outputs are read (gauss-seidel) or after the step's transfer
+    (jacobi, whose FMUs then use them in the next step, like every value it exchanges).
     """
 
     name = ""
@@ -201,7 +256,8 @@ class Master:
     def __init__(self, system: System, start_time: float, stop_time: float, step: float,
                  output: str | os.PathLike | None = None,
                  progress: Callable[[int, int], None] | None = None, keep: bool = True,
-                 timeout: float | None = None) -> None:
+                 timeout: float | None = None, instances: InstanceFactory = open_instance,
+                 inputs: InputSeries | None = None) -> None:
         self.system = system
         self._t0, self._h, self.n = grid(start_time, stop_time, step)
         self.start_time = self._t0 / NS_PER_S
@@ -210,7 +266,10 @@ class Master:
         self.progress = progress
         self.keep = keep
         self.timeout = timeout
-        self.instances: list[Instance] = []
+        self.open_instance = instances
+        self.inputs = inputs
+        self._driven: list[Driven] = []
+        self.instances: list[InstanceBase] = []
         self.recorder: Recorder | None = None
         self.messages = MessageLog()
 
@@ -288,12 +347,15 @@ class Master:
         return exc
 
     def _non_finite(self, exc: NonFiniteRow) -> NonFiniteError:
-        """The NonFiniteError naming the component, variable and time of a non-finite value."""
-        name = self.columns[exc.column]
-        port = PortRef.parse(name)
-        kind = "output" if exc.column >= self._first_output else "input"
+        """The NonFiniteError naming the component, variable and time of a non-finite value: of
+        the outputs of that row, the first read in propagation order (the values after it may only
+        have passed it on through a direct feedthrough), else the column the recorder found."""
         assert self.recorder is not None
-        value = float(self.recorder.data[exc.row - self.recorder._base, exc.column])
+        row = self.recorder.data[exc.row - self.recorder._base]
+        column = next((c for c in self._output_order if not math.isfinite(row[c])), exc.column)
+        port = PortRef.parse(self.columns[column])
+        kind = "output" if column >= self._first_output else "input"
+        value = float(row[column])
         return NonFiniteError(port.component, port.connector, kind, value, self.time(exc.row))
 
     def setup(self, stack: ExitStack) -> None:
@@ -302,9 +364,7 @@ class Master:
         stack.callback(shutil.rmtree, workdir, ignore_errors=True)
         stack.enter_context(interpreter_guard())
         for comp in self.system.components.values():
-            identifier = comp.model.coSimulation.modelIdentifier
-            instance = Instance.open(comp.name, comp.fmu, comp.model.guid, identifier, workdir, self.messages,
-                                     self.start_time)
+            instance = self.open_instance(comp, workdir, self.messages, self.start_time)
             stack.callback(instance.release)
             self.instances.append(instance)
         self._layout()
@@ -319,6 +379,7 @@ class Master:
             inst.set_start_values(start_values, t0)
             inst.setup(t0, stop)
             inst.set_start_values(start_values, t0)
+        self._drive(t0)
         self._initialize_impl(t0)
         assert self.recorder is not None  # setup() creates it
         self.recorder.append(self.values)
@@ -348,16 +409,7 @@ class Master:
         """Place time, inputs and outputs in ``values`` and prepare the batched call arrays."""
         system = self.system
         columns = ["time"]
-        by_name = {inst.name: inst for inst in self.instances}
-        # connected inputs in schedule order (each set operation a contiguous slice), then the rest
-        input_order: list[PortRef] = []
-        for comp in system.components.values():
-            for op in system.schedule:
-                if op.kind == "set" and op.component == comp.name:
-                    input_order += [PortRef(op.component, i) for i in op.inputs]
-        n_connected = len(input_order)
-        for comp in system.components.values():
-            input_order += [p for p in (PortRef(comp.name, i) for i in comp.inputs) if p not in system.links]
+        input_order, n_connected = self._input_order()
         columns += [str(p) for p in input_order]
         slot = {p: 1 + j for j, p in enumerate(input_order)}
         out_slice: dict[str, slice] = {}
@@ -369,6 +421,11 @@ class Master:
             for o in comp.outputs:
                 slot[PortRef(comp.name, o)] = len(slot) + 1
         self.columns = columns
+        index = {name: j for j, name in enumerate(columns)}
+        read = [op.component for op in system.schedule if op.kind == "get"]
+        read += [name for name in system.components if name not in read]
+        self._output_order = [index[str(PortRef(name, o))] for name in read
+                              for o in system.components[name].outputs]
         self.values = np.zeros(len(columns))
         for comp in system.components.values():
             variables = comp.variables
@@ -387,6 +444,43 @@ class Master:
             if mine:
                 inst.in_vr = self._vrs(comp, [input_order[j].connector for j in mine])
                 inst.in_ptr = self._view(slice(1 + mine[0], 2 + mine[-1]))
+        self._layout_driven(input_order[n_connected:], slot)
+        self._layout_ops(slot)
+
+    def _input_order(self) -> tuple[list[PortRef], int]:
+        """The inputs' places in ``values`` and how many are connected: connected inputs in schedule
+        order (each set operation a contiguous slice), then per component the unconnected ones,
+        those an input file drives first (each instance's a contiguous slice)."""
+        system = self.system
+        order: list[PortRef] = []
+        for comp in system.components.values():
+            for op in system.schedule:
+                if op.kind == "set" and op.component == comp.name:
+                    order += [PortRef(op.component, i) for i in op.inputs]
+        n_connected = len(order)
+        driven = set(self.inputs.ports) if self.inputs is not None else set()
+        for comp in system.components.values():
+            free = [p for p in (PortRef(comp.name, i) for i in comp.inputs) if p not in system.links]
+            order += [p for p in free if p in driven] + [p for p in free if p not in driven]
+        return order, n_connected
+
+    def _layout_driven(self, unconnected: list[PortRef], slot: dict[PortRef, int]) -> None:
+        """The batched fmi2SetReal of the inputs an input file drives, per instance."""
+        if self.inputs is None:
+            return
+        driven = list(self.inputs.ports)
+        for inst in self.instances:
+            fed = [p for p in unconnected if p.component == inst.name and p in driven]
+            if fed:
+                comp = self.system.components[inst.name]
+                where = slice(slot[fed[0]], slot[fed[0]] + len(fed))
+                self._driven.append(Driven(inst, self._vrs(comp, [p.connector for p in fed]), len(fed),
+                                           self._view(where), where, [driven.index(p) for p in fed]))
+
+    def _layout_ops(self, slot: dict[PortRef, int]) -> None:
+        """The propagation at a communication point (gauss-seidel) as batched calls."""
+        system = self.system
+        by_name = {inst.name: inst for inst in self.instances}
         self._ops: list[Operation] = []
         for op in system.schedule:
             inst = by_name[op.component]
@@ -427,6 +521,18 @@ class Master:
         n = part.stop - part.start
         return (c_double * n).from_buffer(self.values, part.start * self.values.itemsize)
 
+    def _drive(self, t: float) -> None:
+        """Set the inputs the input file drives to their values at ``t``."""
+        if not self._driven:
+            return
+        assert self.inputs is not None  # _driven is laid out from it
+        u = self.inputs.at(t)
+        for inst, vr, n, ptr, where, columns in self._driven:
+            self.values[where] = u[columns]
+            status = inst.set_real(inst.c, vr, n, ptr)
+            if status >= FAILED:
+                inst.fail("fmi2SetReal", status, t)
+
     def _transfer_all(self) -> None:
         v = self._cvalues
         for dst, src in self._all_copy:
@@ -443,13 +549,11 @@ class Master:
                     v[dst] = v[src]
                 for dst, src, factor, offset in scaled:
                     v[dst] = factor * v[src] + offset
-                status = fn(inst.c, vr, n, ptr)
-                if status >= FAILED:
-                    inst.fail("fmi2SetReal", status, t)
-            elif n:
-                status = fn(inst.c, vr, n, ptr)
-                if status >= FAILED:
-                    inst.fail("fmi2GetReal", status, t)
+            elif not n:
+                continue
+            status = fn(inst.c, vr, n, ptr)
+            if status >= FAILED:
+                inst.fail("fmi2SetReal" if is_set else "fmi2GetReal", status, t)
 
 
 class GaussSeidel(Master):
@@ -465,10 +569,9 @@ class GaussSeidel(Master):
 
     def _step_impl(self, t: float, h: float, t_next: float) -> None:
         for inst in self.instances:
-            status = inst.do_step(inst.c, t, h, 1)
-            if status >= FAILED:
-                inst.fail("fmi2DoStep", status, t)
+            inst.step(t, h)
         self.values[0] = t_next
+        self._drive(t_next)
         self._propagate(t_next)
 
 
@@ -492,19 +595,12 @@ class Jacobi(Master):
 
     def _step_impl(self, t: float, h: float, t_next: float) -> None:
         for inst in self.instances:
-            c = inst.c
-            if inst.in_vr._length_:
-                status = inst.set_real(c, inst.in_vr, inst.in_vr._length_, inst.in_ptr)
-                if status >= FAILED:
-                    inst.fail("fmi2SetReal", status, t)
-            status = inst.do_step(c, t, h, 1)
-            if status >= FAILED:
-                inst.fail("fmi2DoStep", status, t)
-            status = inst.get_real(c, inst.out_vr, inst.out_vr._length_, inst.out_ptr)
-            if status >= FAILED:
-                inst.fail("fmi2GetReal", status, t)
+            inst.write_inputs(t)
+            inst.step(t, h)
+            inst.read_outputs(t)
         self.values[0] = t_next
         self._transfer_all()
+        self._drive(t_next)
 
 
 MASTERS: dict[str, type[Master]] = {"gauss-seidel": GaussSeidel, "jacobi": Jacobi}

@@ -1,30 +1,42 @@
 """The figure of one result, as people read it (``orchestrate run`` / ``orchestrate plot``).
 
-For a tracking result (``plant.y``, ``reference.yd``): the output against the reference with an
-inset on the first second (the fixed-time transient is over in tens of milliseconds), the tracking
-error |y - yd| on a log scale, and the control ``controller.v`` / ``actuator.uf`` on a symmetric
-log scale with ticks that do not overlap. Every y axis carries the unit the model descriptions
-declare (``-`` when none is declared), and a dashed line marks the fault time when the run's
-provenance gives one. Any other result: one panel per column (at most eight).
+The engine's default figure knows no scenario: one panel per component with the signals it
+outputs (input columns only repeat the outputs connected to them), or, with ``variables`` (shell
+patterns, ``--plot-variables``), the signals asked for, grouped by component. Every y axis carries
+the unit the model descriptions declare (``-`` when none is declared).
+
+An application may offer a figure of its own for the results it recognises: a function
+``figure(rows, units, record) -> matplotlib Figure | None`` listed under the entry-point group
+``orchestrate.figures`` (e.g. the paper's tracking figure of :mod:`orchestrator.experiments.figures`).
+Without ``variables``, the first such function (by entry-point name) that returns a figure wins.
 """
 
 from __future__ import annotations
 
+import fnmatch
+import logging
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
+from importlib.metadata import entry_points
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .errors import UsageError
+
 if TYPE_CHECKING:
     import matplotlib.figure
-    from matplotlib.axes import Axes
 
-__all__ = ["axis_label", "build_figure", "plot_run"]
+__all__ = ["FIGURE_GROUP", "MAX_PANELS", "axis_label", "build_figure", "chosen_columns", "plot_run"]
 
-TRACKING = ("plant.y", "reference.yd")
-CONTROL = ("controller.v", "actuator.uf")
+FIGURE_GROUP = "orchestrate.figures"
+MAX_PANELS = 12  # a result of more components gets the first ones and a note in the title
+
+log = logging.getLogger(__name__)
+
+FigureFunction = Callable[[np.ndarray, Mapping[str, str | None], Mapping[str, object] | None],
+                          "matplotlib.figure.Figure | None"]
 
 
 def axis_label(what: str, columns: list[str], units: Mapping[str, str | None]) -> str:
@@ -35,30 +47,53 @@ def axis_label(what: str, columns: list[str], units: Mapping[str, str | None]) -
     return f"{what} ({found.pop() if len(found) == 1 else 'mixed units' if found else '-'})"
 
 
-def _decade_ticks(values: np.ndarray, linthresh: float) -> list[float]:
-    """0 and the signed powers of ten beyond 10 * linthresh that the data reach: labels that
-    cannot overlap on a symlog axis."""
-    top = float(np.max(np.abs(values)))
-    ticks = [0.0]
-    k = int(np.ceil(np.log10(10 * linthresh)))
-    while 10.0 ** k <= top:
-        ticks += [-(10.0 ** k), 10.0 ** k]
-        k += 1
-    return sorted(ticks)
-
-
-def _fault_line(ax: Axes, fault_time: float | None, t: np.ndarray, label: bool) -> None:
-    if fault_time is not None and t[0] <= fault_time <= t[-1]:
-        ax.axvline(fault_time, color="tab:red", linestyle="--", linewidth=0.9,
-                   label="fault" if label else None)
+def chosen_columns(names: Sequence[str], variables: Sequence[str] = (),
+                   outputs: Sequence[str] | None = None) -> list[str]:
+    """The columns to plot: those matching ``variables`` (UsageError naming a pattern that matches
+    none), else the ``outputs`` among ``names`` (all of them when the outputs are not known)."""
+    signals = [n for n in names if n != "time"]
+    if variables:
+        for pattern in variables:
+            if not fnmatch.filter(signals, pattern):
+                raise UsageError(f"--plot-variables: '{pattern}' matches no column "
+                                 f"(columns: {', '.join(signals)})")
+        return [n for n in signals if any(fnmatch.fnmatchcase(n, p) for p in variables)]
+    if outputs:
+        known = set(outputs)
+        chosen = [n for n in signals if n in known]
+        if chosen:
+            return chosen
+    return signals
 
 
 def plot_run(result: np.ndarray, path: str | os.PathLike, title: str = "",
-             units: Mapping[str, str | None] | None = None, fault_time: float | None = None) -> Path:
-    """Write the figure of ``result`` to ``path`` (see the module's docstring) and return the path."""
+             units: Mapping[str, str | None] | None = None, *, variables: Sequence[str] = (),
+             record: Mapping[str, object] | None = None) -> Path:
+    """Write the figure of ``result`` to ``path`` (see the module's docstring) and return the path.
+
+    Parameters
+    ----------
+    result : numpy.ndarray
+        Structured array with a ``time`` field (FMPy's convention).
+    path : path
+        Image file (format by extension, as matplotlib writes them).
+    title : str
+        Figure title.
+    units : mapping, optional
+        Column -> unit (None: none declared).
+    variables : sequence of str
+        Shell patterns of the signals to plot (default: an application's figure, else every output).
+    record : mapping, optional
+        The run's provenance (:mod:`orchestrator.provenance`): says which columns are outputs.
+    """
     import matplotlib.pyplot as plt
 
-    fig = build_figure(result, title, units, fault_time)
+    fig = None if variables else _application_figure(result, units or {}, record)
+    if fig is None:
+        fig = build_figure(result, title, units, variables=variables, record=record)
+    elif title:
+        fig.suptitle(title)
+        fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
@@ -66,71 +101,50 @@ def plot_run(result: np.ndarray, path: str | os.PathLike, title: str = "",
     return path
 
 
-def build_figure(result: np.ndarray, title: str = "", units: Mapping[str, str | None] | None = None,
-                 fault_time: float | None = None) -> matplotlib.figure.Figure:
-    """The figure :func:`plot_run` writes (the caller closes it)."""
+def _application_figure(result: np.ndarray, units: Mapping[str, str | None],
+                        record: Mapping[str, object] | None) -> matplotlib.figure.Figure | None:
+    """The figure of the first ``orchestrate.figures`` entry point that recognises ``result``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    for entry in sorted(entry_points(group=FIGURE_GROUP), key=lambda e: e.name):
+        function: FigureFunction = entry.load()
+        fig = function(result, units, record)
+        if fig is not None:
+            log.debug("figure of %s", entry.value)
+            return fig
+    return None
+
+
+def build_figure(result: np.ndarray, title: str = "", units: Mapping[str, str | None] | None = None, *,
+                 variables: Sequence[str] = (),
+                 record: Mapping[str, object] | None = None) -> matplotlib.figure.Figure:
+    """The engine's default figure (the caller closes it): the chosen columns
+    (:func:`chosen_columns`) on the time axis, one panel per component."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.ticker import NullLocator
 
     units = units or {}
-    t = result["time"]
     assert result.dtype.names is not None  # a structured array
-    names = [n for n in result.dtype.names if n != "time"]
-    if all(c in names for c in TRACKING):
-        control = [c for c in CONTROL if c in names]
-        first = t <= t[0] + 1.0
-        zoom = bool(first.sum() > 2 and t[-1] > t[0] + 2.0)  # a panel on the first second
-        panels = 2 + bool(control) + zoom
-        fig, axes = plt.subplots(panels, 1, figsize=(9, 2.6 * panels))
-        axes = list(axes)
-        for ax in axes[1:]:
-            if ax is not axes[1] or not zoom:
-                ax.sharex(axes[0])
-        ax = axes[0]
-        for c in TRACKING:
-            ax.plot(t, result[c], label=c, linewidth=1)
-        _fault_line(ax, fault_time, t, True)
-        ax.set_ylabel(axis_label("output", list(TRACKING), units))
-        ax.legend(loc="upper right", fontsize="small")
-        if zoom:
-            ax = axes.pop(1)
-            for c in TRACKING:
-                ax.plot(t[first], result[c][first], linewidth=1)
-            _fault_line(ax, fault_time, t[first], False)
-            ax.set_ylabel(axis_label("first second", list(TRACKING), units))
-            ax.set_xlabel("time (s)")
-            ax.grid(True, alpha=0.3)
-        error = np.abs(result["plant.y"] - result["reference.yd"])
-        ax = axes[1]
-        positive = error > 0
-        ax.semilogy(t[positive], error[positive], linewidth=0.8, color="tab:purple", label="|y - yd|")
-        _fault_line(ax, fault_time, t, False)
-        ax.set_ylabel(axis_label("|y - yd|", list(TRACKING), units))
-        ax.legend(loc="upper right", fontsize="small")
-        if control:
-            ax = axes[2]
-            for c in control:
-                ax.plot(t, result[c], label=c, linewidth=0.8)
-            _fault_line(ax, fault_time, t, False)
-            magnitude = np.abs(np.concatenate([result[c] for c in control]))
-            typical = float(np.percentile(magnitude, 95)) if magnitude.size else 0.0
-            if typical > 0.0 and magnitude.max() > 50.0 * typical:  # the initial spike of the fixed-time law
-                ax.set_yscale("symlog", linthresh=typical)
-                ax.set_yticks(_decade_ticks(magnitude, typical))
-                ax.yaxis.set_minor_locator(NullLocator())
-            ax.set_ylabel(axis_label("control", control, units))
-            ax.legend(loc="upper right", fontsize="small")
-    else:
-        shown = names[:8]
-        fig, axes = plt.subplots(len(shown), 1, sharex=True, figsize=(9, 2.2 * len(shown)), squeeze=False)
-        axes = axes[:, 0]
-        for ax, c in zip(axes, shown, strict=True):
+    outputs = record.get("outputs") if record else None
+    columns = chosen_columns(result.dtype.names, variables, outputs if isinstance(outputs, list) else None)
+    panels: dict[str, list[str]] = {}
+    for c in columns:
+        panels.setdefault(c.partition(".")[0] if "." in c else c, []).append(c)
+    shown = list(panels.items())[:MAX_PANELS]
+    if len(panels) > MAX_PANELS:
+        title = f"{title}\n(first {MAX_PANELS} of {len(panels)} components; choose with --plot-variables)"
+    t = result["time"]
+    fig, axes = plt.subplots(max(1, len(shown)), 1, sharex=True, figsize=(9, 2.2 + 1.8 * len(shown)),
+                             squeeze=False)
+    axes = axes[:, 0]
+    for ax, (component, names) in zip(axes, shown, strict=False):
+        for c in names:
             ax.plot(t, result[c], linewidth=1, label=c)
-            _fault_line(ax, fault_time, t, False)
-            ax.set_ylabel(axis_label(c, [c], units), fontsize="small")
+        ax.set_ylabel(axis_label(component, names, units), fontsize="small")
+        ax.legend(loc="upper right", fontsize="small")
     for ax in axes:
         ax.grid(True, alpha=0.3)
     axes[-1].set_xlabel("time (s)")

@@ -5,7 +5,7 @@ digest, every FMU (GUID, model name, generation tool, digest), every parameter s
 the start values finally applied, the unit of every column (from the model descriptions),
 start/stop/step, the master, the package versions, the git commit of the code (when it runs from
 a checkout) and the date; and the run's ``status`` (``running`` while it runs, then ``complete``,
-``failed`` or ``interrupted``) with the time of the last row, so a partial result is
+``failed``, ``timeout`` or ``interrupted``) with the time of the last row, so a partial result is
 recognisable. It is written atomically (temporary file, rename) before the first step and again
 when the run ends.
 """
@@ -95,6 +95,7 @@ def describe(scenario: str | os.PathLike, system: System, *, start: float, stop:
         "start_values": {f"{name}.{k}": v for name, comp in system.components.items()
                          for k, v in comp.start_values.items()},
         "units": column_units(system),
+        "outputs": [f"{name}.{k}" for name, comp in system.components.items() for k in comp.outputs],
         "start_time": start, "stop_time": stop, "step": step, "master": master,
         "versions": versions(),
         "git": commit(),
@@ -122,7 +123,7 @@ def write_provenance(result: str | os.PathLike, record: Mapping[str, object]) ->
 
 def finish(result: str | os.PathLike, record: dict[str, object], status: str, rows: int,
            last_time: float | None, message: str = "") -> Path:
-    """Record how the run ended (``complete``, ``failed`` or ``interrupted``) in the sidecar."""
+    """Record how the run ended (``complete``, ``failed``, ``timeout`` or ``interrupted``) in the sidecar."""
     record.update(status=status, rows=rows, last_time=last_time)
     if message:
         record["message"] = message

@@ -27,7 +27,7 @@ from fmpy.util import read_csv
 
 from . import files
 from .errors import UsageError
-from .formats import read_table
+from .formats import read_table, read_tool_csv
 
 __all__ = ["PREVIEW_BUCKETS", "NonFiniteError", "Recorder", "ResultFileError", "read_result", "structured"]
 
@@ -36,6 +36,17 @@ def structured(data: np.ndarray, columns: Sequence[str]) -> np.ndarray:
     """View a 2-D float array as a structured array with one field per column (no copy)."""
     dtype = np.dtype([(name, np.float64) for name in columns])
     return np.ascontiguousarray(data).view(dtype).reshape(len(data))
+
+
+def _read_any_csv(path: Path) -> np.ndarray:
+    """Our CSV (fmpy's reader), else one another tool wrote (:func:`orchestrator.formats.read_tool_csv`)."""
+    try:
+        return read_csv(path)
+    except (ValueError, IndexError) as exc:
+        try:
+            return read_tool_csv(path)
+        except ValueError:
+            raise exc from None
 
 
 class ResultFileError(UsageError, ValueError):
@@ -50,7 +61,7 @@ def read_result(path: str | os.PathLike) -> np.ndarray:
         raise ResultFileError(f"{path}: no such file")
     kind = path.suffix.lower()
     try:  # .parquet and .mat: what 'run --output' writes besides CSV (orchestrator.formats)
-        data = read_table(path) if kind in (".parquet", ".mat") else read_csv(path)
+        data = read_table(path) if kind in (".parquet", ".mat") else _read_any_csv(path)
     except (OSError, ValueError, IndexError, KeyError, UnicodeDecodeError) as exc:
         what = kind[1:].upper() if kind in (".parquet", ".mat") else "CSV"
         raise ResultFileError(f"{path}: not a result {what} ({exc})") from exc

@@ -79,6 +79,7 @@ NS = {
 OSP_ANNOTATION = "com.opensimulationplatform"
 OMS_ANNOTATION = "org.openmodelica"
 TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration", "Binary")
+ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # the date of every member pack_ssp writes (the earliest a zip holds)
 
 
 @dataclass(frozen=True, order=True)
@@ -764,12 +765,17 @@ def pack_ssp(folder: str | os.PathLike, fmus: Mapping[str, str | os.PathLike],
              dest: str | os.PathLike) -> Path:
     """Zip ``folder`` (SSD at the root, .ssv files beside it) with ``fmus`` (archive name -> file)
     placed under ``resources/``; written to a temporary name first so a failed build leaves no
-    half-written archive."""
+    half-written archive. The same files give the same bytes: members in sorted order, with a fixed
+    date and mode (not the files' modification times)."""
     source, target = Path(folder), Path(dest)
+    members = [(path.relative_to(source).as_posix(), path) for path in sorted(source.rglob("*"))
+               if path.is_file() and not path.name.startswith(".")]
+    members += [(f"resources/{name}", Path(fmu)) for name, fmu in sorted(fmus.items())]
     with files.replacing(target) as partial, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zf:
-        for path in sorted(source.rglob("*")):
-            if path.is_file() and not path.name.startswith("."):
-                zf.write(path, path.relative_to(source).as_posix())
-        for name, fmu in sorted(fmus.items()):
-            zf.write(fmu, f"resources/{name}")
+        for name, path in members:
+            info = zipfile.ZipInfo(name, date_time=ZIP_DATE)
+            info.compress_type = zipfile.ZIP_DEFLATED
+            info.external_attr = 0o644 << 16
+            with path.open("rb") as src, zf.open(info, "w") as dst:
+                shutil.copyfileobj(src, dst, 1 << 20)
     return target

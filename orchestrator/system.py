@@ -54,6 +54,7 @@ class ComponentModel:
     inputs: list[str]
     start_values: dict[str, float | int | bool | str] = field(default_factory=dict)
     feedthrough: dict[str, set[str]] = field(default_factory=dict)
+    origins: dict[str, str] = field(default_factory=dict)  # variable -> where its start value came from
 
     @property
     def variables(self) -> dict:
@@ -254,11 +255,23 @@ class System:
             return self._resolve(declared)
         return _unit_def(comp.model, var) if _unit_name(var) is not None else None
 
+    @staticmethod
+    def _twice(ps: ParameterSet, problems: list[str]) -> None:
+        """A parameter named twice in one set: which value applies would be the file's order."""
+        seen: dict[str, object] = {}
+        for p in ps.parameters:
+            if p.name in seen:
+                problems.append(f"{ps.origin}: parameter '{p.name}' is given twice ({seen[p.name]!r} and "
+                                f"{p.value!r}); give it once")
+            seen.setdefault(p.name, p.value)
+
     def _apply(self, component: str, ps: ParameterSet, problems: list[str]) -> None:
+        self._twice(ps, problems)
         for p in ps.parameters:
             self._set_start(PortRef(component, p.name), p, ps.origin, problems, ps.units)
 
     def _apply_prefixed(self, ps: ParameterSet, problems: list[str]) -> None:
+        self._twice(ps, problems)
         for p in ps.parameters:
             try:
                 ref = PortRef.parse(p.name)
@@ -299,6 +312,9 @@ class System:
             problems.append(f"{origin}: component '{ref.component}' has no variable '{ref.connector}'")
         elif var.causality not in SETTABLE or var.variability == "constant":
             problems.append(f"{origin}: {ref} is a {var.variability} {var.causality}, it cannot be set")
+        elif ref in self.links:
+            problems.append(f"{origin}: {ref} is an input fed by {self.links[ref].start}: a value given for "
+                            "it would be overwritten at once (set a parameter of a component instead)")
         elif var.type != p.type and not (var.type == "Real" and p.type == "Integer"):
             problems.append(f"{origin}: {ref} is {var.type} but the value given is {p.type}")
         else:
@@ -321,12 +337,14 @@ class System:
                 problems.append(f"{origin}: {ref} = {value!r} {outside}")
             else:
                 comp.start_values[ref.connector] = value
+                comp.origins[ref.connector] = origin
 
     def _check_inputs(self, problems: list[str], partial: Collection[str]) -> None:
         """An input that no connection feeds: an error without a start value; otherwise a warning
         in ``unconnected`` (also in ``warnings``) unless a parameter set or override gave it a value,
         since every pythonfmu input has a start value and a deleted connection would go unnoticed."""
         self.unconnected: list[str] = []
+        self.unconnected_ports: list[PortRef] = []  # the input each message of ``unconnected`` names
         for comp in self.components.values():
             if comp.name in partial:
                 continue
@@ -340,6 +358,7 @@ class System:
                 else:
                     self.unconnected.append(f"{where} is not connected: it keeps the FMU's start "
                                             f"value {v.start} for the whole run")
+                    self.unconnected_ports.append(ref)
         self.warnings.extend(self.unconnected)
 
     # -- propagation order --------------------------------------------------------------------

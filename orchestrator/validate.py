@@ -34,9 +34,20 @@ from .ssp import (
 )
 from .system import System
 
-__all__ = ["DEFAULT_STEP", "Problem", "Validation", "check_scenario", "timing", "validate"]
+__all__ = ["DEFAULT_STEP", "STEP_ANNOTATIONS", "Problem", "Validation", "check_scenario", "no_step", "timing",
+           "validate"]
 
 DEFAULT_STEP = 1e-3
+STEP_ANNOTATIONS = ("a step annotation: libcosim's osp:FixedStepAlgorithm baseStepSize in the "
+                    "DefaultExperiment, or OMSimulator's oms:FixedStepMaster stepSize in the System")
+
+
+def no_step(structure: SystemStructure) -> str:
+    """Why a run of ``structure`` would take the default step ('' when the SSD gives one)."""
+    if structure.experiment.step is not None:
+        return ""
+    return (f"{structure.ssd_file}: no communication step: the SSD has no {STEP_ANNOTATIONS}; "
+            f"running at the default {DEFAULT_STEP:g} s (give --step)")
 
 
 @dataclass(frozen=True)
@@ -143,8 +154,21 @@ def timing(structure: SystemStructure, stop_time: float | None = None,
 def validate(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.PathLike] = (),
              overrides: Mapping[str, object] | None = None,
              fmu_dirs: Iterable[str | os.PathLike] = (), limits: Limits = DEFAULT_LIMITS) -> Validation:
-    """Check a scenario (``.ssp`` archive or folder, with the same parameter files and overrides as
-    ``run``) without simulating and report every problem found. Nothing is written next to it."""
+    """Check a scenario without simulating and report every problem found; nothing is written.
+
+    Parameters
+    ----------
+    scenario : path
+        ``.ssp`` archive or folder holding ``SystemStructure.ssd``.
+    parameter_sets, overrides, fmu_dirs, limits
+        As for :func:`orchestrator.open_system` (what ``run`` would get).
+
+    Returns
+    -------
+    Validation
+        Errors (what ``run`` refuses) and warnings, one :class:`Problem` each, and how much was
+        checked.
+    """
     with ExitStack() as stack:
         system, errors, warnings = check_scenario(scenario, stack, parameter_sets=parameter_sets,
                                                   overrides=overrides, fmu_warnings=True, fmu_dirs=fmu_dirs,
@@ -152,6 +176,8 @@ def validate(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.P
     if system is None:
         return Validation(str(scenario), tuple(Problem(e) for e in errors))
     structure = system.structure
+    if no_step(structure):
+        warnings.append(no_step(structure))
     if structure.experiment.stop_time is None:
         warnings.append(f"{system.ssd}: no stopTime in DefaultExperiment; 'run' needs --stop-time")
     else:

@@ -40,7 +40,7 @@ def build_test_fmu(name: str, dest: Path) -> Path:
 
 def loop_scenario(folder: Path, fmus: dict[str, Path], gain: float = -2.0, x0: float = 1.0,
                   factor: float | None = None, offset: float | None = None, fail_at: float = 1e300,
-                  stop: float = 1.0, step: float = 0.01, pack: bool = True) -> Path:
+                  stop: float = 1.0, step: float | None = 0.01, pack: bool = True) -> Path:
     """integrator.x -> gain.u, gain.y -> integrator.u (x' = gain * x), plus a free sine source.
 
     Returns the packed .ssp (or the folder when ``pack`` is False; the FMUs are then copied in).

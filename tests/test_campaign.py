@@ -22,6 +22,7 @@ import pyarrow.parquet as pq
 import pytest
 
 import orchestrator
+from orchestrator import RunOptions
 from orchestrator.campaign.table import read_rows
 from orchestrator.cli import main
 from orchestrator.experiments.metrics import tracking_metrics
@@ -86,7 +87,7 @@ def test_embedded_grid_matches_bare_runs(embedded: Path, scenario: Path) -> None
     for row in rows:
         assert row["status"] == "ok" and row["reason"] == "" and row["wall_time"] > 0
         overrides = {"plant.x1_0": row["plant.x1_0"], "controller.mode": int(row["controller.mode"])}
-        bare = orchestrator.run(scenario, stop_time=STOP, overrides=overrides)
+        bare = orchestrator.run(scenario, RunOptions(stop_time=STOP, overrides=overrides)).rows
         m = tracking_metrics(
             bare["time"],
             bare["plant.y"],
@@ -267,7 +268,7 @@ def test_timeout_is_a_row(scenario: Path, tmp_path: Path) -> None:
     )
     _, [row] = read_rows(tmp_path / "out" / "runs.csv")
     assert row["status"] == "timeout" and row["reason"].startswith(
-        "wall-time limit of 0.05 s reached at about t="
+        "wall-clock limit of 0.05 s (--timeout) reached at t="
     )
     assert row["stop_time"] == 5.0
 

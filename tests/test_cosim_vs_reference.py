@@ -32,7 +32,7 @@ pytestmark = pytest.mark.system
 @pytest.mark.parametrize(("scenario", "number", "step"), [pytest.param("example1", 1, 1e-3, marks=group(1)),
                                                          pytest.param("pendulum", 2, 5e-4, marks=group(2))])
 def test_cosimulated_plant_output_matches_the_monolithic_reference(built, scenario, number, step):
-    cosim = orchestrator.run(built / "ssp" / f"{scenario}.ssp")
+    cosim = orchestrator.run(built / "ssp" / f"{scenario}.ssp").rows
     sampled = reference(number, sample_time=step)
     continuous = reference(number)
     # The master's grid is the double nearest to k*h (integer nanoseconds); the reference's is k*h.
@@ -58,7 +58,7 @@ def test_semi_implicit_cosimulation_matches_the_monolithic_discrete_law(built, s
     tolerances of the test above; without chattering bursts nothing amplifies the plant's integrator
     error, so they agree far closer: measured 3.3e-12 (example1_smooth) and 2.6e-13 (pendulum_smooth)
     in plant.y over 30 s, against up to 5e-4 for the explicit law, so 1e-9 is asserted too."""
-    cosim = orchestrator.run(built / "ssp" / f"{scenario}.ssp")
+    cosim = orchestrator.run(built / "ssp" / f"{scenario}.ssp").rows
     sampled = reference(number, sample_time=step, discretization=SEMI_IMPLICIT)
     assert np.max(np.abs(cosim["time"] - sampled["time"])) <= 1e-12
     early = cosim["time"] <= 1.0

@@ -34,6 +34,7 @@ from fmpy.fmi2 import (
 )
 
 import orchestrator
+from orchestrator import RunOptions
 
 pytestmark = pytest.mark.system
 
@@ -92,7 +93,7 @@ def test_results_identical_on_both_paths(built: Path, monkeypatch: pytest.Monkey
     results = {}
     for value in ("1", "0"):
         monkeypatch.setenv("FTC_FMU_DIRECT", value)
-        results[value] = orchestrator.run(built / "ssp" / f"{scenario}.ssp", stop_time=1.0)
+        results[value] = orchestrator.run(built / "ssp" / f"{scenario}.ssp", RunOptions(stop_time=1.0)).rows
     direct, plain = results["1"], results["0"]
     assert direct.dtype.names == plain.dtype.names
     assert len(direct) == len(plain) > 1000

@@ -22,6 +22,7 @@ from lxml import etree
 from orch_helpers import loop_scenario
 
 import orchestrator
+from orchestrator import RunOptions
 from orchestrator.cli import main
 from orchestrator.errors import OrchestratorError, ScenarioError
 from orchestrator.ssp import SSD_NAME
@@ -91,7 +92,7 @@ def check(folder: Path) -> str:
     assert lines and all(line.startswith(prefixes) for line in lines), lines
     assert not err.getvalue(), err.getvalue()
     try:
-        orchestrator.run(folder, timeout=10.0)
+        orchestrator.run(folder, RunOptions(timeout=10.0))
     except ScenarioError as exc:
         assert str(exc) and "Traceback" not in str(exc)
         return f"refused: {exc}"

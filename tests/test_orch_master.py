@@ -19,7 +19,7 @@ from fmpy.util import read_csv
 from orch_helpers import loop_scenario
 
 import orchestrator
-from orchestrator import SimulationError
+from orchestrator import RunOptions, SimulationError
 from orchestrator.cli import main
 from orchestrator.crosscheck import run_libcosim
 from orchestrator.master import time_grid
@@ -44,7 +44,7 @@ def test_time_column_is_exactly_t0_plus_k_h():
 
 
 def test_gauss_seidel_closed_form(loop):
-    r = orchestrator.run(loop)
+    r = orchestrator.run(loop).rows
     k = np.arange(len(r))
     assert r["time"].tolist() == [float(Fraction(int(i)) * Fraction("0.01")) for i in k]
     np.testing.assert_allclose(r["integrator.x"], X0 * (1 + H * K) ** k, rtol=1e-13)
@@ -54,18 +54,18 @@ def test_gauss_seidel_closed_form(loop):
 
 
 def test_jacobi_one_step_delay_per_connection(loop):
-    r = orchestrator.run(loop, master="jacobi")
+    r = orchestrator.run(loop, RunOptions(master="jacobi")).rows
     x = [X0, X0 + H * K * X0]
     while len(x) < len(r):
         x.append(x[-1] + H * K * x[-2])
     np.testing.assert_allclose(r["integrator.x"], x, rtol=1e-13)
     np.testing.assert_allclose(r["gain.y"][1:], K * r["integrator.x"][:-1], rtol=1e-15)
-    gs = orchestrator.run(loop)
+    gs = orchestrator.run(loop).rows
     assert np.max(np.abs(gs["integrator.x"] - r["integrator.x"])) > 1e-4  # they differ, as they should
 
 
 def test_jacobi_equals_libcosim(loop):
-    ours = orchestrator.run(loop, master="jacobi")
+    ours = orchestrator.run(loop, RunOptions(master="jacobi")).rows
     theirs, _ = run_libcosim(loop, 1.0, ["time", "source.y", "gain.y", "integrator.x", "gain.u"])
     assert ours["time"].tolist() == theirs["time"].tolist()
     for name in ("source.y", "gain.y", "integrator.x"):
@@ -76,8 +76,9 @@ def test_jacobi_equals_libcosim(loop):
 
 def test_factor_on_connection_equals_doubled_gain(test_fmus, tmp_path):
     with_factor = loop_scenario(tmp_path / "f", test_fmus, gain=K, factor=2.0)
-    a = orchestrator.run(with_factor)
-    b = orchestrator.run(loop_scenario(tmp_path / "g", test_fmus, gain=K), overrides={"gain.k": 2 * K})
+    a = orchestrator.run(with_factor).rows
+    b = orchestrator.run(loop_scenario(tmp_path / "g", test_fmus, gain=K),
+                         RunOptions(overrides={"gain.k": 2 * K})).rows
     assert (a["integrator.x"] == b["integrator.x"]).all()  # 2*(k*x) == (2k)*x exactly
     assert (a["integrator.u"] == 2.0 * a["gain.y"]).all()
 
@@ -85,7 +86,7 @@ def test_factor_on_connection_equals_doubled_gain(test_fmus, tmp_path):
 def test_offset_on_connection_closed_form(test_fmus, tmp_path):
     """x' = k x + c: x_k = (x0 + c/k)(1 + h k)^k - c/k."""
     c = 0.75
-    r = orchestrator.run(loop_scenario(tmp_path / "o", test_fmus, gain=K, offset=c))
+    r = orchestrator.run(loop_scenario(tmp_path / "o", test_fmus, gain=K, offset=c)).rows
     k = np.arange(len(r))
     np.testing.assert_allclose(r["integrator.x"], (X0 + c / K) * (1 + H * K) ** k - c / K, rtol=1e-12)
 
@@ -93,15 +94,16 @@ def test_offset_on_connection_closed_form(test_fmus, tmp_path):
 def test_parameter_set_and_set_override(loop, tmp_path):
     ssv = tmp_path / "override.ssv"
     write_ssv(ssv, ParameterSet.of("override.ssv", {"gain.k": -3.0, "integrator.x0": 2.0}))
-    r = orchestrator.run(loop, parameter_sets=[ssv])
+    r = orchestrator.run(loop, RunOptions(parameter_sets=[ssv])).rows
     k = np.arange(len(r))
     np.testing.assert_allclose(r["integrator.x"], 2.0 * (1 - 3.0 * H) ** k, rtol=1e-13)
-    r = orchestrator.run(loop, parameter_sets=[ssv], overrides={"gain.k": "-1"})  # --set applies last
+    # --set applies last
+    r = orchestrator.run(loop, RunOptions(parameter_sets=[ssv], overrides={"gain.k": "-1"})).rows
     np.testing.assert_allclose(r["integrator.x"], 2.0 * (1 - H) ** k, rtol=1e-13)
 
 
 def test_csv_matches_array_and_is_read_by_fmpy(loop, tmp_path):
-    r = orchestrator.run(loop, output=tmp_path / "out.csv", master="jacobi")
+    r = orchestrator.run(loop, RunOptions(output=tmp_path / "out.csv", master="jacobi")).rows
     csv = read_csv(tmp_path / "out.csv")
     assert csv.dtype.names == r.dtype.names and csv.dtype.names[0] == "time"
     for name in r.dtype.names:
@@ -113,7 +115,7 @@ def test_failure_mid_run_keeps_rows(test_fmus, tmp_path, capsys):
     with pytest.raises(SimulationError) as info:
         orchestrator.run(ssp)
     assert str(info.value) == "integrator: fmi2DoStep returned fmi2Discard at t=0.500 s"
-    assert len(info.value.result) == 51
+    assert len(info.value.result.rows) == 51 and info.value.result.status == "failed"
     csv = tmp_path / "out.csv"
     status = main(["run", str(ssp), "--output", str(csv), "--no-plot", "--quiet"])
     captured = capsys.readouterr()
@@ -152,7 +154,7 @@ def test_cli_run_metrics_plot_and_usage(loop, tmp_path, capsys):
     assert (tmp_path / "r.png").stat().st_size > 0
     assert main(["plot", str(out), "--output", str(tmp_path / "p.png")]) == 0
     assert main(["metrics", str(out)]) == 1  # no plant.y / reference.yd columns
-    assert "needs plant.y and reference.yd" in capsys.readouterr().err
+    assert "no column plant.y, reference.yd (choose with --signal and --reference" in capsys.readouterr().err
     for bad in (["run", str(loop), "--set", "gain.k"], ["run", str(loop), "--master", "nope"], [],
                 ["run", str(loop), "--stop-time", "nan"], ["run", str(loop), "--step", "inf"]):
         with pytest.raises(SystemExit) as info:

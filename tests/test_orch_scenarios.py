@@ -11,7 +11,7 @@ import pytest
 from fmpy.util import read_csv
 
 import orchestrator
-from orchestrator import SimulationError
+from orchestrator import RunOptions, SimulationError
 from orchestrator.cli import main
 from orchestrator.crosscheck import LibcosimError, run_libcosim
 
@@ -38,7 +38,7 @@ def test_build_packs_ssd_ssv_and_fmus(built):
 
 @pytest.mark.parametrize("name", SCENARIOS)
 def test_every_scenario_runs(built, name):
-    r = orchestrator.run(built / "ssp" / f"{name}.ssp", stop_time=0.5)
+    r = orchestrator.run(built / "ssp" / f"{name}.ssp", RunOptions(stop_time=0.5)).rows
     assert len(r) == round(0.5 / SCENARIOS[name]) + 1 and r["time"][-1] == 0.5
     assert set(OUTPUTS) <= set(r.dtype.names)
     assert all(np.isfinite(r[c]).all() for c in r.dtype.names)
@@ -66,7 +66,7 @@ def test_libcosim_honours_parameter_sets_and_step(built, tmp_path):
     names = ("Reference.fmu", "FixedTimeController.fmu", "Actuator.fmu", "Example1Plant.fmu")
     archive = pack_ssp(folder, {n: fmus[n] for n in names}, tmp_path / "variant.ssp")
     theirs, _ = run_libcosim(archive, 0.1, ["time", "reference.yd", "plant.y"])
-    ours = orchestrator.run(archive, stop_time=0.1, master="jacobi")
+    ours = orchestrator.run(archive, RunOptions(stop_time=0.1, master="jacobi")).rows
     assert theirs["time"].tolist() == ours["time"].tolist() == [k / 2000 for k in range(201)]
     np.testing.assert_allclose(theirs["reference.yd"], 0.25 * np.sin(theirs["time"]), rtol=0, atol=1e-15)
     assert (theirs["plant.y"] == ours["plant.y"]).all()
@@ -76,8 +76,8 @@ def test_masters_differ_by_the_coupling_delay(built):
     """Before the fault uf = v: gauss-seidel passes v to the plant at the same instant,
     jacobi one step later (libcosim's semantics)."""
     ssp = built / "ssp" / "example1.ssp"
-    gs = orchestrator.run(ssp, stop_time=1.0)
-    jac = orchestrator.run(ssp, stop_time=1.0, master="jacobi")
+    gs = orchestrator.run(ssp, RunOptions(stop_time=1.0)).rows
+    jac = orchestrator.run(ssp, RunOptions(stop_time=1.0, master="jacobi")).rows
     assert (gs["actuator.uf"] == gs["controller.v"]).all()
     assert (gs["plant.uf"] == gs["actuator.uf"]).all() and (gs["controller.x1"] == gs["plant.x1"]).all()
     assert (jac["actuator.uf"][1:] == jac["controller.v"][:-1]).all()
@@ -86,7 +86,7 @@ def test_masters_differ_by_the_coupling_delay(built):
 
 def test_jacobi_equals_libcosim_example1(built):
     ssp = built / "ssp" / "example1.ssp"
-    ours = orchestrator.run(ssp, stop_time=2.0, master="jacobi")
+    ours = orchestrator.run(ssp, RunOptions(stop_time=2.0, master="jacobi")).rows
     theirs, _ = run_libcosim(ssp, 2.0, ["time"] + OUTPUTS)
     assert ours["time"].tolist() == theirs["time"].tolist()
     worst = max(np.max(np.abs(ours[c] - theirs[c])) for c in OUTPUTS)
@@ -116,13 +116,13 @@ def test_jacobi_and_libcosim_fail_alike_on_the_pendulum_at_1_ms(built, tmp_path)
     ssp = pendulum_at("0.001", built, tmp_path)
     expected = r"^plant: fmi2DoStep returned fmi2Discard at t=0\.031 s"
     with pytest.raises(SimulationError, match=expected) as ours:
-        orchestrator.run(ssp, stop_time=0.1, master="jacobi")
+        orchestrator.run(ssp, RunOptions(stop_time=0.1, master="jacobi"))
     with pytest.raises(LibcosimError) as theirs:
         run_libcosim(ssp, 0.1, ["time"] + OUTPUTS)
-    ours, theirs = ours.value.result, theirs.value.result
+    ours, theirs = ours.value.result.rows, theirs.value.result
     assert len(ours) == len(theirs) == 32
     assert max(np.max(np.abs(ours[c] - theirs[c])) for c in OUTPUTS) == 0.0
-    gs = orchestrator.run(ssp, stop_time=0.1)  # no delay: stable
+    gs = orchestrator.run(ssp, RunOptions(stop_time=0.1)).rows  # no delay: stable
     assert np.isfinite(gs["plant.y"]).all()
 
 
@@ -130,7 +130,7 @@ def test_gauss_seidel_close_to_libcosim_example1(built):
     """The one-step delays of libcosim's algorithm change the stiff first 50 ms noticeably; from 1 s
     on the outputs agree within 0.01 (measured over 30 s: 0.049 at t = 0.029 s, 0.0053 after 1 s)."""
     ssp = built / "ssp" / "example1.ssp"
-    ours = orchestrator.run(ssp, stop_time=3.0)
+    ours = orchestrator.run(ssp, RunOptions(stop_time=3.0)).rows
     theirs, _ = run_libcosim(ssp, 3.0, ["time", "plant.y"])
     deviation = np.abs(ours["plant.y"] - theirs["plant.y"])
     assert deviation.max() <= 0.06
@@ -155,8 +155,8 @@ def test_pendulum_as_shipped_runs_in_libcosim(built):
     1.6e-3 after 1 s; over 3 s: 9.4e-4 after 1 s)."""
     archive = built / "ssp" / "pendulum.ssp"
     theirs, _ = run_libcosim(archive, 3.0, ["time"] + OUTPUTS)
-    ours = orchestrator.run(archive, stop_time=3.0)
-    jacobi = orchestrator.run(archive, stop_time=3.0, master="jacobi")
+    ours = orchestrator.run(archive, RunOptions(stop_time=3.0)).rows
+    jacobi = orchestrator.run(archive, RunOptions(stop_time=3.0, master="jacobi")).rows
     assert theirs["time"].tolist() == ours["time"].tolist() == jacobi["time"].tolist()
     assert max(np.max(np.abs(jacobi[c] - theirs[c])) for c in OUTPUTS) == 0.0
     deviation = np.abs(ours["plant.y"] - theirs["plant.y"])

@@ -13,7 +13,7 @@ from lxml import etree
 from orch_helpers import loop_scenario
 
 import orchestrator
-from orchestrator import ScenarioError
+from orchestrator import RunOptions, ScenarioError
 from orchestrator.ssp import NS, ParameterSet, open_scenario, read_parameter_set, read_scenario, write_ssv
 
 pytestmark = pytest.mark.system
@@ -73,7 +73,7 @@ def test_step_from_either_tool_annotation(tmp_path, test_fmus):
     end = text.index("</ssd:Annotations>", start) + len("</ssd:Annotations>")
     ssd.write_text(text[:start] + text[end:])
     assert read_scenario(folder).experiment.step == 0.02  # OMSimulator's annotation
-    result = orchestrator.run(folder, stop_time=0.1)
+    result = orchestrator.run(folder, RunOptions(stop_time=0.1)).rows
     assert len(result) == 6
 
 

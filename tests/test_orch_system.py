@@ -9,7 +9,7 @@ import pytest
 from orch_helpers import loop_scenario, without_start
 
 import orchestrator
-from orchestrator import ScenarioError
+from orchestrator import RunOptions, ScenarioError
 from orchestrator.ssp import Connection, Experiment, SystemStructure, component, read_scenario, write_ssd
 from orchestrator.system import Operation, System
 
@@ -77,7 +77,7 @@ def test_input_unconnected_without_start(tmp_path, test_fmus):
     with pytest.raises(ScenarioError, match=r"component 'gain', input 'u' is neither connected nor has"):
         orchestrator.run(folder)
     # a start value from a parameter set makes it valid
-    result = orchestrator.run(folder, overrides={"gain.u": 0.5}, stop_time=0.05)
+    result = orchestrator.run(folder, RunOptions(overrides={"gain.u": 0.5}, stop_time=0.05)).rows
     assert (result["gain.y"] == -1.0).all()
 
 
@@ -85,7 +85,8 @@ def test_bad_parameter_bindings_all_reported(tmp_path, test_fmus):
     folder = loop_scenario(tmp_path / "s", test_fmus, pack=False)
     (folder / "gain.ssv").write_text((folder / "gain.ssv").read_text().replace('name="k"', 'name="kk"'))
     with pytest.raises(ScenarioError) as info:
-        orchestrator.run(folder, overrides={"integrator.x": 1.0, "nothere.k": 2.0, "gain.k": "abc"})
+        orchestrator.run(folder, RunOptions(overrides={"integrator.x": 1.0, "nothere.k": 2.0,
+                                                       "gain.k": "abc"}))
     assert set(info.value.problems) == {
         "gain.ssv: component 'gain' has no variable 'kk'",
         "--set: integrator.x is a continuous output, it cannot be set",

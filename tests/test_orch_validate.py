@@ -20,7 +20,7 @@ from lxml import etree
 from orch_helpers import loop_scenario, without_start
 
 import orchestrator
-from orchestrator import ScenarioError
+from orchestrator import RunOptions, ScenarioError
 from orchestrator.cli import main
 from orchestrator.ssp import NS, SSD_NAME, Connection, Experiment, SystemStructure, component, write_ssd
 from orchestrator.validate import validate
@@ -160,7 +160,7 @@ def test_every_stage_reported_at_once(tmp_path, test_fmus):
     assert not report.ok
 
     with pytest.raises(ScenarioError) as info:
-        orchestrator.run(folder, overrides={"gain.k": "20"})
+        orchestrator.run(folder, RunOptions(overrides={"gain.k": "20"}))
     assert info.value.problems == found
 
 
@@ -212,7 +212,7 @@ def test_pythonfmu_without_initial_unknowns_is_a_warning(tmp_path, test_fmus, ca
     assert main(["validate", str(folder)]) == 0
     out = capsys.readouterr().out.splitlines()
     assert [line.split(":")[0] for line in out] == ["warning"] * 3 + ["ok"]
-    assert len(orchestrator.run(folder, stop_time=0.05)) == 6
+    assert len(orchestrator.run(folder, RunOptions(stop_time=0.05)).rows) == 6
 
 
 def test_units_where_both_sides_declare_them(tmp_path, test_fmus):

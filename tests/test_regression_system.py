@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from orchestrator import run
+from orchestrator import RunOptions, run
 from orchestrator.cli import main
 from orchestrator.experiments.regression import (
     BASELINE_DIR,
@@ -44,7 +44,7 @@ def archives(built: Path) -> dict[str, Path]:
 
 @pytest.mark.parametrize("name", SCENARIOS)
 def test_scenario_matches_its_baseline(archives: dict[str, Path], name: str) -> None:
-    result = run(archives[name])
+    result = run(archives[name]).rows
     comparison = compare(result, read_result(BASELINE_DIR / f"{name}.csv"), TOLERANCES.for_scenario(name),
                          f"{name} (this run)", f"tests/baselines/{name}.csv")
     assert comparison.passed, format_comparison(comparison)
@@ -52,7 +52,8 @@ def test_scenario_matches_its_baseline(archives: dict[str, Path], name: str) -> 
 
 
 def short_baseline(archive: Path, **kwargs: object) -> np.ndarray:
-    return resample(run(archive, stop_time=SHORT, **kwargs), BASELINE_GRID, output_columns(archive))
+    result = run(archive, RunOptions(stop_time=SHORT, **kwargs)).rows
+    return resample(result, BASELINE_GRID, output_columns(archive))
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +76,7 @@ PERTURBATIONS = {
 def test_one_perturbation_is_flagged(archives: dict[str, Path], reference_runs: dict[str, np.ndarray],
                                      label: str) -> None:
     which, kwargs = PERTURBATIONS[label]
-    result = run(archives["example1"], stop_time=SHORT, **kwargs)
+    result = run(archives["example1"], RunOptions(stop_time=SHORT, **kwargs)).rows
     comparison = compare(result, reference_runs[which], TOLERANCES, label, which)
     assert not comparison.passed, format_comparison(comparison)
 
@@ -84,7 +85,7 @@ def test_one_perturbation_is_flagged(archives: dict[str, Path], reference_runs: 
 def test_unchanged_rerun_passes(archives: dict[str, Path], reference_runs: dict[str, np.ndarray],
                                 which: str) -> None:
     overrides = EARLY_FAULT if which == "early fault" else {}
-    result = run(archives["example1"], stop_time=SHORT, overrides=overrides)
+    result = run(archives["example1"], RunOptions(stop_time=SHORT, overrides=overrides)).rows
     comparison = compare(result, reference_runs[which], TOLERANCES)
     assert comparison.passed, format_comparison(comparison)
     assert all(check.max_deviation == 0 for check in comparison.checks)  # reruns are bit-identical
@@ -96,7 +97,7 @@ def test_command_flags_a_gain_change_from_csv_files(archives: dict[str, Path], t
     """The whole path: orchestrator CSV -> compare command -> exit 1, table and plot."""
     baseline = write_baseline(reference_runs["plain"], tmp_path / "baseline.csv")
     result = tmp_path / "k1.csv"
-    run(archives["example1"], stop_time=SHORT, overrides={"controller.k1": 10.5}, output=result)
+    run(archives["example1"], RunOptions(stop_time=SHORT, overrides={"controller.k1": 10.5}, output=result))
     tolerances = str(BASELINE_DIR / "tolerances.json")
     status = main(["compare", str(result), str(baseline), "--tolerances", tolerances,
                    "--plot-dir", str(tmp_path / "plots")])
@@ -125,7 +126,7 @@ def test_a_late_change_is_flagged(archives: dict[str, Path], name: str, label: s
     stored = read_result(BASELINE_DIR / f"{name}.csv")
     baseline = stored[stored["time"] <= horizon]
     tubes = TOLERANCES.for_scenario(name)
-    result = run(archives[name], stop_time=horizon, overrides=cases[label])
+    result = run(archives[name], RunOptions(stop_time=horizon, overrides=cases[label])).rows
     comparison = compare(result, baseline, tubes, label, name)
     assert not comparison.passed, format_comparison(comparison)
     assert "controller.eta1_hat" in [c.name for c in comparison.failed]

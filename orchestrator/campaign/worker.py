@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import run
-from ..errors import OrchestratorError, SimulationError
+from .. import RunOptions, RunResult, run
+from ..errors import OrchestratorError, SimulationError, TimeLimitError
 
 __all__ = ["Metrics", "RunOutcome", "RunSpec", "run_variant", "scenario_folder"]
 
@@ -60,10 +60,6 @@ class RunOutcome:
     trajectory: np.ndarray | None = None
 
 
-class RunTimeoutError(Exception):
-    """A run exceeded its wall-time limit (checked about every 1 % of its steps)."""
-
-
 def scenario_folder(digest: str, local_directory: Path | None = None) -> Path:
     """Where the unpacked scenario with this digest lives on the current worker."""
     if local_directory is None:
@@ -92,46 +88,21 @@ def _one_line(text: str) -> str:
 
 
 def run_variant(spec: RunSpec, metrics: Metrics | None = None) -> RunOutcome:
-    """Simulate one variant on this worker; every failure becomes a row with a one-line reason."""
+    """Simulate one variant on this worker; every failure becomes a row with a one-line reason
+    (a timeout, the engine's ``timeout``, keeps its rows as a failure does)."""
     folder = scenario_folder(spec.digest) / "scenario"
     started = time.perf_counter()
-    reached = [0.0]
-
-    def watch(done: int, total: int) -> None:
-        reached[0] = spec.stop_time * done / total
-        if spec.timeout is not None and time.perf_counter() - started > spec.timeout:
-            raise RunTimeoutError
-
     messages = _LastMessage()
     root = logging.getLogger()
     root.addHandler(messages)
     try:
-        result = run(
-            folder,
-            stop_time=spec.stop_time,
-            step=spec.step,
-            overrides=spec.overrides,
-            master=spec.master,
-            progress=watch,
-        )
-    except RunTimeoutError:
-        return RunOutcome(
-            spec.index,
-            TIMEOUT,
-            f"wall-time limit of {spec.timeout:g} s reached at about t={reached[0]:.3f} s",
-            time.perf_counter() - started,
-        )
+        result = run(folder, RunOptions(stop_time=spec.stop_time, step=spec.step, overrides=spec.overrides,
+                                        master=spec.master, timeout=spec.timeout))
+    except TimeLimitError as exc:
+        return _kept(spec, TIMEOUT, str(exc), exc.result, started)
     except SimulationError as exc:
         reason = str(exc) if "(" in str(exc) or not messages.last else f"{exc} ({messages.last})"
-        partial = getattr(exc, "result", None)
-        rows = 0 if partial is None else len(partial)
-        return RunOutcome(
-            spec.index,
-            FAILED,
-            _one_line(f"{reason}; {rows} rows computed"),
-            time.perf_counter() - started,
-            trajectory=_decimate(partial, spec.keep_every) if partial is not None and rows else None,
-        )
+        return _kept(spec, FAILED, reason, exc.result, started)
     except OrchestratorError as exc:
         return RunOutcome(spec.index, FAILED, _one_line(str(exc)), time.perf_counter() - started)
     except Exception as exc:  # a failed run never stops the campaign: any error becomes its row
@@ -146,11 +117,18 @@ def run_variant(spec: RunSpec, metrics: Metrics | None = None) -> RunOutcome:
     if metrics is not None:
         params = {**spec.overrides, "stop_time": spec.stop_time, "step": spec.step}
         try:
-            values = {k: float(v) for k, v in metrics.function(result, params).items()}
+            values = {k: float(v) for k, v in metrics.function(result.rows, params).items()}
         except (ValueError, ArithmeticError) as exc:
             status, reason = FAILED, _one_line(f"metrics: {exc}")
             values = {}
-    return RunOutcome(spec.index, status, reason, wall, values, _decimate(result, spec.keep_every))
+    return RunOutcome(spec.index, status, reason, wall, values, _decimate(result.rows, spec.keep_every))
+
+
+def _kept(spec: RunSpec, status: str, reason: str, result: RunResult, started: float) -> RunOutcome:
+    """The row of a run that stopped early, with the trajectory of the rows it kept."""
+    return RunOutcome(spec.index, status, _one_line(f"{reason}; {result.count} rows computed"),
+                      time.perf_counter() - started,
+                      trajectory=_decimate(result.rows, spec.keep_every) if result.count else None)
 
 
 def _decimate(result: np.ndarray, every: int | None) -> np.ndarray | None:

@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import RunOptions
 from .. import run as run_orchestrator
 from ..errors import SimulationError
 from .tools import AMPLIFIED, Scenario, Tolerance, Tool, ToolRun
@@ -180,10 +181,10 @@ def _ours(scenario: Scenario, master: str) -> tuple[np.ndarray, float, str | Non
 
     start = time.perf_counter()
     try:
-        result = run_orchestrator(scenario.path, master=master)
+        result = run_orchestrator(scenario.path, RunOptions(master=master)).rows
         error = None
     except SimulationError as exc:
-        result, error = exc.result, str(exc)
+        result, error = exc.result.rows, str(exc)
     return result, time.perf_counter() - start, error
 
 

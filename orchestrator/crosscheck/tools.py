@@ -22,6 +22,7 @@ from lxml import etree
 
 from ..results import structured
 from ..ssp import NS, SSD_NAME, open_scenario, read_scenario
+from ..validate import STEP_ANNOTATIONS
 
 __all__ = ["AMPLIFIED", "QUIET", "Scenario", "Tolerance", "Tool", "ToolRun", "clean_environment",
            "elf_interpreter", "empty_result", "last_per_step", "table_result"]
@@ -88,7 +89,9 @@ class Scenario:
             system = root.find("ssd:System", NS).get("name")
         experiment = structure.experiment
         if experiment.stop_time is None or experiment.step is None:
-            raise ValueError(f"{path}:{SSD_NAME}: needs a DefaultExperiment stopTime and a step annotation")
+            missing = [what for what, value in (("a DefaultExperiment stopTime", experiment.stop_time),
+                                                 (STEP_ANNOTATIONS, experiment.step)) if value is None]
+            raise ValueError(f"{path}:{SSD_NAME}: other tools need {' and '.join(missing)}; it has none")
         return cls(path.stem, path, system, experiment.start_time, experiment.stop_time, experiment.step,
                    outputs, parameters, types, set_names)
 

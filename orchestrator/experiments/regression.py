@@ -162,11 +162,17 @@ def load_tolerances(path: str | os.PathLike) -> Tolerances:
 
 
 def parse_tolerance(text: str, base: Tolerances) -> tuple[str, Tolerance]:
-    """``plant.y=1e-3`` (atol) or ``plant.y=atol:1e-3,quiet_atol:1e-6`` -> (name, Tolerance); keys not
-    given keep the signal's tube from ``base``."""
+    """``plant.y=1e-3`` -> (name, a tube of exactly +-1e-3 over the whole run, tighter or wider than
+    the file's), or ``plant.y=atol:1e-3,quiet_atol:1e-6`` -> the signal's tube from ``base`` with
+    those keys replaced."""
     name, sep, spec = text.partition("=")
     if not sep or not name or not spec:
         raise RegressionError(f"--tol expects SIGNAL=ATOL or SIGNAL=KEY:VALUE[,KEY:VALUE] (got '{text}')")
+    if ":" not in spec:
+        try:
+            return name, Tolerance(atol=float(spec))
+        except ValueError:
+            raise RegressionError(f"--tol {text}: '{spec}' is not a number") from None
     values: dict[str, float] = {}
     for item in spec.split(","):
         key, colon, value = item.partition(":")
@@ -251,6 +257,7 @@ class Comparison:
     missing: list[str]
     extra: list[str]
     problems: list[str]
+    grid: str = ""  # where the signals were compared
 
     @property
     def failed(self) -> list[SignalCheck]:
@@ -323,18 +330,38 @@ def compare(result: np.ndarray, baseline: np.ndarray, tolerances: Tolerances | N
     eps = 1e-9 * max(1.0, abs(float(t_ref[-1])))
     if t_res[0] > t_ref[0] + eps or t_res[-1] < t_ref[-1] - eps:
         problems.append(f"{result_name} covers t = {t_res[0]:g} .. {t_res[-1]:g} s but {baseline_name} "
-                        f"runs over t = {t_ref[0]:g} .. {t_ref[-1]:g} s")
+                        f"runs over t = {t_ref[0]:g} .. {t_ref[-1]:g} s (compared where both have rows)")
+    at_ref, at_res, grid = _points(t_ref, t_res, eps)
+    if len(at_ref) < 2:
+        problems.append(f"{result_name} and {baseline_name} have fewer than two times in common")
+        return Comparison(result_name, baseline_name, tolerances, [], missing, extra, problems)
+    t = t_ref[at_ref]
     checks = []
-    if not problems:
-        for n in names:
-            if n in have:
-                y_ref = np.asarray(baseline[n], dtype=float)
-                if not np.isfinite(y_ref).all():
-                    problems.append(f"{baseline_name}: column '{n}' has non-finite values")
-                    continue
-                y = np.interp(t_ref, t_res, result[n])
-                checks.append(_check(n, t_ref, y, y_ref, tolerances.of(n), tolerances.quiet_until))
-    return Comparison(result_name, baseline_name, tolerances, checks, missing, extra, problems)
+    for n in names:
+        if n in have:
+            y_ref = np.asarray(baseline[n], dtype=float)[at_ref]
+            if not np.isfinite(y_ref).all():
+                problems.append(f"{baseline_name}: column '{n}' has non-finite values")
+                continue
+            y = result[n][at_res] if at_res is not None else np.interp(t, t_res, result[n])
+            checks.append(_check(n, t, y, y_ref, tolerances.of(n), tolerances.quiet_until))
+    return Comparison(result_name, baseline_name, tolerances, checks, missing, extra, problems, grid)
+
+
+def _points(t_ref: np.ndarray, t_res: np.ndarray,
+            eps: float) -> tuple[np.ndarray, np.ndarray | None, str]:
+    """Where to compare: the baseline's times within the result's span, the result's own rows there
+    when it has a row at each (else None: it is interpolated linearly), and a note on the grid. A
+    result on a coarser grid than the baseline (``--output-interval``) is compared at its own
+    rows where the baseline has one too, not interpolated between them."""
+    inside = np.flatnonzero((t_ref >= t_res[0] - eps) & (t_ref <= t_res[-1] + eps))
+    common, at_ref, at_res = np.intersect1d(t_ref[inside], t_res, return_indices=True)
+    if len(common) == len(inside):
+        return inside, at_res, f"the baseline's {len(inside)} times"
+    coarser = len(common) >= 2 and float(np.min(np.diff(t_res))) > float(np.min(np.diff(t_ref))) * (1 + 1e-9)
+    if coarser:
+        return inside[at_ref], at_res, f"the {len(common)} times both have (the result's grid is coarser)"
+    return inside, None, f"the baseline's {len(inside)} times (the result interpolated)"
 
 
 def compare_files(result: str | os.PathLike, baseline: str | os.PathLike,
@@ -368,8 +395,10 @@ def format_comparison(comparison: Comparison) -> str:
     if c.extra:
         lines.append(f"not in the baseline (not compared): {', '.join(c.extra)}")
     verdict = "PASS" if c.passed else "REGRESSION"
+    where = f" at {c.grid}" if c.grid else ""
+    also = f"; {len(c.problems)} problem(s) above" if c.problems else ""
     lines.append(f"{verdict}: {len(c.checks) - len(failed)} of {len(c.checks) + len(c.missing)} signals "
-                 f"inside their tubes")
+                 f"inside their tubes{where}{also}")
     return "\n".join(lines)
 
 
@@ -424,7 +453,7 @@ def write_baselines(names: Iterable[str] | None = None, dest: str | os.PathLike 
     with tempfile.TemporaryDirectory(prefix="baselines-") as work:
         archives = build_scenarios(names, work, sources)
         for name, archive in archives.items():
-            result = run(archive)
+            result = run(archive).rows
             written.append(write_baseline(resample(result, grid, output_columns(archive)),
                                           Path(dest) / f"{name}.csv"))
     return written

@@ -24,7 +24,7 @@ import numpy as np
 
 from controller.params import Mode
 
-from .. import open_system, provenance, run
+from .. import RunOptions, open_system, provenance, run
 from ..campaign import Design, read_table, sweep
 from ..campaign import write_report as campaign_report
 from ..plots import axis_label
@@ -59,7 +59,7 @@ STUDY_HORIZON = 10.0
 
 def _run_case(args: tuple[Path, float | None, dict]) -> np.ndarray:
     archive, stop_time, overrides = args
-    return run(archive, stop_time=stop_time, overrides=overrides)
+    return run(archive, RunOptions(stop_time=stop_time, overrides=overrides)).rows
 
 
 def _metrics(result: np.ndarray) -> TrackingMetrics:

@@ -1,0 +1,186 @@
+"""What a run is asked to do (:class:`RunOptions`) and what it gives back (:class:`RunResult`).
+
+SciPy's ``solve_ivp`` shape: one frozen options object instead of a long list of keywords, and one
+result object with ``status``, ``message`` and ``success`` whatever the outcome. A run that fails
+still raises (nothing hides a failure), and the error carries the same :class:`RunResult` in its
+``result`` attribute, with the rows computed before the failure.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .errors import UsageError
+from .master import MASTERS
+from .ssp import DEFAULT_LIMITS, Limits
+
+if TYPE_CHECKING:
+    import pandas
+
+__all__ = ["STATUSES", "RunOptions", "RunResult"]
+
+STATUSES = ("complete", "failed", "timeout", "interrupted")
+
+
+def _paths(items: str | os.PathLike | Sequence[str | os.PathLike]) -> tuple[Path, ...]:
+    return (Path(items),) if isinstance(items, (str, os.PathLike)) else tuple(Path(p) for p in items)
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How to run a scenario; every field is optional.
+
+    Parameters
+    ----------
+    start_time, stop_time, step : float, optional
+        Seconds; default: the SSD's DefaultExperiment and step annotation (a scenario without a step
+        annotation needs ``step``). The step must divide the run.
+    parameter_sets : sequence of path
+        ``.ssv`` files naming parameters ``<component>.<variable>``, applied after the SSD's own.
+    overrides : mapping
+        ``{"controller.k1": 12}``, applied last.
+    master : str
+        A name of :data:`orchestrator.master.MASTERS` (``gauss-seidel`` or ``jacobi``).
+    output : path, optional
+        Result file written as the run goes (``.csv``, ``.parquet``, ``.mat``), its provenance in
+        ``<output>.json``.
+    output_variables, output_interval, no_inputs
+        What the output file holds (:mod:`orchestrator.formats`); the rows returned are not affected.
+    keep : bool
+        False (with an ``output``): rows are only streamed to the file and :attr:`RunResult.rows`
+        is a preview for plotting (each column's extremes per bucket, at most 4000 rows).
+    strict : bool
+        An input no connection feeds and no value was given for is a ScenarioError, not a warning.
+    timeout : float, optional
+        Wall-clock limit in seconds.
+    fmu_dirs : sequence of path
+        Where FMUs a scenario folder does not hold are looked up by file name.
+    limits : Limits
+        What an archive and its FMUs may unpack to.
+    input_file : path, optional
+        CSV (``time`` then ``<component>.<input>`` columns, FMPy's convention) that drives
+        unconnected inputs; held between its rows.
+    fmi_log : sequence of str
+        Components whose FMI calls are traced (logger ``orchestrator.fmi.calls``, level INFO);
+        ``*`` for all.
+
+    Raises
+    ------
+    UsageError
+        A value out of range (the message names the field and the value).
+    """
+
+    start_time: float | None = None
+    stop_time: float | None = None
+    step: float | None = None
+    parameter_sets: Sequence[str | os.PathLike] = ()
+    overrides: Mapping[str, object] = field(default_factory=dict)
+    master: str = "gauss-seidel"
+    output: str | os.PathLike | None = None
+    output_variables: Sequence[str] = ()
+    output_interval: float | None = None
+    no_inputs: bool = False
+    keep: bool = True
+    strict: bool = False
+    timeout: float | None = None
+    fmu_dirs: Sequence[str | os.PathLike] = ()
+    limits: Limits = DEFAULT_LIMITS
+    input_file: str | os.PathLike | None = None
+    fmi_log: Sequence[str] = ()
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        set_(self, "parameter_sets", _paths(self.parameter_sets))
+        set_(self, "fmu_dirs", _paths(self.fmu_dirs))
+        set_(self, "output_variables", (self.output_variables,) if isinstance(self.output_variables, str)
+             else tuple(self.output_variables))
+        set_(self, "fmi_log", (self.fmi_log,) if isinstance(self.fmi_log, str) else tuple(self.fmi_log))
+        set_(self, "overrides", dict(self.overrides))
+        for name in ("output", "input_file"):
+            value = getattr(self, name)
+            if value is not None:
+                set_(self, name, Path(value))
+        if self.master not in MASTERS:
+            raise UsageError(f"unknown master '{self.master}' (choose from {', '.join(MASTERS)})")
+        for name in ("step", "timeout", "output_interval"):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value)
+                                          and value > 0):
+                raise UsageError(f"{name} must be positive and finite (got {value!r})")
+        for name in ("start_time", "stop_time"):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value)):
+                raise UsageError(f"{name} must be finite (got {value!r})")
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """The outcome of one run, returned by :func:`orchestrator.run` and carried by every run error
+    (``exc.result``).
+
+    Attributes
+    ----------
+    status : str
+        ``complete``, ``failed``, ``timeout`` or ``interrupted``.
+    message : str
+        Empty when complete; else the one-line error.
+    rows : numpy.ndarray
+        Structured array, ``time`` first, one ``<component>.<connector>`` field per connector
+        (FMPy's convention): every row computed, or a preview when ``preview`` is True.
+    count : int
+        The number of rows computed (``len(rows)`` unless ``preview``).
+    time : float or None
+        The time of the last row computed (None: none).
+    provenance : dict
+        What produced the run (:func:`orchestrator.provenance.describe`) and how it ended.
+    outputs : dict
+        Files written: ``result`` and ``provenance`` (empty without an ``output``).
+    preview : bool
+        ``rows`` is a bounded preview (``RunOptions.keep`` False).
+    """
+
+    status: str
+    message: str
+    rows: np.ndarray
+    count: int
+    time: float | None
+    provenance: dict[str, Any] = field(default_factory=dict)
+    outputs: dict[str, Path] = field(default_factory=dict)
+    preview: bool = False
+
+    @property
+    def success(self) -> bool:
+        """True when the run reached its stop time."""
+        return self.status == "complete"
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """The field names of ``rows`` (``time`` first)."""
+        return tuple(self.rows.dtype.names or ())
+
+    @property
+    def units(self) -> dict[str, str | None]:
+        """The unit each column's variable declares in its FMU (None: none)."""
+        units = self.provenance.get("units")
+        return dict(units) if isinstance(units, Mapping) else {}
+
+    def to_pandas(self) -> pandas.DataFrame:
+        """The rows as a DataFrame indexed by ``time`` (needs pandas)."""
+        import pandas
+
+        frame = pandas.DataFrame.from_records(self.rows)
+        return frame.set_index("time")
+
+    def plot(self, path: str | os.PathLike, variables: Sequence[str] = (), title: str = "") -> Path:
+        """Write the default figure of the rows to ``path`` (:func:`orchestrator.plots.plot_run`):
+        ``variables`` (shell patterns) choose the signals; returns the path."""
+        from .plots import plot_run
+
+        return plot_run(self.rows, path, title, self.units, variables=variables, record=self.provenance)
