@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import struct
+import zipfile
 from abc import ABC, abstractmethod
 from collections.abc import Iterable, Sequence
 from contextlib import ExitStack
@@ -24,7 +25,7 @@ from ..results import structured
 from ..ssp import NS, SSD_NAME, open_scenario, read_scenario
 
 __all__ = ["AMPLIFIED", "QUIET", "Scenario", "Tolerance", "Tool", "ToolRun", "clean_environment",
-           "elf_interpreter", "empty_result", "last_per_step", "table_result"]
+           "elf_interpreter", "empty_result", "fmi_version", "last_per_step", "table_result"]
 
 # Variables of the FMUs that pythonfmu's C-API hosts must not inherit from the caller: the FMUs are
 # expected to find libpython and their packages by themselves (see README, "Running the FMUs
@@ -48,7 +49,8 @@ class Scenario:
 
     ``parameters`` maps ``component.variable`` to the value its parameter bindings give (later
     bindings win), ``types`` to the SSV type; ``set_names`` maps each component to the ``name``
-    attribute of each ``.ssv`` it binds (Ecos applies parameter sets by that name).
+    attribute of each ``.ssv`` it binds (Ecos applies parameter sets by that name);
+    ``fmi_versions``: the FMI versions of its FMUs (``fmiVersion``, e.g. ``("2.0", "3.0")``).
     """
 
     name: str
@@ -61,6 +63,7 @@ class Scenario:
     parameters: dict[str, float | int | bool | str]
     types: dict[str, str]
     set_names: dict[str, tuple[str, ...]]
+    fmi_versions: tuple[str, ...] = ("2.0",)
 
     @classmethod
     def read(cls, path: str | os.PathLike) -> Scenario:
@@ -72,6 +75,7 @@ class Scenario:
             parameters: dict[str, float | int | bool | str] = {}
             types: dict[str, str] = {}
             set_names: dict[str, tuple[str, ...]] = {}
+            versions = {fmi_version(folder / component.source) for component in structure.components}
             for component in structure.components:
                 names = []
                 for ps in component.parameter_sets:
@@ -90,7 +94,7 @@ class Scenario:
         if experiment.stop_time is None or experiment.step is None:
             raise ValueError(f"{path}:{SSD_NAME}: needs a DefaultExperiment stopTime and a step annotation")
         return cls(path.stem, path, system, experiment.start_time, experiment.stop_time, experiment.step,
-                   outputs, parameters, types, set_names)
+                   outputs, parameters, types, set_names, tuple(sorted(versions)))
 
     @property
     def steps(self) -> int:
@@ -132,6 +136,7 @@ class Tool(ABC):
     key: str = ""
     title: str = ""
     delayed: bool = False
+    fmi_versions: tuple[str, ...] = ("2.0",)  # the FMI versions of the FMUs it can run
     tolerance: Tolerance = Tolerance(0.0, 0.0, "")
 
     @abstractmethod
@@ -142,6 +147,17 @@ class Tool(ABC):
     def run(self, scenario: Scenario, workdir: Path) -> ToolRun:
         """Run ``scenario`` unchanged; ``workdir`` is an empty folder the adapter may use. Never
         raises for a failure of the tool: the failure is ``ToolRun.error``."""
+
+
+def fmi_version(fmu: Path) -> str:
+    """The ``fmiVersion`` of an FMU archive's model description ('?' when it cannot be read)."""
+    try:
+        with zipfile.ZipFile(fmu) as archive, archive.open("modelDescription.xml") as xml:
+            root = next(etree.iterparse(xml, events=("start",), resolve_entities=False, no_network=True))[1]
+            return str(root.get("fmiVersion", "?"))
+    except (OSError, KeyError, StopIteration, zipfile.BadZipFile, etree.XMLSyntaxError):
+        pass
+    return "?"
 
 
 def empty_result(columns: Sequence[str]) -> np.ndarray:
