@@ -323,6 +323,13 @@ def test_refusals_return_an_error_status_and_say_why(plant: Boundary) -> None:
             before = len(plant.messages)
             assert plant.call(name, c_int, *args) == ERROR, name
             assert len(plant.messages) == before + 1 and name in plant.messages[-1][1], name
+        # a value reference no variable has (pythonfmu would fail with fmi2Fatal, ending the instance)
+        for vr in (0, 999):
+            before = len(plant.messages)
+            f = plant.lib.fmi3GetFloat64
+            assert f(c, (c_uint32 * 1)(vr), c_size_t(1), buffer, c_size_t(1)) == ERROR
+            assert f"no variable has the value reference {vr}" in plant.messages[before][1]
+        assert plant.floats(instance, "x1")[0] == OK  # the instance goes on
         # nValues not matching the number of scalar value references
         f = plant.lib.fmi3GetFloat64
         assert f(c, one, c_size_t(1), buffer, c_size_t(2)) == ERROR

@@ -313,6 +313,10 @@ struct references {
     fmi2ValueReference small[VR_BUFFER];
 };
 
+static void release(struct references *t) {
+    if (t->vr != t->small) free(t->vr);
+}
+
 static int translate(struct instance3 *i, const char *function, struct references *t,
                      const fmi3ValueReference vr[], size_t n) {
     t->vr = n <= VR_BUFFER ? t->small : malloc(n * sizeof *t->vr);
@@ -322,15 +326,17 @@ static int translate(struct instance3 *i, const char *function, struct reference
         return -1;
     }
     for (size_t k = 0; k < n; k++) {
+        if (vr[k] < FTC_VR_OFFSET || vr[k] > FTC_TIME_VR) { /* pythonfmu would fail with fmi2Fatal */
+            char reason[96];
+            snprintf(reason, sizeof reason, "no variable has the value reference %u", (unsigned)vr[k]);
+            release(t);
+            refuse(i, function, reason);
+            return -1;
+        }
         if (vr[k] == FTC_TIME_VR) t->time++;
-        else /* below the offset: no variable; the FMI 2.0 layer refuses the largest reference */
-            t->vr[t->n++] = vr[k] >= FTC_VR_OFFSET ? vr[k] - FTC_VR_OFFSET : (fmi2ValueReference)-1;
+        else t->vr[t->n++] = vr[k] - FTC_VR_OFFSET;
     }
     return 0;
-}
-
-static void release(struct references *t) {
-    if (t->vr != t->small) free(t->vr);
 }
 
 /* Translates the references of a call that cannot name `time` (any but fmi3GetFloat64). */
