@@ -257,7 +257,7 @@ class Instance:
 def fmi_version(unzipdir: str | os.PathLike) -> str:
     """The ``fmiVersion`` of an extracted FMU, read from the root of its modelDescription.xml alone
     (no entities resolved, no network)."""
-    path = Path(unzipdir, "modelDescription.xml")
-    for _, element in etree.iterparse(str(path), events=("start",), resolve_entities=False, no_network=True):
-        return str(element.get("fmiVersion", ""))
+    with open(Path(unzipdir, "modelDescription.xml"), "rb") as xml:  # closed after the first element
+        for _, element in etree.iterparse(xml, events=("start",), resolve_entities=False, no_network=True):
+            return str(element.get("fmiVersion", ""))
     return ""
