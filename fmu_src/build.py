@@ -22,7 +22,7 @@ generation date, sorted entries with fixed timestamps, licences under ``document
 Nothing of the build machine (no path) goes in. Rebuilding the same sources with the same
 compiler and runtime packages gives identical bytes.
 
-Usage: ``python -m fmu_src.build DEST [--model NAME]...``
+Usage: ``python -m fmu_src.build DEST [--model NAME]... [--fmi3 DEST3]`` (FMI 3.0 variants: ``fmu_src.fmi3``)
 """
 
 from __future__ import annotations
@@ -67,7 +67,7 @@ BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 BUILD_FORMAT = "3"
 SHIM_DIR = Path("fmu_src", "shim")  # relative to the source root
 SHIM_SOURCES = ("fmi2_shim.c", "start_python.c")
-SHIM_HEADERS = ("start_python.h",)
+SHIM_HEADERS = ("start_python.h", "fmi2_types.h")
 # No debug info, build id or symbol table, so the bytes depend only on source, compiler and flags;
 # the runtime's libraries are found by soname through $ORIGIN/python/lib (see the shim's header).
 SHIM_FLAGS = tuple(
@@ -198,19 +198,21 @@ def c_compiler() -> tuple[str, str]:
     )
 
 
-def compile_shim(root: Path, runtime: Runtime, where: Path) -> bytes:
-    """Compile the FMI shim against the runtime's headers; returns the shared object's bytes (the
-    same for the same sources, compiler and runtime)."""
+def compile_shim(root: Path, runtime: Runtime, where: Path, sources: Sequence[str] = SHIM_SOURCES,
+                 defines: Sequence[str] = ()) -> bytes:
+    """Compile the FMI shim (``sources`` of ``fmu_src/shim``, ``-D`` ``defines``) against the runtime's
+    headers; returns the shared object's bytes (the same for the same sources, compiler and runtime)."""
     compiler, _ = c_compiler()
     work = where / "shim"
     work.mkdir(parents=True)
-    for name in SHIM_SOURCES + SHIM_HEADERS:
+    for name in (*sources, *SHIM_HEADERS):
         source = root / SHIM_DIR / name
         if not source.is_file():
             raise BuildError(f"FMI shim source not found: {source}")
         shutil.copyfile(source, work / name)
     includes = [f"-I{d}" for d in runtime.include_dirs]
-    command = [compiler, *SHIM_FLAGS, *includes, "-o", "shim.so", *SHIM_SOURCES, *SHIM_LIBS]
+    flags = [f"-D{d}" for d in defines]
+    command = [compiler, *SHIM_FLAGS, *flags, *includes, "-o", "shim.so", *sources, *SHIM_LIBS]
     result = subprocess.run(command, cwd=work, capture_output=True, text=True)
     if result.returncode != 0:
         raise BuildError(f"{root / SHIM_DIR}: {compiler} failed:\n{result.stderr.strip()}")
@@ -338,6 +340,11 @@ def _write_normalized(
     entries["modelDescription.xml"] = _normalized_description(
         entries["modelDescription.xml"], digest, bundle.model
     )
+    write_archive(target, entries)
+
+
+def write_archive(target: Path, entries: dict[str, bytes]) -> None:
+    """Write ``entries`` (member name -> bytes) as a zip archive: sorted, fixed timestamps, mode 0644."""
     with zipfile.ZipFile(target, "w", compression=zipfile.ZIP_DEFLATED) as archive:
         for name in sorted(entries):
             info = zipfile.ZipInfo(name, date_time=ZIP_DATE)
@@ -386,9 +393,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--model", action="append", choices=list(FMU_SCRIPTS), help="build only these (repeatable)"
     )
+    parser.add_argument("--fmi3", type=Path, metavar="DEST3",
+                        help="also write each FMU's FMI 3.0 Co-Simulation variant there, e.g. build/fmus3")
     options = parser.parse_args(argv)
     try:
         paths = [build_fmu(model, options.dest) for model in options.model or FMU_SCRIPTS]
+        if options.fmi3 is not None:
+            from .fmi3 import build_fmu3  # it builds on this module
+
+            paths += [build_fmu3(path, options.fmi3) for path in list(paths)]
     except BuildError as error:
         print(f"error: {error}", file=sys.stderr)
         return 1

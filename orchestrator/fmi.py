@@ -1,5 +1,5 @@
-"""FMI 2.0 co-simulation instances as the masters use them: extracted, instantiated, their hot
-functions bound once, every failure turned into a :class:`~orchestrator.errors.SimulationError`.
+"""FMI 2.0 and 3.0 co-simulation instances as the masters use them: extracted, instantiated, their
+hot functions bound once, every failure turned into a :class:`~orchestrator.errors.SimulationError`.
 
 fmpy loads the FMU and offers checked wrappers for the rare calls (setup, initialization mode,
 start values, terminate). The calls made every communication step (``fmi2DoStep``,
@@ -7,6 +7,13 @@ start values, terminate). The calls made every communication step (``fmi2DoStep`
 on prepared arrays: no per-call conversion, and the GIL is kept, which a Python-based FMU
 (pythonfmu) would otherwise have to take back at once. Status codes keep fmpy's names
 (``fmi2OK`` ... ``fmi2Pending``).
+
+An FMI 3.0 FMU (``fmiVersion`` 3.x) is instantiated with fmpy's ``FMU3Slave`` (Co-Simulation,
+no event mode, no early return) and offers the same interface: the masters' ``get_real``,
+``set_real`` and ``do_step`` call ``fmi3GetFloat64``, ``fmi3SetFloat64`` and ``fmi3DoStep`` (its
+output arguments read and dropped: the engine has no event mode), parameters are set as Float64,
+Int32 or Boolean, and failures name the FMI 3.0 function and status (``fmi3DoStep returned
+fmi3Discard``).
 """
 
 from __future__ import annotations
@@ -17,7 +24,8 @@ import os
 import sys
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
-from ctypes import POINTER, byref, c_double, c_int, c_size_t, c_uint, c_void_p
+from ctypes import POINTER, byref, c_bool, c_double, c_int, c_size_t, c_uint, c_void_p
+from pathlib import Path
 from typing import NoReturn
 
 import fmpy
@@ -32,10 +40,13 @@ from fmpy.fmi2 import (
     fmi2Fatal,
     fmi2Warning,
 )
+from fmpy.fmi3 import FMU3Slave
+from lxml import etree
 
 from .errors import SimulationError
 
-__all__ = ["CALLS", "FAILED", "Instance", "InstanceBase", "MessageLog", "interpreter_guard", "trace"]
+__all__ = ["CALLS", "FAILED", "Instance", "InstanceBase", "MessageLog", "fmi_version", "interpreter_guard",
+           "trace"]
 
 log = logging.getLogger(__name__)
 
@@ -43,6 +54,11 @@ log = logging.getLogger(__name__)
 FAILED = fmi2Discard
 _SETTERS = {"Real": "setReal", "Integer": "setInteger", "Enumeration": "setInteger", "Boolean": "setBoolean",
             "String": "setString"}
+_SETTERS3 = {"Float64": "setFloat64", "Int32": "setInt32", "Boolean": "setBoolean"}
+# The FMI 3.0 function that does what the masters name by its FMI 2.0 name.
+_FMI3_FUNCTIONS = {"fmi2DoStep": "fmi3DoStep", "fmi2GetReal": "fmi3GetFloat64",
+                   "fmi2SetReal": "fmi3SetFloat64", "fmi2Instantiate": "fmi3InstantiateCoSimulation"}
+_FMI3_STATUS = ("fmi3OK", "fmi3Warning", "fmi3Discard", "fmi3Error", "fmi3Fatal")
 
 
 @contextmanager
@@ -79,6 +95,11 @@ class MessageLog:
             addLoggerProxy(byref(self.callbacks))
         except (ImportError, OSError):
             log.debug("fmpy logger proxy unavailable; FMU messages are not formatted")
+
+    def logger3(self, name: str) -> Callable[[object, int, bytes, bytes], None]:
+        """The FMI 3.0 logMessage callback of instance ``name`` (FMI 3.0 passes no instance name)."""
+        encoded = name.encode()
+        return lambda env, status, category, message: self._log(env, encoded, status, category, message)
 
     def _log(self, env, instance_name: bytes, status: int, category: bytes, message: bytes) -> None:
         name = instance_name.decode("utf-8", "replace") if instance_name else "?"
@@ -168,29 +189,53 @@ class InstanceBase:
 class Instance(InstanceBase):
     """One FMU instance: fmpy's slave and its hot functions bound once from the FMU's library."""
 
-    def __init__(self, name: str, fmu: FMU2Slave, messages: MessageLog) -> None:
+    def __init__(self, name: str, fmu: FMU2Slave | FMU3Slave, messages: MessageLog) -> None:
         super().__init__(name, messages)
         self.fmu = fmu
+        self.fmi3 = isinstance(fmu, FMU3Slave)
         self.c = c_void_p(fmu.component)
         lib = ctypes.PyDLL(fmu.dll._name, handle=fmu.dll._handle)
-        self.do_step = lib.fmi2DoStep
-        self.do_step.argtypes, self.do_step.restype = [c_void_p, c_double, c_double, c_int], c_int
-        self.get_real, self.set_real = lib.fmi2GetReal, lib.fmi2SetReal
-        for f in (self.get_real, self.set_real):
-            f.argtypes, f.restype = [c_void_p, POINTER(c_uint), c_size_t, POINTER(c_double)], c_int
+        if self.fmi3:
+            self._bind_fmi3(lib)
+        else:
+            self.do_step = lib.fmi2DoStep
+            self.do_step.argtypes, self.do_step.restype = [c_void_p, c_double, c_double, c_int], c_int
+            self.get_real, self.set_real = lib.fmi2GetReal, lib.fmi2SetReal
+            for f in (lib.fmi2GetReal, lib.fmi2SetReal):
+                f.argtypes, f.restype = [c_void_p, POINTER(c_uint), c_size_t, POINTER(c_double)], c_int
+
+    def _bind_fmi3(self, lib: ctypes.PyDLL) -> None:
+        """The masters' FMI 2.0-shaped hot calls on fmi3GetFloat64, fmi3SetFloat64 and fmi3DoStep."""
+        get, set_, step = lib.fmi3GetFloat64, lib.fmi3SetFloat64, lib.fmi3DoStep
+        for f in (get, set_):
+            f.argtypes, f.restype = [c_void_p, POINTER(c_uint), c_size_t, POINTER(c_double), c_size_t], c_int
+        flag = POINTER(c_bool)
+        step.argtypes = [c_void_p, c_double, c_double, c_bool, flag, flag, flag, POINTER(c_double)]
+        step.restype = c_int
+        self._step_flags = (c_bool(), c_bool(), c_bool(), c_double())  # written by every fmi3DoStep
+        event, terminate, early, last = (byref(x) for x in self._step_flags)
+        self.get_real = lambda c, vr, n, values: get(c, vr, n, values, n)
+        self.set_real = lambda c, vr, n, values: set_(c, vr, n, values, n)
+        self.do_step = lambda c, t, h, no_set: step(c, t, h, no_set, event, terminate, early, last)
 
     @classmethod
     def open(cls, name: str, fmu_path: str | os.PathLike, guid: str, model_identifier: str, workdir: str,
              messages: MessageLog, time: float) -> Instance:
-        """Extract ``fmu_path`` into ``workdir/name`` and instantiate it (fmi2Instantiate)."""
+        """Extract ``fmu_path`` into ``workdir/name`` and instantiate it (fmi2Instantiate, or
+        fmi3InstantiateCoSimulation for an FMI 3.0 FMU)."""
         unzipdir = fmpy.extract(str(fmu_path), unzipdir=os.path.join(workdir, name))
-        fmu = FMU2Slave(guid=guid, unzipDirectory=unzipdir, modelIdentifier=model_identifier,
-                        instanceName=name)
+        fmi3 = fmi_version(unzipdir).startswith("3.")
+        kind = FMU3Slave if fmi3 else FMU2Slave
+        fmu = kind(guid=guid, unzipDirectory=unzipdir, modelIdentifier=model_identifier, instanceName=name)
         try:
-            fmu.instantiate(callbacks=messages.callbacks)
+            if isinstance(fmu, FMU3Slave):
+                fmu.instantiate(logMessage=messages.logger3(name))
+            else:
+                fmu.instantiate(callbacks=messages.callbacks)
         except Exception as exc:
             fmu.freeLibrary()
-            raise SimulationError(name, "fmi2Instantiate", "NULL", time, messages.last.get(name, "")) from exc
+            function = _FMI3_FUNCTIONS["fmi2Instantiate"] if fmi3 else "fmi2Instantiate"
+            raise SimulationError(name, function, "NULL", time, messages.last.get(name, "")) from exc
         return cls(name, fmu, messages)
 
     # -- checked calls ------------------------------------------------------------------------
@@ -201,6 +246,17 @@ class Instance(InstanceBase):
         except FMICallException as exc:
             self.fail(function, exc.status, time)
 
+    def fail(self, function: str, status: int, time: float) -> NoReturn:
+        """Raise the SimulationError of a failed call (after fmi2Fatal the instance is left alone).
+        An FMI 3.0 instance names the FMI 3.0 function and status."""
+        if status >= fmi2Fatal:
+            self.broken = True
+        shown: int | str = status
+        if self.fmi3:
+            function = _FMI3_FUNCTIONS.get(function, function)
+            shown = _FMI3_STATUS[status] if 0 <= status < len(_FMI3_STATUS) else f"status {status}"
+        raise SimulationError(self.name, function, shown, time, self.messages.last.get(self.name, ""))
+
     def set_start_values(self, values: Mapping[str, tuple[str, int, object]], time: float) -> None:
         """Set parameters and start values ``name -> (type, value reference, value)``, one call per type."""
         by_type: dict[str, tuple[list[int], list[object]]] = {}
@@ -208,22 +264,28 @@ class Instance(InstanceBase):
             vrs, vals = by_type.setdefault(type_, ([], []))
             vrs.append(vr)
             vals.append(value)
+        prefix, setters = ("fmi3", _SETTERS3) if self.fmi3 else ("fmi2", _SETTERS)
         for type_, (vrs, vals) in by_type.items():
-            setter = _SETTERS[type_]
-            self.call(f"fmi2S{setter[1:]}", time, getattr(self.fmu, setter), vrs, vals)
+            setter = setters[type_]  # the system refuses other types before a run
+            self.call(f"{prefix}S{setter[1:]}", time, getattr(self.fmu, setter), vrs, vals)
 
     def setup(self, start: float, stop: float) -> None:
-        """fmi2SetupExperiment then fmi2EnterInitializationMode."""
-        self.call("fmi2SetupExperiment", start, self.fmu.setupExperiment, None, start, stop)
-        self.call("fmi2EnterInitializationMode", start, self.fmu.enterInitializationMode)
+        """fmi2SetupExperiment then fmi2EnterInitializationMode (FMI 3.0: fmi3EnterInitializationMode)."""
+        if isinstance(self.fmu, FMU3Slave):
+            enter = self.fmu.enterInitializationMode
+            self.call("fmi3EnterInitializationMode", start, enter, None, start, stop)
+        else:
+            self.call("fmi2SetupExperiment", start, self.fmu.setupExperiment, None, start, stop)
+            self.call("fmi2EnterInitializationMode", start, self.fmu.enterInitializationMode)
         self.initialized = True
 
     def exit_initialization(self, time: float) -> None:
-        self.call("fmi2ExitInitializationMode", time, self.fmu.exitInitializationMode)
+        prefix = "fmi3" if self.fmi3 else "fmi2"
+        self.call(f"{prefix}ExitInitializationMode", time, self.fmu.exitInitializationMode)
 
     def terminate(self, time: float) -> None:
         self.initialized = False
-        self.call("fmi2Terminate", time, self.fmu.terminate)
+        self.call("fmi3Terminate" if self.fmi3 else "fmi2Terminate", time, self.fmu.terminate)
 
     def release(self) -> None:
         """Terminate (if still running and usable) and free the instance; never raises.
@@ -298,3 +360,12 @@ def _logged(name: str, function: str, method: Callable[..., None]) -> Callable[.
 def _args(args: tuple[object, ...]) -> str:
     shown = [repr({k: v[2] for k, v in a.items()}) if isinstance(a, Mapping) else repr(a) for a in args]
     return f"({', '.join(shown)})"
+
+
+def fmi_version(unzipdir: str | os.PathLike) -> str:
+    """The ``fmiVersion`` of an extracted FMU, read from the root of its modelDescription.xml alone
+    (no entities resolved, no network)."""
+    with open(Path(unzipdir, "modelDescription.xml"), "rb") as xml:  # closed after the first element
+        for _, element in etree.iterparse(xml, events=("start",), resolve_entities=False, no_network=True):
+            return str(element.get("fmiVersion", ""))
+    return ""

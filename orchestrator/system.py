@@ -26,10 +26,13 @@ from .errors import ScenarioError
 from .ssp import Component, Connection, Parameter, ParameterSet, PortRef, SystemStructure
 from .units import BASE, UnitDef, UnitError, conversion, convert, resolve, split_value
 
-__all__ = ["ComponentModel", "Operation", "PortRef", "System"]
+__all__ = ["FMI3_TYPES", "ComponentModel", "Operation", "PortRef", "System", "ssp_type"]
 
 FMU_TYPES = {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean", "String": "String",
              "Enumeration": "Enumeration"}
+# FMI 3.0 scalar types and the SSP 1.0 type they are exchanged and set as (SSP 1.0 predates FMI
+# 3.0; SSP tools connect ssc:Real to Float64); the other FMI 3.0 types are refused where used.
+FMI3_TYPES = {"Float64": "Real", "Int32": "Integer", "Boolean": "Boolean"}
 SETTABLE = ("parameter", "input")
 
 
@@ -161,7 +164,11 @@ class System:
                 problems.append(f"{where}: declared kind '{k.kind}' but the FMU's causality is "
                                 f"'{v.causality}'")
                 continue
-            if k.type is not None and FMU_TYPES.get(k.type) != v.type:
+            type_ = ssp_type(md, v)
+            if type_ is None:
+                problems.append(f"{where}: {_unsupported(md, v)}")
+                continue
+            if k.type is not None and FMU_TYPES.get(k.type) != type_:
                 problems.append(f"{where}: declared type {k.type} but the FMU's variable is {v.type}")
                 continue
             if k.unit is not None and _unit_name(v) is not None:
@@ -173,7 +180,7 @@ class System:
                 if replace(declared, name="") != replace(own, name=""):
                     problems.append(f"{where}: declared unit {k.unit} but the FMU's variable is in "
                                     f"{own.name}")
-            if v.type == "Real":  # recorded and exchanged; other types are checked, not recorded
+            if type_ == "Real":  # recorded and exchanged; other types are checked, not recorded
                 (outputs if k.kind == "output" else inputs if k.kind == "input" else []).append(k.name)
         feedthrough: dict[str, set[str]] = {}
         all_inputs = {v.name for v in md.modelVariables if v.causality == "input"}
@@ -247,7 +254,7 @@ class System:
         """The unit of a connected port: its SSD connector's, else its FMU variable's (None: neither)."""
         comp = self.components.get(ref.component)
         var = comp.variables.get(ref.connector) if comp is not None else None
-        if comp is None or var is None or var.type != "Real":
+        if comp is None or var is None or ssp_type(comp.model, var) != "Real":
             return None
         declared = next((k.unit for c in self.structure.components if c.name == ref.component
                          for k in c.connectors if k.name == ref.connector), None)
@@ -289,7 +296,7 @@ class System:
             return
         comp = self.components.get(ref.component)
         var = comp.variables.get(ref.connector) if comp else None
-        type_ = var.type if var is not None else "Real"
+        type_ = (ssp_type(comp.model, var) if comp is not None and var is not None else None) or "Real"
         unit = None
         if type_ == "Real" and isinstance(value, str):
             value, unit = split_value(value)
@@ -308,6 +315,7 @@ class System:
                 problems.append(f"{origin}: no component named '{ref.component}' (for {ref})")
             return
         var = comp.variables.get(ref.connector)
+        type_ = ssp_type(comp.model, var) if var is not None else None
         if var is None:
             problems.append(f"{origin}: component '{ref.component}' has no variable '{ref.connector}'")
         elif var.causality not in SETTABLE or var.variability == "constant":
@@ -315,11 +323,13 @@ class System:
         elif ref in self.links:
             problems.append(f"{origin}: {ref} is an input fed by {self.links[ref].start}: a value given for "
                             "it would be overwritten at once (set a parameter of a component instead)")
-        elif var.type != p.type and not (var.type == "Real" and p.type == "Integer"):
+        elif type_ is None:
+            problems.append(f"{origin}: {ref}: {_unsupported(comp.model, var)}")
+        elif type_ != p.type and not (type_ == "Real" and p.type == "Integer"):
             problems.append(f"{origin}: {ref} is {var.type} but the value given is {p.type}")
         else:
-            value = float(p.value) if var.type == "Real" else p.value
-            if p.unit is not None and var.type == "Real":
+            value = float(p.value) if type_ == "Real" else p.value
+            if p.unit is not None and type_ == "Real":
                 try:
                     given, own = self._resolve(p.unit, units), _unit_def(comp.model, var)
                 except UnitError as exc:
@@ -450,6 +460,20 @@ def _cycle(first: PortRef, succ: Mapping[PortRef, list[PortRef]]) -> list[PortRe
     raise AssertionError("a strongly connected part has a cycle through each of its ports")
 
 
+def ssp_type(md: ModelDescription, var: ModelVariable) -> str | None:
+    """The SSP 1.0 type a variable is connected and set as (Real, Integer, Boolean, ...; FMI 3.0:
+    Float64, Int32 and Boolean as Real, Integer and Boolean); None for a type the engine does not
+    support (the other FMI 3.0 types)."""
+    if md.fmiVersion.startswith("3."):
+        return FMI3_TYPES.get(var.type)
+    return var.type
+
+
+def _unsupported(md: ModelDescription, var: ModelVariable) -> str:
+    return (f"the FMU's variable is {var.type}, an FMI {md.fmiVersion} type orchestrate does not support "
+            f"yet (supported: {', '.join(f'{t} as {s}' for t, s in FMI3_TYPES.items())})")
+
+
 def _unit_name(var: ModelVariable) -> str | None:
     """The unit a Real variable declares, directly or through its type (None: dimensionless)."""
     return var.unit or (var.declaredType.unit if var.declaredType is not None else None)
@@ -475,9 +499,9 @@ def _outside(var: ModelVariable, value: float | int | bool | str) -> str:
         if value not in items:
             return f"is not an item of {declared.name} ({', '.join(f'{k}={n}' for k, n in items.items())})"
         return ""
-    if var.type not in ("Real", "Integer", "Enumeration"):
+    if var.type not in ("Real", "Integer", "Enumeration", *FMI3_TYPES) or var.type == "Boolean":
         return ""
-    number = float(value)  # a Real, Integer or Enumeration value
+    number = float(value)  # a Real, Integer or Enumeration value (FMI 3.0: Float64, Int32)
     low = var.min if var.min is not None else getattr(declared, "min", None)
     high = var.max if var.max is not None else getattr(declared, "max", None)
     if low is not None and not number >= float(low):  # written so that NaN is outside

@@ -9,6 +9,7 @@ import csv
 import math
 import os
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -231,3 +232,33 @@ def test_crosscheck_usage_errors_exit_2(tmp_path: Path, capsys: pytest.CaptureFi
     with pytest.raises(SystemExit) as exc:
         main(["crosscheck", "--tools", "simulink"])
     assert exc.value.code == 2
+
+
+class _NeverRun(LibcosimTool):
+    """libcosim as the matrix sees it, installed, but failing the test if the matrix runs it."""
+
+    def missing(self) -> str | None:
+        return None
+
+    def run(self, scenario: Scenario, workdir: Path) -> ToolRun:
+        raise AssertionError("a tool must not be run on FMUs of an FMI version it does not support")
+
+
+def test_a_tool_without_fmi3_is_not_supported(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A scenario with FMI 3.0 components in a tool that runs FMI 2.0 only (libcosim): not run, the
+    cell says "not supported", is not red, and the matrix shows the FMI versions of both."""
+    from orchestrator.crosscheck import matrix
+
+    archive = tmp_path / "made_up_fmi3.ssp"
+    archive.write_bytes(b"not read")
+    fmi3 = replace(scenario(), name="made_up_fmi3", path=archive, fmi_versions=("3.0",))
+    monkeypatch.setattr(matrix, "_ours", lambda s, master: (signals(), 0.1, None))
+    cells = matrix.run_matrix([fmi3], [_NeverRun()])
+    assert [c.status for c in cells] == ["ok", "ok", "not supported"]
+    assert not cells[2].red and cells[2].unsupported == "runs FMI 2.0 FMUs only, not FMI 3.0"
+    md = write_markdown(cells, tmp_path / "matrix.md", [_NeverRun()]).read_text()
+    assert "| tool | master | FMI | `made_up_fmi3` (FMI 3.0) |" in md
+    assert "| libcosim 0.11 (libcosimpy) | delayed (= `jacobi`) | 2.0 | not supported (FMI 3.0) |" in md
+    with open(write_csv(cells, tmp_path / "matrix.csv"), newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [(r["status"], r["fmi"], r["tool_fmi"]) for r in rows][2] == ("not supported", "3.0", "2.0")

@@ -69,7 +69,8 @@ class Deviation:
 
 @dataclass
 class Cell:
-    """One tool on one scenario: its checks (empty when the tool is not installed)."""
+    """One tool on one scenario: its checks (empty when the tool is not installed, or ``unsupported``:
+    it does not run FMUs of the scenario's FMI version)."""
 
     tool: str
     title: str
@@ -82,6 +83,9 @@ class Cell:
     deviation: Deviation | None = None
     tolerance: Tolerance | None = None
     notes: list[str] = field(default_factory=list)
+    unsupported: str | None = None
+    fmi: str = ""  # the FMI versions of the scenario's FMUs
+    tool_fmi: str = ""  # the FMI versions the tool runs
 
     @property
     def red(self) -> bool:
@@ -90,7 +94,9 @@ class Cell:
 
     @property
     def status(self) -> str:
-        return "not installed" if self.missing else ("red" if self.red else "ok")
+        if self.missing:
+            return "not installed"
+        return "not supported" if self.unsupported else ("red" if self.red else "ok")
 
 
 def reference_master(delayed: bool) -> str:
@@ -201,6 +207,7 @@ class OurMaster(Tool):
         self.title = f"orchestrate run --master {master}"
         self.delayed = master == "jacobi"
         self.tolerance = Tolerance(0.0, 0.0, "the reference itself")
+        self.fmi_versions = ("2.0", "3.0")
 
     def missing(self) -> str | None:
         return None
@@ -222,9 +229,12 @@ def run_matrix(scenarios: Sequence[Scenario], tools: Sequence[Tool],
         for tool in [*masters.values(), *tools]:
             done += 1
             reason = tool.missing()
-            if reason:
+            other = [v for v in scenario.fmi_versions if v not in tool.fmi_versions]
+            if reason or other:
+                runs = ", ".join(tool.fmi_versions)
+                unsupported = f"runs FMI {runs} FMUs only, not FMI {', '.join(other)}" if other else None
                 cell = Cell(tool.key, tool.title, scenario.name, tool.delayed,
-                            reference_master(tool.delayed), missing=reason)
+                            reference_master(tool.delayed), missing=reason, unsupported=unsupported)
             else:
                 workdir = Path(tempfile.mkdtemp(prefix=f"crosscheck-{tool.key}-"))
                 before = _digest(scenario.path)
@@ -236,6 +246,7 @@ def run_matrix(scenarios: Sequence[Scenario], tools: Sequence[Tool],
                     ours[tool.master] = run.result
                 cell = evaluate(tool, scenario, run, ours[reference_master(tool.delayed)],
                                 unchanged=_digest(scenario.path) == before)
+            cell.fmi, cell.tool_fmi = ", ".join(scenario.fmi_versions), ", ".join(tool.fmi_versions)
             cells.append(cell)
             if progress is not None:
                 wall = f" {cell.wall:.1f} s" if cell.wall is not None else ""
@@ -257,24 +268,30 @@ def write_markdown(cells: Iterable[Cell], path: Path, tools: Sequence[Tool]) -> 
     scenarios = list(dict.fromkeys(c.scenario for c in cells))
     keys = list(dict.fromkeys(c.tool for c in cells))
     by = {(c.tool, c.scenario): c for c in cells}
+    fmi = {c.scenario: c.fmi for c in cells}
     lines = ["# SSP tools: conformance matrix", "",
              "Every built scenario (`build/ssp/<name>.ssp`, unchanged: its own step, stop time and "
              "parameter sets) in every tool, written by `orchestrate crosscheck`. A cell is red when the "
              "archive does not load, a parameter of its `.ssv` files is not applied, the run stops before "
              f"the stop time, or max |{COLUMN} - ours| exceeds the tool's tolerance, in the first "
              f"{AFTER:g} s or after; \"ours\" is `orchestrate run` with the master of the tool's semantics. "
-             f"Cells: status, wall time, max |delta {COLUMN}| until {AFTER:g} s / after.", "",
-             "| tool | master | " + " | ".join(f"`{s}`" for s in scenarios) + " |",
-             "|---|---|" + "---|" * len(scenarios)]
+             f"Cells: status, wall time, max |delta {COLUMN}| until {AFTER:g} s / after. Beside each "
+             "scenario the FMI version of its FMUs; beside each tool the FMI versions it runs (a tool is "
+             "not run on FMUs of another version: \"not supported\", not red).", "",
+             "| tool | master | FMI | " + " | ".join(f"`{s}` (FMI {fmi[s]})" for s in scenarios) + " |",
+             "|---|---|---|" + "---|" * len(scenarios)]
     for key in keys:
         first = next(c for c in cells if c.tool == key)
-        row = [first.title, "delayed (= `jacobi`)" if first.delayed else "delay-free (= `gauss-seidel`)"]
+        row = [first.title, "delayed (= `jacobi`)" if first.delayed else "delay-free (= `gauss-seidel`)",
+               first.tool_fmi]
         for s in scenarios:
             c = by.get((key, s))
             if c is None:
                 row.append("")
             elif c.missing:
                 row.append("not installed")
+            elif c.unsupported:
+                row.append(f"not supported (FMI {c.fmi})")
             else:
                 mark = "🟥" if c.red else "🟩"
                 dev = (f", {_fmt(c.deviation.until)} / {_fmt(c.deviation.after)}"
@@ -285,8 +302,9 @@ def write_markdown(cells: Iterable[Cell], path: Path, tools: Sequence[Tool]) -> 
               f"| tool | scenario | status | loads | parameters | stop time | {COLUMN} until {AFTER:g} s | "
               f"{COLUMN} after {AFTER:g} s | notes |", "|---|---|---|---|---|---|---|---|---|"]
     for c in cells:
-        if c.missing:
-            lines.append(f"| {c.title} | `{c.scenario}` | not installed | | | | | | {c.missing} |")
+        if c.missing or c.unsupported:
+            why = c.missing or c.unsupported
+            lines.append(f"| {c.title} | `{c.scenario}` | {c.status} | | | | | | {why} |")
             continue
         checks = {k.name.split(" ")[0] if not k.name.startswith(COLUMN) else k.name: k for k in c.checks}
 
@@ -310,7 +328,7 @@ def write_markdown(cells: Iterable[Cell], path: Path, tools: Sequence[Tool]) -> 
 
 CSV_FIELDS = ("tool", "scenario", "master", "reference", "status", "loads", "parameters", "stop_time",
               "wall_s", "dy_max", "dy_max_at_s", "dy_until_1s", "dy_after_1s", "tol_until_1s", "tol_after_1s",
-              "failures", "notes")
+              "failures", "notes", "fmi", "tool_fmi")
 
 
 def write_csv(cells: Iterable[Cell], path: Path) -> Path:
@@ -328,6 +346,7 @@ def write_csv(cells: Iterable[Cell], path: Path) -> Path:
                 "" if c.wall is None else f"{c.wall:.3f}",
                 *(("", "", "", "") if d is None else (repr(d.max), repr(d.at), repr(d.until), repr(d.after))),
                 "" if t is None else repr(t.until), "" if t is None else repr(t.after),
-                "; ".join(f"{k.name}: {k.detail}" for k in c.checks if not k.ok) or (c.missing or ""),
-                "; ".join(c.notes)])
+                "; ".join(f"{k.name}: {k.detail}" for k in c.checks if not k.ok)
+                or (c.missing or c.unsupported or ""),
+                "; ".join(c.notes), c.fmi, c.tool_fmi])
     return path

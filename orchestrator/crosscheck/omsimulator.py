@@ -15,6 +15,14 @@ second. Differences between the two entry points, both handled here:
   significant digits; ``--addParametersToCSV=true`` adds the parameters as columns;
 * the Python package (``SSP(path).instantiate()``) takes the start and stop time from the archive
   but not the step (its default is 1 ms): we pass ``setFixedStepSize`` with the archive's step.
+
+FMI 3.0 components: OMSimulator 3 reads them through fmi4c, which cannot tell an output with no
+dependency (``dependencies=""``) from one that does not say (every input): the plant's outputs then
+close an algebraic loop plant -> controller -> actuator -> plant, which its default solver (KINSOL)
+cannot solve without directional derivatives, so initialization fails. For scenarios with FMI 3.0
+components both adapters select the fixed-point loop solver (``--algLoopSolver=fixedpoint``): the
+plant's outputs do not change with its input, so the iteration ends at once with the values of a
+run without the loop. The archive is unchanged.
 """
 
 from __future__ import annotations
@@ -49,6 +57,8 @@ from .tools import (
 __all__ = ["OMSimulatorCliTool", "OMSimulatorNoPythonTool", "OMSimulatorPythonTool", "home"]
 
 ENV = "OMSIMULATOR_HOME"
+FIXED_POINT = "--algLoopSolver=fixedpoint"  # for FMI 3.0 components (module docstring)
+DEFAULT_SOLVER = "--algLoopSolver=kinsol"
 DEFAULT_HOME = Path(__file__).resolve().parents[2].parent / "shared" / "tools" / "omsimulator"
 
 
@@ -83,6 +93,7 @@ class OMSimulatorCliTool(Tool):
     """``bin/OMSimulator`` (a subprocess with a clean environment)."""
 
     key = "omsimulator"
+    fmi_versions = ("2.0", "3.0")
     title = "OMSimulator 3 (CLI)"
     delayed = False
     tolerance = TOLERANCE
@@ -96,7 +107,7 @@ class OMSimulatorCliTool(Tool):
         return [str(home() / "bin" / "OMSimulator"), str(scenario.path.resolve()),
                 f"--startTime={scenario.start!r}", f"--stopTime={scenario.stop!r}",
                 f"--resultFile={workdir / 'result.csv'}", "--addParametersToCSV=true",
-                f"--tempDir={workdir}"]
+                f"--tempDir={workdir}", *([FIXED_POINT] if "3.0" in scenario.fmi_versions else [])]
 
     def run(self, scenario: Scenario, workdir: Path) -> ToolRun:
         columns = ["time", *scenario.outputs]
@@ -162,6 +173,7 @@ class OMSimulatorPythonTool(Tool):
     """OMSimulator's Python package (``libOMSimulator.so`` in this process)."""
 
     key = "omsimulator-py"
+    fmi_versions = ("2.0", "3.0")
     title = "OMSimulator 3 (Python)"
     delayed = False
     tolerance = TOLERANCE
@@ -193,7 +205,10 @@ class OMSimulatorPythonTool(Tool):
             with _stdout_silenced():  # closing the previous log file prints a line
                 oms.Capi.setLogFile(str(log))
             model = None
+            fmi3 = "3.0" in scenario.fmi_versions
             try:
+                if fmi3:
+                    oms.Capi.setCommandLineOption(FIXED_POINT)
                 model = oms.SSP(str(scenario.path), temp_dir=str(workdir)).instantiate()
                 model.setResultFile(str(csv))
                 model.setFixedStepSize(scenario.step)
@@ -216,6 +231,8 @@ class OMSimulatorPythonTool(Tool):
                         model.terminate()
                     with contextlib.suppress(Exception):
                         model.delete()
+                if fmi3:
+                    oms.Capi.setCommandLineOption(DEFAULT_SOLVER)
                 with _stdout_silenced():
                     oms.Capi.setLogFile(os.devnull)
         if not csv.is_file() or csv.stat().st_size == 0:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import struct
+import zipfile
 from abc import ABC, abstractmethod
 from collections.abc import Iterable, Sequence
 from contextlib import ExitStack
@@ -25,7 +26,7 @@ from ..ssp import NS, SSD_NAME, open_scenario, read_scenario
 from ..validate import STEP_ANNOTATIONS
 
 __all__ = ["AMPLIFIED", "QUIET", "Scenario", "Tolerance", "Tool", "ToolRun", "clean_environment",
-           "elf_interpreter", "empty_result", "last_per_step", "table_result"]
+           "elf_interpreter", "empty_result", "fmi_version", "last_per_step", "table_result"]
 
 # Variables of the FMUs that pythonfmu's C-API hosts must not inherit from the caller: the FMUs are
 # expected to find libpython and their packages by themselves (see README, "Running the FMUs
@@ -49,7 +50,8 @@ class Scenario:
 
     ``parameters`` maps ``component.variable`` to the value its parameter bindings give (later
     bindings win), ``types`` to the SSV type; ``set_names`` maps each component to the ``name``
-    attribute of each ``.ssv`` it binds (Ecos applies parameter sets by that name).
+    attribute of each ``.ssv`` it binds (Ecos applies parameter sets by that name);
+    ``fmi_versions``: the FMI versions of its FMUs (``fmiVersion``, e.g. ``("2.0", "3.0")``).
     """
 
     name: str
@@ -62,6 +64,7 @@ class Scenario:
     parameters: dict[str, float | int | bool | str]
     types: dict[str, str]
     set_names: dict[str, tuple[str, ...]]
+    fmi_versions: tuple[str, ...] = ("2.0",)
 
     @classmethod
     def read(cls, path: str | os.PathLike) -> Scenario:
@@ -73,6 +76,7 @@ class Scenario:
             parameters: dict[str, float | int | bool | str] = {}
             types: dict[str, str] = {}
             set_names: dict[str, tuple[str, ...]] = {}
+            versions = {fmi_version(folder / component.source) for component in structure.components}
             for component in structure.components:
                 names = []
                 for ps in component.parameter_sets:
@@ -93,7 +97,7 @@ class Scenario:
                                                  (STEP_ANNOTATIONS, experiment.step)) if value is None]
             raise ValueError(f"{path}:{SSD_NAME}: other tools need {' and '.join(missing)}; it has none")
         return cls(path.stem, path, system, experiment.start_time, experiment.stop_time, experiment.step,
-                   outputs, parameters, types, set_names)
+                   outputs, parameters, types, set_names, tuple(sorted(versions)))
 
     @property
     def steps(self) -> int:
@@ -135,6 +139,7 @@ class Tool(ABC):
     key: str = ""
     title: str = ""
     delayed: bool = False
+    fmi_versions: tuple[str, ...] = ("2.0",)  # the FMI versions of the FMUs it can run
     tolerance: Tolerance = Tolerance(0.0, 0.0, "")
 
     @abstractmethod
@@ -145,6 +150,17 @@ class Tool(ABC):
     def run(self, scenario: Scenario, workdir: Path) -> ToolRun:
         """Run ``scenario`` unchanged; ``workdir`` is an empty folder the adapter may use. Never
         raises for a failure of the tool: the failure is ``ToolRun.error``."""
+
+
+def fmi_version(fmu: Path) -> str:
+    """The ``fmiVersion`` of an FMU archive's model description ('?' when it cannot be read)."""
+    try:
+        with zipfile.ZipFile(fmu) as archive, archive.open("modelDescription.xml") as xml:
+            root = next(etree.iterparse(xml, events=("start",), resolve_entities=False, no_network=True))[1]
+            return str(root.get("fmiVersion", "?"))
+    except (OSError, KeyError, StopIteration, zipfile.BadZipFile, etree.XMLSyntaxError):
+        pass
+    return "?"
 
 
 def empty_result(columns: Sequence[str]) -> np.ndarray:

@@ -451,7 +451,7 @@ def write_baselines(names: Iterable[str] | None = None, dest: str | os.PathLike 
     names = list(names) if names else all_scenarios(sources)
     written = []
     with tempfile.TemporaryDirectory(prefix="baselines-") as work:
-        archives = build_scenarios(names, work, sources)
+        archives = build_scenarios(names, work, sources, fmi3=False)  # twins: FMI 2.0 baselines
         for name, archive in archives.items():
             result = run(archive).rows
             written.append(write_baseline(resample(result, grid, output_columns(archive)),

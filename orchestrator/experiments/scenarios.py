@@ -13,10 +13,11 @@ from .. import open_system
 from ..errors import ScenarioError
 from ..ssp import NS, SSD_NAME, pack_ssp
 
-__all__ = ["SCENARIO_DIR", "all_scenarios", "build_scenarios", "component_sources"]
+__all__ = ["FMI3_SUFFIX", "SCENARIO_DIR", "all_scenarios", "build_scenarios", "component_sources"]
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 SCENARIO_DIR = REPO_ROOT / "ssp"
+FMI3_SUFFIX = "_fmi3"  # build/ssp/<name>_fmi3.ssp: the scenario with the FMUs' FMI 3.0 variants
 
 
 def all_scenarios(sources: str | os.PathLike = SCENARIO_DIR) -> list[str]:
@@ -31,30 +32,43 @@ def component_sources(folder: Path) -> list[str]:
 
 
 def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
-                    sources: str | os.PathLike = SCENARIO_DIR) -> dict[str, Path]:
-    """Build the FMUs into ``dest/fmus`` and pack ``sources/<name>/`` (default: all) into
-    ``dest/ssp/<name>.ssp``, each validated against its FMUs; returns name -> archive."""
+                    sources: str | os.PathLike = SCENARIO_DIR, *, fmi3: bool = True) -> dict[str, Path]:
+    """Build the FMUs into ``dest/fmus`` and their FMI 3.0 variants into ``dest/fmus3``, pack
+    ``sources/<name>/`` (default: all) into ``dest/ssp/<name>.ssp`` and its FMI 3.0 twin (the same
+    SSD and parameter files, the FMI 3.0 FMUs) into ``dest/ssp/<name>_fmi3.ssp``, each validated
+    against its FMUs (``fmi3=False``: no FMI 3.0 variants and twins); returns name -> archive."""
     from fmu_src.build import build_all
+    from fmu_src.fmi3 import build_fmu3
 
     dest, sources = Path(dest), Path(sources)
     names = list(names) if names else all_scenarios(sources)
     if not names:
         raise ScenarioError(f"no scenarios found in {sources}/")
-    fmus = {p.name: p for p in build_all(dest / "fmus")}
+    fmus2 = {p.name: p for p in build_all(dest / "fmus")}
+    variants = [(fmus2, "")]
+    if fmi3:
+        fmus3 = {name: build_fmu3(path, dest / "fmus3") for name, path in fmus2.items()}
+        variants.append((fmus3, FMI3_SUFFIX))
     archives = {}
     for name in names:
-        folder = sources / name
-        if not (folder / SSD_NAME).is_file():
-            known = ", ".join(all_scenarios(sources)) or "none"
-            raise ScenarioError(f"{folder}: no {SSD_NAME} (scenarios in {sources}: {known})")
-        needed = {}
-        for component in component_sources(folder):
-            if component not in fmus:
-                raise ScenarioError(f"{folder / SSD_NAME}: FMU '{component}' is not built by "
-                                    f"fmu_src.build (built: {', '.join(sorted(fmus))})")
-            needed[component] = fmus[component]
-        target = pack_ssp(folder, needed, dest / "ssp" / f"{name}.ssp")
-        with open_system(target):  # validate the packed archive against the FMUs
-            pass
-        archives[name] = target
+        for fmus, suffix in variants:
+            archives[name + suffix] = _pack(name, sources, fmus, dest / "ssp" / f"{name}{suffix}.ssp")
     return archives
+
+
+def _pack(name: str, sources: Path, fmus: dict[str, Path], target: Path) -> Path:
+    """Pack the scenario source folder ``sources/<name>`` with ``fmus`` into ``target``, validated."""
+    folder = sources / name
+    if not (folder / SSD_NAME).is_file():
+        known = ", ".join(all_scenarios(sources)) or "none"
+        raise ScenarioError(f"{folder}: no {SSD_NAME} (scenarios in {sources}: {known})")
+    needed = {}
+    for component in component_sources(folder):
+        if component not in fmus:
+            raise ScenarioError(f"{folder / SSD_NAME}: FMU '{component}' is not built by "
+                                f"fmu_src.build (built: {', '.join(sorted(fmus))})")
+        needed[component] = fmus[component]
+    target = pack_ssp(folder, needed, target)
+    with open_system(target):  # validate the packed archive against the FMUs
+        pass
+    return target
