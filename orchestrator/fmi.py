@@ -32,7 +32,7 @@ from fmpy.fmi2 import (
     fmi2Warning,
 )
 
-from .errors import SimulationError
+from .errors import ScenarioError, SimulationError
 
 __all__ = ["FAILED", "Instance", "MessageLog", "interpreter_guard"]
 
@@ -116,7 +116,14 @@ class Instance:
     def open(cls, name: str, fmu_path: str | os.PathLike, guid: str, model_identifier: str, workdir: str,
              messages: MessageLog, time: float) -> Instance:
         """Extract ``fmu_path`` into ``workdir/name`` and instantiate it (fmi2Instantiate)."""
-        unzipdir = fmpy.extract(str(fmu_path), unzipdir=os.path.join(workdir, name))
+        try:
+            unzipdir = fmpy.extract(str(fmu_path), unzipdir=os.path.join(workdir, name))
+        except OSError:
+            raise  # the temporary folder: full or unwritable (not the scenario's fault)
+        except Exception as exc:  # fmpy raises bare Exceptions; zipfile, zlib their own
+            detail = " ".join(str(exc).split()) or type(exc).__name__
+            raise ScenarioError(f"component '{name}': FMU '{os.path.basename(fmu_path)}' cannot be "
+                                f"unpacked: {detail}") from exc
         fmu = FMU2Slave(guid=guid, unzipDirectory=unzipdir, modelIdentifier=model_identifier,
                         instanceName=name)
         try:

@@ -448,6 +448,9 @@ def _unit_def(md: ModelDescription, var: ModelVariable) -> UnitDef:
                    float(base.offset))
 
 
+INT32 = (-(2**31), 2**31 - 1)  # what fmi2SetInteger passes (the value would wrap around)
+
+
 def _outside(var: ModelVariable, value: float | int | bool | str) -> str:
     """Why ``value`` does not fit the variable's declared range or enumeration items ('' if it does)."""
     declared = var.declaredType
@@ -458,6 +461,8 @@ def _outside(var: ModelVariable, value: float | int | bool | str) -> str:
         return ""
     if var.type not in ("Real", "Integer", "Enumeration"):
         return ""
+    if var.type in ("Integer", "Enumeration") and not INT32[0] <= int(value) <= INT32[1]:
+        return f"is outside the range of an FMI Integer ({INT32[0]} .. {INT32[1]})"
     number = float(value)  # a Real, Integer or Enumeration value
     low = var.min if var.min is not None else getattr(declared, "min", None)
     high = var.max if var.max is not None else getattr(declared, "max", None)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import os
 import shutil
 from pathlib import Path
 
@@ -47,10 +48,11 @@ def base(test_fmus, tmp_path_factory) -> Path:
 
 
 def mutate(base: Path, dest: Path, mutations: list[tuple[str, int, str, int, str]]) -> Path:
-    """A copy of ``base`` (FMUs linked, not copied) with ``mutations`` applied: (file, element index,
-    operation, attribute or tag index, value)."""
+    """A copy of ``base`` (FMUs hard-linked, not copied: a symbolic link to them would lead outside the
+    scenario, which is refused) with ``mutations`` applied: (file, element index, operation,
+    attribute or tag index, value)."""
     dest.mkdir()
-    (dest / "resources").symlink_to(base / "resources")
+    shutil.copytree(base / "resources", dest / "resources", copy_function=os.link)
     trees = {name: etree.parse(str(base / name)) for name in FILES}
     for file, index, operation, which, value in mutations:
         root = trees[file].getroot()
@@ -119,7 +121,7 @@ def test_mutated_scenarios_run_or_are_refused_cleanly(base, tmp_path, mutations)
 def _ssd(base: Path, dest: Path, old: str, new: str, file: str = SSD_NAME) -> Path:
     """A copy of ``base`` with ``old`` replaced by ``new`` in ``file`` (once, and it must be there)."""
     dest.mkdir()
-    (dest / "resources").symlink_to(base / "resources")
+    shutil.copytree(base / "resources", dest / "resources", copy_function=os.link)
     for name in FILES:
         text = (base / name).read_text()
         if name == file:
