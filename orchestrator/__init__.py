@@ -7,6 +7,9 @@ validate runs ssp and system as far as they go and reports everything (``orchest
 
 from __future__ import annotations
 
+from . import _startup  # noqa: F401 - first: SIGINT/SIGTERM during the imports below are one line
+
+# isort: split
 import os
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
@@ -93,7 +96,7 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
         raise ValueError(f"unknown master '{master}' (choose from {', '.join(MASTERS)})")
     parameter_sets = list(parameter_sets)
     with open_system(scenario, parameter_sets=parameter_sets, overrides=overrides,
-                     fmu_dirs=fmu_dirs) as system:
+                     fmu_dirs=fmu_dirs, limits=limits) as system:
         start, stop, h = timing(system.structure, stop_time, step, start_time)
         if strict and system.unconnected:
             raise ScenarioError(system.unconnected)
@@ -118,10 +121,11 @@ def run(scenario: str | os.PathLike, *, stop_time: float | None = None, step: fl
         provenance.write_provenance(output, record)
         try:
             result = runner.run()
-        except (SimulationError, KeyboardInterrupt, OSError) as exc:
-            rows = runner.recorder.count if runner.recorder is not None else 0
+        except BaseException as exc:  # however the run ends early, the sidecar says so
+            rows = runner.recorder.saved if runner.recorder is not None else 0  # what is on disk
             status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
-            provenance.finish(output, record, status, rows, runner.time(rows - 1) if rows else None, str(exc))
+            provenance.finish(output, record, status, rows, runner.time(rows - 1) if rows else None,
+                              str(exc) or type(exc).__name__)
             if rows and Path(stream).is_file():
                 formats.write_selected(stream, output, selection)  # the rows kept, in the format asked for
             raise

@@ -14,7 +14,9 @@ import argparse
 import logging
 import math
 import platform
+import signal
 import sys
+import threading
 import warnings
 from collections.abc import Callable, Sequence
 from importlib.metadata import PackageNotFoundError, entry_points, version
@@ -25,10 +27,12 @@ from . import MASTERS, run
 from .errors import (
     Interrupted,
     OrchestratorError,
+    OutputError,
     ScenarioError,
     ScenarioWarning,
     SimulationError,
     UsageError,
+    terminate,
 )
 from .formats import Selection, check_output
 from .plots import plot_run
@@ -37,8 +41,8 @@ from .results import read_result
 from .ssp import DEFAULT_LIMITS, Limits
 from .validate import validate
 
-__all__ = ["COMMAND_GROUP", "add_command", "fmu_dirs", "main", "plot_title", "resolve_scenario",
-           "stale_build", "version_line"]
+__all__ = ["COMMAND_GROUP", "add_archive_limits", "add_command", "archive_limits", "fmu_dirs", "main",
+           "plot_title", "resolve_scenario", "stale_build", "version_line"]
 
 COMMAND_GROUP = "orchestrate.commands"
 
@@ -166,6 +170,12 @@ def _scenario_arguments(p: argparse.ArgumentParser) -> None:
                    help="parameter values named COMPONENT.VARIABLE, applied after the SSD's own (repeatable)")
     p.add_argument("--set", action="append", default=[], metavar="COMPONENT.VARIABLE=VALUE",
                    help="set one parameter or start value, applied last (repeatable)")
+    add_archive_limits(p)
+
+
+def add_archive_limits(p: argparse.ArgumentParser) -> None:
+    """The options of :class:`~orchestrator.ssp.Limits`, for every command that reads an archive
+    (read back with :func:`archive_limits`)."""
     group = p.add_argument_group("archive limits", "what an .ssp archive and each FMU in it may unpack to "
                                  "(sizes in bytes; K, M, G suffixes)")
     for field, option, what in (("total", "--max-total-size", "all members extracted together"),
@@ -201,8 +211,8 @@ def _bytes(text: str) -> int:
     return int(value)
 
 
-def _limits(args: argparse.Namespace) -> Limits:
-    """The archive limits of the command line."""
+def archive_limits(args: argparse.Namespace) -> Limits:
+    """The archive limits of the command line (:func:`add_archive_limits`)."""
     return Limits(**{f: getattr(args, f"limit_{f}") for f in ("total", "member", "ratio", "members", "xml")})
 
 
@@ -220,15 +230,30 @@ def version_line() -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``orchestrate``; returns the exit status."""
-    parser = _parser()
-    args = parser.parse_args(argv)
+    main_thread = threading.current_thread() is threading.main_thread()
+    if main_thread:  # SIGINT, SIGTERM at any moment: cleanup runs, one line, 130 or 143 (an ignored
+        previous = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)  # one stays so)
+        for signum, handler in ((signal.SIGINT, signal.default_int_handler), (signal.SIGTERM, terminate)):
+            if signal.getsignal(signum) is not signal.SIG_IGN:
+                signal.signal(signum, handler)
     try:
-        return args.handler(args)
-    except UsageError as exc:
-        parser.error(str(exc))  # usage, one line "orchestrate: error: ...", exit status 2
-    except OrchestratorError as exc:
-        print(f"orchestrate: error: {exc}", file=sys.stderr)
-        return exc.exit_status
+        parser = _parser()
+        args = parser.parse_args(argv)
+        try:
+            return args.handler(args)
+        except UsageError as exc:
+            parser.error(str(exc))  # usage, one line "orchestrate: error: ...", exit status 2
+        except OrchestratorError as exc:
+            what = "cannot write the results: " if isinstance(exc, OutputError) else ""
+            print(f"orchestrate: error: {what}{exc}", file=sys.stderr)
+            return exc.exit_status
+    except KeyboardInterrupt as exc:
+        print(f"orchestrate: {str(exc) or 'interrupted by SIGINT'}", file=sys.stderr)
+        return getattr(exc, "exit_status", 130)
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGINT, previous[0])
+            signal.signal(signal.SIGTERM, previous[1])
 
 
 BUILD_DIR = Path("build")
@@ -353,7 +378,8 @@ def _run(args: argparse.Namespace) -> int:
             result = run(scenario, stop_time=args.stop_time, step=args.step,
                          parameter_sets=args.parameter_set, overrides=overrides, master=args.master,
                          output=output, progress=progress, start_time=args.start_time, strict=args.strict,
-                         fmu_dirs=fmu_dirs(scenario), keep=False, timeout=args.timeout, limits=_limits(args),
+                         fmu_dirs=fmu_dirs(scenario), keep=False, timeout=args.timeout,
+                         limits=archive_limits(args),
                          output_variables=args.output_variables, output_interval=args.output_interval,
                          no_inputs=args.no_inputs)
         _print_warnings(caught)
@@ -368,11 +394,9 @@ def _run(args: argparse.Namespace) -> int:
             print(stopped, file=sys.stderr)
             return exc.exit_status
         result, status = exc.result, exc.exit_status  # plot the rows kept, then say so
-    except KeyboardInterrupt:
-        print(f"orchestrate: interrupted; rows computed so far kept in {output}", file=sys.stderr)
-        return 130
-    except OSError as exc:
-        print(f"orchestrate: error: cannot write the results: {exc}", file=sys.stderr)
+    except OSError as exc:  # OutputError: writing the results; else reading (a full TMPDIR, ...)
+        what = "cannot write the results: " if isinstance(exc, OutputError) else ""
+        print(f"orchestrate: error: {what}{exc}", file=sys.stderr)
         return 1
     finally:
         logging.getLogger().removeHandler(messages)
@@ -424,7 +448,7 @@ def _validate(args: argparse.Namespace) -> int:
     overrides = _overrides(args.set)
     scenario = resolve_scenario(args.scenario)
     report = validate(scenario, parameter_sets=args.parameter_set, overrides=overrides,
-                      fmu_dirs=fmu_dirs(scenario), limits=_limits(args))
+                      fmu_dirs=fmu_dirs(scenario), limits=archive_limits(args))
     stale = stale_build(scenario)
     if stale:
         print(f"warning: {stale}")

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import fnmatch
 import os
+import stat
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from . import files
-from .errors import UsageError
+from .errors import OutputError, UsageError
 
 __all__ = ["FORMATS", "Selection", "check_output", "read_table", "staging_path", "write_selected"]
 
@@ -70,8 +71,21 @@ class Selection:
 
 def check_output(path: str | os.PathLike, step: float | None = None,
                  selection: Selection = Selection()) -> None:
-    """UsageError for an extension no writer handles (none: CSV), or an interval that is not a
-    positive multiple of the communication step ``step``."""
+    """UsageError for an extension no writer handles (none: CSV) or an interval that is not a
+    positive multiple of the communication step ``step``; OutputError for an existing ``path`` that
+    is not a regular file (a folder, a FIFO, which would block the run until a reader comes, a
+    device or a socket; ``os.devnull`` excepted)."""
+    if not os.fspath(path):
+        raise UsageError("--output: the file name is empty")
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        mode = None  # a new file (an unwritable place is reported when it is written)
+    if mode is not None and not stat.S_ISREG(mode) and os.fspath(path) != os.devnull:
+        kind = ("Is a directory" if stat.S_ISDIR(mode)
+                else "is a FIFO (named pipe: the run would wait for a reader)" if stat.S_ISFIFO(mode)
+                else "is a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "is a socket")
+        raise OutputError(f"{path}: {kind}, not a regular file")
     suffix = Path(path).suffix.lower()
     if suffix and suffix not in FORMATS:
         raise UsageError(f"--output {path}: cannot write '{suffix}' files (choose {', '.join(FORMATS)}; "
