@@ -96,8 +96,7 @@ def register(sub: argparse._SubParsersAction, metrics: Metrics | None = None) ->
         "--dashboard",
         metavar="HOST:PORT",
         default=DASHBOARD,
-        help="embedded cluster: where its Dask dashboard listens ('' for none; default: this host only, "
-        "a free port)",
+        help="embedded cluster: where its Dask dashboard listens (default: this host only, a free port)",
     )
     add_archive_limits(p)
 
@@ -164,7 +163,7 @@ def _sweep(args: argparse.Namespace, metrics: Metrics | None) -> int:
             keep_every=args.trajectory_every if args.keep_trajectories else None,
             progress=not args.quiet,
             limits=archive_limits(args),
-            dashboard=args.dashboard or None,
+            dashboard=args.dashboard,
         )
     except CampaignInterrupted as exc:
         s = exc.summary

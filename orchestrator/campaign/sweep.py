@@ -156,13 +156,14 @@ def connect(
     scheduler: str | None = None,
     workers: int | None = None,
     processes: bool = True,
-    dashboard: str | None = DASHBOARD,
+    dashboard: str = DASHBOARD,
 ) -> Iterator[Client]:
     """A ``distributed.Client``: to ``scheduler`` (or $ORCHESTRATE_SCHEDULER) if given, else to an
     embedded LocalCluster of ``workers`` (default: one per core) single-threaded worker processes,
-    whose dashboard listens on ``dashboard`` (HOST:PORT; default this host only, a free port; None:
-    no dashboard). The client's own logging of a lost connection (tracebacks) is silenced: the
-    sweep reports what it means in one line."""
+    whose dashboard (and the rest of the scheduler's HTTP server) listens on ``dashboard``
+    (HOST:PORT; default this host only, a free port; distributed has no way to turn it off: None
+    would listen on all interfaces, port 8787). The client's own logging of a lost connection
+    (tracebacks) is silenced: the sweep reports what it means in one line."""
     logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
     from distributed import Client, LocalCluster
 
@@ -270,7 +271,7 @@ def sweep(
     keep_every: int | None = None,
     progress: bool = True,
     limits: Limits = DEFAULT_LIMITS,
-    dashboard: str | None = DASHBOARD,
+    dashboard: str = DASHBOARD,
 ) -> CampaignSummary:
     """Run every variant of ``design`` on each scenario and write ``out/runs.csv``, ``out/runs.parquet``
     and ``out/campaign.json`` (plus ``out/trajectories/`` with ``keep_every``: every n-th row of each
