@@ -35,7 +35,7 @@ from .errors import (
     terminate,
 )
 from .formats import Selection, check_output
-from .plots import plot_run
+from .plots import check_plot, plot_run
 from .provenance import overrides_text, read_provenance
 from .results import read_result
 from .ssp import DEFAULT_LIMITS, Limits
@@ -184,7 +184,7 @@ def add_archive_limits(p: argparse.ArgumentParser) -> None:
                                 ("members", "--max-members", "number of members"),
                                 ("xml", "--max-xml-size", "one SSD, SSV, SSM or modelDescription.xml")):
         default = getattr(DEFAULT_LIMITS, field)
-        group.add_argument(option, dest=f"limit_{field}", type=float if field == "ratio" else _bytes,
+        group.add_argument(option, dest=f"limit_{field}", type=_ratio if field == "ratio" else _bytes,
                            default=default, metavar="N", help=f"{what} (default {default:g})")
 
 
@@ -197,6 +197,17 @@ def _overrides(items: Sequence[str]) -> dict[str, str]:
             raise UsageError(f"--set expects COMPONENT.VARIABLE=VALUE (got '{item}')")
         overrides[key.strip()] = value.strip()
     return overrides
+
+
+def _ratio(text: str) -> float:
+    """A compression ratio: a positive finite number (NaN would disable the check without a word)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a ratio: {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"not a ratio: {text!r}")
+    return value
 
 
 def _bytes(text: str) -> int:
@@ -366,6 +377,8 @@ def _run(args: argparse.Namespace) -> int:
     output = args.output or Path("results") / f"{name}.csv"
     check_output(output, selection=Selection(tuple(args.output_variables), args.output_interval))
     plot = None if args.no_plot else args.plot or output.with_suffix(".png")
+    if plot is not None:
+        check_plot(plot)
     progress = None if args.quiet or not sys.stderr.isatty() else _Progress(name)
     messages = _LastMessage(args.verbose)
     logging.getLogger().addHandler(messages)

@@ -20,16 +20,34 @@ import re
 import secrets
 import shutil
 import socket
+import stat
 import tempfile
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["HOST", "alive", "remove_stale", "replacing", "reserve", "temporary_folder", "write_text"]
+__all__ = ["HOST", "alive", "not_regular", "remove_stale", "replacing", "reserve", "temporary_folder",
+           "write_text"]
 
 HOST = hashlib.sha256(socket.gethostname().encode()).hexdigest()[:8]  # in temporary names: whose pid
 QUIET = 60.0  # s without a change after which a dead process's temporary file is certainly abandoned
+
+
+def not_regular(path: str | os.PathLike) -> str:
+    """Why an output ``path`` that exists cannot be written as a file ('' when it can, or does not
+    exist): a folder, a FIFO (the writer would wait for a reader), a device or a socket;
+    ``os.devnull`` is allowed (written in place)."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return ""  # a new file (an unwritable place is reported when it is written)
+    if stat.S_ISREG(mode) or os.fspath(path) == os.devnull:
+        return ""
+    kind = ("Is a directory" if stat.S_ISDIR(mode)
+            else "is a FIFO (named pipe: the run would wait for a reader)" if stat.S_ISFIFO(mode)
+            else "is a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "is a socket")
+    return f"{kind}, not a regular file"
 
 
 def alive(pid: int) -> bool:

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import fnmatch
 import os
-import stat
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -77,15 +76,9 @@ def check_output(path: str | os.PathLike, step: float | None = None,
     device or a socket; ``os.devnull`` excepted)."""
     if not os.fspath(path):
         raise UsageError("--output: the file name is empty")
-    try:
-        mode = os.stat(path).st_mode
-    except OSError:
-        mode = None  # a new file (an unwritable place is reported when it is written)
-    if mode is not None and not stat.S_ISREG(mode) and os.fspath(path) != os.devnull:
-        kind = ("Is a directory" if stat.S_ISDIR(mode)
-                else "is a FIFO (named pipe: the run would wait for a reader)" if stat.S_ISFIFO(mode)
-                else "is a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "is a socket")
-        raise OutputError(f"{path}: {kind}, not a regular file")
+    unusable = files.not_regular(path)
+    if unusable:
+        raise OutputError(f"{path}: {unusable}")
     suffix = Path(path).suffix.lower()
     if suffix and suffix not in FORMATS:
         raise UsageError(f"--output {path}: cannot write '{suffix}' files (choose {', '.join(FORMATS)}; "

@@ -17,11 +17,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from . import files
+from .errors import OutputError, UsageError
+
 if TYPE_CHECKING:
     import matplotlib.figure
     from matplotlib.axes import Axes
 
-__all__ = ["axis_label", "build_figure", "plot_run"]
+__all__ = ["axis_label", "build_figure", "check_plot", "plot_run"]
 
 TRACKING = ("plant.y", "reference.yd")
 CONTROL = ("controller.v", "actuator.uf")
@@ -51,6 +54,21 @@ def _fault_line(ax: Axes, fault_time: float | None, t: np.ndarray, label: bool) 
     if fault_time is not None and t[0] <= fault_time <= t[-1]:
         ax.axvline(fault_time, color="tab:red", linestyle="--", linewidth=0.9,
                    label="fault" if label else None)
+
+
+def check_plot(path: str | os.PathLike) -> None:
+    """Before a run: UsageError for a format matplotlib does not write (by the extension),
+    OutputError for an existing ``path`` that is not a regular file (a FIFO would block)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = FigureCanvasBase.get_supported_filetypes()
+    suffix = Path(path).suffix.lower().lstrip(".")
+    if suffix not in formats:
+        raise UsageError(f"--plot {path}: cannot write '{suffix}' images (choose "
+                         f"{', '.join(sorted(formats))})")
+    unusable = files.not_regular(path)
+    if unusable:
+        raise OutputError(f"{path}: {unusable}")
 
 
 def plot_run(result: np.ndarray, path: str | os.PathLike, title: str = "",

@@ -374,3 +374,25 @@ def test_sigint_and_sigterm_at_any_moment_are_one_line(moment, signum, loop, tmp
     assert process.returncode == 128 + signum
     line = one_line(stderr)
     assert signal.Signals(signum).name in line and line.startswith("orchestrate: ")
+
+
+# -- found by the second attack (bad command lines) ---------------------------------------------------------
+def test_bad_plot_ratio_and_design_files_are_one_line(loop, tmp_path, capsys):
+    """main: '--plot x.csv' (matplotlib's ValueError) and a design file that is not UTF-8
+    (UnicodeDecodeError) were tracebacks; '--max-ratio nan' disabled the ratio check silently;
+    a FIFO as --plot would have blocked after the run."""
+    fifo = tmp_path / "plot.png"
+    os.mkfifo(fifo)
+    base = ["run", str(loop), "--output", str(tmp_path / "r.csv"), "--quiet"]
+    with pytest.raises(SystemExit) as exit_info:
+        main([*base, "--plot", str(tmp_path / "p.csv")])
+    assert exit_info.value.code == 2 and "cannot write 'csv' images" in capsys.readouterr().err
+    assert main([*base, "--plot", str(fifo)]) == 1
+    assert "is a FIFO" in capsys.readouterr().err and not (tmp_path / "r.csv").exists()
+    with pytest.raises(SystemExit) as exit_info:
+        main([*base, "--no-plot", "--max-ratio", "nan"])
+    assert exit_info.value.code == 2 and "not a ratio: 'nan'" in capsys.readouterr().err
+    design = tmp_path / "design.json"
+    design.write_bytes(b"\xff\xfe{}")
+    assert main(["sweep", str(loop), "--design", str(design), "--out", str(tmp_path / "o")]) == 2
+    assert "cannot read the design: not UTF-8 text" in capsys.readouterr().err
