@@ -222,6 +222,7 @@ class Limits:
 
 DEFAULT_LIMITS = Limits()
 RATIO_FLOOR = 1 << 20
+NAME_MAX = 255  # bytes of one file name (Linux, macOS, Windows): a longer member cannot be extracted
 XML_SUFFIXES = (".ssd", ".ssv", ".ssm", ".xml")
 
 
@@ -335,6 +336,9 @@ def check_zip(path: Path, label: str, limits: Limits = DEFAULT_LIMITS,
         elif "\\" in name or ":" in name:
             problems.append(f"{where} has a backslash or a colon in its name (zip paths use '/' and "
                             "no drive or device letter)")
+        elif any(len(part.encode()) > NAME_MAX for part in name.split("/")):
+            problems.append(f"{where} has a name part longer than {NAME_MAX} bytes (no file system "
+                            "can hold it)")
         elif stat.S_ISLNK(info.external_attr >> 16):
             problems.append(f"{where} is a symbolic link")
         elif size > limits.member:

@@ -248,6 +248,7 @@ def test_mutated_bytes_encodings_and_fmu_members_run_or_are_refused_cleanly(
 @pytest.mark.parametrize(("operation", "name", "expected"), [
     ("add", "resources\\x.txt", "has a backslash or a colon in its name"),
     ("add", "../x.txt", "points outside the archive folder"),
+    ("add", "x" * 300, "has a name part longer than 255 bytes"),  # validate said ok, run OSError
     ("symlink", "resources/link", "is a symbolic link"),
     ("flip", "", "cannot be unpacked"),
 ])
