@@ -196,6 +196,30 @@ def connect(
         cluster.close()
 
 
+@contextmanager
+def _watch_workers(
+    client: Client, by_key: dict[object, RunSpec], lost: dict[str, set[int]]
+) -> Iterator[None]:
+    """Note in ``lost`` every worker the scheduler removes, with the runs (``by_key``: task key ->
+    run) it was running (the scheduler's ``remove-worker`` event). Unsubscribed before the client
+    closes: else the scheduler logs a traceback sending the client its own removal."""
+
+    def removed(event: tuple[float, dict]) -> None:
+        message = event[1]
+        if isinstance(message, dict) and message.get("action") == "remove-worker":
+            held = {by_key[k].index for k in message.get("processing-tasks", ()) if k in by_key}
+            lost.setdefault(str(message.get("worker", "?")), set()).update(held)
+
+    client.subscribe_topic("all", removed)
+    try:
+        yield
+    finally:
+        try:
+            client.unsubscribe_topic("all")
+        except Exception:  # noqa: BLE001 - the scheduler is gone: nothing to unsubscribe from
+            pass
+
+
 def _ignore_interrupts() -> None:
     """In an embedded worker process: Ctrl-C reaches the whole process group, but only the client
     should handle it (it keeps the finished rows and closes the cluster; the workers printed
@@ -363,20 +387,14 @@ def sweep(
     )
     futures = []
     try:
-        with connect(scheduler, workers, processes, dashboard) as client:
+        by_key: dict[object, RunSpec] = {}
+        with (
+            connect(scheduler, workers, processes, dashboard) as client,
+            _watch_workers(client, by_key, lost),
+        ):
             plugin = hashlib.sha256("".join(sorted(archives)).encode()).hexdigest()[:16]
             client.register_plugin(ScenarioPlugin(archives, limits), name=f"orchestrate-campaign-{plugin}")
             n_workers = len(client.scheduler_info(n_workers=-1)["workers"])
-            by_key: dict[object, RunSpec] = {}
-
-            def removed(event: tuple[float, dict]) -> None:
-                """A worker left the cluster: note the runs it was running (the scheduler's event)."""
-                message = event[1]
-                if isinstance(message, dict) and message.get("action") == "remove-worker":
-                    held = {by_key[k].index for k in message.get("processing-tasks", ()) if k in by_key}
-                    lost.setdefault(str(message.get("worker", "?")), set()).update(held)
-
-            client.subscribe_topic("all", removed)
             phase[0] = phase[1] = time.perf_counter()
             for spec in todo:
                 future = client.submit(
