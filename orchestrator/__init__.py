@@ -8,6 +8,9 @@ validate runs ssp and system as far as they go and reports everything (``orchest
 
 from __future__ import annotations
 
+from . import _startup  # noqa: F401 - first: SIGINT/SIGTERM during the imports below are one line
+
+# isort: split
 import fnmatch
 import os
 import warnings
@@ -151,10 +154,11 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
         texts = descriptions(system)
         try:
             runner.run()
-        except (SimulationError, KeyboardInterrupt, OSError) as exc:
+        except BaseException as exc:  # however the run ends early, the sidecar says so
             status = ("timeout" if isinstance(exc, TimeLimitError) else
                       "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed")
-            result = _finish(runner, record, status, str(exc), output, stream, selection, texts)
+            result = _finish(runner, record, status, str(exc) or type(exc).__name__, output, stream,
+                             selection, texts)
             if isinstance(exc, (SimulationError, Interrupted)):
                 exc.result = result
             raise
@@ -211,14 +215,17 @@ def _finish(runner: Master, record: dict[str, object], status: str, message: str
     count = recorder.count if recorder is not None else 0
     rows = recorder.result() if recorder is not None else np.empty(0, [("time", np.float64)])
     last = runner.time(count - 1) if count else None
-    record.update(status=status, rows=count, last_time=last)
-    if message:
-        record["message"] = message
     outputs: dict[str, Path] = {}
     if output is not None and stream is not None:
-        if count and Path(stream).is_file():
+        saved = recorder.saved if recorder is not None else 0  # what is on disk, never more
+        outputs["provenance"] = provenance.finish(output, record, status, saved,
+                                                  runner.time(saved - 1) if saved else None, message)
+        if saved and Path(stream).is_file():
             formats.write_selected(stream, output, selection, texts)  # the rows kept, in the format asked for
             outputs["result"] = Path(output)
-        outputs["provenance"] = provenance.write_provenance(output, record)
+    else:
+        record.update(status=status, rows=count, last_time=last)
+        if message:
+            record["message"] = message
     return RunResult(status, message, rows, count, last, record, outputs,
                      preview=recorder is not None and not recorder.keep)

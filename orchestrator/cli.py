@@ -15,7 +15,9 @@ import logging
 import math
 import os
 import platform
+import signal
 import sys
+import threading
 import warnings
 from collections.abc import Callable, Sequence
 from importlib.metadata import PackageNotFoundError, entry_points, version
@@ -26,21 +28,23 @@ from . import MASTERS, RunOptions, RunResult, run
 from .errors import (
     Interrupted,
     OrchestratorError,
+    OutputError,
     ScenarioError,
     ScenarioWarning,
     SimulationError,
     UsageError,
+    terminate,
 )
 from .fmi import CALLS
 from .inspection import inspect_scenario
-from .plots import plot_run
+from .plots import check_plot, plot_run
 from .provenance import overrides_text, read_provenance
 from .results import read_result
 from .ssp import DEFAULT_LIMITS, Limits
 from .validate import validate
 
-__all__ = ["CHECK_GROUP", "COMMAND_GROUP", "add_command", "fmu_dirs", "main", "plot_title",
-           "resolve_scenario", "scenario_checks", "version_line"]
+__all__ = ["CHECK_GROUP", "COMMAND_GROUP", "add_archive_limits", "add_command", "archive_limits", "fmu_dirs",
+           "main", "plot_title", "resolve_scenario", "scenario_checks", "version_line"]
 
 COMMAND_GROUP = "orchestrate.commands"
 CHECK_GROUP = "orchestrate.checks"
@@ -199,6 +203,12 @@ def _scenario_arguments(p: argparse.ArgumentParser) -> None:
                    help="parameter values named COMPONENT.VARIABLE, applied after the SSD's own (repeatable)")
     p.add_argument("--set", action="append", default=[], metavar="COMPONENT.VARIABLE=VALUE",
                    help="set one parameter or start value, applied last (repeatable)")
+    add_archive_limits(p)
+
+
+def add_archive_limits(p: argparse.ArgumentParser) -> None:
+    """The options of :class:`~orchestrator.ssp.Limits`, for every command that reads an archive
+    (read back with :func:`archive_limits`)."""
     group = p.add_argument_group("archive limits", "what an .ssp archive and each FMU in it may unpack to "
                                  "(sizes in bytes; K, M, G suffixes)")
     for field, option, what in (("total", "--max-total-size", "all members extracted together"),
@@ -207,7 +217,7 @@ def _scenario_arguments(p: argparse.ArgumentParser) -> None:
                                 ("members", "--max-members", "number of members"),
                                 ("xml", "--max-xml-size", "one SSD, SSV, SSM or modelDescription.xml")):
         default = getattr(DEFAULT_LIMITS, field)
-        group.add_argument(option, dest=f"limit_{field}", type=float if field == "ratio" else _bytes,
+        group.add_argument(option, dest=f"limit_{field}", type=_ratio if field == "ratio" else _bytes,
                            default=default, metavar="N", help=f"{what} (default {default:g})")
 
 
@@ -222,6 +232,17 @@ def _overrides(items: Sequence[str]) -> dict[str, str]:
     return overrides
 
 
+def _ratio(text: str) -> float:
+    """A compression ratio: a positive finite number (NaN would disable the check without a word)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a ratio: {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"not a ratio: {text!r}")
+    return value
+
+
 def _bytes(text: str) -> int:
     """``512M`` -> 536870912: a size in bytes with an optional K, M or G (powers of 1024)."""
     factor = {"K": 1 << 10, "M": 1 << 20, "G": 1 << 30}.get(text[-1:].upper(), 1)
@@ -234,8 +255,8 @@ def _bytes(text: str) -> int:
     return int(value)
 
 
-def _limits(args: argparse.Namespace) -> Limits:
-    """The archive limits of the command line."""
+def archive_limits(args: argparse.Namespace) -> Limits:
+    """The archive limits of the command line (:func:`add_archive_limits`)."""
     return Limits(**{f: getattr(args, f"limit_{f}") for f in ("total", "member", "ratio", "members", "xml")})
 
 
@@ -253,18 +274,33 @@ def version_line() -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``orchestrate``; returns the exit status."""
-    parser = _parser()
-    args = parser.parse_args(argv)
+    main_thread = threading.current_thread() is threading.main_thread()
+    if main_thread:  # SIGINT, SIGTERM at any moment: cleanup runs, one line, 130 or 143 (an ignored
+        previous = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)  # one stays so)
+        for signum, handler in ((signal.SIGINT, signal.default_int_handler), (signal.SIGTERM, terminate)):
+            if signal.getsignal(signum) is not signal.SIG_IGN:
+                signal.signal(signum, handler)
     try:
-        return args.handler(args)
-    except UsageError as exc:
-        parser.error(str(exc))  # usage, one line "orchestrate: error: ...", exit status 2
-    except OrchestratorError as exc:
-        print(f"orchestrate: error: {exc}", file=sys.stderr)
-        return exc.exit_status
-    except BrokenPipeError:  # 'orchestrate inspect X | head': the reader left; no traceback
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 0
+        parser = _parser()
+        args = parser.parse_args(argv)
+        try:
+            return args.handler(args)
+        except UsageError as exc:
+            parser.error(str(exc))  # usage, one line "orchestrate: error: ...", exit status 2
+        except OrchestratorError as exc:
+            what = "cannot write the results: " if isinstance(exc, OutputError) else ""
+            print(f"orchestrate: error: {what}{exc}", file=sys.stderr)
+            return exc.exit_status
+        except BrokenPipeError:  # 'orchestrate inspect X | head': the reader left; no traceback
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return 0
+    except KeyboardInterrupt as exc:
+        print(f"orchestrate: {str(exc) or 'interrupted by SIGINT'}", file=sys.stderr)
+        return getattr(exc, "exit_status", 130)
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGINT, previous[0])
+            signal.signal(signal.SIGTERM, previous[1])
 
 
 BUILD_DIR = Path("build")
@@ -355,7 +391,7 @@ def _options(args: argparse.Namespace, scenario: Path, output: Path) -> RunOptio
                       output=output, output_variables=args.output_variables,
                       output_interval=args.output_interval, no_inputs=args.no_inputs, keep=False,
                       strict=args.strict, timeout=args.timeout, fmu_dirs=fmu_dirs(scenario),
-                      limits=_limits(args), input_file=args.input_file, fmi_log=args.fmi_log)
+                      limits=archive_limits(args), input_file=args.input_file, fmi_log=args.fmi_log)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -367,6 +403,8 @@ def _run(args: argparse.Namespace) -> int:
     if stale and not args.allow_stale:
         raise ScenarioError(stale)
     plot = None if args.no_plot else args.plot or output.with_suffix(".png")
+    if plot is not None:
+        check_plot(plot)
     progress = None if args.quiet or not sys.stderr.isatty() else _Progress(name)
     messages = _LastMessage(args.verbose)
     logging.getLogger().addHandler(messages)
@@ -389,11 +427,12 @@ def _run(args: argparse.Namespace) -> int:
         written = _plot_result(result, plot, name, args)
         print(f"{stopped} (plot: {plot})" if written else stopped, file=sys.stderr)
         return exc.exit_status
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:  # outside the stepping loop (Terminated: SIGTERM)
         print(f"orchestrate: interrupted; rows computed so far kept in {output}", file=sys.stderr)
-        return 130
-    except OSError as exc:
-        print(f"orchestrate: error: cannot write the results: {exc}", file=sys.stderr)
+        return getattr(exc, "exit_status", 130)
+    except OSError as exc:  # OutputError: writing the results; else reading (a full TMPDIR, ...)
+        what = "cannot write the results: " if isinstance(exc, OutputError) else ""
+        print(f"orchestrate: error: {what}{exc}", file=sys.stderr)
         return 1
     finally:
         logging.getLogger().removeHandler(messages)
@@ -451,7 +490,7 @@ def _validate(args: argparse.Namespace) -> int:
     overrides = _overrides(args.set)
     scenario = resolve_scenario(args.scenario)
     report = validate(scenario, parameter_sets=args.parameter_set, overrides=overrides,
-                      fmu_dirs=fmu_dirs(scenario), limits=_limits(args))
+                      fmu_dirs=fmu_dirs(scenario), limits=archive_limits(args))
     for stale in scenario_checks(scenario):
         print(f"warning: {stale}")
     for problem in report.problems:
@@ -468,7 +507,7 @@ def _validate(args: argparse.Namespace) -> int:
 def _inspect(args: argparse.Namespace) -> int:
     scenario = resolve_scenario(args.scenario)
     report = inspect_scenario(scenario, parameter_sets=args.parameter_set, overrides=_overrides(args.set),
-                              fmu_dirs=fmu_dirs(scenario), limits=_limits(args))
+                              fmu_dirs=fmu_dirs(scenario), limits=archive_limits(args))
     print("\n".join(report.lines()))
     return 1 if report.problems else 0
 

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["Interrupted", "NonFiniteError", "OrchestratorError", "ScenarioError", "ScenarioWarning",
-           "SimulationError", "TimeLimitError", "UsageError"]
+__all__ = ["Interrupted", "NonFiniteError", "OrchestratorError", "OutputError", "ScenarioError",
+           "ScenarioWarning", "SimulationError", "Terminated", "TimeLimitError", "UsageError", "terminate"]
 
 
 class OrchestratorError(Exception):
@@ -37,6 +37,11 @@ class ScenarioError(OrchestratorError, ValueError):
         else:
             message = f"{len(self.problems)} problems:\n" + "\n".join(f"  - {p}" for p in self.problems)
         super().__init__(message)
+
+
+class OutputError(OrchestratorError, OSError):
+    """The results cannot be written (a full disk, a folder that is not writable); the message names
+    the file. Distinct from an OSError of reading, which names what could not be read."""
 
 
 class SimulationError(OrchestratorError, RuntimeError):
@@ -103,6 +108,22 @@ class Interrupted(KeyboardInterrupt):
         super().__init__(f"interrupted by {signal_name} at t={time:.3f} s")
         self.signal_name, self.time = signal_name, time
         self.exit_status = 128 + signal_number
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM outside a run's stepping loop (reading the scenario, plotting, a campaign ...), raised
+    by :func:`terminate`, so that cleanup runs as for Ctrl-C; ``exit_status`` 143."""
+
+    exit_status = 143
+
+    def __init__(self) -> None:
+        super().__init__("terminated by SIGTERM")
+
+
+def terminate(signum: int, frame: object) -> None:
+    """SIGTERM handler of ``orchestrate``: raise :class:`Terminated` (the masters take it over while
+    they step, as they do the default one)."""
+    raise Terminated
 
 
 class ScenarioWarning(UserWarning):

@@ -43,7 +43,7 @@ from fmpy.fmi2 import (
 from fmpy.fmi3 import FMU3Slave
 from lxml import etree
 
-from .errors import SimulationError
+from .errors import ScenarioError, SimulationError
 
 __all__ = ["CALLS", "FAILED", "Instance", "InstanceBase", "MessageLog", "fmi_version", "interpreter_guard",
            "trace"]
@@ -223,7 +223,14 @@ class Instance(InstanceBase):
              messages: MessageLog, time: float) -> Instance:
         """Extract ``fmu_path`` into ``workdir/name`` and instantiate it (fmi2Instantiate, or
         fmi3InstantiateCoSimulation for an FMI 3.0 FMU)."""
-        unzipdir = fmpy.extract(str(fmu_path), unzipdir=os.path.join(workdir, name))
+        try:
+            unzipdir = fmpy.extract(str(fmu_path), unzipdir=os.path.join(workdir, name))
+        except OSError:
+            raise  # the temporary folder: full or unwritable (not the scenario's fault)
+        except Exception as exc:  # fmpy raises bare Exceptions; zipfile, zlib their own
+            detail = " ".join(str(exc).split()) or type(exc).__name__
+            raise ScenarioError(f"component '{name}': FMU '{os.path.basename(fmu_path)}' cannot be "
+                                f"unpacked: {detail}") from exc
         fmi3 = fmi_version(unzipdir).startswith("3.")
         kind = FMU3Slave if fmi3 else FMU2Slave
         fmu = kind(guid=guid, unzipDirectory=unzipdir, modelIdentifier=model_identifier, instanceName=name)

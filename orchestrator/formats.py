@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from . import files
-from .errors import UsageError
+from .errors import OutputError, UsageError
 
 __all__ = ["FORMATS", "Selection", "check_output", "read_table", "read_tool_csv", "staging_path",
            "write_selected"]
@@ -71,8 +71,15 @@ class Selection:
 
 def check_output(path: str | os.PathLike, step: float | None = None,
                  selection: Selection = Selection()) -> None:
-    """UsageError for an extension no writer handles (none: CSV), or an interval that is not a
-    positive multiple of the communication step ``step``."""
+    """UsageError for an extension no writer handles (none: CSV) or an interval that is not a
+    positive multiple of the communication step ``step``; OutputError for an existing ``path`` that
+    is not a regular file (a folder, a FIFO, which would block the run until a reader comes, a
+    device or a socket; ``os.devnull`` excepted)."""
+    if not os.fspath(path):
+        raise UsageError("--output: the file name is empty")
+    unusable = files.not_regular(path)
+    if unusable:
+        raise OutputError(f"{path}: {unusable}")
     suffix = Path(path).suffix.lower()
     if suffix and suffix not in FORMATS:
         raise UsageError(f"--output {path}: cannot write '{suffix}' files (choose {', '.join(FORMATS)}; "

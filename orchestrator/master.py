@@ -41,7 +41,6 @@ import math
 import os
 import shutil
 import signal
-import tempfile
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -52,7 +51,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .errors import Interrupted, NonFiniteError, SimulationError, TimeLimitError
+from . import files
+from .errors import Interrupted, NonFiniteError, SimulationError, TimeLimitError, terminate
 from .fmi import CALLS, FAILED, Instance, InstanceBase, MessageLog, interpreter_guard, trace
 from .inputs import InputSeries
 from .results import NonFiniteError as NonFiniteRow
@@ -113,9 +113,9 @@ class Stopper:
             self.deadline = time.monotonic() + self.timeout
         if threading.current_thread() is not threading.main_thread():
             return self
-        defaults = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: signal.SIG_DFL}
+        defaults = {signal.SIGINT: (signal.default_int_handler,), signal.SIGTERM: (signal.SIG_DFL, terminate)}
         for signum, default in defaults.items():
-            if signal.getsignal(signum) is default:
+            if signal.getsignal(signum) in default:
                 self._previous[signum] = signal.signal(signum, self._on_signal)
         if self.timeout is not None and signal.getsignal(signal.SIGALRM) is signal.SIG_DFL:
             self._previous[signal.SIGALRM] = signal.signal(signal.SIGALRM, self._on_alarm)
@@ -360,7 +360,7 @@ class Master:
 
     def setup(self, stack: ExitStack) -> None:
         """Extract and instantiate every FMU (freed by ``stack``) and lay out the value arrays."""
-        workdir = tempfile.mkdtemp(prefix="orchestrate-")
+        workdir = str(files.temporary_folder("orchestrate-"))
         stack.callback(shutil.rmtree, workdir, ignore_errors=True)
         stack.enter_context(interpreter_guard())
         for comp in self.system.components.values():

@@ -23,12 +23,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .errors import UsageError
+from . import files
+from .errors import OutputError, UsageError
 
 if TYPE_CHECKING:
     import matplotlib.figure
 
-__all__ = ["FIGURE_GROUP", "MAX_PANELS", "axis_label", "build_figure", "chosen_columns", "plot_run"]
+__all__ = ["FIGURE_GROUP", "MAX_PANELS", "axis_label", "build_figure", "check_plot", "chosen_columns",
+           "plot_run"]
 
 FIGURE_GROUP = "orchestrate.figures"
 MAX_PANELS = 12  # a result of more components gets the first ones and a note in the title
@@ -64,6 +66,21 @@ def chosen_columns(names: Sequence[str], variables: Sequence[str] = (),
         if chosen:
             return chosen
     return signals
+
+
+def check_plot(path: str | os.PathLike) -> None:
+    """Before a run: UsageError for a format matplotlib does not write (by the extension),
+    OutputError for an existing ``path`` that is not a regular file (a FIFO would block)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = FigureCanvasBase.get_supported_filetypes()
+    suffix = Path(path).suffix.lower().lstrip(".")
+    if suffix not in formats:
+        raise UsageError(f"--plot {path}: cannot write '{suffix}' images (choose "
+                         f"{', '.join(sorted(formats))})")
+    unusable = files.not_regular(path)
+    if unusable:
+        raise OutputError(f"{path}: {unusable}")
 
 
 def plot_run(result: np.ndarray, path: str | os.PathLike, title: str = "",

@@ -23,6 +23,7 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 from . import files
+from .errors import OutputError
 from .system import System
 
 __all__ = ["PACKAGES", "column_units", "commit", "describe", "digest", "finish", "overrides_text",
@@ -101,6 +102,7 @@ def describe(scenario: str | os.PathLike, system: System, *, start: float, stop:
         "git": commit(),
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "status": "running",
+        "process": {"pid": os.getpid(), "host": files.HOST},  # a dead 'running' run: read_provenance
     }
 
 
@@ -117,8 +119,11 @@ def _unit(var: object) -> str | None:
 
 
 def write_provenance(result: str | os.PathLike, record: Mapping[str, object]) -> Path:
-    """Write (atomically) the sidecar of ``result``; returns its path."""
-    return files.write_text(sidecar(result), json.dumps(record, indent=1) + "\n")
+    """Write (atomically) the sidecar of ``result``; returns its path. OutputError when it cannot."""
+    try:
+        return files.write_text(sidecar(result), json.dumps(record, indent=1) + "\n")
+    except OSError as exc:
+        raise OutputError(f"{exc.filename or sidecar(result)}: {exc.strerror or exc}") from exc
 
 
 def finish(result: str | os.PathLike, record: dict[str, object], status: str, rows: int,
@@ -131,12 +136,22 @@ def finish(result: str | os.PathLike, record: dict[str, object], status: str, ro
 
 
 def read_provenance(result: str | os.PathLike) -> dict[str, object] | None:
-    """The sidecar of ``result`` (None when there is none or it is not readable JSON)."""
+    """The sidecar of ``result`` (None when there is none or it is not readable JSON). A run still
+    ``running`` whose process is gone (killed, ``kill -9``: it could not say so) is reported as
+    ``failed``, with no row claimed: what the result file holds is whatever was flushed."""
     try:
         record = json.loads(sidecar(result).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    return record if isinstance(record, dict) else None
+    if not isinstance(record, dict):
+        return None
+    process = record.get("process")
+    if (record.get("status") == "running" and isinstance(process, dict) and process.get("host") == files.HOST
+            and isinstance(process.get("pid"), int) and not files.alive(process["pid"])):
+        record.update(status="failed", rows=None, last_time=None,
+                      message=f"the process that ran it (pid {process['pid']}) ended without finishing it "
+                              "(killed?); the result file holds the rows flushed before")
+    return record
 
 
 def summary(record: Mapping[str, object] | None) -> str:

@@ -15,7 +15,6 @@ if the parent process itself dies, the CSV still holds every block sent. Floats 
 
 from __future__ import annotations
 
-import math
 import os
 import subprocess
 import sys
@@ -26,7 +25,7 @@ import numpy as np
 from fmpy.util import read_csv
 
 from . import files
-from .errors import UsageError
+from .errors import OutputError, UsageError
 from .formats import read_table, read_tool_csv
 
 __all__ = ["PREVIEW_BUCKETS", "NonFiniteError", "Recorder", "ResultFileError", "read_result", "structured"]
@@ -103,9 +102,9 @@ class Recorder:
         self.columns = list(columns)
         self.keep = keep or path is None
         self.count = 0  # rows recorded (all checked but the last < check_rows)
-        self.bucket = 1 if self.keep else max(1, -(-rows // PREVIEW_BUCKETS))
-        unit = math.lcm(self.bucket, check_rows)  # the buffer fills up exactly at a check
-        capacity = rows if self.keep else unit * max(1, -(-flush_rows // unit))
+        # keep=False: a buffer of one flush (whole checks), whatever the run length; the preview
+        # folds each flushed block into buckets of consecutive rows
+        capacity = rows if self.keep else check_rows * max(1, -(-flush_rows // check_rows))
         self.data = np.empty((max(capacity, 1), len(self.columns)))
         self._base = 0  # row number of data[0]
         self._checked = 0
@@ -113,29 +112,38 @@ class Recorder:
         self._check_rows = check_rows
         self._next_check = check_rows
         self._flush_rows = flush_rows if self.keep else capacity
-        self._head = capacity * -(-PREVIEW_HEAD // capacity)  # rows before it are previewed as they are
         self._next_flush = self._flush_rows
-        self._preview: list[np.ndarray] = []
+        self._preview = None if self.keep else _Preview(max(1, -(-rows // PREVIEW_BUCKETS)), PREVIEW_HEAD)
         self._writer: subprocess.Popen | None = None
+        self.failed = False  # the CSV writer failed: no rows of this run are on disk
         self.path = None if path is None else Path(path)
         if self.path is not None:
             self._writer = self._start_writer(self.path)
+
+    @property
+    def saved(self) -> int:
+        """The rows of this run in the CSV (all sent once ``close`` returned; none if it failed)."""
+        return 0 if self.failed or self.path is None else self._sent
 
     def _start_writer(self, path: Path) -> subprocess.Popen:
         """Create the temporary file (an unwritable folder fails here, in this process, before any
         step) and start the writer. A path that exists and is not a regular file (``/dev/null``) is
         written in place."""
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if path.exists() and not path.is_file():
-            part = path
-            path.open("w").close()
-        else:
-            part = files.reserve(path)
-        self._part = part
-        writer = subprocess.Popen(
-            [sys.executable, "-m", "orchestrator._csvwriter", str(part), str(path.resolve()),
-             str(len(self.columns))],
-            stdin=subprocess.PIPE, stderr=subprocess.PIPE)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            if path.exists() and not path.is_file():
+                part = path
+                path.open("w").close()
+            else:
+                part = files.reserve(path)
+            self._part = part
+            writer = subprocess.Popen(
+                [sys.executable, "-m", "orchestrator._csvwriter", str(part), str(path.resolve()),
+                 str(len(self.columns))],
+                stdin=subprocess.PIPE, stderr=subprocess.PIPE)
+        except OSError as exc:
+            self.failed = True
+            raise OutputError(f"{path}: {exc.strerror or exc}") from exc
         self._send(writer, (",".join(self.columns) + "\n").encode("utf-8"))
         return writer
 
@@ -149,7 +157,7 @@ class Recorder:
             self._writer = None
             raise self._failure(writer) from None
 
-    def _failure(self, writer: subprocess.Popen) -> OSError:
+    def _failure(self, writer: subprocess.Popen) -> OutputError:
         assert writer.stdin is not None and writer.stderr is not None  # pipes (_start_writer)
         try:
             writer.stdin.close()
@@ -158,7 +166,9 @@ class Recorder:
         writer.wait()
         reason = writer.stderr.read().decode("utf-8", "replace").strip()
         writer.stderr.close()
-        return OSError(f"{self.path}: {reason or f'the CSV writer failed (exit status {writer.returncode})'}")
+        self.failed = True  # the writer removes its temporary file: nothing of this run is on disk
+        reason = reason or f"the CSV writer failed (exit status {writer.returncode})"
+        return OutputError(f"{self.path}: {reason}")
 
     def append(self, row: np.ndarray) -> None:
         """Record one row (copied). Raises NonFiniteError (at most ``check_rows`` rows after the row that
@@ -196,29 +206,10 @@ class Recorder:
         if self._writer is not None and self._sent < end:
             self._send(self._writer, self.data[self._sent - self._base:end - self._base].tobytes())
         self._sent = end
-        if not self.keep and end - self._base == len(self.data):
-            self._preview.append(self._fold(self.data, self._base))
+        if self._preview is not None and end - self._base == len(self.data):
+            self._preview.add(self.data)
             self._base = end
         self._next_flush = self._base + self._flush_rows if not self.keep else end + self._flush_rows
-
-    def _fold(self, block: np.ndarray, first: int) -> np.ndarray:
-        """Two rows per bucket of ``block`` (whose first row is row ``first``): each column's extremes
-        in the order they occur; a copy of it when it lies in the head of the run."""
-        if self.bucket == 1 or first < self._head:
-            return block.copy()
-        n = len(block) // self.bucket * self.bucket
-        parts = [block[:n].reshape(-1, self.bucket, block.shape[1])]
-        if n < len(block):
-            parts.append(block[n:][None])
-        rows = []
-        for b in parts:
-            lo, hi = b.argmin(axis=1), b.argmax(axis=1)
-            earlier, later = np.minimum(lo, hi), np.maximum(lo, hi)
-            a = np.take_along_axis(b, earlier[:, None, :], axis=1)[:, 0]
-            z = np.take_along_axis(b, later[:, None, :], axis=1)[:, 0]
-            a[:, 0], z[:, 0] = b[:, 0, 0], b[:, -1, 0]
-            rows.append(np.stack([a, z], axis=1).reshape(-1, block.shape[1]))
-        return np.concatenate(rows)
 
     def close(self) -> None:
         """Check and send the remaining rows and wait until the CSV is complete and in place
@@ -246,8 +237,82 @@ class Recorder:
     def result(self) -> np.ndarray:
         """The rows recorded so far as a structured array (``time`` first); keep=False: the preview."""
         current = self.data[:self.count - self._base]
-        if self.keep:
+        if self._preview is None:
             return structured(current.copy(), self.columns)
-        parts = [*self._preview, self._fold(current, self._base)] if len(current) else list(self._preview)
-        data = np.concatenate(parts) if parts else np.empty((0, len(self.columns)))
-        return structured(data, self.columns)
+        return structured(self._preview.rows(current, len(self.columns)), self.columns)
+
+
+class _Preview:
+    """A bounded preview of a streamed run, fed block by block: the first ``head`` rows as they are,
+    then, per bucket of ``bucket`` consecutive rows, each column's minimum and maximum in the order
+    they occur, at the bucket's first and last time (two rows). A bucket may span blocks."""
+
+    def __init__(self, bucket: int, head: int) -> None:
+        self.bucket, self.head = bucket, head
+        self.parts: list[np.ndarray] = []
+        self.fed = 0  # rows added
+        self.open: list[np.ndarray] | None = None  # bucket under way: [lo, lo_at, hi, hi_at, times]
+
+    def add(self, block: np.ndarray) -> None:
+        """Fold ``block`` (the rows after those already added) in."""
+        i = 0
+        if self.fed < self.head or self.bucket == 1:
+            i = len(block) if self.bucket == 1 else min(len(block), self.head - self.fed)
+            self.parts.append(block[:i].copy())
+        while i < len(block):
+            at = (self.fed + i - self.head) % self.bucket
+            if at == 0 and len(block) - i >= self.bucket:  # whole buckets at once
+                n = (len(block) - i) // self.bucket * self.bucket
+                self.parts.append(_extremes(block[i:i + n].reshape(-1, self.bucket, block.shape[1])))
+                i += n
+                continue
+            take = min(len(block) - i, self.bucket - at)
+            self._merge(block[i:i + take], self.fed + i)
+            i += take
+            if at + take == self.bucket:
+                self.parts.append(self._close())
+        self.fed += len(block)
+
+    def _merge(self, chunk: np.ndarray, first: int) -> None:
+        """Fold rows ``chunk`` (row ``first`` the first of them) into the bucket under way."""
+        columns = np.arange(chunk.shape[1])
+        lo, hi = chunk.argmin(axis=0), chunk.argmax(axis=0)
+        new = [chunk[lo, columns], lo + first, chunk[hi, columns], hi + first,
+               np.array([chunk[0, 0], chunk[-1, 0]])]
+        if self.open is None:
+            self.open = new
+            return
+        old = self.open
+        lower, higher = new[0] < old[0], new[2] > old[2]  # ties: the earlier row, as argmin gives
+        self.open = [np.where(lower, new[0], old[0]), np.where(lower, new[1], old[1]),
+                     np.where(higher, new[2], old[2]), np.where(higher, new[3], old[3]),
+                     np.array([old[4][0], new[4][1]])]
+
+    def _close(self) -> np.ndarray:
+        """The two rows of the bucket under way (which ends)."""
+        assert self.open is not None
+        lo, lo_at, hi, hi_at, times = self.open
+        self.open = None
+        first = lo_at <= hi_at
+        a, z = np.where(first, lo, hi), np.where(first, hi, lo)
+        a[0], z[0] = times
+        return np.stack([a, z])
+
+    def rows(self, pending: np.ndarray, ncols: int) -> np.ndarray:
+        """The preview of every row added and then of ``pending`` (not added: the state is kept)."""
+        saved = list(self.parts), self.fed, self.open
+        self.add(pending)
+        parts = self.parts + ([self._close()] if self.open is not None else [])
+        self.parts, self.fed, self.open = saved
+        return np.concatenate(parts) if parts else np.empty((0, ncols))
+
+
+def _extremes(buckets: np.ndarray) -> np.ndarray:
+    """Two rows per bucket (``buckets``: bucket, row, column): each column's extremes in the order
+    they occur, time set to the bucket's first and last."""
+    lo, hi = buckets.argmin(axis=1), buckets.argmax(axis=1)
+    earlier, later = np.minimum(lo, hi), np.maximum(lo, hi)
+    a = np.take_along_axis(buckets, earlier[:, None, :], axis=1)[:, 0]
+    z = np.take_along_axis(buckets, later[:, None, :], axis=1)[:, 0]
+    a[:, 0], z[:, 0] = buckets[:, 0, 0], buckets[:, -1, 0]
+    return np.stack([a, z], axis=1).reshape(-1, buckets.shape[2])

@@ -24,9 +24,9 @@ import functools
 import math
 import os
 import posixpath
+import re
 import shutil
 import stat
-import tempfile
 import zipfile
 from collections.abc import Iterable, Mapping
 from contextlib import ExitStack
@@ -56,12 +56,15 @@ __all__ = [
     "Reading",
     "SystemStructure",
     "component",
+    "extract_scenario",
     "open_scenario",
     "pack_ssp",
     "read_parameter_set",
     "read_scenario",
+    "reference_problem",
     "scan_parameter_set",
     "scan_scenario",
+    "test_zip",
     "unpack_scenario",
     "write_ssd",
     "write_ssv",
@@ -220,7 +223,13 @@ class Limits:
 
 DEFAULT_LIMITS = Limits()
 RATIO_FLOOR = 1 << 20
+NAME_MAX = 255  # bytes of one file name (Linux, macOS, Windows): a longer member cannot be extracted
 XML_SUFFIXES = (".ssd", ".ssv", ".ssm", ".xml")
+
+
+def _one_line(exc: BaseException) -> str:
+    """An exception's message on one line."""
+    return " ".join(str(exc).split()) or type(exc).__name__
 
 
 def _size(n: float) -> str:
@@ -248,31 +257,59 @@ def unpack_scenario(scenario: str | os.PathLike, stack: ExitStack,
     extracted within ``limits``; every FMU the SSD references is checked against ``limits`` (also in
     a folder). The folder is None when there is no SSD to read, or the archive breaks a limit."""
     path = Path(scenario)
-    problems: list[str] = []
     if path.is_dir():
-        folder = path
-    elif path.is_file():
-        folder = Path(tempfile.mkdtemp(prefix="ssp-"))
-        stack.callback(shutil.rmtree, folder, ignore_errors=True)
-        try:
-            problems, refused = _safe_extract(path, folder, limits)
-        except (zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError, EOFError, ValueError,
-                UnicodeDecodeError) as exc:
-            return None, [f"{path}: not a valid SSP (zip) archive: {exc}"]
-        if refused:
+        problems = _check_fmus(path, str(path), limits)
+        if problems:
             return None, problems
-    else:
+        if not (path / SSD_NAME).is_file():
+            return None, [f"{path}: no {SSD_NAME} at the root of the scenario"]
+        return path, []
+    if not path.is_file():
         return None, [f"{path}: no such scenario (expected a .ssp archive or a folder)"]
+    try:
+        folder = files.temporary_folder("ssp-")
+    except OSError as exc:
+        return None, [f"{path}: cannot unpack: no temporary folder ({_one_line(exc)})"]
+    stack.callback(shutil.rmtree, folder, ignore_errors=True)
+    problems, refused = _unpack(path, folder, limits)
+    return (None if refused else folder), problems
+
+
+def extract_scenario(archive: Path, dest: Path, limits: Limits = DEFAULT_LIMITS) -> list[str]:
+    """Unpack the ``.ssp`` ``archive`` into the folder ``dest`` as :func:`unpack_scenario` does
+    (what a campaign worker runs); every problem found, none when it may be run."""
+    dest.mkdir(parents=True, exist_ok=True)
+    return _unpack(archive, dest, limits)[0]
+
+
+def _unpack(path: Path, folder: Path, limits: Limits) -> tuple[list[str], bool]:
+    """Unpack archive ``path`` into ``folder``: the problems, and whether they refuse it whole."""
+    try:
+        problems, refused = _safe_extract(path, folder, limits)
+    except OSError as exc:  # a full or unwritable temporary folder, an unreadable archive
+        return [f"{path}: cannot unpack into {folder}: {_one_line(exc)}"], True
+    except Exception as exc:  # noqa: BLE001 - zipfile, zlib and friends: not an archive we can read
+        return [f"{path}: not a valid SSP (zip) archive: {_one_line(exc)}"], True
+    if refused:
+        return problems, True
     if not (folder / SSD_NAME).is_file():
-        return None, [*problems, f"{path}: no {SSD_NAME} at the root of the scenario"]
-    label = path.name if path.is_file() else str(folder)
+        return [*problems, f"{path}: no {SSD_NAME} at the root of the scenario"], True
+    fmu_problems = _check_fmus(folder, path.name, limits)
+    return problems + fmu_problems, bool(fmu_problems)
+
+
+def _check_fmus(folder: Path, label: str, limits: Limits) -> list[str]:
+    """The limits the FMUs the SSD in ``folder`` references break (refused before anything reads
+    them: fmpy reads an FMU whole)."""
+    if not (folder / SSD_NAME).is_file():
+        return []
     for reference in _references(folder / SSD_NAME, limits)[1]:
         fmu = folder / reference
         if fmu.is_file() and zipfile.is_zipfile(fmu):
-            fmu_problems = check_zip(fmu, f"{label}: {reference}", limits)
-            if fmu_problems:  # refused before anything reads it (fmpy reads an FMU whole)
-                return None, problems + fmu_problems
-    return folder, problems
+            problems = check_zip(fmu, f"{label}: {reference}", limits)
+            if problems:
+                return problems
+    return []
 
 
 def check_zip(path: Path, label: str, limits: Limits = DEFAULT_LIMITS,
@@ -297,6 +334,12 @@ def check_zip(path: Path, label: str, limits: Limits = DEFAULT_LIMITS,
         where = f"{label}: member '{name}'"
         if _escapes(name):
             problems.append(f"{where} points outside the archive folder")
+        elif "\\" in name or ":" in name:
+            problems.append(f"{where} has a backslash or a colon in its name (zip paths use '/' and "
+                            "no drive or device letter)")
+        elif any(len(part.encode()) > NAME_MAX for part in name.split("/")):
+            problems.append(f"{where} has a name part longer than {NAME_MAX} bytes (no file system "
+                            "can hold it)")
         elif stat.S_ISLNK(info.external_attr >> 16):
             problems.append(f"{where} is a symbolic link")
         elif size > limits.member:
@@ -312,6 +355,24 @@ def check_zip(path: Path, label: str, limits: Limits = DEFAULT_LIMITS,
         problems.append(f"{label}: {_size(total)} uncompressed in all, above the limit of "
                         f"{_size(limits.total)} ({option['total']})")
     return problems
+
+
+def test_zip(path: Path, label: str) -> list[str]:
+    """Read every member of the zip file ``path`` (within the limits :func:`check_zip` checked) as
+    an extraction would: a member whose data is corrupt or whose declared size lies fails its CRC
+    or size check here. One line naming ``label`` and the member, or none."""
+    name = ""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            for info in zf.infolist():
+                name = info.filename
+                with zf.open(info) as member:
+                    while member.read(1 << 20):
+                        pass
+    except Exception as exc:  # noqa: BLE001 - zipfile, zlib, bz2, lzma each raise their own
+        where = f"member '{name}'" if name else "its directory"
+        return [f"{label}: {where} cannot be unpacked: {_one_line(exc)}"]
+    return []
 
 
 def _escapes(name: str) -> bool:
@@ -390,11 +451,42 @@ def _references(ssd: Path, limits: Limits) -> tuple[list[str], list[str]]:
         if not source or etree.QName(element).localname not in ("Component", "ParameterBinding",
                                                                  "ParameterMapping"):
             continue
-        name = posixpath.normpath(source.replace("\\", "/"))
-        if name.startswith(("/", "../")) or name == ".." or ":" in name.split("/")[0]:
+        if reference_problem(source):
             continue
+        name = posixpath.normpath(source.replace("\\", "/"))
         (fmus if etree.QName(element).localname == "Component" else xml_files).append(name)
     return xml_files, fmus
+
+
+_SCHEME = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*:")
+
+
+def reference_problem(reference: str) -> str:
+    """Why an SSD file reference (a component's FMU, a parameter file) may not be followed, '' when
+    it may: a scenario references files inside itself only, never a URL, an absolute path (or a
+    drive letter) or a path that climbs out with '..' (backslashes count as slashes)."""
+    if _SCHEME.match(reference):
+        return "is a URL or names a drive"
+    if reference.startswith(("/", "\\")):
+        return "is an absolute path"
+    if ".." in reference.replace("\\", "/").split("/"):
+        return "climbs out of the scenario with '..'"
+    return ""
+
+
+def _inside(folder: Path, reference: str, where: str, problems: list[str]) -> Path | None:
+    """The file ``reference`` (from the SSD in ``folder``) names, when it lies inside ``folder``
+    (also after following symbolic links); else None and one line in ``problems`` naming ``where``
+    (the element) and the reference."""
+    problem = reference_problem(reference)
+    path = folder.joinpath(*PurePosixPath(reference.replace("\\", "/")).parts)
+    if not problem and not path.resolve().is_relative_to(folder.resolve()):
+        problem = "leads outside the scenario through a symbolic link"
+    if problem:
+        problems.append(f"{where}: reference '{reference}' {problem}; a scenario may only reference "
+                        "files inside itself")
+        return None
+    return path
 
 
 @functools.cache
@@ -412,6 +504,8 @@ def _load(path: Path, schema: str, label: str) -> tuple[etree._Element | None, l
         root = etree.parse(str(path), _parser()).getroot()
     except etree.XMLSyntaxError as exc:
         return None, [f"{label}: broken XML: {exc}"]
+    except (OSError, ValueError) as exc:  # lxml: undecodable bytes, unreadable file
+        return None, [f"{label}: cannot be read: {_one_line(exc)}"]
     validator = _schema(schema)
     if validator.validate(root):
         return root, []
@@ -464,7 +558,10 @@ def _read_ssv(path: Path, label: str, origin: str, prefix: str) -> tuple[Paramet
     if root is None or problems:
         return None, problems
     units = tuple(read_units(root, "ssv:Units", NS).values())
-    fmpy_set = fmpy_ssd.read_ssv(str(path), validate=False)
+    try:
+        fmpy_set = fmpy_ssd.read_ssv(str(path), validate=False)
+    except Exception as exc:  # noqa: BLE001 - fmpy raises bare Exceptions; one line naming the file
+        return None, [f"{label}: cannot be read: {_one_line(exc)}"]
     return _parameter_set(fmpy_set, origin, prefix, problems, units), problems
 
 
@@ -577,11 +674,14 @@ def _read_component(element: etree._Element, folder: Path, label: str, problems:
     whether all its parameter values could be read. Problems go to ``problems``."""
     name = element.get("name")
     where = f"{label}: component '{name}'"
-    source = folder / element.get("source")
-    if not source.is_file():
+    inside = _inside(folder, element.get("source"), f"{where}: source", problems)
+    source = folder / element.get("source") if inside is None else inside
+    if inside is not None and not source.is_file():
         source = next((d / source.name for d in fmu_dirs if (d / source.name).is_file()), source)
     has_fmu = False
-    if element.get("type", "application/x-fmu-sharedlibrary") != "application/x-fmu-sharedlibrary":
+    if inside is None:
+        pass  # refused above
+    elif element.get("type", "application/x-fmu-sharedlibrary") != "application/x-fmu-sharedlibrary":
         problems.append(f"{where}: only FMU components are supported (type {element.get('type')!r})")
     elif not source.is_file():
         problems.append(f"{where}: FMU '{element.get('source')}' is missing")
@@ -604,7 +704,10 @@ def _read_component(element: etree._Element, folder: Path, label: str, problems:
         found = []
         if binding.get("source") is not None:
             origin = binding.get("source")
-            found.append(_read_ssv(folder / origin, f"{label}: {origin}", origin, prefix))
+            refused: list[str] = []
+            path = _inside(folder, origin, f"{where}: ParameterBinding source", refused)
+            found.append((None, refused) if path is None else
+                         _read_ssv(path, f"{label}: {origin}", origin, prefix))
         for inline in binding.findall("ssd:ParameterValues/ssv:ParameterSet", NS):
             inline_problems: list[str] = []
             inline_units = tuple(read_units(inline, "ssv:Units", NS).values())

@@ -491,6 +491,9 @@ def _unit_def(md: ModelDescription, var: ModelVariable) -> UnitDef:
                    float(base.offset))
 
 
+INT32 = (-(2**31), 2**31 - 1)  # what fmi2SetInteger passes (the value would wrap around)
+
+
 def _outside(var: ModelVariable, value: float | int | bool | str) -> str:
     """Why ``value`` does not fit the variable's declared range or enumeration items ('' if it does)."""
     declared = var.declaredType
@@ -501,6 +504,8 @@ def _outside(var: ModelVariable, value: float | int | bool | str) -> str:
         return ""
     if var.type not in ("Real", "Integer", "Enumeration", *FMI3_TYPES) or var.type == "Boolean":
         return ""
+    if var.type in ("Integer", "Enumeration", "Int32") and not INT32[0] <= int(value) <= INT32[1]:
+        return f"is outside the range of an FMI Integer ({INT32[0]} .. {INT32[1]})"
     number = float(value)  # a Real, Integer or Enumeration value (FMI 3.0: Float64, Int32)
     low = var.min if var.min is not None else getattr(declared, "min", None)
     high = var.max if var.max is not None else getattr(declared, "max", None)

@@ -21,7 +21,7 @@ from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import ScenarioError, UsageError
+from .errors import OrchestratorError, ScenarioError, UsageError
 from .master import NS_PER_S, grid
 from .ssp import (
     DEFAULT_LIMITS,
@@ -30,6 +30,7 @@ from .ssp import (
     SystemStructure,
     scan_parameter_set,
     scan_scenario,
+    test_zip,
     unpack_scenario,
 )
 from .system import System
@@ -87,11 +88,14 @@ def check_scenario(scenario: str | os.PathLike, stack: ExitStack, *,
                    overrides: Mapping[str, object] | None = None,
                    fmu_warnings: bool = False,
                    fmu_dirs: Iterable[str | os.PathLike] = (),
-                   limits: Limits = DEFAULT_LIMITS) -> tuple[System | None, list[str], list[str]]:
+                   limits: Limits = DEFAULT_LIMITS,
+                   unpack_fmus: bool = False) -> tuple[System | None, list[str], list[str]]:
     """Unpack (into a folder ``stack`` removes; within ``limits``), read and check a scenario, every
     stage as far as it can go. Returns the system (None when no SSD could be read; its ``schedule``
     is empty when there are errors), the errors and the warnings (``fmu_warnings``: add fmpy's full
-    FMU validation). FMUs missing from the scenario are looked up by file name in ``fmu_dirs``."""
+    FMU validation). FMUs missing from the scenario are looked up by file name in ``fmu_dirs``.
+    ``unpack_fmus``: also read every member of every FMU, as a run unpacks it (a corrupt member, or
+    one whose declared size lies, is an error here rather than when the run starts)."""
     folder, errors = unpack_scenario(scenario, stack, limits)
     if folder is None:
         return None, errors, []
@@ -109,6 +113,11 @@ def check_scenario(scenario: str | os.PathLike, stack: ExitStack, *,
     structure = reading.structure
     if structure is None:
         return None, errors, []
+    if unpack_fmus:
+        label = path.name if path.is_file() else str(folder)
+        for c in structure.components:
+            if c.name not in reading.no_fmu:
+                errors += test_zip(c.source, f"{label}: component '{c.name}': FMU '{c.source.name}'")
     # a value lost from a --parameter-set may have been meant for any input of any component
     partial = {c.name for c in structure.components} if unreadable else reading.partial
     system = System(structure, sets, overrides, strict=False, no_fmu=reading.no_fmu, partial=partial,
@@ -123,31 +132,47 @@ def timing(structure: SystemStructure, stop_time: float | None = None,
 
     The run must be a whole number of steps (in the integer nanoseconds the masters count in):
     a stop time the step does not divide would end the run early without a word, and a step longer
-    than the run would run no step at all. Raises UsageError when a value given as an argument
-    makes the grid impossible, ScenarioError when the SSD's own values do (or there is no stop)."""
+    than the run would run no step at all. Every message says where each value came from (the
+    option or the SSD); UsageError when an option is among the values at fault, ScenarioError when
+    only the SSD's own values are (or there is no stop)."""
     experiment = structure.experiment
     start = start_time if start_time is not None else experiment.start_time
     stop = stop_time if stop_time is not None else experiment.stop_time
     if stop is None:
         raise ScenarioError(f"{structure.ssd_file}: no stopTime in DefaultExperiment; give a stop time")
-    h = step if step is not None else experiment.step or DEFAULT_STEP
-    given = [name for name, value in (("--start-time", start_time), ("--stop-time", stop_time),
-                                       ("--step", step)) if value is not None]
-    error = UsageError if given else ScenarioError
-    where = ", ".join(given) if given else structure.ssd_file
+    h = step if step is not None else experiment.step if experiment.step is not None else DEFAULT_STEP
+    ssd = structure.ssd_file
+    origin = {"start time": "--start-time" if start_time is not None else ssd,
+              "stop time": "--stop-time" if stop_time is not None else ssd,
+              "communication step": "--step" if step is not None else
+              ssd if experiment.step is not None else "default"}
+
+    def error(message: str, *at_fault: str) -> OrchestratorError:
+        options = [origin[name] for name in at_fault if origin[name].startswith("--")]
+        return (UsageError if options else ScenarioError)(f"{', '.join(options) or ssd}: {message}")
+
+    def source(*names: str) -> str:
+        """`` (from SSD)`` for the values the SSD (or the default) gave, when options are named in
+        front of the message (with none, the SSD is, and it gave them all)."""
+        given = sorted({origin[name] for name in names if not origin[name].startswith("--")})
+        options = any(name.startswith("--") for name in origin.values())
+        return f" (from {' and '.join(given)})" if given and options else ""
+
+    step_text = f"the step {h:g} s{source('communication step')}"
+    run_text = f"the run {start:g} .. {stop:g} s{source('start time', 'stop time')}"
     try:
         t0, hn, n = grid(start, stop, h)
     except ValueError as exc:
-        raise error(f"{where}: {exc}") from exc
+        at_fault = [name for name in origin if name in str(exc)] or list(origin)
+        raise error(f"{exc}{source(*at_fault)}", *at_fault) from exc
     t1 = round(stop * NS_PER_S)
     if n < 1:
-        raise error(f"{where}: the step {h:g} s is longer than the run ({start:g} .. {stop:g} s): "
-                    "no step would be taken")
+        raise error(f"{step_text} is longer than {run_text}: no step would be taken", *origin)
     if (t1 - t0) % hn:
-        raise error(f"{where}: the step {h:g} s does not divide the run {start:g} .. {stop:g} s "
-                    f"(the last step would end at {(t0 + n * hn) / NS_PER_S:.9g} s); stop at "
-                    f"{start + n * h:.9g} or {start + (n + 1) * h:.9g} s, or choose a step that divides "
-                    f"{stop - start:.9g} s")
+        raise error(f"{step_text} does not divide {run_text} (the last step would end at "
+                    f"{(t0 + n * hn) / NS_PER_S:.9g} s); stop at {start + n * h:.9g} or "
+                    f"{start + (n + 1) * h:.9g} s, or choose a step that divides {stop - start:.9g} s",
+                    *origin)
     return start, stop, h
 
 
@@ -172,7 +197,7 @@ def validate(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.P
     with ExitStack() as stack:
         system, errors, warnings = check_scenario(scenario, stack, parameter_sets=parameter_sets,
                                                   overrides=overrides, fmu_warnings=True, fmu_dirs=fmu_dirs,
-                                                  limits=limits)
+                                                  limits=limits, unpack_fmus=True)
     if system is None:
         return Validation(str(scenario), tuple(Problem(e) for e in errors))
     structure = system.structure

@@ -76,3 +76,17 @@ def without_start(fmu: Path, variable: str, dest: Path) -> Path:
         for filename, data in files.items():
             zf.writestr(filename, data)
     return dest
+
+
+def zip_members(archive: Path) -> dict[str, bytes]:
+    """Every member of a zip file (an SSP, an FMU), name -> bytes."""
+    with zipfile.ZipFile(archive) as zf:
+        return {n: zf.read(n) for n in zf.namelist()}
+
+
+def write_zip(path: Path, members: dict[str, bytes]) -> Path:
+    """A zip file of ``members`` (name -> bytes), deflated."""
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+    return path

@@ -14,7 +14,7 @@ from contextlib import ExitStack
 from pathlib import Path
 
 import pytest
-from orch_helpers import loop_scenario
+from orch_helpers import loop_scenario, write_zip, zip_members
 
 from orchestrator.cli import main
 from orchestrator.errors import ScenarioError
@@ -23,18 +23,6 @@ from orchestrator.ssp import SSD_NAME, Limits, open_scenario
 pytestmark = pytest.mark.system
 
 MiB = 1 << 20
-
-
-def _members(archive: Path) -> dict[str, bytes]:
-    with zipfile.ZipFile(archive) as zf:
-        return {n: zf.read(n) for n in zf.namelist()}
-
-
-def _zip(path: Path, members: dict[str, bytes]) -> Path:
-    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
-        for name, data in members.items():
-            zf.writestr(name, data)
-    return path
 
 
 def _disk(folder: Path) -> int:
@@ -48,9 +36,9 @@ def good(test_fmus, tmp_path_factory) -> Path:
 
 def test_unused_member_is_not_extracted(good, tmp_path):
     """A 64 MiB member the SSD does not reference (1000:1 zeros) costs no disk and no refusal."""
-    members = _members(good)
+    members = zip_members(good)
     referenced = sum(len(members[n]) for n in members)
-    bad = _zip(tmp_path / "junk.ssp", {**members, "resources/junk.bin": bytes(64 * MiB)})
+    bad = write_zip(tmp_path / "junk.ssp", {**members, "resources/junk.bin": bytes(64 * MiB)})
     with ExitStack() as stack:
         folder = open_scenario(bad, stack)
         assert not (folder / "resources" / "junk.bin").exists()
@@ -59,10 +47,10 @@ def test_unused_member_is_not_extracted(good, tmp_path):
 
 
 def test_compression_bomb_in_a_referenced_fmu_is_refused(good, tmp_path, capsys):
-    members = _members(good)
+    members = zip_members(good)
     fmu = tmp_path / "Gain.fmu"
-    _zip(fmu, {**_members_of_bytes(members["resources/Gain.fmu"]), "resources/bomb.bin": bytes(8 * MiB)})
-    bad = _zip(tmp_path / "bomb.ssp", {**members, "resources/Gain.fmu": fmu.read_bytes()})
+    write_zip(fmu, {**_members_of_bytes(members["resources/Gain.fmu"]), "resources/bomb.bin": bytes(8 * MiB)})
+    bad = write_zip(tmp_path / "bomb.ssp", {**members, "resources/Gain.fmu": fmu.read_bytes()})
     assert main(["validate", str(bad)]) == 1
     out = capsys.readouterr().out.splitlines()
     ratio = 8 * MiB / zipfile.ZipFile(fmu).getinfo("resources/bomb.bin").compress_size
@@ -72,10 +60,10 @@ def test_compression_bomb_in_a_referenced_fmu_is_refused(good, tmp_path, capsys)
 
 
 def test_fmu_member_escaping_is_refused_before_reading(good, tmp_path, capsys):
-    members = _members(good)
+    members = zip_members(good)
     inner = _members_of_bytes(members["resources/Gain.fmu"])
-    fmu = _zip(tmp_path / "Gain.fmu", {**inner, "../evil.txt": b"x"})
-    bad = _zip(tmp_path / "evil.ssp", {**members, "resources/Gain.fmu": fmu.read_bytes()})
+    fmu = write_zip(tmp_path / "Gain.fmu", {**inner, "../evil.txt": b"x"})
+    bad = write_zip(tmp_path / "evil.ssp", {**members, "resources/Gain.fmu": fmu.read_bytes()})
     assert main(["validate", str(bad)]) == 1
     assert capsys.readouterr().out.splitlines()[:2] == [
         "error: evil.ssp: resources/Gain.fmu: member '../evil.txt' points outside the archive folder",
@@ -99,10 +87,10 @@ def _members_of_bytes(data: bytes) -> dict[str, bytes]:
                                          "(--max-total-size)"),
 ])
 def test_limits_on_what_is_extracted(good, tmp_path, limits, message):
-    members = _members(good)
+    members = zip_members(good)
     noise = random.Random(0).randbytes(MiB).hex().encode()  # 2 MiB that do not compress below 1:2
     padded = members["gain.ssv"].replace(b"<ssv:Parameters>", b"<!--" + noise + b"--><ssv:Parameters>")
-    bad = _zip(tmp_path / "loop.ssp", {**members, "gain.ssv": padded})
+    bad = write_zip(tmp_path / "loop.ssp", {**members, "gain.ssv": padded})
     total = sum(len(v) for v in {**members, "gain.ssv": padded}.values())  # every member is referenced
     message = message.format(total=f"{total / MiB:.1f} MiB")
     with ExitStack() as stack, pytest.raises(ScenarioError) as info:

@@ -13,10 +13,12 @@ from __future__ import annotations
 
 import json
 import os
+import resource
 import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +27,7 @@ from fmpy.util import read_csv
 from orch_helpers import build_test_fmu, loop_scenario
 
 from orchestrator.formats import read_table
+from orchestrator.provenance import read_provenance
 from orchestrator.ssp import Connection, Experiment, SystemStructure, component, pack_ssp, write_ssd
 
 pytestmark = pytest.mark.system
@@ -162,22 +165,31 @@ def _unwritable(tmp_path: Path) -> Path:
     return folder
 
 
-@pytest.mark.parametrize("case", ["read_only", "dev_full", "file_as_folder"])
+def _file_size_limit(limit: int) -> Callable[[], None]:
+    """A ``preexec_fn`` limiting the files the process writes to ``limit`` bytes (RLIMIT_FSIZE): a
+    full disk for its writes, with no device (Python ignores SIGXFSZ: the write fails, EFBIG)."""
+    return lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+
+@pytest.mark.parametrize("case", ["read_only", "full_disk", "file_as_folder"])
 def test_unwritable_output_is_one_line(case, test_fmus, tmp_path):
-    ssp = loop_scenario(tmp_path / "loop", test_fmus, stop=1.0, step=H)
-    full = tmp_path / "full.csv"  # a full disk: /dev/full under a name with the CSV extension
-    full.symlink_to("/dev/full")
-    target = {"read_only": _unwritable(tmp_path) / "r.csv", "dev_full": full,
+    ssp = loop_scenario(tmp_path / "loop", test_fmus, stop=200.0 if case == "full_disk" else 1.0, step=H)
+    target = {"read_only": _unwritable(tmp_path) / "r.csv", "full_disk": tmp_path / "r.csv",
               "file_as_folder": tmp_path / "loop.ssp" / "r.csv"}[case]
-    r = orchestrate("run", str(ssp), "--output", str(target), "--no-plot", tmp=tmp_path)
+    limit = {"preexec_fn": _file_size_limit(1 << 20)} if case == "full_disk" else {}
+    r = orchestrate("run", str(ssp), "--output", str(target), "--no-plot", tmp=tmp_path, **limit)
     assert r.returncode == 1
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("orchestrate: error: cannot write the results: "), r.stderr
-    reason = {"read_only": "Permission denied", "dev_full": "No space left on device",
+    reason = {"read_only": "Permission denied", "full_disk": "File too large",
               "file_as_folder": "File exists"}[case]
     assert reason in lines[0]
     if case == "read_only":
         assert not target.exists()
+    if case == "full_disk":  # no CSV, and the sidecar does not claim rows (it said 'failed, N rows')
+        assert not target.exists() and not list(tmp_path.glob(".r.csv.*.part"))
+        record = read_provenance(target)
+        assert record is not None and record["status"] == "failed" and record["rows"] == 0, record
 
 
 def test_non_finite_start_value_fails_at_t0_with_no_row(test_fmus, tmp_path):

@@ -12,7 +12,10 @@ from __future__ import annotations
 
 import contextlib
 import io
+import os
 import shutil
+import stat
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -48,10 +51,11 @@ def base(test_fmus, tmp_path_factory) -> Path:
 
 
 def mutate(base: Path, dest: Path, mutations: list[tuple[str, int, str, int, str]]) -> Path:
-    """A copy of ``base`` (FMUs linked, not copied) with ``mutations`` applied: (file, element index,
-    operation, attribute or tag index, value)."""
+    """A copy of ``base`` (FMUs hard-linked, not copied: a symbolic link to them would lead outside the
+    scenario, which is refused) with ``mutations`` applied: (file, element index, operation,
+    attribute or tag index, value)."""
     dest.mkdir()
-    (dest / "resources").symlink_to(base / "resources")
+    shutil.copytree(base / "resources", dest / "resources", copy_function=os.link)
     trees = {name: etree.parse(str(base / name)) for name in FILES}
     for file, index, operation, which, value in mutations:
         root = trees[file].getroot()
@@ -120,7 +124,7 @@ def test_mutated_scenarios_run_or_are_refused_cleanly(base, tmp_path, mutations)
 def _ssd(base: Path, dest: Path, old: str, new: str, file: str = SSD_NAME) -> Path:
     """A copy of ``base`` with ``old`` replaced by ``new`` in ``file`` (once, and it must be there)."""
     dest.mkdir()
-    (dest / "resources").symlink_to(base / "resources")
+    shutil.copytree(base / "resources", dest / "resources", copy_function=os.link)
     for name in FILES:
         text = (base / name).read_text()
         if name == file:
@@ -167,3 +171,99 @@ def test_a_removed_connection_runs_with_a_warning(base, tmp_path):
     folder = _ssd(base, tmp_path / "r", '<ssd:Connection startElement="integrator" startConnector="x" '
                   'endElement="gain" endConnector="u"/>', "")
     assert check(folder) == "ran"
+
+
+# -- bytes, encodings and FMU members (issue 20) ---------------------------------------------------------
+ENCODINGS = ("utf-8", "utf-8-sig", "utf-16", "utf-16-le", "utf-32", "latin-1", "cp1252", "ascii")
+MEMBER_NAMES = ("resources\\x.txt", "c:x.txt", "resources/c:x", "../x.txt", "/abs.txt", "a/../../x",
+                "binaries/linux64/../../../x.so", "ünïcødé/x", "x" * 300, "modelDescription.xml",
+                "documentation/", "resources/ok.txt")
+
+
+def _bytes_mutant(data: bytes, edits: list[tuple[int, bytes]], encoding: str | None, declared: bool) -> bytes:
+    """``data`` (an XML file, UTF-8) re-encoded (its declaration kept, changed or dropped), then with
+    ``edits`` (position, bytes) written over it."""
+    if encoding is not None:
+        text = data.decode("utf-8")
+        if not declared:
+            text = text.split("?>", 1)[-1]
+        data = text.encode(encoding, "replace")
+    out = bytearray(data)
+    for position, chunk in edits:
+        at = position % (len(out) + 1)
+        out[at:at + len(chunk)] = chunk
+    return bytes(out)
+
+
+def _fmu_mutant(fmu: Path, operation: str, name: str, position: int, chunk: bytes) -> bytes:
+    """``fmu`` with a member added (name fuzzed), a symbolic link member, or bytes of the raw zip
+    overwritten (headers, data, directory: zipfile and the CRC catch them)."""
+    if operation == "flip":
+        data = bytearray(fmu.read_bytes())
+        at = position % len(data)
+        data[at:at + len(chunk)] = chunk
+        return bytes(data)
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(fmu) as source, zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as zf:
+        for info in source.infolist():
+            zf.writestr(info, source.read(info))
+        member = zipfile.ZipInfo(name or "x")
+        if operation == "symlink":
+            member.external_attr = (stat.S_IFLNK | 0o777) << 16
+        zf.writestr(member, b"/etc/passwd" if operation == "symlink" else chunk)
+    return buffer.getvalue()
+
+
+byte_edits = st.lists(st.tuples(st.integers(0, 4000), st.binary(min_size=1, max_size=4)), max_size=3)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(file=st.sampled_from(FILES), edits=byte_edits, encoding=st.none() | st.sampled_from(ENCODINGS),
+       declared=st.booleans(), fmu=st.sampled_from(("Gain.fmu", "Integrator.fmu", "Source.fmu")),
+       operation=st.sampled_from(("none", "add", "symlink", "flip")),
+       name=st.sampled_from(MEMBER_NAMES) | st.text(min_size=1, max_size=40),
+       position=st.integers(0, 1 << 20), chunk=st.binary(min_size=1, max_size=4))
+def test_mutated_bytes_encodings_and_fmu_members_run_or_are_refused_cleanly(
+        base, tmp_path, file, edits, encoding, declared, fmu, operation, name, position, chunk):
+    """An SSD or SSV file with bytes overwritten and re-encoded (UTF-16/32, Latin-1, a BOM; the
+    declaration kept or dropped), and an FMU with a member added under a hostile name, a symbolic
+    link member, or raw bytes of the zip overwritten: one line per problem, validate and run agree."""
+    folder = tmp_path / "m"
+    if folder.exists():
+        shutil.rmtree(folder)
+    folder.mkdir()
+    shutil.copytree(base / "resources", folder / "resources", copy_function=os.link)
+    for other in FILES:
+        data = (base / other).read_bytes()
+        mutated = _bytes_mutant(data, edits, encoding, declared) if other == file else data
+        (folder / other).write_bytes(mutated)
+    if operation != "none":
+        target = folder / "resources" / fmu
+        mutant = _fmu_mutant(base / "resources" / fmu, operation, name, position, chunk)
+        target.unlink()  # a hard link to the base's FMU: replaced, never written through
+        target.write_bytes(mutant)
+    check(folder)
+
+
+@pytest.mark.parametrize(("operation", "name", "expected"), [
+    ("add", "resources\\x.txt", "has a backslash or a colon in its name"),
+    ("add", "../x.txt", "points outside the archive folder"),
+    ("add", "x" * 300, "has a name part longer than 255 bytes"),  # validate said ok, run OSError
+    ("symlink", "resources/link", "is a symbolic link"),
+    ("flip", "", "cannot be unpacked"),
+])
+def test_fmu_member_regressions(base, tmp_path, operation, name, expected):
+    """Tracebacks of run before issue 20 (fmpy's 'Illegal path', BadZipFile 'Bad CRC-32'), and
+    the members check_zip refused already."""
+    folder = _ssd(base, tmp_path / "r", "", "")
+    target = folder / "resources" / "Gain.fmu"
+    source = base / "resources" / "Gain.fmu"
+    with zipfile.ZipFile(source) as zf:  # the middle of the largest member's data
+        big = max(zf.infolist(), key=lambda i: i.compress_size)
+        middle = big.header_offset + 30 + len(big.filename.encode()) + len(big.extra) + big.compress_size // 2
+    mutant = _fmu_mutant(source, operation, name, middle, b"\x00\xff")
+    target.unlink()
+    target.write_bytes(mutant)
+    outcome = check(folder)
+    assert outcome.startswith("refused: ") and expected in outcome, outcome

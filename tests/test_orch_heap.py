@@ -9,6 +9,11 @@ sometimes. The FMU shim (fmu_src/shim) releases that state once before exit. Run
 archives the fuzzing found (one connection removed) and both masters, with ``MALLOC_CHECK_=3``
 (abort on any heap inconsistency glibc sees) and ``PYTHONMALLOC=debug`` (CPython's own checks).
 
+Since glibc 2.34 ``MALLOC_CHECK_`` does nothing unless ``libc_malloc_debug.so.0`` is preloaded
+(issue 20: on glibc 2.36 this test checked nothing). It is preloaded here, and a first test proves
+that the checks are on: a tiny C program compiled here with ``cc`` overflows a 20-byte block by
+one byte, which plain glibc does not notice and the debug library aborts on (SIGABRT).
+
 Bounded in ``make test`` (``HEAP_STRESS_RUNS``, default 6 runs); by hand, e.g. 300 runs::
 
     HEAP_STRESS_RUNS=300 .venv/bin/python -m pytest -q -p no:cacheprovider tests/test_orch_heap.py
@@ -17,6 +22,8 @@ Bounded in ``make test`` (``HEAP_STRESS_RUNS``, default 6 runs); by hand, e.g. 3
 from __future__ import annotations
 
 import os
+import shutil
+import signal
 import subprocess
 import sys
 import zipfile
@@ -47,11 +54,43 @@ def _without_connection(archive: Path, dest: Path) -> Path:
     return dest
 
 
+MALLOC_DEBUG = "libc_malloc_debug.so.0"  # glibc's malloc checks, a library of their own since 2.34
+HEAP_CHECKS = {"LD_PRELOAD": MALLOC_DEBUG, "MALLOC_CHECK_": "3"}
+OVERFLOW = r"""
+#include <stdlib.h>
+#include <string.h>
+int main(int argc, char **argv) {  /* writes one byte past a block of atoi(argv[1]) bytes */
+    size_t n = (size_t)atoi(argv[1]);
+    char *p = malloc(n);
+    memset(p, 'x', n + 1);
+    free(p);
+    return 0;
+}
+"""
+
+
+@pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler (cc)")
+def test_the_heap_checks_catch_a_one_byte_overflow(tmp_path):
+    """The oracle of the test below: with the environment it uses, glibc aborts on a one-byte heap
+    overflow (without the preload, MALLOC_CHECK_=3 alone lets it pass: what main did)."""
+    (tmp_path / "overflow.c").write_text(OVERFLOW)
+    program = tmp_path / "overflow"
+    subprocess.run(["cc", "-O0", "-o", str(program), str(tmp_path / "overflow.c")], check=True,
+                   capture_output=True)
+    unchecked = subprocess.run([str(program), "20"], env={**os.environ, "MALLOC_CHECK_": "3"},
+                               capture_output=True, text=True)
+    assert unchecked.returncode == 0  # the 20-byte block has 24 usable bytes: plain glibc sees nothing
+    checked = subprocess.run([str(program), "20"], env={**os.environ, **HEAP_CHECKS}, capture_output=True,
+                             text=True)
+    assert checked.returncode == -signal.SIGABRT, (checked.returncode, checked.stderr)
+    assert "free(): invalid pointer" in checked.stderr
+
+
 def test_runs_under_heap_checks_never_abort(built, tmp_path):
     example1 = built / "ssp" / "example1.ssp"
     cases = [(example1, "gauss-seidel"), (example1, "jacobi"),
              (_without_connection(example1, tmp_path / "noconn.ssp"), "gauss-seidel")]
-    env = {**os.environ, "MALLOC_CHECK_": "3", "PYTHONMALLOC": "debug"}
+    env = {**os.environ, **HEAP_CHECKS, "PYTHONMALLOC": "debug"}
     outcomes = []
     for i in range(RUNS):
         archive, master = cases[i % len(cases)]

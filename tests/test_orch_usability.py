@@ -83,7 +83,8 @@ def test_a_step_that_does_not_divide_the_run_is_refused(stop, step):
 
 def test_a_step_longer_than_the_run_is_a_usage_error():
     """Before: '--step 40' with stop 30 ran zero steps and exited 0."""
-    with pytest.raises(UsageError, match=r"--step: the step 40 s is longer than the run \(0 .. 30 s\)"):
+    with pytest.raises(UsageError, match=r"--step: the step 40 s is longer than the run 0 .. 30 s "
+                                         r"\(from s/SystemStructure.ssd\)"):
         timing(_structure(), step=40.0)
 
 

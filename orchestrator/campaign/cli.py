@@ -13,11 +13,11 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from ..cli import add_command, resolve_scenario
+from ..cli import add_archive_limits, add_command, archive_limits, resolve_scenario
 from ..errors import UsageError
 from .design import read_design
 from .report import write_report
-from .sweep import SCHEDULER_ENV, CampaignInterrupted, CampaignSummary, sweep
+from .sweep import DASHBOARD, SCHEDULER_ENV, CampaignInterrupted, CampaignSummary, sweep
 from .worker import Metrics
 
 __all__ = ["register"]
@@ -92,6 +92,13 @@ def register(sub: argparse._SubParsersAction, metrics: Metrics | None = None) ->
         "--plot", type=Path, metavar="DIR", help="also write the campaign report (figures + summary)"
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--dashboard",
+        metavar="HOST:PORT",
+        default=DASHBOARD,
+        help="embedded cluster: where its Dask dashboard listens (default: this host only, a free port)",
+    )
+    add_archive_limits(p)
 
     p = add_command(
         sub, "campaign-report", _report, help="figures and a Markdown summary of a campaign table"
@@ -105,7 +112,7 @@ def register(sub: argparse._SubParsersAction, metrics: Metrics | None = None) ->
 def _describe(s: CampaignSummary) -> str:
     return (
         f"{s.total} runs ({s.skipped} kept from before): {s.ok} ok, {s.failed} failed, {s.timed_out} "
-        f"timed out; {s.wall_time:.1f} s"
+        f"timed out{f', {s.not_run} not run' if s.not_run else ''}; {s.wall_time:.1f} s"
         + (f" on {s.workers} workers" if s.workers else "")
         + f" -> {s.table}, {s.parquet}"
     )
@@ -155,6 +162,8 @@ def _sweep(args: argparse.Namespace, metrics: Metrics | None) -> int:
             timeout=args.timeout,
             keep_every=args.trajectory_every if args.keep_trajectories else None,
             progress=not args.quiet,
+            limits=archive_limits(args),
+            dashboard=args.dashboard,
         )
     except CampaignInterrupted as exc:
         s = exc.summary
@@ -165,6 +174,13 @@ def _sweep(args: argparse.Namespace, metrics: Metrics | None) -> int:
         )
         return 130
     print(_describe(summary))
+    for worker, runs in summary.lost_workers.items():
+        held = f"runs {', '.join(map(str, runs))} were on it, run again elsewhere" if runs else "no run on it"
+        print(f"orchestrate: warning: worker {worker} was lost ({held})", file=sys.stderr)
+    if summary.not_run:
+        print(f"orchestrate: error: {summary.not_run} of {summary.total} runs not run: the cluster did not "
+              f"finish them ({summary.not_run_reason}); rerun with --resume to run them", file=sys.stderr)
+        return 1
     if args.plot is not None:
         print(write_report(summary.parquet, args.plot))
     return 0 if summary.failed == summary.timed_out == 0 else 1

@@ -182,6 +182,9 @@ def _load(path: Path) -> dict:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise DesignError(f"{path}: cannot read the design: {exc.strerror}") from exc
+    except UnicodeDecodeError as exc:
+        raise DesignError(f"{path}: cannot read the design: not UTF-8 text ({exc.reason} at byte "
+                          f"{exc.start})") from exc
     try:
         data = json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
     except (ValueError, tomllib.TOMLDecodeError) as exc:

@@ -20,12 +20,13 @@ import time
 import zipfile
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, cast
 
 from .. import DEFAULT_STEP, MASTERS, open_system
 from ..errors import OrchestratorError, ScenarioError, UsageError
+from ..ssp import DEFAULT_LIMITS, Limits
 from .design import EXPERIMENT_KEYS, Design, read_design
 from .table import CSV_NAME, Journal, read_rows
 from .worker import FAILED, OK, TIMEOUT, Metrics, RunOutcome, RunSpec, run_variant
@@ -37,6 +38,7 @@ if TYPE_CHECKING:
 __all__ = ["SCHEDULER_ENV", "CampaignInterrupted", "CampaignSummary", "connect", "plan", "sweep"]
 
 SCHEDULER_ENV = "ORCHESTRATE_SCHEDULER"
+DASHBOARD = "127.0.0.1:0"  # the embedded cluster's dashboard: this host only (it lists every task)
 META_NAME = "campaign.json"
 TRAJECTORY_DIR = "trajectories"
 
@@ -55,6 +57,9 @@ class CampaignSummary:
     wall_time: float
     workers: int
     run_time: float = 0.0  # s from the first task submitted to the last row written (no cluster start-up)
+    not_run: int = 0  # runs the cluster did not finish (scheduler lost, ...): no row, --resume runs them
+    not_run_reason: str = ""
+    lost_workers: dict[str, list[int]] = field(default_factory=dict)  # worker -> runs it held when lost
 
 
 class CampaignInterrupted(KeyboardInterrupt):
@@ -66,14 +71,17 @@ class CampaignInterrupted(KeyboardInterrupt):
 
 
 def _archive_bytes(scenario: Path) -> bytes:
-    """The scenario as .ssp bytes (a folder is zipped in memory)."""
+    """The scenario as .ssp bytes (a folder is zipped in memory: its regular files, never what a
+    symbolic link in it points to, which may lie outside it)."""
     if scenario.is_file():
         return scenario.read_bytes()
     buffer = io.BytesIO()
     with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as zf:
-        for path in sorted(scenario.rglob("*")):
-            if path.is_file():
-                zf.write(path, path.relative_to(scenario).as_posix())
+        for root, _, names in sorted(os.walk(scenario)):  # does not enter linked folders
+            for name in sorted(names):
+                path = Path(root) / name
+                if path.is_file() and not path.is_symlink():
+                    zf.write(path, path.relative_to(scenario).as_posix())
     return buffer.getvalue()
 
 
@@ -90,6 +98,7 @@ def plan(
     *,
     timeout: float | None = None,
     keep_every: int | None = None,
+    limits: Limits = DEFAULT_LIMITS,
 ) -> tuple[dict[str, bytes], list[RunSpec]]:
     """Check the design against every scenario (unknown names fail here, all at once, before
     anything runs) and list the runs: scenario-major, design order within. Returns the archives by
@@ -112,10 +121,11 @@ def plan(
         digest = hashlib.sha256(data).hexdigest()
         archives[digest] = data
         first = {k: v for k, v in variants[0].items() if k not in EXPERIMENT_KEYS} if variants else {}
-        with open_system(scenario, overrides={**design.fixed, **first}) as system:
+        with open_system(scenario, overrides={**design.fixed, **first}, limits=limits) as system:
             ex = system.structure.experiment
             default_stop = design.stop_time if design.stop_time is not None else ex.stop_time
-            default_step = design.step if design.step is not None else ex.step or DEFAULT_STEP
+            default_step = design.step if design.step is not None else ex.step if ex.step is not None \
+                else DEFAULT_STEP
         for variant in variants:
             stop = variant.get("stop_time", default_stop)
             if stop is None:
@@ -143,10 +153,18 @@ def plan(
 
 @contextmanager
 def connect(
-    scheduler: str | None = None, workers: int | None = None, processes: bool = True
+    scheduler: str | None = None,
+    workers: int | None = None,
+    processes: bool = True,
+    dashboard: str = DASHBOARD,
 ) -> Iterator[Client]:
     """A ``distributed.Client``: to ``scheduler`` (or $ORCHESTRATE_SCHEDULER) if given, else to an
-    embedded LocalCluster of ``workers`` (default: one per core) single-threaded worker processes."""
+    embedded LocalCluster of ``workers`` (default: one per core) single-threaded worker processes,
+    whose dashboard (and the rest of the scheduler's HTTP server) listens on ``dashboard``
+    (HOST:PORT; default this host only, a free port; distributed has no way to turn it off: None
+    would listen on all interfaces, port 8787). The client's own logging of a lost connection
+    (tracebacks) is silenced: the sweep reports what it means in one line."""
+    logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
     from distributed import Client, LocalCluster
 
     address = scheduler or os.environ.get(SCHEDULER_ENV) or None
@@ -165,7 +183,7 @@ def connect(
         n_workers=n,
         threads_per_worker=1,
         processes=processes,
-        dashboard_address=":0",  # a free port: several campaigns may run at once
+        dashboard_address=dashboard,  # localhost, a free port: several campaigns may run at once
         silence_logs=logging.ERROR,
     )
     client = Client(cluster)
@@ -176,6 +194,30 @@ def connect(
     finally:
         client.close()
         cluster.close()
+
+
+@contextmanager
+def _watch_workers(
+    client: Client, by_key: dict[object, RunSpec], lost: dict[str, set[int]]
+) -> Iterator[None]:
+    """Note in ``lost`` every worker the scheduler removes, with the runs (``by_key``: task key ->
+    run) it was running (the scheduler's ``remove-worker`` event). Unsubscribed before the client
+    closes: else the scheduler logs a traceback sending the client its own removal."""
+
+    def removed(event: tuple[float, dict]) -> None:
+        message = event[1]
+        if isinstance(message, dict) and message.get("action") == "remove-worker":
+            held = {by_key[k].index for k in message.get("processing-tasks", ()) if k in by_key}
+            lost.setdefault(str(message.get("worker", "?")), set()).update(held)
+
+    client.subscribe_topic("all", removed)
+    try:
+        yield
+    finally:
+        try:
+            client.unsubscribe_topic("all")
+        except Exception:  # noqa: BLE001 - the scheduler is gone: nothing to unsubscribe from
+            pass
 
 
 def _ignore_interrupts() -> None:
@@ -252,17 +294,23 @@ def sweep(
     timeout: float | None = None,
     keep_every: int | None = None,
     progress: bool = True,
+    limits: Limits = DEFAULT_LIMITS,
+    dashboard: str = DASHBOARD,
 ) -> CampaignSummary:
     """Run every variant of ``design`` on each scenario and write ``out/runs.csv``, ``out/runs.parquet``
     and ``out/campaign.json`` (plus ``out/trajectories/`` with ``keep_every``: every n-th row of each
     run). ``design`` is a :class:`Design` or the path of a design file. A failed or timed-out run is
     a row; ``resume`` skips runs already in the table; Ctrl-C raises :class:`CampaignInterrupted`
-    after writing every finished row."""
+    after writing every finished row. A run the cluster did not finish because the scheduler went
+    away (or the connection to it) gets no row: it is counted as not run and ``resume`` runs it.
+    Workers lost on the way are reported with the runs they held (Dask runs those again
+    elsewhere; a run that kills every worker it is given fails with KilledWorker, a row). The
+    archives reach the workers and are unpacked there within ``limits``, as by ``run``."""
     started = time.perf_counter()
     out = Path(out)
     if not isinstance(design, Design):
         design = read_design(design)
-    archives, specs = plan(scenarios, design, timeout=timeout, keep_every=keep_every)
+    archives, specs = plan(scenarios, design, timeout=timeout, keep_every=keep_every, limits=limits)
     params = [c for c in design.columns if c not in EXPERIMENT_KEYS]
     names = list(metrics.names) if metrics is not None else []
     columns = [
@@ -300,6 +348,8 @@ def sweep(
         counts[r["status"]] += 1
     n_workers = 0
     phase = [0.0, 0.0]  # perf_counter at the first submission and at the last row
+    not_run: list[tuple[RunSpec, str]] = []  # what the cluster did not finish, and why
+    lost: dict[str, set[int]] = {}  # worker -> the runs it was running when it was removed
 
     def summary() -> CampaignSummary:
         return CampaignSummary(
@@ -313,12 +363,15 @@ def sweep(
             time.perf_counter() - started,
             n_workers,
             phase[1] - phase[0],
+            len(not_run),
+            not_run[0][1] if not_run else "",
+            {w: sorted(runs) for w, runs in lost.items()},
         )
 
     if not todo:
         journal.finish()
         return summary()
-    from distributed import as_completed
+    from distributed import KilledWorker, as_completed
     from tqdm import tqdm
 
     from .plugin import ScenarioPlugin
@@ -334,11 +387,14 @@ def sweep(
     )
     futures = []
     try:
-        with connect(scheduler, workers, processes) as client:
+        by_key: dict[object, RunSpec] = {}
+        with (
+            connect(scheduler, workers, processes, dashboard) as client,
+            _watch_workers(client, by_key, lost),
+        ):
             plugin = hashlib.sha256("".join(sorted(archives)).encode()).hexdigest()[:16]
-            client.register_plugin(ScenarioPlugin(archives), name=f"orchestrate-campaign-{plugin}")
+            client.register_plugin(ScenarioPlugin(archives, limits), name=f"orchestrate-campaign-{plugin}")
             n_workers = len(client.scheduler_info(n_workers=-1)["workers"])
-            by_key = {}
             phase[0] = phase[1] = time.perf_counter()
             for spec in todo:
                 future = client.submit(
@@ -350,9 +406,13 @@ def sweep(
                 spec = by_key[future.key]
                 try:
                     outcome = future.result()
-                except Exception as exc:  # the worker died (e.g. an FMU crashed its process)
+                except KilledWorker as exc:  # the run killed every worker it ran on (an FMU crash)
                     reason = " ".join(f"worker lost: {type(exc).__name__}: {exc}".split())
                     outcome = RunOutcome(spec.index, FAILED, reason, float("nan"))
+                except Exception as exc:  # noqa: BLE001 - the cluster, not the run: not run, no row
+                    not_run.append((spec, " ".join(f"{type(exc).__name__}: {exc}".split())))
+                    future.release()
+                    continue
                 future.release()
                 if outcome.trajectory is not None:
                     _write_trajectory(out / TRAJECTORY_DIR, spec, outcome.trajectory)

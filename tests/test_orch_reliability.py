@@ -1,0 +1,402 @@
+"""Reliability, second pass (issue 20): the reproducers of the attack, one test per finding, each of
+which failed on the main branch of 2026-11-26 (the line it gave there is quoted).
+
+Every archive is generated here from the small test FMUs (tests/fmus) or from a tiny C FMU
+compiled here (tests/c_fmu.py); nothing binary is committed. Oracles: the values the scenario
+itself sets (a host file's ``gain.k = 99`` must never reach the run), the ramp's exact solution
+x(t) = n t, the kernel's peak resident size (``wait4``), the sidecar's row count against the CSV
+on disk.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+import zipfile
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+from c_fmu import build_ramp, compiler, ramp_scenario
+from orch_helpers import loop_scenario, write_zip, zip_members
+
+from orchestrator.cli import main
+from orchestrator.provenance import read_provenance
+from orchestrator.ssp import SSD_NAME
+
+pytestmark = pytest.mark.system
+
+ORCHESTRATE = Path(sys.executable).with_name("orchestrate")
+needs_cc = pytest.mark.skipif(compiler() is None, reason="no C compiler (cc)")
+
+
+def orchestrate(*args: str, tmp: Path, timeout: float = 120, **kwargs) -> subprocess.CompletedProcess:
+    """``orchestrate ARGS`` in a new process whose temporary folder is ``tmp``."""
+    env = {**os.environ, "TMPDIR": str(tmp)}
+    return subprocess.run([str(ORCHESTRATE), *args], capture_output=True, text=True, env=env,
+                          timeout=timeout, **kwargs)
+
+
+def one_line(stderr: str) -> str:
+    """The single line of ``stderr`` (fails on a traceback or several lines)."""
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in stderr, stderr
+    return lines[0]
+
+
+@pytest.fixture(scope="module")
+def loop(test_fmus, tmp_path_factory) -> Path:
+    return loop_scenario(tmp_path_factory.mktemp("loop") / "loop", test_fmus, stop=0.1)
+
+
+@pytest.fixture(scope="module")
+def ramp(tmp_path_factory) -> Path:
+    if compiler() is None:
+        pytest.skip("no C compiler (cc)")
+    folder = tmp_path_factory.mktemp("ramp")
+    return ramp_scenario(folder / "ramp", build_ramp(folder / "fmu"), stop=1.0, step=1e-3)
+
+
+def variant(loop: Path, dest: Path, ssd: tuple[str, str] | None = None, drop: tuple[str, ...] = (),
+            replace: dict[str, bytes] | None = None) -> Path:
+    """``loop`` with one SSD text replaced, members dropped, members replaced."""
+    files = {n: d for n, d in zip_members(loop).items() if n not in drop}
+    if ssd is not None:
+        text = files[SSD_NAME].decode()
+        assert ssd[0] in text
+        files[SSD_NAME] = text.replace(ssd[0], ssd[1], 1).encode()
+    files.update(replace or {})
+    return write_zip(dest, files)
+
+
+def host_ssv(loop: Path, path: Path) -> Path:
+    """A parameter file outside any archive that would set gain.k = 99."""
+    text = zip_members(loop)["gain.ssv"].decode()
+    assert 'value="-2.0"' in text
+    path.write_text(text.replace('value="-2.0"', 'value="99.0"'))
+    return path
+
+
+# -- 1. references that leave the scenario -------------------------------------------------------------
+@pytest.mark.parametrize("case", ["absolute", "dotdot", "url", "fmu_on_host", "symlink_in_folder"])
+def test_references_outside_the_scenario_are_refused(case, loop, test_fmus, tmp_path, capsys):
+    """main: the host file's values were applied (validate said ok, run exit 0 with gain.k = 99),
+    and an archive without its FMU ran the one the SSD named on the host (native code)."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    host = host_ssv(loop, tmp / "host.ssv")  # '../host.ssv' from the extraction folder in TMPDIR
+    binding = 'source="gain.ssv"'
+    if case == "symlink_in_folder":
+        folder = tmp_path / "folder"
+        folder.mkdir()
+        for name, data in zip_members(loop).items():
+            (folder / name).parent.mkdir(parents=True, exist_ok=True)
+            (folder / name).write_bytes(data)
+        (folder / "gain.ssv").unlink()
+        (folder / "gain.ssv").symlink_to(host)
+        scenario, reference = folder, "gain.ssv"
+    elif case == "fmu_on_host":
+        reference = str(test_fmus["Gain"])
+        scenario = variant(loop, tmp_path / "s.ssp", ('source="resources/Gain.fmu"', f'source="{reference}"'),
+                           drop=("resources/Gain.fmu",))
+    else:
+        reference = {"absolute": str(host), "dotdot": "../host.ssv", "url": f"file://{host}"}[case]
+        scenario = variant(loop, tmp_path / "s.ssp", (binding, f'source="{reference}"'))
+    assert main(["validate", str(scenario)]) == 1
+    out = capsys.readouterr().out.splitlines()
+    assert any(line.startswith("error: ") and f"reference '{reference}'" in line for line in out), out
+    csv = tmp_path / "r.csv"
+    r = orchestrate("run", str(scenario), "--output", str(csv), "--no-plot", "--quiet", tmp=tmp)
+    line = one_line(r.stderr)
+    assert r.returncode == 1 and f"reference '{reference}'" in line and "only reference files inside" in line
+    assert not csv.exists()
+
+
+def test_sweep_refuses_references_outside_and_honours_the_limits(loop, tmp_path, capsys):
+    """main: sweep has no --max-* option and ran the host's values; its plan reads like run."""
+    design = tmp_path / "design.json"
+    design.write_text(json.dumps({"stop_time": 0.05, "grid": {"gain.k": [-1.0, -2.0]}}))
+    scenario = variant(loop, tmp_path / "s.ssp", ('source="gain.ssv"', 'source="/etc/passwd"'))
+    assert main(["sweep", str(scenario), "--design", str(design), "--out", str(tmp_path / "o")]) == 1
+    assert "reference '/etc/passwd' is an absolute path" in capsys.readouterr().err
+    assert main(["sweep", str(loop), "--design", str(design), "--out", str(tmp_path / "o"),
+                 "--max-members", "3"]) == 1
+    assert "7 members, above the limit of 3 (--max-members)" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_run_honours_the_archive_limits(loop, tmp_path):
+    """main: run ignored --max-members (exit 0), though its own refusals name the option."""
+    r = orchestrate("run", str(loop), "--max-members", "3", "--output", str(tmp_path / "r.csv"), "--no-plot",
+                    tmp=tmp_path)
+    assert r.returncode == 1
+    assert one_line(r.stderr).endswith("loop.ssp: 7 members, above the limit of 3 (--max-members)")
+
+
+# -- 2. one error path for reading ------------------------------------------------------------------
+def _fmu_with(fmu: Path, extra: dict[str, bytes] | None = None, corrupt: bool = False) -> bytes:
+    """``fmu``'s bytes with members added, or with a byte of its largest member's data flipped (its
+    CRC no longer matches: what a member whose declared size lies gives too)."""
+    files = {**zip_members(fmu), **(extra or {})}
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_STORED if corrupt else zipfile.ZIP_DEFLATED) as zf:
+        for name, content in files.items():
+            zf.writestr(name, content)
+    data = bytearray(buffer.getvalue())
+    if corrupt:
+        with zipfile.ZipFile(io.BytesIO(bytes(data))) as zf:
+            big = max(zf.infolist(), key=lambda i: i.compress_size)
+            header = 30 + len(big.filename.encode()) + len(big.extra)  # the local header before the data
+            offset = big.header_offset + header + big.compress_size // 2
+        data[offset] ^= 0xFF
+    return bytes(data)
+
+
+@pytest.mark.parametrize(("case", "expected"), [
+    ("backslash", "member 'resources\\evil.txt' has a backslash or a colon in its name"),
+    ("colon", "member 'resources/c:evil.txt' has a backslash or a colon in its name"),
+    ("crc", "Bad CRC-32 for file"),
+])
+def test_fmu_members_fmpy_refuses_are_one_line(case, expected, loop, test_fmus, tmp_path, capsys):
+    """main: run gave fmpy's ``Exception: Illegal path ...`` or ``BadZipFile: Bad CRC-32`` as a
+    traceback; validate said ok."""
+    extra = {"backslash": {"resources\\evil.txt": b"x"}, "colon": {"resources/c:evil.txt": b"x"}}.get(case)
+    fmu = _fmu_with(test_fmus["Gain"], extra, corrupt=case == "crc")
+    scenario = variant(loop, tmp_path / "s.ssp", replace={"resources/Gain.fmu": fmu})
+    assert main(["validate", str(scenario)]) == 1
+    errors = [line for line in capsys.readouterr().out.splitlines() if line.startswith("error: ")]
+    assert len(errors) == 1 and expected in errors[0] and "Gain.fmu" in errors[0], errors
+    r = orchestrate("run", str(scenario), "--output", str(tmp_path / "r.csv"), "--no-plot", tmp=tmp_path)
+    line = one_line(r.stderr)
+    assert r.returncode == 1 and expected in line and "Gain.fmu" in line
+
+
+def test_undecodable_ssv_is_one_line_naming_the_file(loop, tmp_path, capsys):
+    """main: validate raised lxml's OSError (traceback); run said 'cannot write the results'."""
+    ssv = zip_members(loop)["gain.ssv"].replace(b'name="k"', b'name="k\xff\xfe"')
+    scenario = variant(loop, tmp_path / "s.ssp", replace={"gain.ssv": ssv})
+    assert main(["validate", str(scenario)]) == 1
+    errors = [line for line in capsys.readouterr().out.splitlines() if line.startswith("error: ")]
+    assert errors == [f"error: {scenario}:{SSD_NAME}: gain.ssv: cannot be read: Error reading file "
+                      f"'{errors[0].split(chr(39))[1]}': Invalid bytes in character encoding"], errors
+    r = orchestrate("run", str(scenario), "--output", str(tmp_path / "r.csv"), "--no-plot", tmp=tmp_path)
+    line = one_line(r.stderr)
+    assert r.returncode == 1 and "gain.ssv: cannot be read" in line and "cannot write" not in line
+
+
+@pytest.mark.parametrize(("step", "stop"), [("1e-10", "1"), ("0", "1")])
+def test_a_step_from_the_ssd_is_never_blamed_on_an_option(step, stop, loop, tmp_path):
+    """main: 'orchestrate: error: --stop-time: the communication step must be positive and at least
+    1 ns' (exit 2) for a step the SSD gave; an SSD step of 0 silently became 1 ms (exit 0)."""
+    text = zip_members(loop)[SSD_NAME].decode()
+    files = {**zip_members(loop), SSD_NAME: text.replace('stepSize="0.01"', f'stepSize="{step}"')
+             .replace('baseStepSize="0.01"', f'baseStepSize="{step}"').encode()}
+    scenario = write_zip(tmp_path / "s.ssp", files)
+    r = orchestrate("run", str(scenario), "--stop-time", stop, "--output", str(tmp_path / "r.csv"),
+                    "--no-plot", tmp=tmp_path)
+    line = one_line(r.stderr)
+    assert r.returncode == 1, line
+    assert line.startswith(f"orchestrate: error: {scenario}:{SSD_NAME}: the communication step must be "
+                           "positive"), line
+    assert "--stop-time" not in line
+
+
+# -- 3. bounded everything ----------------------------------------------------------------------------
+@needs_cc
+@pytest.mark.parametrize("value", ["2147483648", "-2147483649", "4294967296", "99999999999999999999"])
+def test_integers_beyond_int32_are_refused_before_the_run(value, ramp, tmp_path):
+    """main: the value wrapped around in fmi2SetInteger (4294967296 ran as 0: x stayed 0, exit 0)."""
+    csv = tmp_path / "r.csv"
+    r = orchestrate("run", str(ramp), "--set", f"ramp.n={value}", "--output", str(csv), "--no-plot",
+                    tmp=tmp_path)
+    assert r.returncode == 1
+    assert one_line(r.stderr) == (f"orchestrate: error: --set: ramp.n = {int(value)} is outside the range of "
+                                  "an FMI Integer (-2147483648 .. 2147483647)")
+    assert not csv.exists()
+    ssv = tmp_path / "p.ssv"
+    ssv.write_text('<?xml version="1.0" encoding="UTF-8"?>\n<ssv:ParameterSet xmlns:ssv="http://ssp-standard'
+                   '.org/SSP1/SystemStructureParameterValues" version="1.0" name="p"><ssv:Parameters>'
+                   f'<ssv:Parameter name="ramp.n"><ssv:Integer value="{value}"/></ssv:Parameter>'
+                   '</ssv:Parameters></ssv:ParameterSet>\n')
+    r = orchestrate("run", str(ramp), "--parameter-set", str(ssv), "--output", str(csv), "--no-plot",
+                    tmp=tmp_path)  # a file: the SSV schema's xs:int already refuses it (also on main)
+    assert r.returncode == 1
+    assert f"'{value}' is not a valid value of the atomic type 'xs:int'" in one_line(r.stderr)
+
+
+@needs_cc
+def test_the_int32_limits_themselves_run(ramp, tmp_path):
+    """The oracle x(1 s) = n * 1 s at both ends of the int32 range."""
+    for n in (2147483647, -2147483648):
+        csv = tmp_path / f"r{n}.csv"
+        r = orchestrate("run", str(ramp), "--set", f"ramp.n={n}", "--output", str(csv), "--no-plot",
+                        "--quiet", tmp=tmp_path)
+        assert r.returncode == 0, r.stderr
+        last = csv.read_text().splitlines()[-1].split(",")
+        assert float(last[0]) == 1.0 and float(last[1]) == pytest.approx(n, rel=1e-9)
+
+
+@pytest.mark.parametrize("case", ["fifo", "empty", "device", "folder"])
+def test_an_output_that_is_not_a_regular_file_is_refused_up_front(case, loop, tmp_path):
+    """main: a FIFO with no reader hung the run (before its first step); '' and /dev/zero tracebacks
+    or writes in place."""
+    target = {"fifo": tmp_path / "pipe.csv", "empty": "", "device": "/dev/zero", "folder": tmp_path}[case]
+    if case == "fifo":
+        os.mkfifo(target)
+    r = orchestrate("run", str(loop), "--output", str(target), "--no-plot", tmp=tmp_path, timeout=60)
+    line = one_line(r.stderr)
+    assert r.returncode == 1 and line.startswith("orchestrate: error: cannot write the results: "), line
+    assert {"fifo": "is a FIFO", "empty": "Is a directory", "device": "is a device",
+            "folder": "Is a directory"}[case] in line
+    assert os.devnull == "/dev/null"  # still allowed: written in place
+    r = orchestrate("run", str(loop), "--output", os.devnull, "--no-plot", "--quiet", tmp=tmp_path)
+    assert r.returncode == 0, r.stderr
+
+
+def _peak(*args: str, tmp: Path) -> tuple[int, str]:
+    """Run ``orchestrate ARGS``: its peak resident size in KiB and its stderr."""
+    with open(tmp / "stderr.txt", "w+") as err:
+        process = subprocess.Popen([str(ORCHESTRATE), *args], stdout=subprocess.DEVNULL, stderr=err,
+                                   env={**os.environ, "TMPDIR": str(tmp)})
+        _, status, usage = os.wait4(process.pid, 0)
+        process.returncode = os.waitstatus_to_exitcode(status)
+        err.seek(0)
+        return usage.ru_maxrss, f"{process.returncode}\n{err.read()}"
+
+
+@needs_cc
+def test_results_stream_with_flat_memory_for_any_run_length(ramp, tmp_path):
+    """1e4 and 1e6 steps of the ramp: the same peak resident size (within 8 MiB) and every row on
+    disk (x = t, exactly as the FMU sums it: |x - t| < 1e-6 after 1e6 steps of 1 ms)."""
+    peaks = {}
+    for steps in (10_000, 1_000_000):
+        csv = tmp_path / f"r{steps}.csv"
+        peaks[steps], status = _peak("run", str(ramp), "--stop-time", str(steps / 1000), "--output", str(csv),
+                                     "--no-plot", "--quiet", tmp=tmp_path)
+        assert status.startswith("0\n"), status
+        with csv.open() as f:
+            count = sum(1 for _ in f)
+        assert count == steps + 2  # header, t0, one row per step
+        time_, x = map(float, csv.read_text()[-200:].splitlines()[-1].split(","))
+        assert time_ == steps / 1000 and abs(x - time_) < 1e-6
+    assert peaks[1_000_000] - peaks[10_000] < 8 * 1024, peaks
+
+
+@needs_cc
+def test_a_run_of_1e12_steps_streams_its_rows_as_it_goes(ramp, tmp_path):
+    """main: '--stop-time 1e9' allocated the preview buffer for 1e12 rows up front (MemoryError, a
+    traceback; 1.51 TiB for example1) or, below that, held every row until a bucket of 5e8 rows
+    filled: nothing reached the CSV while it ran. Now rows reach the disk as it runs; SIGTERM then
+    keeps every row computed and the sidecar counts the rows on disk."""
+    csv = tmp_path / "r.csv"
+    env = {**os.environ, "TMPDIR": str(tmp_path)}
+    process = subprocess.Popen([str(ORCHESTRATE), "run", str(ramp), "--stop-time", "1e9", "--output",
+                                str(csv), "--no-plot", "--quiet"], stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        deadline = time.monotonic() + 300  # a bound for main, where the rows never come (not a speed limit)
+        grew = False
+        while not grew and time.monotonic() < deadline and process.poll() is None:
+            parts = list(tmp_path.glob(".r.csv.*.part"))
+            grew = bool(parts) and parts[0].stat().st_size > 100_000
+            time.sleep(0.05)
+        assert grew
+        process.send_signal(signal.SIGTERM)
+        _, stderr = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 143 and "interrupted by SIGTERM" in one_line(stderr)
+    rows = csv.read_text().count("\n") - 1
+    record = read_provenance(csv)
+    assert record is not None and record["status"] == "interrupted" and record["rows"] == rows > 1000
+
+
+# -- kill -9: the sidecar and the temporary files ------------------------------------------------------
+@needs_cc
+def test_a_killed_run_is_not_running_forever_and_its_leftovers_go(ramp, tmp_path):
+    """main: after kill -9 the sidecar said 'running' for ever, and the extracted archive and FMUs
+    (ssp-*, orchestrate-*) stayed in TMPDIR (about 4 MB per kill)."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    csv = tmp_path / "r.csv"
+    process = subprocess.Popen([str(ORCHESTRATE), "run", str(ramp), "--stop-time", "1e6", "--output",
+                                str(csv), "--no-plot", "--quiet"], env={**os.environ, "TMPDIR": str(tmp)},
+                               start_new_session=True)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not (list(tmp.glob("orchestrate-*")) and
+                                               (read_provenance(csv) or {}).get("status") == "running"):
+        time.sleep(0.1)
+    left = sorted(p.name for p in tmp.iterdir())
+    assert any(n.startswith("ssp-") for n in left) and any(n.startswith("orchestrate-") for n in left), left
+    os.killpg(process.pid, signal.SIGKILL)  # the run and its CSV writer
+    process.wait()
+    record = read_provenance(csv)
+    assert record is not None and record["status"] == "failed" and record["rows"] is None
+    assert f"pid {process.pid}" in record["message"]
+    r = orchestrate("run", str(ramp), "--output", str(tmp_path / "again.csv"), "--no-plot", "--quiet",
+                    tmp=tmp)
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in tmp.iterdir()) == []  # the dead run's folders were removed
+
+
+# -- signals at any moment --------------------------------------------------------------------------------
+def _mapped(pid: int, name: str) -> bool:
+    try:
+        return name in Path(f"/proc/{pid}/maps").read_text()
+    except OSError:
+        return False
+
+
+MOMENTS: dict[str, Callable[[int, Path], bool]] = {
+    "importing": lambda pid, tmp: _mapped(pid, "_multiarray_umath"),  # numpy, imported after the guard
+    "unpacking": lambda pid, tmp: bool(list(tmp.glob("ssp-*"))),
+    "stepping": lambda pid, tmp: any(p.stat().st_size > 2000 for p in tmp.parent.glob(".r.csv.*.part")),
+}
+
+
+@pytest.mark.parametrize("moment", list(MOMENTS))
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_sigint_and_sigterm_at_any_moment_are_one_line(moment, signum, loop, tmp_path):
+    """main: SIGINT while importing printed a KeyboardInterrupt traceback (death by signal);
+    SIGTERM died silently."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    process = subprocess.Popen([str(ORCHESTRATE), "run", str(loop), "--stop-time", "60", "--output",
+                                str(tmp_path / "r.csv"), "--no-plot", "--quiet"], stderr=subprocess.PIPE,
+                               text=True, env={**os.environ, "TMPDIR": str(tmp)})
+    deadline = time.monotonic() + 60
+    while not MOMENTS[moment](process.pid, tmp):
+        assert time.monotonic() < deadline and process.poll() is None
+        time.sleep(0.002)
+    process.send_signal(signum)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 128 + signum
+    line = one_line(stderr)
+    assert signal.Signals(signum).name in line and line.startswith("orchestrate: ")
+
+
+# -- found by the second attack (bad command lines) ---------------------------------------------------------
+def test_bad_plot_ratio_and_design_files_are_one_line(loop, tmp_path, capsys):
+    """main: '--plot x.csv' (matplotlib's ValueError) and a design file that is not UTF-8
+    (UnicodeDecodeError) were tracebacks; '--max-ratio nan' disabled the ratio check silently;
+    a FIFO as --plot would have blocked after the run."""
+    fifo = tmp_path / "plot.png"
+    os.mkfifo(fifo)
+    base = ["run", str(loop), "--output", str(tmp_path / "r.csv"), "--quiet"]
+    with pytest.raises(SystemExit) as exit_info:
+        main([*base, "--plot", str(tmp_path / "p.csv")])
+    assert exit_info.value.code == 2 and "cannot write 'csv' images" in capsys.readouterr().err
+    assert main([*base, "--plot", str(fifo)]) == 1
+    assert "is a FIFO" in capsys.readouterr().err and not (tmp_path / "r.csv").exists()
+    with pytest.raises(SystemExit) as exit_info:
+        main([*base, "--no-plot", "--max-ratio", "nan"])
+    assert exit_info.value.code == 2 and "not a ratio: 'nan'" in capsys.readouterr().err
+    design = tmp_path / "design.json"
+    design.write_bytes(b"\xff\xfe{}")
+    assert main(["sweep", str(loop), "--design", str(design), "--out", str(tmp_path / "o")]) == 2
+    assert "cannot read the design: not UTF-8 text" in capsys.readouterr().err
