@@ -26,10 +26,13 @@ class Metrics:
     """Metric columns of a campaign: ``function(result, params)`` returns ``{name: value}`` for
     ``names``; ``params`` are the run's overrides plus ``stop_time`` and ``step``. The function must
     be importable on the workers (a module-level function), e.g. the paper's tracking metrics that
-    ``orchestrator.experiments.campaigns`` plugs in."""
+    ``orchestrator.experiments.campaigns`` plugs in. ``partial``: the names that keep their meaning
+    on the rows a failed run computed before it stopped (e.g. a peak so far); a failed run's row
+    gets those, computed on its partial result, and no other."""
 
     names: tuple[str, ...]
     function: Callable[[np.ndarray, Mapping[str, object]], Mapping[str, float]]
+    partial: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -130,6 +133,7 @@ def run_variant(spec: RunSpec, metrics: Metrics | None = None) -> RunOutcome:
             FAILED,
             _one_line(f"{reason}; {rows} rows computed"),
             time.perf_counter() - started,
+            _partial_metrics(metrics, partial, spec) if partial is not None and rows else {},
             trajectory=_decimate(partial, spec.keep_every) if partial is not None and rows else None,
         )
     except OrchestratorError as exc:
@@ -151,6 +155,18 @@ def run_variant(spec: RunSpec, metrics: Metrics | None = None) -> RunOutcome:
             status, reason = FAILED, _one_line(f"metrics: {exc}")
             values = {}
     return RunOutcome(spec.index, status, reason, wall, values, _decimate(result, spec.keep_every))
+
+
+def _partial_metrics(metrics: Metrics | None, partial: np.ndarray, spec: RunSpec) -> dict[str, float]:
+    """The metrics named ``metrics.partial`` on a failed run's rows (none if they cannot be computed)."""
+    if metrics is None or not metrics.partial:
+        return {}
+    params = {**spec.overrides, "stop_time": spec.stop_time, "step": spec.step}
+    try:
+        values = metrics.function(partial, params)
+    except (ValueError, ArithmeticError, KeyError):
+        return {}
+    return {k: float(values[k]) for k in metrics.partial if k in values}
 
 
 def _decimate(result: np.ndarray, every: int | None) -> np.ndarray | None:
