@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 ORCH   := $(VENV)/bin/orchestrate
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test unit build lint crosscheck table study report baselines bench clean
+.PHONY: run test unit build lint crosscheck table study study-fixed-time report baselines bench clean
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -51,6 +51,11 @@ table: $(STAMP)
 ## study: the alpha/beta experiment behind the defaults (about 10 minutes)
 study: $(STAMP)
 	$(PY) -m orchestrator.experiments.alpha_beta_study
+
+## study-fixed-time: the fixed-time claim over [-10, 10]^2 (issue 24): campaigns + continuous law,
+## table and figures into results/study-fixed-time/ and docs/fixed-time-study/; prints its wall time
+study-fixed-time: build
+	$(PY) -m orchestrator.experiments.fixed_time_study --docs docs/fixed-time-study
 
 ## report: results/report/report.md with the paper's figures, tables and the settling study
 report: build
