@@ -17,6 +17,7 @@ from .models.plants import (
     MAX_STEPS,
     RK4,
     STATE_LIMIT,
+    Y_LIMIT,
     RightHandSide,
     State,
     dopri_hold_step,
@@ -62,8 +63,8 @@ def declare_plant_outputs(slave: Fmi2Slave, x1_unit: str | None, x2_unit: str | 
 
 def declare_integrator(slave: Fmi2Slave) -> None:
     """Register ``max_step`` and, after every other variable (value references are a contract),
-    ``method``, ``rtol`` and ``atol``, then the fail-fast bounds ``state_limit`` and
-    ``max_steps``, with their defaults."""
+    ``method``, ``rtol`` and ``atol``, then the fail-fast bounds ``state_limit``, ``max_steps``
+    and ``y_limit``, with their defaults."""
     parameter = Fmi2Causality.parameter
     slave.max_step = DEFAULT_MAX_STEP
     slave.method = DOPRI
@@ -71,6 +72,7 @@ def declare_integrator(slave: Fmi2Slave) -> None:
     slave.atol = DEFAULT_ATOL
     slave.state_limit = STATE_LIMIT
     slave.max_steps = MAX_STEPS
+    slave.y_limit = Y_LIMIT
     slave.state = None
     slave._method = DOPRI  # resolved at exit_initialization_mode
     slave._next_step = 0.0  # Dormand-Prince step size carried to the next communication step
@@ -112,6 +114,14 @@ def declare_integrator(slave: Fmi2Slave) -> None:
         integer=True,
         minimum=1,
     )
+    declare(
+        slave,
+        "y_limit",
+        parameter,
+        "Range of validity of the output y = x1: |x1| above it ends the step with fmi2Discard "
+        "(fail fast on a finite escape)",
+        minimum=0.0,
+    )
 
 
 def resolved_method(slave: Fmi2Slave) -> int:
@@ -137,6 +147,10 @@ def plant_problems(slave: Fmi2Slave) -> list[str]:
         problems.append(f"state_limit must satisfy state_limit > 0 (got {slave.state_limit!r})")
     if slave.max_steps < 1:
         problems.append(f"max_steps must satisfy max_steps >= 1 (got {slave.max_steps!r})")
+    if not slave.y_limit > 0.0:  # +inf: no limit
+        problems.append(f"y_limit must satisfy y_limit > 0 (got {slave.y_limit!r})")
+    elif not abs(slave.x1_0) <= slave.y_limit:
+        problems.append(f"x1_0 must satisfy |x1_0| <= y_limit = {slave.y_limit!r} (got {slave.x1_0!r})")
     return problems
 
 
@@ -159,8 +173,8 @@ def step_plant(slave: Fmi2Slave, rhs: RightHandSide, current_time: float, step_s
     """Advance over [t, t + h] with ``slave.uf`` held.
 
     Returns False (fmi2Discard, with a logged reason) if the states stop being finite, leave
-    ``state_limit`` or the integrator spends its ``max_steps`` (the states of the last good step
-    stay).
+    ``state_limit`` (x1: ``y_limit``) or the integrator spends its ``max_steps`` (the states of the
+    last good step stay).
     """
     new: State
     limit = slave.state_limit
@@ -168,7 +182,7 @@ def step_plant(slave: Fmi2Slave, rhs: RightHandSide, current_time: float, step_s
         if slave._method == DOPRI:
             new, slave._next_step, _, _ = dopri_hold_step(
                 rhs, current_time, slave.state, slave.uf, step_size, slave.rtol, slave.atol, slave._next_step,
-                limit, slave.max_steps,
+                limit, slave.max_steps, slave.y_limit,
             )
         else:
             new = hold_step(rhs, current_time, slave.state, slave.uf, step_size, slave.max_step)
@@ -179,9 +193,11 @@ def step_plant(slave: Fmi2Slave, rhs: RightHandSide, current_time: float, step_s
             "step rejected (fmi2Discard)",
         )
         return False
-    if not (abs(new[0]) <= limit and abs(new[1]) <= limit and abs(new[2]) <= limit):  # nan too
+    y_limit = slave.y_limit
+    if not (abs(new[0]) <= min(limit, y_limit) and abs(new[1]) <= limit and abs(new[2]) <= limit):  # nan too
         finite = all(map(math.isfinite, new))
-        problem = f"state beyond state_limit {limit:g}" if finite else "non-finite state"
+        bound = f"y_limit {y_limit:g}" if abs(new[0]) > y_limit else f"state_limit {limit:g}"
+        problem = f"state beyond {bound}" if finite else "non-finite state"
         report(
             slave,
             f"{problem} {new} at t = {current_time + step_size!r} "

@@ -110,6 +110,35 @@ def test_an_escaping_state_stops_at_the_state_limit() -> None:
     assert 100 / (3e4 + 10) <= t <= 100 / (1e4 - 10)
 
 
+def test_an_escaping_output_stops_at_y_limit() -> None:
+    """The same held uf = 1e4 from x1 = 1: x1' = (2 + sin x1) x2 with x2 ~ 1e4 t, so x1 passes 5
+    (|x1| > y_limit = 5) while x2 is still far below state_limit; the message names y_limit."""
+    with pytest.raises(StateLimitError, match="y_limit 5 "):
+        dopri_hold_step(example1_rhs, 0.0, (1.0, 0.0, 0.0), 1e4, 0.1, 1e-10, 1e-12, 0.0, 1e4, y_limit=5.0)
+
+
+@pytest.mark.system
+def test_the_plant_fmu_fails_fast_on_a_diverging_run(fmus: dict, caplog: pytest.LogCaptureFixture) -> None:
+    """The explicit fixed-time law's first sample from (-10, -10), 1.07e7, held on the Example 1 FMU:
+    the first doStep ends in fmi2Discard after at most max_steps integrator steps (the message says
+    which bound), not after the old 100 000; a finite escape of the output ends at y_limit."""
+    import logging
+
+    from fmpy import simulate_fmu
+
+    with caplog.at_level(logging.ERROR, logger="fixed_time_cosim.fmu"):
+        result = simulate_fmu(fmus["Example1Plant"], stop_time=0.01, output_interval=1e-3,
+                              start_values={"uf": 1.07e7, "x1_0": -10.0, "x2_0": -10.0})
+    assert len(result) <= 2
+    assert "step budget of 50000 integrator steps" in caplog.text or "state_limit 10000" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.ERROR, logger="fixed_time_cosim.fmu"):
+        result = simulate_fmu(fmus["Example1Plant"], stop_time=1.0, output_interval=1e-3,
+                              start_values={"uf": 100.0, "y_limit": 3.0})
+    assert "y_limit 3" in caplog.text and "step rejected (fmi2Discard)" in caplog.text
+    assert np.all(np.abs(result["x1"]) <= 3.0) and result["time"][-1] < 1.0
+
+
 def test_the_step_budget_ends_a_crawling_step() -> None:
     """A held uf of 1e7 from (-10, -10) (the explicit fixed-time law's first sample): the integrator
     needs more than 100 000 steps for the first millisecond; a budget of 500 ends it after 500."""

@@ -33,7 +33,7 @@ import numpy as np
 from controller.law import evaluate
 from controller.params import FINITE_TIME, FIXED_TIME, SEMI_IMPLICIT, ControllerParameters
 from fmu_src.models.examples import EXAMPLES, Example
-from fmu_src.models.plants import STATE_LIMIT
+from fmu_src.models.plants import STATE_LIMIT, Y_LIMIT
 from fmu_src.models.reference import reference_signal
 
 from ..campaign import read_table, sweep
@@ -64,6 +64,8 @@ CONTINUOUS_RTOL = 1e-6  # settling times within 1 ms of rtol 1e-8 on the states 
 LAWS = {FIXED_TIME: "fixed-time", FINITE_TIME: "finite-time"}
 SAMPLINGS = ("explicit", "semi-implicit", "continuous")
 DEFAULT_OUT = Path("results") / "study-fixed-time"
+# the figures committed under docs/ beside the table (the README shows them)
+DOC_FIGURES = ("example1_settling.png", "pendulum_settling.png", "example1_saturation.png")
 
 
 @dataclass(frozen=True)
@@ -113,7 +115,8 @@ def _example_without_fault(example: Example) -> Example:
 
 def continuous_cell(args: tuple[int, int, float, float]) -> Cell:
     """The continuous law (monolithic reference) from one initial state over :data:`HORIZON`; a
-    state beyond the plants' ``state_limit`` (the FMUs' fail-fast bound) counts as diverged."""
+    state beyond the plants' ``state_limit`` or ``y_limit`` (the FMUs' fail-fast bounds) counts as
+    diverged."""
     from scipy.integrate import solve_ivp
 
     from .closed_loop import _continuous_rhs, _outputs
@@ -125,7 +128,7 @@ def continuous_cell(args: tuple[int, int, float, float]) -> Cell:
     y0 = np.array([x1_0, x2_0, 0.0, params.r0, *params.eta0])
 
     def escape(t: float, y: np.ndarray, *_: object) -> float:
-        return STATE_LIMIT - max(abs(y[0]), abs(y[1]), abs(y[2]))
+        return min(STATE_LIMIT - max(abs(y[0]), abs(y[1]), abs(y[2])), Y_LIMIT - abs(y[0]))
 
     escape.terminal = True  # type: ignore[attr-defined]
     grid = np.arange(round(HORIZON / GRID) + 1) * GRID
@@ -506,13 +509,15 @@ def run_study(
         study_table(sat_configs, bounds),
         "T_m of eq. (83) (Example 1; the pendulum's gains give the same c and c_hat):",
         bound_table(bounds[1]),
-        "\n".join(f"![{f}]({f})" for f in figures),
-    ]) + "\n"
-    (out / "study.md").write_text(text, encoding="utf-8")
-    if docs is not None:
+    ]) + "\n\n"
+    (out / "study.md").write_text(text + "\n".join(f"![{f}]({f})" for f in figures) + "\n", encoding="utf-8")
+    if docs is not None:  # the table and the README's figures; the others are named, not copied
         docs.mkdir(parents=True, exist_ok=True)
-        (docs / "study.md").write_text(text, encoding="utf-8")
-        for f in figures:
+        links = [f"![{f}]({f})" for f in DOC_FIGURES] + [
+            f"`{(out / f).as_posix()}`" for f in figures if f not in DOC_FIGURES
+        ]
+        (docs / "study.md").write_text(text + "\n".join(links) + "\n", encoding="utf-8")
+        for f in DOC_FIGURES:
             (docs / f).write_bytes((out / f).read_bytes())
     return text
 
