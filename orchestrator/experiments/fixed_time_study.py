@@ -36,7 +36,7 @@ from fmu_src.models.examples import EXAMPLES, Example
 from fmu_src.models.plants import STATE_LIMIT, Y_LIMIT
 from fmu_src.models.reference import reference_signal
 
-from ..campaign import read_table, sweep
+from ..campaign import Design, read_design, read_table, sweep
 from ..campaign.report import colour_norm
 from .campaigns import BAND, TRACKING
 from .fixed_time_bound import FixedTimeBound, fixed_time_bound
@@ -369,11 +369,23 @@ def draw_distributions(panels: Sequence[tuple[str, Sequence[Cell]]], target: Pat
 
 
 # -- the study -------------------------------------------------------------------------------------
-def _campaign(designs: Sequence[Path], build: Path, out: Path, workers: int) -> list[dict[str, Any]]:
+def on_grid(design: Design, states: int) -> Design:
+    """The design's points whose initial state lies on the ``states`` x ``states`` grid over
+    [-10, 10]^2 (every other state of the 21 x 21 grid for 11): the same runs, fewer of them."""
+    grid = {round(v, 9) for v in np.linspace(-10.0, 10.0, states).tolist()}
+    i, j = design.columns.index("plant.x1_0"), design.columns.index("plant.x2_0")
+    points = tuple(p for p in design.points if round(p[i], 9) in grid and round(p[j], 9) in grid)
+    return replace(design, points=points)
+
+
+def _campaign(
+    designs: Sequence[Path], build: Path, out: Path, workers: int, states: int
+) -> list[dict[str, Any]]:
     rows: list[dict[str, Any]] = []
     archives = [build / "ssp" / f"{name}.ssp" for name in SCENARIOS.values()]
-    for design in designs:
-        summary = sweep(archives, design, out / design.stem, metrics=TRACKING, workers=workers, force=True)
+    for path in designs:
+        design = on_grid(read_design(path), states)
+        summary = sweep(archives, design, out / path.stem, metrics=TRACKING, workers=workers, force=True)
         rows += read_table(summary.parquet)[0]
     return rows
 
@@ -430,7 +442,13 @@ def _read_continuous(path: Path) -> dict[tuple[int, str], list[Cell]]:
 
 
 def run_study(
-    out: Path, docs: Path | None, build: Path, workers: int, continuous_states: int, report_only: bool = False
+    out: Path,
+    docs: Path | None,
+    build: Path,
+    workers: int,
+    continuous_states: int,
+    report_only: bool = False,
+    states: int = 21,
 ) -> str:
     """Run the whole study (or, with ``report_only``, read the tables an earlier run left in ``out``);
     write ``out/study.md`` and the figures (and copies of the table and the figures into ``docs``);
@@ -441,7 +459,7 @@ def run_study(
     if report_only:
         rows = [r for d in designs for r in read_table(out / d.stem / "runs.parquet")[0]]
     else:
-        rows = _campaign(designs, build, out, workers)
+        rows = _campaign(designs, build, out, workers, states)
     sampled_time = time.perf_counter() - started
     values = np.linspace(-10.0, 10.0, continuous_states).tolist()
     jobs = [(n, int(m), a, b) for n in SCENARIOS for m in LAWS for a in values for b in values]
@@ -482,9 +500,9 @@ def run_study(
         figures.append(name)
         limits = sorted({u for n, u in saturated if n == number})
         sat_panels = [(f"u_max = {u:g}", saturated[(number, u)]) for u in limits]
-        states = {(c.x1_0, c.x2_0) for _, cells in sat_panels for c in cells}  # the saturation grid
+        sat_states = {(c.x1_0, c.x2_0) for _, cells in sat_panels for c in cells}  # its grid
         unlimited = configurations[(number, "fixed-time", "explicit")]
-        sat_panels.append(("no limit", [c for c in unlimited if (c.x1_0, c.x2_0) in states]))
+        sat_panels.append(("no limit", [c for c in unlimited if (c.x1_0, c.x2_0) in sat_states]))
         name = f"{tag}_saturation.png"
         draw_maps(sat_panels, "settling", "settling time (s), band 0.05", out / name,
                   title=f"{example.name}: fixed-time law, explicit sampling, actuator limit u_max")
@@ -503,7 +521,9 @@ def run_study(
         f"Wall time {timing['wall']:.0f} s ({timing['sampled']:.0f} s for the {timing['runs']} co-simulation "
         f"runs, {timing['wall'] - timing['sampled']:.0f} s for the {timing['continuous_runs']} runs of the "
         f"continuous law and the figures), {timing['workers']} worker processes. Horizon {HORIZON:g} s, "
-        f"band {BAND:g}.",
+        f"band {BAND:g}; initial states on a {states} x {states} grid over [-10, 10]^2 (saturation: "
+        f"{min(states, 11)} x {min(states, 11)}, the continuous law: {continuous_states} x "
+        f"{continuous_states}).",
         study_table(configurations, bounds),
         "Saturation (beyond the paper; peak abs(v) is the controller's command, before the limit):",
         study_table(sat_configs, bounds),
@@ -532,11 +552,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=2, help="processes (default 2)")
     parser.add_argument("--continuous-states", type=int, default=11,
                         help="grid points per axis for the continuous law (default 11)")
+    parser.add_argument("--states", type=int, default=21, choices=(3, 6, 11, 21),
+                        help="grid points per axis of the sampled runs: the designs' 21, or a subgrid "
+                             "of it (default 21)")
     parser.add_argument("--report-only", action="store_true",
                         help="redraw the table and figures from the tables of an earlier run in --out")
     args = parser.parse_args(argv)
     started = time.perf_counter()
-    text = run_study(args.out, args.docs, args.build, args.workers, args.continuous_states, args.report_only)
+    text = run_study(args.out, args.docs, args.build, args.workers, args.continuous_states, args.report_only,
+                     args.states)
     print(text)
     print(f"study-fixed-time: wall time {time.perf_counter() - started:.0f} s")
     return 0
