@@ -328,3 +328,18 @@ def test_campaign_heat_maps_share_one_scale_and_name_failures_below(tmp_path) ->
         plt.Figure.colorbar, plt.Figure.legend = colorbar, legend  # type: ignore[method-assign]
     assert len(bars) == 1 and (bars[0].vmin, bars[0].vmax) == (0.0, 1.5)
     assert legends == [["failed (x): 1", "settling_time infinite (o): 1"]]
+
+
+def test_a_subgrid_keeps_the_designs_runs_on_every_other_state() -> None:
+    """--states 11 on the shipped 21 x 21 design: the states -10, -8, ..., 10 on both axes, each with
+    all four (law, sampling) variants, and nothing else; 21 keeps the design."""
+    from orchestrator.campaign import read_design
+    from orchestrator.experiments.fixed_time_study import STUDY_DESIGN, on_grid
+
+    design = read_design(STUDY_DESIGN)
+    sub = on_grid(design, 11)
+    i, j = design.columns.index("plant.x1_0"), design.columns.index("plant.x2_0")
+    assert len(design) == 21 * 21 * 4 and len(sub) == 11 * 11 * 4
+    assert {p[i] for p in sub.points} == {p[j] for p in sub.points} == {float(v) for v in range(-10, 11, 2)}
+    assert set(sub.points) <= set(design.points)
+    assert on_grid(design, 21) == design
