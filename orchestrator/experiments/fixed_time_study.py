@@ -349,13 +349,14 @@ def draw_distributions(panels: Sequence[tuple[str, Sequence[Cell]]], target: Pat
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7.5, 4.2))
-    for name, cells in panels:
+    for index, (name, cells) in enumerate(panels):
+        style = ("-", "--", ":")[index % 3]  # equal curves (one law, two samplings) stay visible
         times = sorted(c.settling for c in cells if c.outcome == "settled")
         if not times:
-            ax.plot([], [], label=f"{name}: none settles")
+            ax.plot([], [], style, label=f"{name}: none settles")
             continue
         share = np.arange(1, len(times) + 1) / len(cells)
-        ax.step(times, share, where="post", label=f"{name} ({len(times)}/{len(cells)} settle)")
+        ax.step(times, share, style, where="post", lw=1.6, label=f"{name} ({len(times)}/{len(cells)} settle)")
     ax.set_xscale("log")
     ax.set_xlabel("settling time (s), band 0.05")
     ax.set_ylabel("share of initial states settled")
