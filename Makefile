@@ -13,7 +13,7 @@ BUILT  := build/.built
 SOURCES := $(shell find controller fmu_src ssp -type f -not -path '*/__pycache__/*' -not -name '*.pyc' \
                      -not -name '.*' 2>/dev/null)
 
-.PHONY: run test unit build lint crosscheck table study report baselines bench clean
+.PHONY: run test unit build lint crosscheck table study study-fixed-time report baselines bench clean
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -71,6 +71,13 @@ table: $(STAMP)
 ## study: the alpha/beta experiment behind the defaults (about 10 minutes)
 study: $(STAMP)
 	$(PY) -m orchestrator.experiments.alpha_beta_study
+
+## study-fixed-time: the fixed-time claim over [-10, 10]^2 (issue 24): campaigns + continuous law,
+## table and figures into results/study-fixed-time/ and docs/fixed-time-study/; prints its wall time.
+## STATES=21 runs the designs' full 21 x 21 grid (the README's figures: STATES=11, every other state)
+STATES ?= 11
+study-fixed-time: build
+	$(PY) -m orchestrator.experiments.fixed_time_study --states $(STATES) --docs docs/fixed-time-study
 
 ## report: results/report/report.md with the paper's figures, tables and the settling study
 report: build

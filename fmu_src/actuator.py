@@ -1,4 +1,5 @@
-"""FMU ``Actuator``: actuator fault and input dead-zone between controller and plant (SPEC 2).
+"""FMU ``Actuator``: saturation (SPEC 10), input dead-zone and actuator fault between controller
+and plant (SPEC 2).
 
 ``uf`` and ``u_dz`` are direct feedthrough: computed when read, from the inputs set at the
 current communication point t (the absolute FMU time, as in the paper).
@@ -22,7 +23,8 @@ FAULT_TIME_TOLERANCE = 1e-12
 
 @fmu_model
 class Actuator(Fmi2Slave):
-    """uf = v before t_fault; uf = K(t) u(v) + L(t) from t_fault on; u(v) is the dead-zone."""
+    """uf = v_sat before t_fault; uf = K(t) u(v_sat) + L(t) from t_fault on; u is the dead-zone,
+    v_sat = clip(v, -u_max, u_max)."""
 
     description = "Actuator fault (K(t), L(t)) and input dead-zone u(v) of the paper (eq. 2-6, 86-87)"
 
@@ -44,10 +46,11 @@ class Actuator(Fmi2Slave):
             self,
             "uf",
             OUTPUT,
-            "Control applied to the plant: v before t_fault, K(t) u(v) + L(t) after",
+            "Control applied to the plant: v_sat before t_fault, K(t) u(v_sat) + L(t) after "
+            "(v_sat = v clipped to u_max)",
             depends_on=("v", "x1", "x2"),
         )
-        declare(self, "u_dz", OUTPUT, "Dead-zone output u(v)", depends_on=("v",))
+        declare(self, "u_dz", OUTPUT, "Dead-zone output u(v_sat)", depends_on=("v",))
         declare(self, "m_r", PARAMETER, "Dead-zone slope for v >= b_r", minimum=0.0)
         declare(self, "m_l", PARAMETER, "Dead-zone slope for v <= -b_l", minimum=0.0)
         declare(self, "b_r", PARAMETER, "Right dead-zone break point", minimum=0.0)
@@ -64,6 +67,14 @@ class Actuator(Fmi2Slave):
         declare(self, "L_gain", PARAMETER, "Bias fault gain: L(t) = L_gain x2 cos(x1)^2 + L_bias")
         declare(self, "L_bias", PARAMETER, "Constant part of the bias fault L(t)")
         declare(self, "t_fault", PARAMETER, "Time at which the fault and the dead-zone start", unit="s")
+        declare(  # last: the value references of the variables above are a contract
+            self,
+            "u_max",
+            PARAMETER,
+            "Saturation: v is clipped to [-u_max, u_max] before the dead-zone and the fault "
+            "(default 1e300: no limit)",
+            minimum=0.0,
+        )
 
     def _parameters(self) -> ActuatorParameters:
         return ActuatorParameters(

@@ -12,7 +12,18 @@ import math
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from .fmu_support import assigned, declare, mark_stale, report
-from .models.plants import DOPRI, RK4, RightHandSide, State, dopri_hold_step, hold_step, integration_problems
+from .models.plants import (
+    DOPRI,
+    MAX_STEPS,
+    RK4,
+    STATE_LIMIT,
+    Y_LIMIT,
+    RightHandSide,
+    State,
+    dopri_hold_step,
+    hold_step,
+    integration_problems,
+)
 
 __all__ = [
     "DEFAULT_ATOL",
@@ -52,12 +63,16 @@ def declare_plant_outputs(slave: Fmi2Slave, x1_unit: str | None, x2_unit: str | 
 
 def declare_integrator(slave: Fmi2Slave) -> None:
     """Register ``max_step`` and, after every other variable (value references are a contract),
-    ``method``, ``rtol`` and ``atol``, with their defaults."""
+    ``method``, ``rtol`` and ``atol``, then the fail-fast bounds ``state_limit``, ``max_steps``
+    and ``y_limit``, with their defaults."""
     parameter = Fmi2Causality.parameter
     slave.max_step = DEFAULT_MAX_STEP
     slave.method = DOPRI
     slave.rtol = DEFAULT_RTOL
     slave.atol = DEFAULT_ATOL
+    slave.state_limit = STATE_LIMIT
+    slave.max_steps = MAX_STEPS
+    slave.y_limit = Y_LIMIT
     slave.state = None
     slave._method = DOPRI  # resolved at exit_initialization_mode
     slave._next_step = 0.0  # Dormand-Prince step size carried to the next communication step
@@ -83,6 +98,30 @@ def declare_integrator(slave: Fmi2Slave) -> None:
         slave, "rtol", parameter, "Relative tolerance of the local error (method 0)", minimum=0.0, maximum=1.0
     )
     declare(slave, "atol", parameter, "Absolute tolerance of the local error (method 0)", minimum=0.0)
+    declare(
+        slave,
+        "state_limit",
+        parameter,
+        "Range of validity: a state of magnitude above it ends the step with fmi2Discard (fail fast)",
+        minimum=0.0,
+    )
+    declare(
+        slave,
+        "max_steps",
+        parameter,
+        "Step budget of the integrator per communication step (method 0, accepted and rejected): "
+        "spent, fmi2Discard",
+        integer=True,
+        minimum=1,
+    )
+    declare(
+        slave,
+        "y_limit",
+        parameter,
+        "Range of validity of the output y = x1: |x1| above it ends the step with fmi2Discard "
+        "(fail fast on a finite escape)",
+        minimum=0.0,
+    )
 
 
 def resolved_method(slave: Fmi2Slave) -> int:
@@ -104,6 +143,14 @@ def plant_problems(slave: Fmi2Slave) -> list[str]:
         problems.append(f"rtol must satisfy 0 < rtol < 1 (got {slave.rtol!r})")
     if not (math.isfinite(slave.atol) and slave.atol > 0.0):
         problems.append(f"atol must satisfy atol > 0 (got {slave.atol!r})")
+    if not slave.state_limit > 0.0:  # +inf: no limit
+        problems.append(f"state_limit must satisfy state_limit > 0 (got {slave.state_limit!r})")
+    if slave.max_steps < 1:
+        problems.append(f"max_steps must satisfy max_steps >= 1 (got {slave.max_steps!r})")
+    if not slave.y_limit > 0.0:  # +inf: no limit
+        problems.append(f"y_limit must satisfy y_limit > 0 (got {slave.y_limit!r})")
+    elif not abs(slave.x1_0) <= slave.y_limit:
+        problems.append(f"x1_0 must satisfy |x1_0| <= y_limit = {slave.y_limit!r} (got {slave.x1_0!r})")
     return problems
 
 
@@ -125,25 +172,35 @@ def refresh_plant_outputs(slave: Fmi2Slave) -> None:
 def step_plant(slave: Fmi2Slave, rhs: RightHandSide, current_time: float, step_size: float) -> bool:
     """Advance over [t, t + h] with ``slave.uf`` held.
 
-    Returns False (fmi2Discard, with a logged reason) if the states stop being finite.
+    Returns False (fmi2Discard, with a logged reason) if the states stop being finite, leave
+    ``state_limit`` (x1: ``y_limit``) or the integrator spends its ``max_steps`` (the states of the
+    last good step stay).
     """
     new: State
+    limit = slave.state_limit
     try:
         if slave._method == DOPRI:
             new, slave._next_step, _, _ = dopri_hold_step(
-                rhs, current_time, slave.state, slave.uf, step_size, slave.rtol, slave.atol, slave._next_step
+                rhs, current_time, slave.state, slave.uf, step_size, slave.rtol, slave.atol, slave._next_step,
+                limit, slave.max_steps, slave.y_limit,
             )
         else:
             new = hold_step(rhs, current_time, slave.state, slave.uf, step_size, slave.max_step)
-    except (ValueError, OverflowError) as error:  # math functions of an overflowed state
-        new = (math.nan,) * 3
-        reason = str(error)
-    else:
-        reason = "non-finite state"
-    if not (math.isfinite(new[0]) and math.isfinite(new[1]) and math.isfinite(new[2])):
+    except (ValueError, OverflowError) as error:  # overflow, state limit, step budget
         report(
             slave,
-            f"{reason} {new} at t = {current_time + step_size!r} "
+            f"{error}; step to t = {current_time + step_size!r} with uf = {slave.uf!r}; "
+            "step rejected (fmi2Discard)",
+        )
+        return False
+    y_limit = slave.y_limit
+    if not (abs(new[0]) <= min(limit, y_limit) and abs(new[1]) <= limit and abs(new[2]) <= limit):  # nan too
+        finite = all(map(math.isfinite, new))
+        bound = f"y_limit {y_limit:g}" if abs(new[0]) > y_limit else f"state_limit {limit:g}"
+        problem = f"state beyond {bound}" if finite else "non-finite state"
+        report(
+            slave,
+            f"{problem} {new} at t = {current_time + step_size!r} "
             f"with uf = {slave.uf!r}; step rejected (fmi2Discard)",
         )
         return False

@@ -42,6 +42,7 @@ def parameters(example: Example, mode: Mode, t_fault: float | None,
         controller |= {"discretization": int(Discretization.SEMI_IMPLICIT), "sample_time": sample_time,
                        "b_max": c.b_max}
     actuator = asdict(example.actuator) | ({} if t_fault is None else {"t_fault": t_fault})
+    actuator.pop("u_max")  # the saturation stays off (the FMU's default): the paper's scenarios
     physical = asdict(example.plant) if example.plant else {}
     initial = dict(zip(("x1_0", "x2_0", "z_0"), example.x0, strict=True))
     return {"reference": asdict(example.reference), "controller": controller, "actuator": actuator,

@@ -76,6 +76,7 @@ PARAMETERS = {  # model -> parameter -> (default, unit)
         "L_gain": (1.0, None),
         "L_bias": (0.0, None),
         "t_fault": (10.0, "s"),
+        "u_max": (1e300, None),
     },
     "Example1Plant": {"x1_0": (0.5, None), "x2_0": (0.5, None), "z_0": (0.0, None)},
     "PendulumPlant": {
@@ -90,8 +91,9 @@ PARAMETERS = {  # model -> parameter -> (default, unit)
         "z_0": (0.0, None),
     },
 }
-# plant integrator parameters, in declaration order (Integer method: 0 Dormand-Prince, 1 RK4)
-INTEGRATOR = ("max_step", "method", "rtol", "atol")
+# plant integrator parameters, in declaration order (Integer method: 0 Dormand-Prince, 1 RK4), then
+# the fail-fast bounds (issue 20)
+INTEGRATOR = ("max_step", "method", "rtol", "atol", "state_limit", "max_steps", "y_limit")
 # output -> the inputs it depends on directly (SPEC section 5; z1 and zeta1 use fewer inputs)
 DEPENDENCIES = {
     "Reference": {"yd": (), "yd_dot": (), "yd_ddot": ()},
@@ -170,6 +172,10 @@ def test_parameter_defaults_and_units(fmus: dict, model: str) -> None:
             assert 0 < float(variables[name].start) <= 1e-9, name
         # added after every earlier variable: the value references of those do not move
         assert [v.name for v in md.modelVariables][-len(INTEGRATOR):] == list(INTEGRATOR)
+        assert variables["max_steps"].type == "Integer"
+    if model == "Actuator":  # the saturation limit came last (issue 24): no value reference moved
+        assert md.modelVariables[-1].name == "u_max"
+        assert max(v.valueReference for v in md.modelVariables) == variables["u_max"].valueReference
     if model == "PendulumPlant":
         assert (variables["x1"].unit, variables["x2"].unit, variables["y"].unit) == ("rad", "rad/s", "rad")
         assert variables["uf"].unit == "N"

@@ -1,4 +1,5 @@
-"""Actuator: input dead-zone (eq. 2-6) followed by the actuator fault (eq. 86-87, 100-101)."""
+"""Actuator: saturation (beyond the paper, SPEC section 10), input dead-zone (eq. 2-6), then the
+actuator fault (eq. 86-87, 100-101)."""
 
 from __future__ import annotations
 
@@ -7,12 +8,19 @@ from dataclasses import dataclass
 
 from .checks import bound_problems, finite_problems
 
-__all__ = ["ActuatorParameters", "actuator_output", "actuator_problems", "dead_zone"]
+__all__ = ["NO_LIMIT", "ActuatorParameters", "actuator_output", "actuator_problems", "dead_zone", "saturate"]
+
+# Default of ``u_max``: no limit in effect, with no special "off" value (clip(v, -u_max, u_max) =
+# v for every |v| <= 1e300, beyond any control a finite run computes) and a start value every XML
+# reader takes (neither "inf" nor the largest double, which the model description prints rounded
+# up, i.e. as an overflow). +inf may be set.
+NO_LIMIT = 1e300
 
 
 @dataclass(frozen=True)
 class ActuatorParameters:
-    """Dead-zone (eq. 2-6) and actuator fault (eq. 86-87, 100-101)."""
+    """Dead-zone (eq. 2-6), actuator fault (eq. 86-87, 100-101) and the saturation limit ``u_max``
+    (last: the FMU declares the fields in this order, and value references must not move)."""
 
     m_r: float = 1.0
     m_l: float = 1.2
@@ -24,6 +32,12 @@ class ActuatorParameters:
     L_gain: float = 1.0
     L_bias: float = 0.0
     t_fault: float = 10.0
+    u_max: float = NO_LIMIT
+
+
+def saturate(v: float, u_max: float) -> float:
+    """v_sat = clip(v, -u_max, u_max): the amplifier's limit (SPEC section 10)."""
+    return max(-u_max, min(u_max, v))
 
 
 def dead_zone(v: float, p: ActuatorParameters) -> float:
@@ -38,7 +52,9 @@ def dead_zone(v: float, p: ActuatorParameters) -> float:
 def actuator_output(
     t: float, v: float, x1: float, x2: float, p: ActuatorParameters
 ) -> tuple[float, float]:
-    """(uf, u_dz): before t_fault uf = v; from t_fault on uf = K(t) u(v) + L(t)."""
+    """(uf, u_dz) with v_sat = clip(v, -u_max, u_max): before t_fault uf = v_sat; from t_fault on
+    uf = K(t) u(v_sat) + L(t). The saturation acts first, as a real amplifier's limit does."""
+    v = saturate(v, p.u_max)
     u = dead_zone(v, p)
     if t < p.t_fault:
         return v, u
@@ -53,11 +69,13 @@ def actuator_problems(p: ActuatorParameters) -> list[str]:
 
     Slopes ``m_r, m_l`` and the lasting effectiveness ``K_inf`` are positive (so K(t) > 0);
     break points, ``K_amp`` and ``K_rate`` are non-negative; the rest finite (``t_fault`` may be
-    +inf: never faulty).
+    +inf: never faulty); ``u_max`` is positive (+inf: no limit, as the default).
     """
     problems = bound_problems(p, ("m_r", "m_l", "K_inf"), strict=True)
     problems += bound_problems(p, ("b_r", "b_l", "K_amp", "K_rate"), strict=False)
     problems += finite_problems(p, ("L_gain", "L_bias"))
     if math.isnan(p.t_fault):
         problems.append("t_fault must be a number (got nan)")
+    if not p.u_max > 0.0:  # nan too
+        problems.append(f"u_max must satisfy u_max > 0 (got {p.u_max!r})")
     return problems

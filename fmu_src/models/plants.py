@@ -21,12 +21,16 @@ from .checks import bound_problems, finite_problems
 
 __all__ = [
     "DOPRI",
+    "MAX_STEPS",
     "METHODS",
     "RK4",
+    "STATE_LIMIT",
+    "Y_LIMIT",
     "AdaptiveStep",
     "PendulumParameters",
     "RightHandSide",
     "State",
+    "StateLimitError",
     "dopri_hold_step",
     "example1_rhs",
     "hold_step",
@@ -132,7 +136,28 @@ _A61, _A62, _A63, _A64, _A65 = 9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -
 _B1, _B3, _B4, _B5, _B6 = 35 / 384, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84
 _E1, _E3, _E4, _E5, _E6, _E7 = 71 / 57600, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40
 _SAFETY, _FAC_MIN, _FAC_MAX = 0.9, 0.2, 10.0
-_MAX_STEPS = 100_000  # per communication step: beyond this the states have left the model
+
+# Fail-fast defaults of the plant FMUs (parameters ``y_limit``, ``state_limit`` and ``max_steps``),
+# measured on the sampled loops of the fixed-time study (Example 1 at 1 ms, the pendulum at 0.5 ms,
+# initial states in [-10, 10]^2, both laws, explicit and semi-implicit): the runs that settle reach
+# states up to 753 (Example 1) and 2563 (the pendulum), in x2, and up to 22 572 integrator steps in
+# one communication step (Example 1's first, semi-implicit, from (10, 10)); their output x1 moves
+# from x1(0) towards the reference (|yd| <= 1). A finite escape runs away in x1 first: the output
+# of Example 1 from (6, 0) under the finite-time law passes -12 at 0.86 s, -20 at 0.9 s, and the
+# integrator crawls (resolving sin(x1^2 x2^2)) for 0.05 s more before any state reaches 1e4:
+# two thirds of the run's CPU. Y_LIMIT (|x1| = |y|) ends such a step early; STATE_LIMIT (any
+# state) ends what passes it otherwise; MAX_STEPS (accepted and rejected steps in one
+# communication step, about 5 us each) ends a step that a held control of 1e7 makes the
+# integrator crawl through (explicit sampling from far states: more than 100 000 at 1 ms; a
+# campaign at a finer step from such states may need more: 58 455 at 0.1 ms from (10, 10)).
+# Before, a diverging run ran into the old budget of 100 000 steps: 0.6-3 s of CPU per run.
+Y_LIMIT = 20.0
+STATE_LIMIT = 1e4
+MAX_STEPS = 50_000
+
+
+class StateLimitError(ValueError):
+    """The plant's state left its range of validity (|x1|, |x2| or |z| above the limit)."""
 
 
 class AdaptiveStep(NamedTuple):
@@ -154,6 +179,9 @@ def dopri_hold_step(
     rtol: float,
     atol: float,
     first_step: float,
+    limit: float = math.inf,
+    max_steps: int = MAX_STEPS,
+    y_limit: float = math.inf,
 ) -> AdaptiveStep:
     """Advance a plant over [t, t + h] with uf held, by Dormand-Prince 5(4) with step-size control.
 
@@ -167,7 +195,10 @@ def dopri_hold_step(
     (uf is held), so the carried size stays a good guess; when the jump changes the local error
     scale, the first step is rejected and shrunk. A step that was shortened to land on t + h does
     not shrink the guess passed on. Raises ``ValueError``/``OverflowError`` when the states
-    overflow the math functions, and ``ValueError`` when no step size meets the tolerances.
+    overflow the math functions, ``ValueError`` when no step size meets the tolerances within
+    ``max_steps`` steps (accepted and rejected), and :class:`StateLimitError` as soon as an
+    accepted step has a state of magnitude above ``limit`` or an output x1 above ``y_limit`` (fail
+    fast: an escaping state is not followed with ever smaller steps).
     """
     t_end = t + h
     y1, y2, y3 = state
@@ -216,20 +247,36 @@ def dopri_hold_step(
             err = math.inf
         if err <= 1.0:  # accepted (False for nan)
             accepted += 1
+            if abs(n1) > y_limit or abs(n1) > limit or abs(n2) > limit or abs(n3) > limit:
+                name, bound = ("y_limit", y_limit) if abs(n1) > y_limit else ("state_limit", limit)
+                raise StateLimitError(
+                    f"state ({n1:.6g}, {n2:.6g}, {n3:.6g}) at t = {t_new!r} beyond the plant's "
+                    f"{name} {bound:g} (left its range of validity)"
+                )
             fac = min(grow, _SAFETY * err**-0.2) if err > 0.0 else grow
             proposal = dt * max(_FAC_MIN, fac)
             if last:
                 return AdaptiveStep((n1, n2, n3), max(proposal, wanted), accepted, rejected)
+            if accepted + rejected >= max_steps:
+                raise ValueError(
+                    f"step budget of {max_steps} integrator steps spent at t = {t_new!r} "
+                    f"({accepted} accepted, {rejected} rejected in this communication step)"
+                )
             t, y1, y2, y3 = t_new, n1, n2, n3
             k11, k12, k13 = k71, k72, k73  # first same as last
             dt = proposal
             grow = _FAC_MAX
         else:
             rejected += 1
-            if dt <= 1e-12 * h or accepted + rejected >= _MAX_STEPS:
+            if dt <= 1e-12 * h:
                 raise ValueError(
                     f"no step size meets rtol = {rtol!r}, atol = {atol!r} at t = {t!r} "
                     f"({accepted} steps accepted, {rejected} rejected in this communication step)"
+                )
+            if accepted + rejected >= max_steps:
+                raise ValueError(
+                    f"step budget of {max_steps} integrator steps spent at t = {t!r} "
+                    f"({accepted} accepted, {rejected} rejected in this communication step)"
                 )
             dt *= max(_FAC_MIN, _SAFETY * err**-0.2) if math.isfinite(err) else _FAC_MIN
             grow = 1.0

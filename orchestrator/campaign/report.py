@@ -4,11 +4,12 @@ names the worst runs and every failure.
 Plot kinds (keys of a ``[[plots]]`` entry):
 
 * ``heatmap``: ``x``, ``y`` (parameters), ``metric``; optional ``facet`` (a column or a list of
-  columns: one panel per value) and ``log`` (log colour scale). A cell shows the largest (worst)
-  value of the runs on it; a failed run is marked with a red cross, a finished run whose metric is
-  infinite (e.g. never settled) with a white circle.
+  columns: one panel per value) and ``log`` (log colour scale). One colour scale for all panels.
+  A cell shows the largest (worst) value of the runs on it; a failed run's cell is red with an x,
+  a finished run whose metric is infinite (e.g. never settled) grey with an o; the legend sits
+  below the panels.
 * ``scatter``: ``x`` (parameter), ``metric``; optional ``facet`` (one series per value), ``log``.
-* ``histogram``: ``metric``; optional ``facet``, ``bins``.
+* ``histogram``: ``metric``; optional ``facet``, ``bins`` (outlines, one per group).
 
 Without ``[[plots]]`` every metric gets a histogram. Campaigns over several scenarios are split by
 scenario as well. ``labels`` in the campaign metadata (``[labels."controller.mode"] "0" = "..."``)
@@ -28,7 +29,7 @@ import numpy as np
 
 from .table import read_table
 
-__all__ = ["SUMMARY_NAME", "write_report"]
+__all__ = ["SUMMARY_NAME", "colour_norm", "write_report"]
 
 SUMMARY_NAME = "summary.md"
 WORST_COUNT = 5
@@ -70,14 +71,19 @@ def _file_name(spec: Mapping, index: int) -> str:
     )
 
 
-def _heatmap(ax, spec: Mapping, rows: Sequence[Row], fig, title: str) -> None:
-    from matplotlib.colors import LogNorm
+Cells = list[tuple[float, float]]
 
+
+def _heatmap_grid(
+    spec: Mapping, rows: Sequence[Row]
+) -> tuple[list[float], list[float], np.ndarray, Cells, Cells]:
+    """(xs, ys, worst finite value per cell, failed cells, cells whose metric is infinite)."""
     x, y, metric = spec["x"], spec["y"], spec["metric"]
     xs = sorted({_value(r, x) for r in rows})
     ys = sorted({_value(r, y) for r in rows})
     grid = np.full((len(ys), len(xs)), np.nan)
-    failed, infinite = [], []
+    failed: Cells = []
+    infinite: Cells = []
     for r in rows:
         i, j = ys.index(_value(r, y)), xs.index(_value(r, x))
         if r["status"] != "ok":
@@ -88,29 +94,52 @@ def _heatmap(ax, spec: Mapping, rows: Sequence[Row], fig, title: str) -> None:
             infinite.append((xs[j], ys[i]))
         elif not math.isnan(v) and not v <= grid[i, j]:
             grid[i, j] = v  # the worst run on this cell
-    finite = grid[np.isfinite(grid)]
-    norm = None
-    if spec.get("log") and finite.size and finite.max() > 0:
-        positive = finite[finite > 0]
-        norm = LogNorm(vmin=positive.min(), vmax=positive.max())
+    return xs, ys, grid, failed, infinite
+
+
+def colour_norm(values: Sequence[float], log: bool):  # -> matplotlib Normalize
+    """One colour scale for every panel of a figure, with no value on the bar that no run can have:
+    a log scale over the positive finite values; a linear one from 0 when no value is negative (a
+    settling time or a peak); a single value widened around itself (never below 0 if it is >= 0)."""
+    from matplotlib.colors import LogNorm, Normalize
+
+    finite = [v for v in values if math.isfinite(v)]
+    positive = [v for v in finite if v > 0.0]
+    if log and positive:
+        low, high = min(positive), max(positive)
+        return LogNorm(low, high) if high > low else LogNorm(low / 2.0, high * 2.0)
+    if not finite:
+        return Normalize(0.0, 1.0)
+    low, high = min(finite), max(finite)
+    if low >= 0.0:
+        low = 0.0
+    if high <= low:
+        high = low + (abs(low) if low else 1.0)
+    return Normalize(low, high)
+
+
+FAILED_COLOUR = "#d62728"
+INFINITE_COLOUR = "#bbbbbb"
+
+
+def _heatmap(ax, spec: Mapping, rows: Sequence[Row], norm, title: str):  # -> the mesh
+    from matplotlib.patches import Rectangle
+
+    xs, ys, grid, failed, infinite = _heatmap_grid(spec, rows)
     mesh = ax.pcolormesh(xs, ys, np.ma.masked_invalid(grid), shading="nearest", cmap="viridis", norm=norm)
-    fig.colorbar(mesh, ax=ax, label=metric)
-    if failed:
-        ax.plot(*zip(*failed, strict=True), "x", color="red", markersize=5, label=f"failed ({len(failed)})")
-    if infinite:
-        ax.plot(
-            *zip(*infinite, strict=True),
-            "o",
-            mfc="none",
-            color="white",
-            markersize=5,
-            label=f"{metric} infinite ({len(infinite)})",
-        )
-    if failed or infinite:
-        ax.legend(loc="upper right", fontsize="x-small", framealpha=0.7)
-    ax.set_xlabel(x)
-    ax.set_ylabel(y)
+    dx = xs[1] - xs[0] if len(xs) > 1 else 1.0
+    dy = ys[1] - ys[0] if len(ys) > 1 else 1.0
+    for cells, colour, marker in ((failed, FAILED_COLOUR, "x"), (infinite, INFINITE_COLOUR, "o")):
+        for cx, cy in cells:  # a filled cell with a black marker: visible on any colour of the map
+            ax.add_patch(Rectangle((cx - dx / 2, cy - dy / 2), dx, dy, color=colour, lw=0))
+        if cells:
+            ax.plot(*zip(*cells, strict=True), marker, ls="", mfc="none", color="black", ms=4, mew=0.8)
+    ax.set_xlim(xs[0] - dx / 2, xs[-1] + dx / 2)
+    ax.set_ylim(ys[0] - dy / 2, ys[-1] + dy / 2)
+    ax.set_xlabel(spec["x"])
+    ax.set_ylabel(spec["y"])
     ax.set_title(title, fontsize="small")
+    return mesh, len(failed), len(infinite)
 
 
 def _scatter(ax, spec: Mapping, panels: list[tuple[str, list[Row]]]) -> None:
@@ -136,14 +165,30 @@ def _histogram(ax, spec: Mapping, panels: list[tuple[str, list[Row]]]) -> None:
     for title, rows in panels:
         values = [_value(r, metric) for r in rows if r["status"] == "ok"]
         values = [v for v in values if math.isfinite(v)]
-        if values:
+        if values:  # outlines, not filled bars: no group hides another
             ax.hist(
-                values, bins=int(spec.get("bins", 30)), alpha=0.6, label=f"{title or 'runs'} ({len(values)})"
+                values, bins=int(spec.get("bins", 30)), histtype="step", linewidth=1.5,
+                label=f"{title or 'runs'} ({len(values)})",
             )
     ax.set_xlabel(metric)
     ax.set_ylabel("runs")
     if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize="x-small")
+
+
+def _legend_below(fig, failed: int, infinite: int, metric: str) -> None:
+    """The heat maps' legend, below the panels (outside the data)."""
+    from matplotlib.patches import Patch
+
+    handles = []
+    if failed:
+        handles.append(Patch(color=FAILED_COLOUR, label=f"failed (x): {failed}"))
+    if infinite:
+        handles.append(Patch(color=INFINITE_COLOUR, label=f"{metric} infinite (o): {infinite}"))
+    if handles:
+        fig.legend(
+            handles=handles, loc="outside lower center", ncol=len(handles), fontsize="small", frameon=False
+        )
 
 
 def _draw(spec: Mapping, rows: Sequence[Row], meta: Mapping, target: Path) -> None:
@@ -156,15 +201,29 @@ def _draw(spec: Mapping, rows: Sequence[Row], meta: Mapping, target: Path) -> No
     if spec["kind"] == "heatmap":
         columns = min(len(panels), 2)
         lines = math.ceil(len(panels) / columns)
-        fig, axes = plt.subplots(lines, columns, figsize=(5.2 * columns, 4.2 * lines), squeeze=False)
+        fig, axes = plt.subplots(
+            lines, columns, figsize=(5.2 * columns, 4.2 * lines + 0.6), squeeze=False, layout="constrained"
+        )
+        metric = spec["metric"]
+        norm = colour_norm(
+            [v for r in rows if r["status"] == "ok" for v in [_value(r, metric)]], bool(spec.get("log"))
+        )
+        failed = infinite = 0
+        mesh = None
         for ax, (title, group) in zip(axes.flat, panels, strict=False):
-            _heatmap(ax, spec, group, fig, f"{spec['metric']}: {title}" if title else spec["metric"])
+            mesh, f, i = _heatmap(ax, spec, group, norm, f"{metric}: {title}" if title else metric)
+            failed, infinite = failed + f, infinite + i
         for ax in list(axes.flat)[len(panels) :]:
             ax.set_visible(False)
-    else:
-        fig, ax = plt.subplots(figsize=(7, 4))
-        (_scatter if spec["kind"] == "scatter" else _histogram)(ax, spec, panels)
-        ax.grid(True, alpha=0.3)
+        assert mesh is not None  # at least one panel
+        fig.colorbar(mesh, ax=axes.ravel().tolist(), label=metric, shrink=0.9)
+        _legend_below(fig, failed, infinite, metric)
+        fig.savefig(target, dpi=100)
+        plt.close(fig)
+        return
+    fig, ax = plt.subplots(figsize=(7, 4))
+    (_scatter if spec["kind"] == "scatter" else _histogram)(ax, spec, panels)
+    ax.grid(True, alpha=0.3)
     fig.tight_layout()
     fig.savefig(target, dpi=100)
     plt.close(fig)

@@ -47,11 +47,13 @@ def _cell(value: object) -> str:
 
 
 def _parse(column: str, text: str) -> object:
+    """A cell as written by :func:`_cell`: an integer stays an integer (``repr`` of a float always
+    has a point, an exponent or is inf/nan), so integer parameters keep their type."""
     if column in STRING_COLUMNS:
         return text
     if text == "":
         return None
-    return int(text) if column == "run" else float(text)
+    return int(text) if column == "run" or text.lstrip("-").isdigit() else float(text)
 
 
 def read_rows(path: Path) -> tuple[list[str], list[dict[str, object]]]:
@@ -118,8 +120,14 @@ def write_parquet(
     import pyarrow as pa
     import pyarrow.parquet as pq
 
+    def integers(c: str) -> bool:  # every cell an int (not bool), at least one: an integer parameter
+        cells = [r.get(c) for r in rows if r.get(c) is not None]
+        return bool(cells) and all(isinstance(v, int) and not isinstance(v, bool) for v in cells)
+
     def kind(c: str) -> pa.DataType:
-        return pa.string() if c in STRING_COLUMNS else pa.int64() if c == "run" else pa.float64()
+        if c in STRING_COLUMNS:
+            return pa.string()
+        return pa.int64() if c == "run" or integers(c) else pa.float64()
 
     schema = pa.schema(
         [pa.field(c, kind(c)) for c in columns],

@@ -26,10 +26,13 @@ class Metrics:
     """Metric columns of a campaign: ``function(result, params)`` returns ``{name: value}`` for
     ``names``; ``params`` are the run's overrides plus ``stop_time`` and ``step``. The function must
     be importable on the workers (a module-level function), e.g. the paper's tracking metrics that
-    ``orchestrator.experiments.campaigns`` plugs in."""
+    ``orchestrator.experiments.campaigns`` plugs in. ``partial``: the names that keep their meaning
+    on the rows a failed run computed before it stopped (e.g. a peak so far); a failed run's row
+    gets those, computed on its partial result, and no other."""
 
     names: tuple[str, ...]
     function: Callable[[np.ndarray, Mapping[str, object]], Mapping[str, float]]
+    partial: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -102,7 +105,7 @@ def run_variant(spec: RunSpec, metrics: Metrics | None = None) -> RunOutcome:
         return _kept(spec, TIMEOUT, str(exc), exc.result, started)
     except SimulationError as exc:
         reason = str(exc) if "(" in str(exc) or not messages.last else f"{exc} ({messages.last})"
-        return _kept(spec, FAILED, reason, exc.result, started)
+        return _kept(spec, FAILED, reason, exc.result, started, metrics)
     except OrchestratorError as exc:
         return RunOutcome(spec.index, FAILED, _one_line(str(exc)), time.perf_counter() - started)
     except Exception as exc:  # a failed run never stops the campaign: any error becomes its row
@@ -124,11 +127,26 @@ def run_variant(spec: RunSpec, metrics: Metrics | None = None) -> RunOutcome:
     return RunOutcome(spec.index, status, reason, wall, values, _decimate(result.rows, spec.keep_every))
 
 
-def _kept(spec: RunSpec, status: str, reason: str, result: RunResult, started: float) -> RunOutcome:
-    """The row of a run that stopped early, with the trajectory of the rows it kept."""
+def _kept(spec: RunSpec, status: str, reason: str, result: RunResult, started: float,
+          metrics: Metrics | None = None) -> RunOutcome:
+    """The row of a run that stopped early, with the trajectory of the rows it kept and the metrics
+    named ``metrics.partial`` on them (a failed run keeps its peaks and the time it reached)."""
     return RunOutcome(spec.index, status, _one_line(f"{reason}; {result.count} rows computed"),
                       time.perf_counter() - started,
+                      _partial_metrics(metrics, result.rows, spec) if result.count else {},
                       trajectory=_decimate(result.rows, spec.keep_every) if result.count else None)
+
+
+def _partial_metrics(metrics: Metrics | None, partial: np.ndarray, spec: RunSpec) -> dict[str, float]:
+    """The metrics named ``metrics.partial`` on a failed run's rows (none if they cannot be computed)."""
+    if metrics is None or not metrics.partial:
+        return {}
+    params = {**spec.overrides, "stop_time": spec.stop_time, "step": spec.step}
+    try:
+        values = metrics.function(partial, params)
+    except (ValueError, ArithmeticError, KeyError):
+        return {}
+    return {k: float(values[k]) for k in metrics.partial if k in values}
 
 
 def _decimate(result: np.ndarray, every: int | None) -> np.ndarray | None:

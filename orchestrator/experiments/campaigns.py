@@ -1,9 +1,10 @@
 """The paper's tracking metrics as campaign columns, and ``orchestrate sweep`` registered with them.
 
 Every run of a campaign gets SPEC section 4's metrics over its whole horizon (RAE, MSE, RMSE, MAE,
-settling time in the 0.05 band, peak |v|, peak |uf|), the largest and the final |y - yd|, and,
-when the run's parameters name ``actuator.t_fault`` (varied or fixed in the design), MAE and the
-largest |y - yd| from the fault on (NaN when the fault lies beyond the run).
+settling time in the 0.05 band, peak |v|, peak |uf|), the largest and the final |y - yd|, when
+the run's parameters name ``actuator.t_fault`` (varied or fixed in the design), MAE and the
+largest |y - yd| from the fault on (NaN when the fault lies beyond the run), and the time reached.
+A failed run keeps its peaks, largest error and the time it reached (:data:`PARTIAL`).
 """
 
 from __future__ import annotations
@@ -19,30 +20,33 @@ from ..campaign import Metrics
 from ..campaign import cli as campaign_cli
 from .metrics import tracking_metrics
 
-__all__ = ["BAND", "TRACKING", "claim_headlines", "fault_headlines", "register", "tracking_row"]
+__all__ = ["BAND", "PARTIAL", "TRACKING", "TRACKING_NAMES", "claim_headlines", "fault_headlines", "register",
+           "tracking_row"]
 
 BAND = 0.05
 
 
 def tracking_row(result: np.ndarray, params: Mapping[str, object]) -> dict[str, float]:
-    """The metric columns of one run from its result array and parameters."""
+    """The metric columns of one run from its result array and parameters.
+
+    ``time_reached`` is the last communication point computed: the stop time, or for the rows of a
+    failed run (:data:`PARTIAL`, the columns such a row keeps) the last point before it failed.
+    A single row (a run that failed in its first step) gives the peaks and ``time_reached`` only.
+    """
     t, y, yd = result["time"], result["plant.y"], result["reference.yd"]
-    m = tracking_metrics(t, y, yd, result["controller.v"], result["actuator.uf"], band=BAND)
-    assert m.peak_v is not None and m.peak_uf is not None  # v and uf were given
     error = np.abs(y - yd)
-    row = {
-        "rae": m.rae,
-        "mse": m.mse,
-        "rmse": m.rmse,
-        "mae": m.mae,
-        "settling_time": m.settling_time,
-        "peak_v": m.peak_v,
-        "peak_uf": m.peak_uf,
-        "max_error": float(error.max()),
-        "final_error": float(error[-1]),
-        "mae_after_fault": math.nan,
-        "max_error_after_fault": math.nan,
-    }
+    row = dict.fromkeys(TRACKING_NAMES, math.nan)
+    row.update(
+        peak_v=float(np.max(np.abs(result["controller.v"]))),
+        peak_uf=float(np.max(np.abs(result["actuator.uf"]))),
+        max_error=float(error.max()),
+        final_error=float(error[-1]),
+        time_reached=float(t[-1]),
+    )
+    if t.size < 2:
+        return row
+    m = tracking_metrics(t, y, yd, result["controller.v"], result["actuator.uf"], band=BAND)
+    row.update(rae=m.rae, mse=m.mse, rmse=m.rmse, mae=m.mae, settling_time=m.settling_time)
     if "actuator.t_fault" in params:
         after = error[t >= float(cast("float | str", params["actuator.t_fault"]))]
         if after.size:
@@ -51,22 +55,23 @@ def tracking_row(result: np.ndarray, params: Mapping[str, object]) -> dict[str, 
     return row
 
 
-TRACKING = Metrics(
-    names=(
-        "rae",
-        "mse",
-        "rmse",
-        "mae",
-        "settling_time",
-        "peak_v",
-        "peak_uf",
-        "max_error",
-        "final_error",
-        "mae_after_fault",
-        "max_error_after_fault",
-    ),
-    function=tracking_row,
+TRACKING_NAMES = (
+    "rae",
+    "mse",
+    "rmse",
+    "mae",
+    "settling_time",
+    "peak_v",
+    "peak_uf",
+    "max_error",
+    "final_error",
+    "mae_after_fault",
+    "max_error_after_fault",
+    "time_reached",
 )
+# What a failed run's row keeps, computed on the rows before the failure.
+PARTIAL = ("peak_v", "peak_uf", "max_error", "time_reached")
+TRACKING = Metrics(names=TRACKING_NAMES, function=tracking_row, partial=PARTIAL)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
