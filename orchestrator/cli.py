@@ -427,8 +427,8 @@ def _run(args: argparse.Namespace) -> int:
         written = _plot_result(result, plot, name, args)
         print(f"{stopped} (plot: {plot})" if written else stopped, file=sys.stderr)
         return exc.exit_status
-    except KeyboardInterrupt as exc:  # outside the stepping loop (Terminated: SIGTERM)
-        print(f"orchestrate: interrupted; rows computed so far kept in {output}", file=sys.stderr)
+    except KeyboardInterrupt as exc:  # outside the stepping loop (Terminated: SIGTERM), nothing kept
+        print(f"orchestrate: {str(exc) or 'interrupted by SIGINT'}", file=sys.stderr)
         return getattr(exc, "exit_status", 130)
     except OSError as exc:  # OutputError: writing the results; else reading (a full TMPDIR, ...)
         what = "cannot write the results: " if isinstance(exc, OutputError) else ""
