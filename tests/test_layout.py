@@ -23,6 +23,7 @@ ALLOWED = {
     ENGINE: set(),
     "orchestrator.crosscheck": {ENGINE},
     "orchestrator.campaign": {ENGINE},
+    "orchestrator.export": {ENGINE, "fmu_src"},
     "orchestrator.experiments": {ENGINE, "orchestrator.crosscheck", "orchestrator.campaign", "controller",
                                  "fmu_src"},
 }
