@@ -22,7 +22,7 @@ import pytest
 from fmpy.util import read_csv
 from lxml import etree
 
-from orchestrator import run
+from orchestrator import SimulationError, run
 from orchestrator.cli import main
 from orchestrator.crosscheck.colleague import hidden, refusal
 from orchestrator.experiments.metrics import tracking_metrics
@@ -237,3 +237,21 @@ def test_an_exported_loop_inside_a_bigger_ssp(built: Path, tmp_path: Path) -> No
     flat = run(built / "ssp" / "example1.ssp", stop_time=2.0)
     for column in ("plant.y", "controller.v", "actuator.uf"):
         np.testing.assert_array_equal(got[f"loop.{column}"], flat[column], err_msg=column)
+
+
+def test_a_failing_fmu_inside_fails_the_step_as_run_reports_it(built: Path, tmp_path: Path) -> None:
+    """The pendulum under jacobi at 1 ms diverges (README, "Delay-free and delayed masters"): run
+    stops with one line naming component, function, status and time; the exported FMU (--step
+    0.001) fails its step with fmi2Error and the same line through the host's logger."""
+    scenario = built / "ssp" / "pendulum.ssp"
+    with pytest.raises(SimulationError) as failure:
+        run(scenario, master="jacobi", step=0.001, stop_time=0.1)
+    fmu, _ = export(scenario, tmp_path / "p.fmu", master="jacobi", step=0.001, stop_time=0.1)
+    messages: list[tuple[int, bytes]] = []
+
+    def logger(env: object, instance: bytes, status: int, category: bytes, message: bytes) -> None:
+        messages.append((status, message))
+
+    with pytest.raises(Exception, match="fmi2DoStep failed with status 3"):
+        fmpy.simulate_fmu(str(fmu), logger=logger)
+    assert (3, str(failure.value).encode()) in messages, messages

@@ -48,6 +48,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--expose", action="append", default=[], metavar="PATTERN",
                    help="variables the FMU exposes, e.g. 'plant.*' or controller.k1 (repeatable; default: "
                         "every output and unconnected input)")
+    p.add_argument("--start-time", type=float, metavar="T", help="DefaultExperiment start (default: SSD's)")
+    p.add_argument("--stop-time", type=float, metavar="T", help="DefaultExperiment stop (default: the SSD's)")
+    p.add_argument("--step", type=float, metavar="H",
+                   help="communication step inside the FMU (default: the SSD's); must divide the run")
     p.add_argument("--allow-stale", action="store_true",
                    help="export a built scenario even when its sources changed after the build")
 
@@ -60,7 +64,8 @@ def _export(args: argparse.Namespace) -> int:
         raise ScenarioError(stale)
     path, exposed = export(scenario, args.output, fmi=args.fmi, master=args.master, expose=args.expose,
                            parameter_sets=args.parameter_set, overrides=overrides,
-                           fmu_dirs=fmu_dirs(scenario), limits=_limits(args))
+                           fmu_dirs=fmu_dirs(scenario), limits=_limits(args), start_time=args.start_time,
+                           stop_time=args.stop_time, step=args.step)
     kinds = {k: sum(e.kind == k for e in exposed) for k in ("input", "output", "parameter")}
     size = path.stat().st_size / 1e6
     print(f"{path}: {kinds['output']} outputs, {kinds['input']} inputs, {kinds['parameter']} parameters, "

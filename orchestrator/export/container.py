@@ -179,10 +179,13 @@ def _write(target: Path, entries: Mapping[str, bytes]) -> None:
 def export(scenario: str | os.PathLike, output: str | os.PathLike, *, fmi: str = "2",
            master: str = "gauss-seidel", expose: Sequence[str] = (),
            parameter_sets: Iterable[str | os.PathLike] = (), overrides: Mapping[str, object] | None = None,
-           fmu_dirs: Iterable[str | os.PathLike] = (),
-           limits: Limits = DEFAULT_LIMITS) -> tuple[Path, list[Exposed]]:
-    """Export ``scenario`` (as :func:`orchestrator.run` takes it, with the same parameter sets and
-    overrides) as one FMU at ``output``; returns its path and the variables it exposes.
+           fmu_dirs: Iterable[str | os.PathLike] = (), limits: Limits = DEFAULT_LIMITS,
+           start_time: float | None = None, stop_time: float | None = None,
+           step: float | None = None) -> tuple[Path, list[Exposed]]:
+    """Export ``scenario`` (as :func:`orchestrator.run` takes it, with the same parameter sets,
+    overrides, start and stop time and step) as one FMU at ``output``; returns its path and the
+    variables it exposes. The start and stop time become the FMU's DefaultExperiment, the step its
+    internal communication step (and DefaultExperiment stepSize).
 
     ScenarioError for a scenario ``run`` would refuse, UsageError for a bad option (an FMI
     version or master that does not exist, ``--fmi 3``, an ``--expose`` pattern that matches
@@ -200,7 +203,7 @@ def export(scenario: str | os.PathLike, output: str | os.PathLike, *, fmi: str =
     identifier = model_identifier(target)
     with open_system(scenario, parameter_sets=list(parameter_sets), overrides=overrides, fmu_dirs=fmu_dirs,
                      limits=limits) as system:
-        start, stop, step = timing(system.structure)
+        start, stop, step = timing(system.structure, stop_time, step, start_time)
         exposed = select(system, expose)
         folders = _folders(system)
         plan = make_plan(system, start, step, master, exposed, folders)
