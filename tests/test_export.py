@@ -70,13 +70,12 @@ def exported(built: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str,
     """Every shipped scenario exported (default options), then copied to a fresh folder as a
     colleague receives it; exported on first use."""
     folder = tmp_path_factory.mktemp("exported")
-    cache: dict[str, Path] = {}
 
     class Lazy(dict):
         def __missing__(self, name: str) -> Path:
             path, _ = export(built / "ssp" / f"{name}.ssp", folder / "made" / f"{name}.fmu")
-            cache[name] = Path(shutil.copy(path, folder))
-            return cache[name]
+            self[name] = Path(shutil.copy(path, folder))
+            return self[name]
 
     return Lazy()
 
@@ -152,20 +151,21 @@ def test_fmpy_simulate_fmu(exported: dict[str, Path], built: Path, scenario: str
 
 
 def test_jacobi_parameters_and_units(built: Path, tmp_path: Path) -> None:
-    """--master jacobi, --set with a unit (converted as run converts it), an exposed parameter set
-    by the host, and a host step of several scenario steps: each equal to run bit for bit."""
+    """--master jacobi, --set with a unit (converted as run converts it), exposed Real and Integer
+    parameters set by the host, and a host step of several scenario steps: equal to run bit for bit."""
     scenario = built / "ssp" / "example1.ssp"
     overrides = {"controller.k1": "12", "reference.omega": "2 rad/s"}
     fmu, exposed = export(scenario, tmp_path / "e.fmu", master="jacobi",
-                          expose=["plant.y", "actuator.t_fault"], overrides=overrides)
-    kinds = [(str(e.port), e.kind) for e in exposed]
-    assert kinds == [("actuator.t_fault", "parameter"), ("plant.y", "output")]
+                          expose=["plant.y", "actuator.t_fault", "controller.mode"], overrides=overrides)
+    kinds = [(str(e.port), e.kind, e.type) for e in exposed]
+    assert kinds == [("controller.mode", "parameter", "Integer"), ("actuator.t_fault", "parameter", "Real"),
+                     ("plant.y", "output", "Real")]
     with zipfile.ZipFile(fmu) as archive:
         assert b'needsExecutionTool="false"' in archive.read("modelDescription.xml")
     got = fmpy.simulate_fmu(str(fmu), stop_time=SHORT, output_interval=0.005,
-                            start_values={"actuator.t_fault": 0.4})
+                            start_values={"actuator.t_fault": 0.4, "controller.mode": 1})
     expected = run(scenario, stop_time=SHORT, master="jacobi",
-                   overrides=overrides | {"actuator.t_fault": 0.4})
+                   overrides=overrides | {"actuator.t_fault": 0.4, "controller.mode": 1})
     same("example1 jacobi", got, expected[::5])
     default = run(scenario, stop_time=SHORT, master="jacobi")
     assert not np.array_equal(default["plant.y"][::5], got["plant.y"])  # the values were applied
