@@ -9,6 +9,7 @@ CPython through its shim where the host has none), so the container adds nothing
 from __future__ import annotations
 
 import functools
+import importlib.util
 import subprocess
 import tempfile
 from pathlib import Path
@@ -29,14 +30,25 @@ FLAGS = tuple(
 LIBS = ("-ldl", "-lm")
 
 
+def fmi3_headers() -> Path:
+    """The folder of the FMI 3.0 headers (``fmi3Functions.h``) FMPy ships, which the container's
+    FMI 3.0 API is compiled against."""
+    spec = importlib.util.find_spec("fmpy")
+    folders = list(spec.submodule_search_locations or []) if spec else []
+    for folder in folders:
+        if (Path(folder) / "c-code" / "fmi3Functions.h").is_file():
+            return Path(folder) / "c-code"
+    raise BuildError("the FMI 3.0 headers (fmpy/c-code/fmi3Functions.h) are not installed: install fmpy")
+
+
 @functools.cache
 def compile_container() -> bytes:
-    """The container library's bytes (``binaries/linux64/<modelIdentifier>.so``); BuildError when
-    the compiler fails. Compiled once per process."""
+    """The container library's bytes (``binaries/linux64/<modelIdentifier>.so``, FMI 2.0 and 3.0
+    APIs); BuildError when the compiler fails. Compiled once per process."""
     compiler, _ = c_compiler()
     with tempfile.TemporaryDirectory(prefix="ftc_container_") as tmp:
         target = Path(tmp) / "container.so"
-        command = [compiler, *FLAGS, "-o", str(target), str(CONTAINER_SOURCE), *LIBS]
+        command = [compiler, *FLAGS, f"-I{fmi3_headers()}", "-o", str(target), str(CONTAINER_SOURCE), *LIBS]
         result = subprocess.run(command, capture_output=True, text=True)
         if result.returncode != 0:
             raise BuildError(f"{CONTAINER_SOURCE}: {compiler} failed:\n{result.stderr.strip()}")

@@ -1,4 +1,5 @@
-/* FMI 2.0 Co-Simulation container: a whole SSP scenario as one FMU (`orchestrate export`).
+/* FMI 2.0 (and 3.0, at the end of this file) Co-Simulation container: a whole SSP scenario as one
+   FMU (`orchestrate export`).
 
    The container is this shared library, a plan (resources/container.plan) and the scenario's
    FMUs unpacked under resources/fmus/<folder>/. It carries no interpreter of its own: each
@@ -166,6 +167,9 @@ struct container {
     char name[256];
     char resources[TEXT];
     fmi2CallbackFunctions host;
+    /* FMI 3.0 host (fmi3InstantiateCoSimulation): its logMessage and instance environment */
+    void (*log3)(void *, int, const char *, const char *);
+    void *env3;
     fmi2CallbackFunctions inner;
     int logging;
     enum state state;
@@ -185,6 +189,12 @@ static void say(struct container *x, fmi2Status status, const char *format, ...)
     va_start(args, format);
     vsnprintf(text, sizeof text, format, args);
     va_end(args);
+    const char *category =
+        status == fmi2OK ? "logAll" : status == fmi2Warning ? "logStatusWarning" : "logStatusError";
+    if (x && x->log3) {
+        x->log3(x->env3, (int)status, category, text);
+        return;
+    }
     if (!x || !x->host.logger) {
         fprintf(stderr, "%s\n", text);
         return;
@@ -195,9 +205,7 @@ static void say(struct container *x, fmi2Status status, const char *format, ...)
         escaped[j++] = *p;
     }
     escaped[j] = '\0';
-    x->host.logger(x->host.componentEnvironment, x->name, status,
-                   status == fmi2OK ? "logAll" : status == fmi2Warning ? "logStatusWarning" : "logStatusError",
-                   escaped);
+    x->host.logger(x->host.componentEnvironment, x->name, status, category, escaped);
 }
 
 /* The embedded FMUs' logger: their message, formatted, to the host's logger under the container's
@@ -210,6 +218,11 @@ static void relay(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status 
     va_start(args, message);
     vsnprintf(text, sizeof text, message ? message : "", args);
     va_end(args);
+    if (x && x->log3) {
+        snprintf(escaped, sizeof escaped, "%s: %s", instance ? instance : "?", text);
+        x->log3(x->env3, (int)status, category ? category : "logAll", escaped);
+        return;
+    }
     if (!x || !x->host.logger) {
         fprintf(stderr, "%s: %s\n", instance ? instance : "?", text);
         return;
@@ -660,39 +673,28 @@ EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
 
 EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
 
-EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
-                                     fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
-                                     fmi2Boolean visible, fmi2Boolean loggingOn) {
-    (void)fmuResourceLocation, (void)visible;
-    struct container *x = calloc(1, sizeof *x);
-    if (!x) return NULL;
-    snprintf(x->name, sizeof x->name, "%s", instanceName ? instanceName : "container");
-    if (functions) x->host = *functions;
-    x->logging = loggingOn;
+/* A new container: the plan read, every FMU loaded and instantiated; NULL after one message. `x` comes
+   with its name, logging and host callbacks set; `function` names the host's call in messages. */
+static struct container *create(struct container *x, const char *function, const char *token) {
     x->inner.logger = relay;
-    x->inner.allocateMemory = functions && functions->allocateMemory ? functions->allocateMemory : calloc;
-    x->inner.freeMemory = functions && functions->freeMemory ? functions->freeMemory : free;
+    if (!x->inner.allocateMemory) x->inner.allocateMemory = calloc;
+    if (!x->inner.freeMemory) x->inner.freeMemory = free;
     x->inner.componentEnvironment = x;
     char why[2 * TEXT], path[TEXT + 32];
-    if (fmuType != fmi2CoSimulation) {
-        say(x, fmi2Error, "fmi2Instantiate: this FMU is Co-Simulation only");
-        free(x);
-        return NULL;
-    }
     if (own_resources(x->resources, sizeof x->resources) != 0) {
-        say(x, fmi2Error, "fmi2Instantiate: cannot find the container's own file (dladdr failed)");
+        say(x, fmi2Error, "%s: cannot find the container's own file (dladdr failed)", function);
         free(x);
         return NULL;
     }
     snprintf(path, sizeof path, "%s/container.plan", x->resources);
     if (read_plan(path, &x->plan, why, sizeof why) != 0) {
-        say(x, fmi2Error, "fmi2Instantiate: %s", why);
+        say(x, fmi2Error, "%s: %s", function, why);
         free_plan(&x->plan);
         free(x);
         return NULL;
     }
-    if (fmuGUID && strcmp(fmuGUID, x->plan.guid) != 0) {
-        say(x, fmi2Error, "fmi2Instantiate: GUID %s does not match the container's %s", fmuGUID, x->plan.guid);
+    if (token && strcmp(token, x->plan.guid) != 0) {
+        say(x, fmi2Error, "%s: GUID %s does not match the container's %s", function, token, x->plan.guid);
         release(x);
         return NULL;
     }
@@ -705,7 +707,7 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
     memcpy(x->values, x->plan.initial, x->plan.nvalues * sizeof *x->values);
     for (size_t i = 0; i < x->plan.ncomponents; i++) {
         if (load_component(x, &x->plan.components[i], why, sizeof why) != 0) {
-            say(x, fmi2Error, "fmi2Instantiate: %s", why);
+            say(x, fmi2Error, "%s: %s", function, why);
             release(x);
             return NULL;
         }
@@ -713,6 +715,25 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
     x->state = INSTANTIATED;
     x->dirty = 1;
     return x;
+}
+
+EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                                     fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
+                                     fmi2Boolean visible, fmi2Boolean loggingOn) {
+    (void)fmuResourceLocation, (void)visible;
+    struct container *x = calloc(1, sizeof *x);
+    if (!x) return NULL;
+    snprintf(x->name, sizeof x->name, "%s", instanceName ? instanceName : "container");
+    if (functions) x->host = *functions;
+    x->logging = loggingOn;
+    x->inner.allocateMemory = functions ? functions->allocateMemory : NULL;
+    x->inner.freeMemory = functions ? functions->freeMemory : NULL;
+    if (fmuType != fmi2CoSimulation) {
+        say(x, fmi2Error, "fmi2Instantiate: this FMU is Co-Simulation only");
+        free(x);
+        return NULL;
+    }
+    return create(x, "fmi2Instantiate", fmuGUID);
 }
 
 EXPORT void fmi2FreeInstance(fmi2Component c) {
@@ -1094,3 +1115,273 @@ EXPORT fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, f
     (void)s, (void)value;
     return unsupported(c, "fmi2GetStringStatus");
 }
+
+/* ---- FMI 3.0 ------------------------------------------------------------------------------------
+
+   The same container behind the FMI 3.0 Co-Simulation API (an FMU exported with --fmi 3 declares
+   fmiVersion 3.0; the FMUs inside stay FMI 2.0): each function maps onto its FMI 2.0 counterpart
+   above (fmi3EnterInitializationMode = fmi2SetupExperiment + fmi2EnterInitializationMode,
+   Float64 = Real, Int32 = Integer), scalar variables only, no event mode. Compiled against the
+   FMI 3.0 headers FMPy ships (fmpy/c-code), so every signature is the standard's. */
+
+#include "fmi3Functions.h"
+
+static fmi3Status unsupported3(fmi3Instance instance, const char *function) {
+    say(instance, fmi2Error, "%s is not supported by the scenario container", function);
+    return fmi3Error;
+}
+
+FMI3_Export const char *fmi3GetVersion(void) { return fmi3Version; }
+
+FMI3_Export fmi3Instance fmi3InstantiateCoSimulation(
+    fmi3String instanceName, fmi3String instantiationToken, fmi3String resourcePath, fmi3Boolean visible,
+    fmi3Boolean loggingOn, fmi3Boolean eventModeUsed, fmi3Boolean earlyReturnAllowed,
+    const fmi3ValueReference requiredIntermediateVariables[], size_t nRequiredIntermediateVariables,
+    fmi3InstanceEnvironment instanceEnvironment, fmi3LogMessageCallback logMessage,
+    fmi3IntermediateUpdateCallback intermediateUpdate) {
+    (void)resourcePath, (void)visible, (void)eventModeUsed, (void)earlyReturnAllowed;
+    (void)requiredIntermediateVariables, (void)nRequiredIntermediateVariables, (void)intermediateUpdate;
+    struct container *x = calloc(1, sizeof *x);
+    if (!x) return NULL;
+    snprintf(x->name, sizeof x->name, "%s", instanceName ? instanceName : "container");
+    x->logging = loggingOn;
+    x->log3 = (void (*)(void *, int, const char *, const char *))logMessage;
+    x->env3 = instanceEnvironment;
+    return create(x, "fmi3InstantiateCoSimulation", instantiationToken);
+}
+
+FMI3_Export fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
+                                                      fmi3String resourcePath, fmi3Boolean visible,
+                                                      fmi3Boolean loggingOn,
+                                                      fmi3InstanceEnvironment instanceEnvironment,
+                                                      fmi3LogMessageCallback logMessage) {
+    (void)instanceName, (void)instantiationToken, (void)resourcePath, (void)visible, (void)loggingOn;
+    if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError", "Co-Simulation only");
+    return NULL;
+}
+
+FMI3_Export fmi3Instance fmi3InstantiateScheduledExecution(
+    fmi3String instanceName, fmi3String instantiationToken, fmi3String resourcePath, fmi3Boolean visible,
+    fmi3Boolean loggingOn, fmi3InstanceEnvironment instanceEnvironment, fmi3LogMessageCallback logMessage,
+    fmi3ClockUpdateCallback clockUpdate, fmi3LockPreemptionCallback lockPreemption,
+    fmi3UnlockPreemptionCallback unlockPreemption) {
+    (void)instanceName, (void)instantiationToken, (void)resourcePath, (void)visible, (void)loggingOn;
+    (void)clockUpdate, (void)lockPreemption, (void)unlockPreemption;
+    if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError", "Co-Simulation only");
+    return NULL;
+}
+
+FMI3_Export void fmi3FreeInstance(fmi3Instance instance) { fmi2FreeInstance(instance); }
+
+FMI3_Export fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
+                                           const fmi3String categories[]) {
+    return (fmi3Status)fmi2SetDebugLogging(instance, loggingOn, nCategories, categories);
+}
+
+FMI3_Export fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined,
+                                                   fmi3Float64 tolerance, fmi3Float64 startTime,
+                                                   fmi3Boolean stopTimeDefined, fmi3Float64 stopTime) {
+    fmi2Status s =
+        fmi2SetupExperiment(instance, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime);
+    return (fmi3Status)(s == fmi2OK ? fmi2EnterInitializationMode(instance) : s);
+}
+
+FMI3_Export fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
+    return (fmi3Status)fmi2ExitInitializationMode(instance);
+}
+
+FMI3_Export fmi3Status fmi3Terminate(fmi3Instance instance) { return (fmi3Status)fmi2Terminate(instance); }
+
+FMI3_Export fmi3Status fmi3Reset(fmi3Instance instance) { return (fmi3Status)fmi2Reset(instance); }
+
+FMI3_Export fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoint,
+                                  fmi3Float64 communicationStepSize,
+                                  fmi3Boolean noSetFMUStatePriorToCurrentPoint,
+                                  fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation,
+                                  fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime) {
+    fmi2Status s = fmi2DoStep(instance, currentCommunicationPoint, communicationStepSize,
+                              noSetFMUStatePriorToCurrentPoint);
+    if (eventHandlingNeeded) *eventHandlingNeeded = fmi3False;
+    if (terminateSimulation) *terminateSimulation = fmi3False;
+    if (earlyReturn) *earlyReturn = fmi3False;
+    if (lastSuccessfulTime && instance) {
+        const struct container *x = instance;
+        *lastSuccessfulTime = grid_time(x, x->k);
+    }
+    return (fmi3Status)s;
+}
+
+/* Scalar variables only: one value per value reference. */
+static int scalars(fmi3Instance instance, size_t nValueReferences, size_t nValues) {
+    if (nValues == nValueReferences) return 1;
+    say(instance, fmi2Error, "the container's variables are scalars: %zu values for %zu value references",
+        nValues, nValueReferences);
+    return 0;
+}
+
+FMI3_Export fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                      size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
+    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    return (fmi3Status)fmi2GetReal(instance, valueReferences, nValueReferences, values);
+}
+
+FMI3_Export fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                      size_t nValueReferences, const fmi3Float64 values[], size_t nValues) {
+    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    return (fmi3Status)fmi2SetReal(instance, valueReferences, nValueReferences, values);
+}
+
+FMI3_Export fmi3Status fmi3GetInt32(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                    size_t nValueReferences, fmi3Int32 values[], size_t nValues) {
+    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    return (fmi3Status)fmi2GetInteger(instance, valueReferences, nValueReferences, values);
+}
+
+FMI3_Export fmi3Status fmi3SetInt32(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                    size_t nValueReferences, const fmi3Int32 values[], size_t nValues) {
+    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    return (fmi3Status)fmi2SetInteger(instance, valueReferences, nValueReferences, values);
+}
+
+FMI3_Export fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                      size_t nValueReferences, fmi3Boolean values[], size_t nValues) {
+    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    for (size_t j = 0; j < nValueReferences; j++) {
+        fmi2Boolean value;
+        fmi2Status s = fmi2GetBoolean(instance, &valueReferences[j], 1, &value);
+        if (s != fmi2OK) return (fmi3Status)s;
+        values[j] = value != 0;
+    }
+    return fmi3OK;
+}
+
+FMI3_Export fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                      size_t nValueReferences, const fmi3Boolean values[], size_t nValues) {
+    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    for (size_t j = 0; j < nValueReferences; j++) {
+        fmi2Boolean value = values[j] ? 1 : 0;
+        fmi2Status s = fmi2SetBoolean(instance, &valueReferences[j], 1, &value);
+        if (s != fmi2OK) return (fmi3Status)s;
+    }
+    return fmi3OK;
+}
+
+/* Everything else of the FMI 3.0 API (Model Exchange, Scheduled Execution, clocks, event mode,
+   other types, states, derivatives): one message and fmi3Error. */
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wunused-parameter"
+#define UNSUPPORTED(name, params)                                                                             \
+    FMI3_Export fmi3Status name params { return unsupported3(instance, #name); }
+UNSUPPORTED(fmi3EnterEventMode, (fmi3Instance instance))
+UNSUPPORTED(fmi3GetFloat32, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, fmi3Float32 values[], size_t nValues))
+UNSUPPORTED(fmi3GetInt8, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, fmi3Int8 values[], size_t nValues))
+UNSUPPORTED(fmi3GetUInt8, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, fmi3UInt8 values[], size_t nValues))
+UNSUPPORTED(fmi3GetInt16, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, fmi3Int16 values[], size_t nValues))
+UNSUPPORTED(fmi3GetUInt16, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, fmi3UInt16 values[], size_t nValues))
+UNSUPPORTED(fmi3GetUInt32, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, fmi3UInt32 values[], size_t nValues))
+UNSUPPORTED(fmi3GetInt64, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, fmi3Int64 values[], size_t nValues))
+UNSUPPORTED(fmi3GetUInt64, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, fmi3UInt64 values[], size_t nValues))
+UNSUPPORTED(fmi3GetString, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, fmi3String values[], size_t nValues))
+UNSUPPORTED(fmi3GetBinary, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, size_t valueSizes[], fmi3Binary values[], size_t nValues))
+UNSUPPORTED(fmi3GetClock, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, fmi3Clock values[]))
+UNSUPPORTED(fmi3SetFloat32, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, const fmi3Float32 values[], size_t nValues))
+UNSUPPORTED(fmi3SetInt8, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, const fmi3Int8 values[], size_t nValues))
+UNSUPPORTED(fmi3SetUInt8, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, const fmi3UInt8 values[], size_t nValues))
+UNSUPPORTED(fmi3SetInt16, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, const fmi3Int16 values[], size_t nValues))
+UNSUPPORTED(fmi3SetUInt16, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, const fmi3UInt16 values[], size_t nValues))
+UNSUPPORTED(fmi3SetUInt32, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, const fmi3UInt32 values[], size_t nValues))
+UNSUPPORTED(fmi3SetInt64, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, const fmi3Int64 values[], size_t nValues))
+UNSUPPORTED(fmi3SetUInt64, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, const fmi3UInt64 values[], size_t nValues))
+UNSUPPORTED(fmi3SetString, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, const fmi3String values[], size_t nValues))
+UNSUPPORTED(fmi3SetBinary, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, const size_t valueSizes[], const fmi3Binary values[], size_t nValues))
+UNSUPPORTED(fmi3SetClock, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, const fmi3Clock values[]))
+UNSUPPORTED(fmi3GetNumberOfVariableDependencies, (fmi3Instance instance, fmi3ValueReference valueReference,
+            size_t* nDependencies))
+UNSUPPORTED(fmi3GetVariableDependencies, (fmi3Instance instance, fmi3ValueReference dependent,
+            size_t elementIndicesOfDependent[], fmi3ValueReference independents[],
+            size_t elementIndicesOfIndependents[], fmi3DependencyKind dependencyKinds[],
+            size_t nDependencies))
+UNSUPPORTED(fmi3GetFMUState, (fmi3Instance instance, fmi3FMUState* FMUState))
+UNSUPPORTED(fmi3SetFMUState, (fmi3Instance instance, fmi3FMUState FMUState))
+UNSUPPORTED(fmi3FreeFMUState, (fmi3Instance instance, fmi3FMUState* FMUState))
+UNSUPPORTED(fmi3SerializedFMUStateSize, (fmi3Instance instance, fmi3FMUState FMUState, size_t* size))
+UNSUPPORTED(fmi3SerializeFMUState, (fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte serializedState[],
+            size_t size))
+UNSUPPORTED(fmi3DeserializeFMUState, (fmi3Instance instance, const fmi3Byte serializedState[], size_t size,
+            fmi3FMUState* FMUState))
+UNSUPPORTED(fmi3GetDirectionalDerivative, (fmi3Instance instance, const fmi3ValueReference unknowns[],
+            size_t nUnknowns, const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+            size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity))
+UNSUPPORTED(fmi3GetAdjointDerivative, (fmi3Instance instance, const fmi3ValueReference unknowns[],
+            size_t nUnknowns, const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+            size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity))
+UNSUPPORTED(fmi3EnterConfigurationMode, (fmi3Instance instance))
+UNSUPPORTED(fmi3ExitConfigurationMode, (fmi3Instance instance))
+UNSUPPORTED(fmi3GetIntervalDecimal, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, fmi3Float64 intervals[], fmi3IntervalQualifier qualifiers[]))
+UNSUPPORTED(fmi3GetIntervalFraction, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, fmi3UInt64 counters[], fmi3UInt64 resolutions[],
+            fmi3IntervalQualifier qualifiers[]))
+UNSUPPORTED(fmi3GetShiftDecimal, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, fmi3Float64 shifts[]))
+UNSUPPORTED(fmi3GetShiftFraction, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, fmi3UInt64 counters[], fmi3UInt64 resolutions[]))
+UNSUPPORTED(fmi3SetIntervalDecimal, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, const fmi3Float64 intervals[]))
+UNSUPPORTED(fmi3SetIntervalFraction, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, const fmi3UInt64 counters[], const fmi3UInt64 resolutions[]))
+UNSUPPORTED(fmi3SetShiftDecimal, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, const fmi3Float64 shifts[]))
+UNSUPPORTED(fmi3SetShiftFraction, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, const fmi3UInt64 counters[], const fmi3UInt64 resolutions[]))
+UNSUPPORTED(fmi3EvaluateDiscreteStates, (fmi3Instance instance))
+UNSUPPORTED(fmi3UpdateDiscreteStates, (fmi3Instance instance, fmi3Boolean* discreteStatesNeedUpdate,
+            fmi3Boolean* terminateSimulation, fmi3Boolean* nominalsOfContinuousStatesChanged,
+            fmi3Boolean* valuesOfContinuousStatesChanged, fmi3Boolean* nextEventTimeDefined,
+            fmi3Float64* nextEventTime))
+UNSUPPORTED(fmi3EnterContinuousTimeMode, (fmi3Instance instance))
+UNSUPPORTED(fmi3CompletedIntegratorStep, (fmi3Instance instance,
+            fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean* enterEventMode,
+            fmi3Boolean* terminateSimulation))
+UNSUPPORTED(fmi3SetTime, (fmi3Instance instance, fmi3Float64 time))
+UNSUPPORTED(fmi3SetContinuousStates, (fmi3Instance instance, const fmi3Float64 continuousStates[],
+            size_t nContinuousStates))
+UNSUPPORTED(fmi3GetContinuousStateDerivatives, (fmi3Instance instance, fmi3Float64 derivatives[],
+            size_t nContinuousStates))
+UNSUPPORTED(fmi3GetEventIndicators, (fmi3Instance instance, fmi3Float64 eventIndicators[],
+            size_t nEventIndicators))
+UNSUPPORTED(fmi3GetContinuousStates, (fmi3Instance instance, fmi3Float64 continuousStates[],
+            size_t nContinuousStates))
+UNSUPPORTED(fmi3GetNominalsOfContinuousStates, (fmi3Instance instance, fmi3Float64 nominals[],
+            size_t nContinuousStates))
+UNSUPPORTED(fmi3GetNumberOfEventIndicators, (fmi3Instance instance, size_t* nEventIndicators))
+UNSUPPORTED(fmi3GetNumberOfContinuousStates, (fmi3Instance instance, size_t* nContinuousStates))
+UNSUPPORTED(fmi3EnterStepMode, (fmi3Instance instance))
+UNSUPPORTED(fmi3GetOutputDerivatives, (fmi3Instance instance, const fmi3ValueReference valueReferences[],
+            size_t nValueReferences, const fmi3Int32 orders[], fmi3Float64 values[], size_t nValues))
+UNSUPPORTED(fmi3ActivateModelPartition, (fmi3Instance instance, fmi3ValueReference clockReference,
+            fmi3Float64 activationTime))
+#undef UNSUPPORTED
+#pragma GCC diagnostic pop

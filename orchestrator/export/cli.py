@@ -21,11 +21,11 @@ __all__ = ["register"]
 
 DESCRIPTION = """\
 Export SCENARIO (as for 'run': a .ssp archive, a scenario folder or a built scenario's name) as one
-FMI 2.0 Co-Simulation FMU for tools that take an FMU but no SSP (Simulink, Dymola and other
-Modelica tools, fmusim, FMPy). The FMU holds the scenario's FMUs, connections, parameter values
-(SSD, .ssv files, --parameter-set, --set; units converted as 'run' converts them), step and
-DefaultExperiment, and runs the same master as 'orchestrate run' on the same grid: plant.y equals
-'run's. It needs no Python on the host (needsExecutionTool="false"), linux64.
+Co-Simulation FMU (FMI 2.0; 3.0 with --fmi 3) for tools that take an FMU but no SSP (Simulink,
+Dymola and other Modelica tools, fmusim, FMPy). The FMU holds the scenario's FMUs, connections,
+parameter values (SSD, .ssv files, --parameter-set, --set; units converted as 'run' converts
+them), step and DefaultExperiment, and runs the same master as 'orchestrate run' on the same grid:
+plant.y equals 'run's. It needs no Python on the host (needsExecutionTool="false"), linux64.
 
 Exposed (default): every output of every component and every input no connection feeds, named
 COMPONENT.CONNECTOR; --expose PATTERN (repeatable, shell patterns) chooses among those and the

@@ -18,6 +18,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path, PurePosixPath
 from xml.etree import ElementTree
 
+from fmpy.model_description import ModelVariable
+
 from fmu_src.build import BuildError
 from fmu_src.container import compile_container
 
@@ -76,17 +78,6 @@ def _members(comp: ComponentModel, folder: str) -> dict[str, bytes]:
     return members
 
 
-def _variable(parent: ElementTree.Element, name: str, vr: int, causality: str, variability: str,
-              description: str | None, initial: str | None) -> ElementTree.Element:
-    attributes = {"name": name, "valueReference": str(vr)}
-    if description:
-        attributes["description"] = description
-    attributes |= {"causality": causality, "variability": variability}
-    if initial:
-        attributes["initial"] = initial
-    return ElementTree.SubElement(parent, "ScalarVariable", attributes)
-
-
 def _start(type_: str, value: object) -> str:
     if type_ == "Real":
         return repr(float(value))  # type: ignore[arg-type]  # a Real start value is a number
@@ -95,73 +86,113 @@ def _start(type_: str, value: object) -> str:
     return str(int(value))  # type: ignore[call-overload]  # an Integer start value is a number
 
 
+def _unit(var: ModelVariable) -> str | None:
+    return var.unit or (var.declaredType.unit if var.declaredType is not None else None)
+
+
+def _unit_definitions(system: System, plan: Plan) -> ElementTree.Element | None:
+    """UnitDefinitions of the exposed variables' units, copied from their FMUs (None: no unit)."""
+    units: dict[str, ElementTree.Element] = {}
+    for e in plan.exposed:
+        comp = system.components[e.port.component]
+        unit = _unit(comp.variables[e.port.connector])
+        if not unit or unit in units:
+            continue
+        definition = next((u for u in comp.model.unitDefinitions if u.name == unit), None)
+        element = ElementTree.Element("Unit", {"name": unit})
+        if definition is not None and definition.baseUnit is not None:
+            base = definition.baseUnit
+            attributes = {k: str(getattr(base, k)) for k in ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+                          if getattr(base, k)}
+            if float(base.factor) != 1.0:
+                attributes["factor"] = repr(float(base.factor))
+            if float(base.offset) != 0.0:
+                attributes["offset"] = repr(float(base.offset))
+            ElementTree.SubElement(element, "BaseUnit", attributes)
+        units[unit] = element
+    if not units:
+        return None
+    definitions = ElementTree.Element("UnitDefinitions")
+    definitions.extend(units.values())
+    return definitions
+
+
+# FMI 2.0 type element -> FMI 3.0 variable element
+FMI3_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
+
+
 def model_description(system: System, plan: Plan, identifier: str, guid: str, start: float, stop: float,
-                      step: float, master: str) -> bytes:
-    """The container's modelDescription.xml (FMI 2.0 Co-Simulation)."""
+                      step: float, master: str, fmi: str = "2") -> bytes:
+    """The container's modelDescription.xml: FMI 2.0 Co-Simulation, or FMI 3.0 (``fmi`` "3", where
+    value references, not indices, name dependencies and time is the independent variable)."""
+    three = fmi == "3"
     description = (f"SSP scenario '{system.structure.name}' as one FMU ({len(system.components)} FMUs, "
                    f"master {master}, step {step:g} s), exported by orchestrate")
     root = ElementTree.Element("fmiModelDescription", {
-        "fmiVersion": "2.0", "modelName": system.structure.name, "guid": guid, "description": description,
-        "generationTool": GENERATOR, "variableNamingConvention": "flat", "numberOfEventIndicators": "0"})
-    ElementTree.SubElement(root, "CoSimulation", {
-        "modelIdentifier": identifier, "needsExecutionTool": "false",
-        "canHandleVariableCommunicationStepSize": "true", "canInterpolateInputs": "false",
-        "maxOutputDerivativeOrder": "0", "canRunAsynchronuously": "false",
-        "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "true",
-        "canGetAndSetFMUstate": "false", "canSerializeFMUstate": "false",
-        "providesDirectionalDerivative": "false"})
-    units: dict[str, ElementTree.Element] = {}
-    for e in plan.exposed:
-        var = system.components[e.port.component].variables[e.port.connector]
-        unit = var.unit or (var.declaredType.unit if var.declaredType is not None else None)
-        if unit and unit not in units:
-            md = system.components[e.port.component].model
-            definition = next((u for u in md.unitDefinitions if u.name == unit), None)
-            element = ElementTree.Element("Unit", {"name": unit})
-            if definition is not None and definition.baseUnit is not None:
-                base = definition.baseUnit
-                attributes = {k: str(getattr(base, k)) for k in ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
-                              if getattr(base, k)}
-                if float(base.factor) != 1.0:
-                    attributes["factor"] = repr(float(base.factor))
-                if float(base.offset) != 0.0:
-                    attributes["offset"] = repr(float(base.offset))
-                ElementTree.SubElement(element, "BaseUnit", attributes)
-            units[unit] = element
-    if units:
-        ElementTree.SubElement(root, "UnitDefinitions").extend(units.values())
+        "fmiVersion": "3.0" if three else "2.0", "modelName": system.structure.name,
+        "instantiationToken" if three else "guid": guid, "description": description,
+        "generationTool": GENERATOR, "variableNamingConvention": "flat"})
+    if three:
+        ElementTree.SubElement(root, "CoSimulation", {
+            "modelIdentifier": identifier, "needsExecutionTool": "false",
+            "canHandleVariableCommunicationStepSize": "true", "canGetAndSetFMUState": "false",
+            "canSerializeFMUState": "false", "hasEventMode": "false"})
+    else:
+        root.set("numberOfEventIndicators", "0")
+        ElementTree.SubElement(root, "CoSimulation", {
+            "modelIdentifier": identifier, "needsExecutionTool": "false",
+            "canHandleVariableCommunicationStepSize": "true", "canInterpolateInputs": "false",
+            "maxOutputDerivativeOrder": "0", "canRunAsynchronuously": "false",
+            "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "true",
+            "canGetAndSetFMUstate": "false", "canSerializeFMUstate": "false",
+            "providesDirectionalDerivative": "false"})
+    units = _unit_definitions(system, plan)
+    if units is not None:
+        root.append(units)
     ElementTree.SubElement(root, "DefaultExperiment", {
         "startTime": repr(start), "stopTime": repr(stop), "stepSize": repr(step)})
     variables = ElementTree.SubElement(root, "ModelVariables")
     for vr, e in enumerate(plan.exposed):
         var = system.components[e.port.component].variables[e.port.connector]
-        unit = var.unit or (var.declaredType.unit if var.declaredType is not None else None)
+        attributes = {"name": str(e.port), "valueReference": str(vr)}
+        if var.description:
+            attributes["description"] = var.description
         if e.kind == "output":
-            node = _variable(variables, str(e.port), vr, "output", "continuous", var.description,
-                             "calculated")
-            typed = ElementTree.SubElement(node, "Real")
+            attributes |= {"causality": "output", "variability": "continuous", "initial": "calculated"}
         elif e.kind == "input":
-            node = _variable(variables, str(e.port), vr, "input", "continuous", var.description, None)
-            typed = ElementTree.SubElement(node, "Real", {"start": _start("Real", e.start)})
+            attributes |= {"causality": "input", "variability": "continuous"}
         else:
-            node = _variable(variables, str(e.port), vr, "parameter", "fixed", var.description, "exact")
-            typed = ElementTree.SubElement(node, e.type, {"start": _start(e.type, e.start)})
-            for bound in ("min", "max"):
-                if getattr(var, bound) is not None and e.type != "Boolean":
-                    typed.set(bound, str(getattr(var, bound)))
-        if unit and e.type == "Real":
-            typed.set("unit", unit)
+            attributes |= {"causality": "parameter", "variability": "fixed", "initial": "exact"}
+        typed: dict[str, str] = {}
+        if e.kind != "output":
+            typed["start"] = _start(e.type, e.start)
+        if e.kind == "parameter" and e.type != "Boolean":
+            typed |= {b: str(getattr(var, b)) for b in ("min", "max") if getattr(var, b) is not None}
+        if _unit(var) and e.type == "Real":
+            typed["unit"] = _unit(var) or ""
+        if three:
+            ElementTree.SubElement(variables, FMI3_TYPES[e.type], attributes | typed)
+        else:
+            node = ElementTree.SubElement(variables, "ScalarVariable", attributes)
+            ElementTree.SubElement(node, e.type, typed)
+    if three:  # the plan's last value reference: the time of the last communication point
+        ElementTree.SubElement(variables, "Float64", {
+            "name": "time", "valueReference": str(len(plan.exposed)), "causality": "independent",
+            "variability": "continuous", "description": "Simulation time"})
     structure = ElementTree.SubElement(root, "ModelStructure")
-    index = {str(e.port): n for n, e in enumerate(plan.exposed, start=1)}
-    outputs = [(n, e) for n, e in enumerate(plan.exposed, start=1) if e.kind == "output"]
+    key = {str(e.port): str(vr if three else vr + 1) for vr, e in enumerate(plan.exposed)}
+    attribute = "valueReference" if three else "index"
+    outputs = [e for e in plan.exposed if e.kind == "output"]
     if outputs:
-        section = ElementTree.SubElement(structure, "Outputs")
-        for n, e in outputs:
-            depends = " ".join(str(index[d]) for d in sorted(e.depends_on, key=index.__getitem__))
-            ElementTree.SubElement(section, "Unknown", {"index": str(n), "dependencies": depends})
-        section = ElementTree.SubElement(structure, "InitialUnknowns")
-        for n, _ in outputs:
-            ElementTree.SubElement(section, "Unknown", {"index": str(n)})
+        section = structure if three else ElementTree.SubElement(structure, "Outputs")
+        for e in outputs:
+            depends = " ".join(key[d] for d in sorted(e.depends_on, key=lambda d: int(key[d])))
+            ElementTree.SubElement(section, "Output" if three else "Unknown",
+                                   {attribute: key[str(e.port)], "dependencies": depends})
+        section = structure if three else ElementTree.SubElement(structure, "InitialUnknowns")
+        for e in outputs:
+            ElementTree.SubElement(section, "InitialUnknown" if three else "Unknown",
+                                   {attribute: key[str(e.port)]})
     ElementTree.indent(root, space="  ")
     return ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True) + b"\n"
 
@@ -187,14 +218,12 @@ def export(scenario: str | os.PathLike, output: str | os.PathLike, *, fmi: str =
     variables it exposes. The start and stop time become the FMU's DefaultExperiment, the step its
     internal communication step (and DefaultExperiment stepSize).
 
-    ScenarioError for a scenario ``run`` would refuse, UsageError for a bad option (an FMI
-    version or master that does not exist, ``--fmi 3``, an ``--expose`` pattern that matches
+    ``fmi`` "3": the FMU declares FMI 3.0 (its container speaks FMI 3.0 to the host; the FMUs
+    inside stay FMI 2.0). ScenarioError for a scenario ``run`` would refuse, UsageError for a bad
+    option (an FMI version or master that does not exist, an ``--expose`` pattern that matches
     nothing)."""
     if fmi not in FMI_VERSIONS:
         raise UsageError(f"--fmi must be one of {', '.join(FMI_VERSIONS)} (got {fmi!r})")
-    if fmi == "3":
-        raise UsageError("--fmi 3: FMI 3.0 export is not available yet (the container runtime and the "
-                         "project's FMUs are FMI 2.0); export with --fmi 2")
     if master not in MASTERS:
         raise UsageError(f"unknown master '{master}' (choose from {', '.join(MASTERS)})")
     target = Path(output)
@@ -206,21 +235,22 @@ def export(scenario: str | os.PathLike, output: str | os.PathLike, *, fmi: str =
         start, stop, step = timing(system.structure, stop_time, step, start_time)
         exposed = select(system, expose)
         folders = _folders(system)
-        plan = make_plan(system, start, step, master, exposed, folders)
+        plan = make_plan(system, start, step, master, exposed, folders, time_variable=fmi == "3")
         entries: dict[str, bytes] = {}
         for comp in system.components.values():
             entries |= _members(comp, folders[comp.name])
         try:
-            entries[f"binaries/linux64/{identifier}.so"] = compile_container()
+            platform = "x86_64-linux" if fmi == "3" else "linux64"  # FMI 3.0's platform tuple
+            entries[f"binaries/{platform}/{identifier}.so"] = compile_container()
         except BuildError as exc:
             raise ScenarioError(f"cannot build the container runtime: {exc}") from exc
         digest = hashlib.sha256(plan.text("").encode())
         for name in sorted(entries):
             digest.update(name.encode() + b"\0" + hashlib.sha256(entries[name]).digest())
-        digest.update(f"{identifier}\0{start!r}\0{stop!r}\0{step!r}".encode())
+        digest.update(f"{identifier}\0{start!r}\0{stop!r}\0{step!r}\0{fmi}".encode())
         guid = "{" + str(uuid.uuid5(GUID_NAMESPACE, digest.hexdigest())) + "}"
         entries["resources/container.plan"] = plan.text(guid).encode()
         entries["modelDescription.xml"] = model_description(system, plan, identifier, guid, start, stop, step,
-                                                            master)
+                                                            master, fmi)
     _write(target, entries)
     return target, plan.exposed

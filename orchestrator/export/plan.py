@@ -149,8 +149,10 @@ def _feeds(system: System) -> dict[PortRef, set[PortRef]]:
 
 
 def make_plan(system: System, start: float, step: float, master: str, exposed: Sequence[Exposed],
-              folders: dict[str, str]) -> Plan:
-    """The plan of ``system`` run by ``master`` on the grid ``start + k * step``, exposing ``exposed``."""
+              folders: dict[str, str], time_variable: bool = False) -> Plan:
+    """The plan of ``system`` run by ``master`` on the grid ``start + k * step``, exposing ``exposed``
+    (value references 0, 1, ...) and, with ``time_variable``, the time (the next value reference:
+    FMI 3.0's independent variable)."""
     t0, h, _ = grid(start, start + step, step)
     components = list(system.components.values())
     index = {c.name: i for i, c in enumerate(components)}
@@ -212,7 +214,8 @@ def make_plan(system: System, start: float, step: float, master: str, exposed: S
     reach = _feeds(system)
     container_inputs = {e.port for e in exposed if e.kind == "input"}
     lines = [f"master {master}", f"grid {t0} {h}",
-             f"sizes {len(slot)} {len(components)} {len(calls)} {len(system.schedule)} {len(exposed)}"]
+             f"sizes {len(slot)} {len(components)} {len(calls)} {len(system.schedule)} "
+             f"{len(exposed) + time_variable}"]
     lines += [f"value {s} {_real(v)}" for s, v in initial.items()]
     for comp in components:
         c = comp.model.coSimulation
@@ -250,6 +253,8 @@ def make_plan(system: System, start: float, step: float, master: str, exposed: S
             out.append(e)
             call, pos = position[e.port]
             lines.append(f"exposed {vr} p {TYPE_LETTER[e.type]} {call} {pos}")
+    if time_variable:
+        lines.append(f"exposed {len(exposed)} o r 0")  # slot 0 holds the time of the last communication point
     if not components:
         raise ScenarioError(f"{system.ssd}: the scenario has no component to export")
     return Plan(folders, out, lines)
