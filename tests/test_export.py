@@ -185,7 +185,8 @@ def test_a_host_step_off_the_grid_fails(exported: dict[str, Path]) -> None:
 
 
 def test_bad_options_are_refused(built: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """One line each, exit status 2, nothing written."""
+    """One line each, exit status 2, nothing written; a target that cannot be written: one line,
+    exit status 1, what is in the way left as it was."""
     target = tmp_path / "x.fmu"
     scenario = str(built / "ssp" / "example1.ssp")
     for extra, message in ((["--fmi", "4"], "argument --fmi: invalid choice: '4'"),
@@ -196,6 +197,11 @@ def test_bad_options_are_refused(built: Path, tmp_path: Path, capsys: pytest.Cap
         assert stop.value.code == 2
         assert message in capsys.readouterr().err
     assert not target.exists() and not list(tmp_path.iterdir())
+    blocked = tmp_path / "a file"
+    blocked.write_text("kept")
+    assert main(["export", scenario, "-o", str(blocked / "x.fmu")]) == 1
+    assert f"cannot write {blocked / 'x.fmu'}" in capsys.readouterr().err
+    assert blocked.read_text() == "kept"
 
 
 def test_fmi3(built: Path, tmp_path: Path) -> None:

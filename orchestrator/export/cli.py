@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from .. import MASTERS
 from ..cli import (
@@ -62,10 +63,14 @@ def _export(args: argparse.Namespace) -> int:
     stale = stale_build(scenario)
     if stale and not args.allow_stale:
         raise ScenarioError(stale)
-    path, exposed = export(scenario, args.output, fmi=args.fmi, master=args.master, expose=args.expose,
-                           parameter_sets=args.parameter_set, overrides=overrides,
-                           fmu_dirs=fmu_dirs(scenario), limits=_limits(args), start_time=args.start_time,
-                           stop_time=args.stop_time, step=args.step)
+    try:
+        path, exposed = export(scenario, args.output, fmi=args.fmi, master=args.master, expose=args.expose,
+                               parameter_sets=args.parameter_set, overrides=overrides,
+                               fmu_dirs=fmu_dirs(scenario), limits=_limits(args), start_time=args.start_time,
+                               stop_time=args.stop_time, step=args.step)
+    except OSError as exc:  # the target's folder read-only, the disk full: the target is left as it was
+        print(f"orchestrate: error: cannot write {args.output}: {exc}", file=sys.stderr)
+        return 1
     kinds = {k: sum(e.kind == k for e in exposed) for k in ("input", "output", "parameter")}
     size = path.stat().st_size / 1e6
     print(f"{path}: {kinds['output']} outputs, {kinds['input']} inputs, {kinds['parameter']} parameters, "
