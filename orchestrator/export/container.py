@@ -233,6 +233,11 @@ def export(scenario: str | os.PathLike, output: str | os.PathLike, *, fmi: str =
     with open_system(scenario, parameter_sets=list(parameter_sets), overrides=overrides, fmu_dirs=fmu_dirs,
                      limits=limits) as system:
         start, stop, step = timing(system.structure, stop_time, step, start_time)
+        other = [f"{system.ssd}: component '{c.name}': FMU '{Path(c.fmu).name}' is FMI {c.model.fmiVersion}; "
+                 "the container embeds FMI 2.0 Co-Simulation FMUs only"
+                 for c in system.components.values() if c.model.fmiVersion != "2.0"]
+        if other:
+            raise ScenarioError(other)
         exposed = select(system, expose)
         folders = _folders(system)
         plan = make_plan(system, start, step, master, exposed, folders, time_variable=fmi == "3")
