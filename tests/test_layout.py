@@ -21,8 +21,9 @@ ALLOWED = {
     "controller": set(),
     "fmu_src": {"controller"},
     ENGINE: set(),
-    "orchestrator.crosscheck": {ENGINE},
+    "orchestrator.crosscheck": {ENGINE, "orchestrator.export"},
     "orchestrator.campaign": {ENGINE},
+    "orchestrator.export": {ENGINE, "fmu_src"},
     "orchestrator.experiments": {ENGINE, "orchestrator.crosscheck", "orchestrator.campaign", "controller",
                                  "fmu_src"},
 }

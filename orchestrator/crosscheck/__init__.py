@@ -8,6 +8,7 @@ tests and benchmarks use to compare our ``jacobi`` master with libcosim.
 from __future__ import annotations
 
 from .ecos import EcosCliTool, EcospyTool
+from .exported import ExportedFmpyTool, ExportedFmuCheckTool, ExportedFmusimTool
 from .libcosim import LibcosimError, LibcosimTool, run_libcosim
 from .omsimulator import OMSimulatorCliTool, OMSimulatorNoPythonTool, OMSimulatorPythonTool
 from .tools import Scenario, Tolerance, Tool, ToolRun
@@ -17,7 +18,9 @@ __all__ = ["TOOLS", "LibcosimError", "Scenario", "Tolerance", "Tool", "ToolRun",
 
 # Every supported tool, in the matrix's order (key -> adapter class).
 TOOLS: dict[str, type[Tool]] = {t.key: t for t in (LibcosimTool, EcospyTool, EcosCliTool, OMSimulatorCliTool,
-                                                   OMSimulatorNoPythonTool, OMSimulatorPythonTool)}
+                                                   OMSimulatorNoPythonTool, OMSimulatorPythonTool,
+                                                   ExportedFmusimTool, ExportedFmuCheckTool,
+                                                   ExportedFmpyTool)}
 
 
 def select_tools(keys: list[str] | None = None) -> list[Tool]:

@@ -1,0 +1,261 @@
+"""``orchestrate export``: a scenario as one FMI 2.0 Co-Simulation FMU.
+
+The archive holds ``modelDescription.xml`` (the exposed variables ``<component>.<variable>``, the
+scenario's DefaultExperiment and step), ``binaries/linux64/<id>.so`` (the container runtime of
+``fmu_src/container``), ``resources/container.plan`` (:mod:`.plan`) and each distinct FMU of the
+scenario unpacked under ``resources/fmus/<name>/``. Rebuilding from the same scenario and options
+gives the same bytes; the GUID is a digest of them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import uuid
+import zipfile
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path, PurePosixPath
+from xml.etree import ElementTree
+
+from fmpy.model_description import ModelVariable
+
+from fmu_src.build import BuildError
+from fmu_src.container import compile_container
+
+from .. import open_system
+from ..errors import ScenarioError, UsageError
+from ..files import replacing
+from ..master import MASTERS
+from ..ssp import DEFAULT_LIMITS, Limits
+from ..system import ComponentModel, System
+from ..validate import timing
+from .plan import Exposed, Plan, make_plan, select
+
+__all__ = ["FMI_VERSIONS", "export"]
+
+FMI_VERSIONS = ("2", "3")
+ZIP_DATE = (1980, 1, 1, 0, 0, 0)
+GUID_NAMESPACE = uuid.UUID("0d6c7e0e-8a55-4f0b-9d7e-3c1f0a6b2e41")
+GENERATOR = "orchestrate export (fixed-time-cosim)"
+
+
+def model_identifier(output: Path) -> str:
+    """A C identifier from the FMU's file name (``example1.fmu`` -> ``example1``)."""
+    name = re.sub(r"\W", "_", output.stem, flags=re.ASCII) or "scenario"
+    return name if not name[0].isdigit() else f"_{name}"
+
+
+def _folders(system: System) -> dict[str, str]:
+    """component -> folder under resources/fmus/: one per distinct FMU file, named after it."""
+    by_digest: dict[str, str] = {}
+    folders: dict[str, str] = {}
+    for comp in system.components.values():
+        digest = hashlib.sha256(Path(comp.fmu).read_bytes()).hexdigest()
+        if digest not in by_digest:
+            stem = re.sub(r"[^\w.-]", "_", Path(comp.fmu).stem, flags=re.ASCII) or "fmu"
+            name, n = stem, 1
+            while name in by_digest.values():
+                n += 1
+                name = f"{stem}_{n}"
+            by_digest[digest] = name
+        folders[comp.name] = by_digest[digest]
+    return folders
+
+
+def _members(comp: ComponentModel, folder: str) -> dict[str, bytes]:
+    """The FMU's files under ``resources/fmus/<folder>/`` (names checked to stay inside it)."""
+    members: dict[str, bytes] = {}
+    with zipfile.ZipFile(comp.fmu) as archive:
+        for info in archive.infolist():
+            name = info.filename
+            parts = PurePosixPath(name).parts
+            if info.is_dir():
+                continue
+            if name.startswith("/") or "\\" in name or ".." in parts or not parts:
+                raise ScenarioError(f"{comp.fmu}: member '{name}' would leave the FMU's folder")
+            members[f"resources/fmus/{folder}/{name}"] = archive.read(info)
+    return members
+
+
+def _start(type_: str, value: object) -> str:
+    if type_ == "Real":
+        return repr(float(value))  # type: ignore[arg-type]  # a Real start value is a number
+    if type_ == "Boolean":
+        return "true" if value else "false"
+    return str(int(value))  # type: ignore[call-overload]  # an Integer start value is a number
+
+
+def _unit(var: ModelVariable) -> str | None:
+    return var.unit or (var.declaredType.unit if var.declaredType is not None else None)
+
+
+def _unit_definitions(system: System, plan: Plan) -> ElementTree.Element | None:
+    """UnitDefinitions of the exposed variables' units, copied from their FMUs (None: no unit)."""
+    units: dict[str, ElementTree.Element] = {}
+    for e in plan.exposed:
+        comp = system.components[e.port.component]
+        unit = _unit(comp.variables[e.port.connector])
+        if not unit or unit in units:
+            continue
+        definition = next((u for u in comp.model.unitDefinitions if u.name == unit), None)
+        element = ElementTree.Element("Unit", {"name": unit})
+        if definition is not None and definition.baseUnit is not None:
+            base = definition.baseUnit
+            attributes = {k: str(getattr(base, k)) for k in ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+                          if getattr(base, k)}
+            if float(base.factor) != 1.0:
+                attributes["factor"] = repr(float(base.factor))
+            if float(base.offset) != 0.0:
+                attributes["offset"] = repr(float(base.offset))
+            ElementTree.SubElement(element, "BaseUnit", attributes)
+        units[unit] = element
+    if not units:
+        return None
+    definitions = ElementTree.Element("UnitDefinitions")
+    definitions.extend(units.values())
+    return definitions
+
+
+# FMI 2.0 type element -> FMI 3.0 variable element
+FMI3_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
+
+
+def model_description(system: System, plan: Plan, identifier: str, guid: str, start: float, stop: float,
+                      step: float, master: str, fmi: str = "2") -> bytes:
+    """The container's modelDescription.xml: FMI 2.0 Co-Simulation, or FMI 3.0 (``fmi`` "3", where
+    value references, not indices, name dependencies and time is the independent variable)."""
+    three = fmi == "3"
+    description = (f"SSP scenario '{system.structure.name}' as one FMU ({len(system.components)} FMUs, "
+                   f"master {master}, step {step:g} s), exported by orchestrate")
+    root = ElementTree.Element("fmiModelDescription", {
+        "fmiVersion": "3.0" if three else "2.0", "modelName": system.structure.name,
+        "instantiationToken" if three else "guid": guid, "description": description,
+        "generationTool": GENERATOR, "variableNamingConvention": "flat"})
+    if three:
+        ElementTree.SubElement(root, "CoSimulation", {
+            "modelIdentifier": identifier, "needsExecutionTool": "false",
+            "canHandleVariableCommunicationStepSize": "true", "canGetAndSetFMUState": "false",
+            "canSerializeFMUState": "false", "hasEventMode": "false"})
+    else:
+        root.set("numberOfEventIndicators", "0")
+        ElementTree.SubElement(root, "CoSimulation", {
+            "modelIdentifier": identifier, "needsExecutionTool": "false",
+            "canHandleVariableCommunicationStepSize": "true", "canInterpolateInputs": "false",
+            "maxOutputDerivativeOrder": "0", "canRunAsynchronuously": "false",
+            "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "true",
+            "canGetAndSetFMUstate": "false", "canSerializeFMUstate": "false",
+            "providesDirectionalDerivative": "false"})
+    units = _unit_definitions(system, plan)
+    if units is not None:
+        root.append(units)
+    ElementTree.SubElement(root, "DefaultExperiment", {
+        "startTime": repr(start), "stopTime": repr(stop), "stepSize": repr(step)})
+    variables = ElementTree.SubElement(root, "ModelVariables")
+    for vr, e in enumerate(plan.exposed):
+        var = system.components[e.port.component].variables[e.port.connector]
+        attributes = {"name": str(e.port), "valueReference": str(vr)}
+        if var.description:
+            attributes["description"] = var.description
+        if e.kind == "output":
+            attributes |= {"causality": "output", "variability": "continuous", "initial": "calculated"}
+        elif e.kind == "input":
+            attributes |= {"causality": "input", "variability": "continuous"}
+        else:
+            attributes |= {"causality": "parameter", "variability": "fixed", "initial": "exact"}
+        typed: dict[str, str] = {}
+        if e.kind != "output":
+            typed["start"] = _start(e.type, e.start)
+        if e.kind == "parameter" and e.type != "Boolean":
+            typed |= {b: str(getattr(var, b)) for b in ("min", "max") if getattr(var, b) is not None}
+        if _unit(var) and e.type == "Real":
+            typed["unit"] = _unit(var) or ""
+        if three:
+            ElementTree.SubElement(variables, FMI3_TYPES[e.type], attributes | typed)
+        else:
+            node = ElementTree.SubElement(variables, "ScalarVariable", attributes)
+            ElementTree.SubElement(node, e.type, typed)
+    if three:  # the plan's last value reference: the time of the last communication point
+        ElementTree.SubElement(variables, "Float64", {
+            "name": "time", "valueReference": str(len(plan.exposed)), "causality": "independent",
+            "variability": "continuous", "description": "Simulation time"})
+    structure = ElementTree.SubElement(root, "ModelStructure")
+    key = {str(e.port): str(vr if three else vr + 1) for vr, e in enumerate(plan.exposed)}
+    attribute = "valueReference" if three else "index"
+    outputs = [e for e in plan.exposed if e.kind == "output"]
+    if outputs:
+        section = structure if three else ElementTree.SubElement(structure, "Outputs")
+        for e in outputs:
+            depends = " ".join(key[d] for d in sorted(e.depends_on, key=lambda d: int(key[d])))
+            ElementTree.SubElement(section, "Output" if three else "Unknown",
+                                   {attribute: key[str(e.port)], "dependencies": depends})
+        section = structure if three else ElementTree.SubElement(structure, "InitialUnknowns")
+        for e in outputs:
+            ElementTree.SubElement(section, "InitialUnknown" if three else "Unknown",
+                                   {attribute: key[str(e.port)]})
+    ElementTree.indent(root, space="  ")
+    return ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True) + b"\n"
+
+
+def _write(target: Path, entries: Mapping[str, bytes]) -> None:
+    """The archive, written under a temporary name and renamed (the target is never half written)."""
+    with replacing(target) as temporary, zipfile.ZipFile(temporary, "w", zipfile.ZIP_DEFLATED) as archive:
+        for name in sorted(entries):
+            info = zipfile.ZipInfo(name, date_time=ZIP_DATE)
+            info.compress_type = zipfile.ZIP_DEFLATED
+            info.external_attr = (0o755 if name.endswith(".so") else 0o644) << 16
+            archive.writestr(info, entries[name])
+
+
+def export(scenario: str | os.PathLike, output: str | os.PathLike, *, fmi: str = "2",
+           master: str = "gauss-seidel", expose: Sequence[str] = (),
+           parameter_sets: Iterable[str | os.PathLike] = (), overrides: Mapping[str, object] | None = None,
+           fmu_dirs: Iterable[str | os.PathLike] = (), limits: Limits = DEFAULT_LIMITS,
+           start_time: float | None = None, stop_time: float | None = None,
+           step: float | None = None) -> tuple[Path, list[Exposed]]:
+    """Export ``scenario`` (as :func:`orchestrator.run` takes it, with the same parameter sets,
+    overrides, start and stop time and step) as one FMU at ``output``; returns its path and the
+    variables it exposes. The start and stop time become the FMU's DefaultExperiment, the step its
+    internal communication step (and DefaultExperiment stepSize).
+
+    ``fmi`` "3": the FMU declares FMI 3.0 (its container speaks FMI 3.0 to the host; the FMUs
+    inside stay FMI 2.0). ScenarioError for a scenario ``run`` would refuse, UsageError for a bad
+    option (an FMI version or master that does not exist, an ``--expose`` pattern that matches
+    nothing)."""
+    if fmi not in FMI_VERSIONS:
+        raise UsageError(f"--fmi must be one of {', '.join(FMI_VERSIONS)} (got {fmi!r})")
+    if master not in MASTERS:
+        raise UsageError(f"unknown master '{master}' (choose from {', '.join(MASTERS)})")
+    target = Path(output)
+    if target.suffix.lower() != ".fmu":
+        raise UsageError(f"the exported file must end in .fmu (got {target})")
+    identifier = model_identifier(target)
+    with open_system(scenario, parameter_sets=list(parameter_sets), overrides=overrides, fmu_dirs=fmu_dirs,
+                     limits=limits) as system:
+        start, stop, step = timing(system.structure, stop_time, step, start_time)
+        other = [f"{system.ssd}: component '{c.name}': FMU '{Path(c.fmu).name}' is FMI {c.model.fmiVersion}; "
+                 "the container embeds FMI 2.0 Co-Simulation FMUs only"
+                 for c in system.components.values() if c.model.fmiVersion != "2.0"]
+        if other:
+            raise ScenarioError(other)
+        exposed = select(system, expose)
+        folders = _folders(system)
+        plan = make_plan(system, start, step, master, exposed, folders, time_variable=fmi == "3")
+        entries: dict[str, bytes] = {}
+        for comp in system.components.values():
+            entries |= _members(comp, folders[comp.name])
+        try:
+            platform = "x86_64-linux" if fmi == "3" else "linux64"  # FMI 3.0's platform tuple
+            entries[f"binaries/{platform}/{identifier}.so"] = compile_container()
+        except BuildError as exc:
+            raise ScenarioError(f"cannot build the container runtime: {exc}") from exc
+        digest = hashlib.sha256(plan.text("").encode())
+        for name in sorted(entries):
+            digest.update(name.encode() + b"\0" + hashlib.sha256(entries[name]).digest())
+        digest.update(f"{identifier}\0{start!r}\0{stop!r}\0{step!r}\0{fmi}".encode())
+        guid = "{" + str(uuid.uuid5(GUID_NAMESPACE, digest.hexdigest())) + "}"
+        entries["resources/container.plan"] = plan.text(guid).encode()
+        entries["modelDescription.xml"] = model_description(system, plan, identifier, guid, start, stop, step,
+                                                            master, fmi)
+    _write(target, entries)
+    return target, plan.exposed
