@@ -24,7 +24,8 @@ import pytest
 from fmpy.util import read_csv
 from lxml import etree
 
-from orchestrator import SimulationError, run
+import orchestrator
+from orchestrator import RunOptions, SimulationError
 from orchestrator.cli import main
 from orchestrator.crosscheck.colleague import hidden, refusal
 from orchestrator.experiments.metrics import tracking_metrics
@@ -49,6 +50,11 @@ SHORT = 1.0  # s: stop time of the checks the README's table is not involved in
 FMUSIM_PRINT = 1e-15  # relative: a value printed with 16 significant digits (%.16g) and read back
 NO_NAMESPACE = refusal()
 needs_namespace = pytest.mark.skipif(NO_NAMESPACE is not None, reason=str(NO_NAMESPACE))
+
+
+def run(scenario: Path, **options: object) -> np.ndarray:
+    """The rows of ``orchestrate run`` on ``scenario`` (options as RunOptions takes them)."""
+    return orchestrator.run(scenario, RunOptions(**options)).rows  # type: ignore[arg-type]
 
 
 def table_rows() -> dict[str, list[str]]:

@@ -7,13 +7,13 @@ import sys
 
 from .. import MASTERS
 from ..cli import (
-    _limits,
     _overrides,
     _scenario_arguments,
     add_command,
+    archive_limits,
     fmu_dirs,
     resolve_scenario,
-    stale_build,
+    scenario_checks,
 )
 from ..errors import ScenarioError
 from .container import FMI_VERSIONS, export
@@ -60,13 +60,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _export(args: argparse.Namespace) -> int:
     overrides = _overrides(args.set)
     scenario = resolve_scenario(args.scenario)
-    stale = stale_build(scenario)
+    stale = scenario_checks(scenario)
     if stale and not args.allow_stale:
         raise ScenarioError(stale)
     try:
         path, exposed = export(scenario, args.output, fmi=args.fmi, master=args.master, expose=args.expose,
                                parameter_sets=args.parameter_set, overrides=overrides,
-                               fmu_dirs=fmu_dirs(scenario), limits=_limits(args), start_time=args.start_time,
+                               fmu_dirs=fmu_dirs(scenario), limits=archive_limits(args),
+                               start_time=args.start_time,
                                stop_time=args.stop_time, step=args.step)
     except OSError as exc:  # the target's folder read-only, the disk full: the target is left as it was
         print(f"orchestrate: error: cannot write {args.output}: {exc}", file=sys.stderr)
