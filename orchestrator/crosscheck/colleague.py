@@ -8,6 +8,8 @@ not where it cannot be had, for one clear skip reason."""
 
 from __future__ import annotations
 
+import atexit
+import functools
 import glob
 import shlex
 import shutil
@@ -58,6 +60,16 @@ def _covered() -> tuple[list[str], list[str]]:
     return sorted(dirs), sorted(files)
 
 
+@functools.cache
+def _empty_file() -> Path:
+    """One empty file per process to bind over files (removed at exit)."""
+    folder = tempfile.mkdtemp(prefix="colleague_")
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    empty = Path(folder, "empty")
+    empty.write_bytes(b"")
+    return empty
+
+
 def refusal() -> str | None:
     """Why a colleague's machine cannot be made here, or None."""
     if not shutil.which("unshare"):
@@ -77,8 +89,7 @@ def hidden(argv: list[str], extra_env: dict[str, str] | None = None, also: tuple
     environment plus ``extra_env``; the files ``also`` hidden too)."""
     dirs, files = _covered()
     files = sorted(set(files) | {str(Path(f).resolve()) for f in also if Path(f).exists()})
-    empty = Path(tempfile.mkdtemp(prefix="colleague_")) / "empty"
-    empty.write_bytes(b"")
+    empty = _empty_file()
     mounts = [f"mount -t tmpfs -o size=64k,mode=755 none {shlex.quote(d)}" for d in dirs]
     mounts += [f"mount --bind {shlex.quote(str(empty))} {shlex.quote(f)}" for f in files]
     env = [f"{k}={v}" for k, v in (extra_env or {}).items()]
