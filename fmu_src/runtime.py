@@ -127,20 +127,6 @@ class Runtime:
     def include_dirs(self) -> tuple[Path, ...]:
         return tuple(self.root / d for d in INCLUDE)
 
-    def builtin_modules(self) -> frozenset[str]:
-        """Modules compiled into the bundled libpython (its ``PyInit_*`` symbols, read from the
-        ELF dynamic symbol table), which need no file."""
-        data = (self.root / LIBRARIES[-1][0]).read_bytes()
-        names = set()
-        start = 0
-        while (start := data.find(b"PyInit_", start)) >= 0:
-            end = start + 7
-            while end < len(data) and (chr(data[end]).isalnum() or data[end] == ord("_")):
-                end += 1
-            names.add(data[start + 7 : end].decode())
-            start = end
-        return frozenset(names) | {"sys", "builtins", "marshal", "_imp", "_warnings", "_frozen_importlib"}
-
 
 def manifest() -> str:
     """``runtime.txt``: where the bundled runtime came from."""

@@ -19,6 +19,7 @@ from ..build import BuildError, c_compiler
 __all__ = ["CONTAINER_SOURCE", "compile_container"]
 
 CONTAINER_SOURCE = Path(__file__).resolve().parent / "container.c"
+SHIM_HEADERS = Path(__file__).resolve().parent.parent / "shim"  # fmi2_types.h
 # Like the shim's flags: no debug info, build id or symbols, so the bytes depend only on source,
 # compiler and flags; no contraction of a * b + c into a fused multiply-add, so a connection's
 # factor * value + offset rounds as NumPy's does in the engine's master; symbols bound inside the
@@ -48,7 +49,8 @@ def compile_container() -> bytes:
     compiler, _ = c_compiler()
     with tempfile.TemporaryDirectory(prefix="ftc_container_") as tmp:
         target = Path(tmp) / "container.so"
-        command = [compiler, *FLAGS, f"-I{fmi3_headers()}", "-o", str(target), str(CONTAINER_SOURCE), *LIBS]
+        command = [compiler, *FLAGS, f"-I{fmi3_headers()}", f"-I{SHIM_HEADERS}", "-o", str(target),
+                   str(CONTAINER_SOURCE), *LIBS]
         result = subprocess.run(command, capture_output=True, text=True)
         if result.returncode != 0:
             raise BuildError(f"{CONTAINER_SOURCE}: {compiler} failed:\n{result.stderr.strip()}")
