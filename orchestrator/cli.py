@@ -129,7 +129,13 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, handler: Hand
     return parser
 
 
-def _parser() -> argparse.ArgumentParser:
+BUILTIN_COMMANDS = ("run", "validate", "inspect", "plot")
+
+
+def _parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The command line: the built-in commands, and the applications' commands (entry-point group
+    ``orchestrate.commands``) unless ``command`` is a built-in one (importing the applications costs
+    more than a short run)."""
     parser = argparse.ArgumentParser(prog="orchestrate", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=version_line())
@@ -185,8 +191,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--output", type=Path, metavar="FILE.png", help="default: RESULT with .png")
     _plot_variables(p)
 
-    for entry in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
-        entry.load()(sub)
+    if command not in BUILTIN_COMMANDS:
+        for entry in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
+            entry.load()(sub)
     return parser
 
 
@@ -281,8 +288,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             if signal.getsignal(signum) is not signal.SIG_IGN:
                 signal.signal(signum, handler)
     try:
-        parser = _parser()
-        args = parser.parse_args(argv)
+        words = sys.argv[1:] if argv is None else list(argv)
+        parser = _parser(next((w for w in words if not w.startswith("-")), None))
+        args = parser.parse_args(words)
         try:
             return args.handler(args)
         except UsageError as exc:

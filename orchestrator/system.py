@@ -15,12 +15,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import SupportsFloat, SupportsIndex, SupportsInt
 
-import numpy as np
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription, ModelVariable
 from fmpy.validation import validate_fmu, validate_model_description
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components
 
 from .errors import ScenarioError
 from .ssp import Component, Connection, Parameter, ParameterSet, PortRef, SystemStructure
@@ -426,19 +423,56 @@ class System:
                 succ.setdefault(link.end, []).extend(
                     PortRef(comp.name, o) for o in sorted(comp.feedthrough.get(link.end.connector, ())))
         ports = sorted(set(succ) | {q for qs in succ.values() for q in qs})
-        index = {p: i for i, p in enumerate(ports)}
-        edges = np.array([(index[p], index[q]) for p, qs in succ.items() for q in qs], dtype=int)
-        edges = edges.reshape(-1, 2)
-        graph = csr_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(ports), len(ports)))
-        _, labels = connected_components(graph, directed=True, connection="strong")
+        labels = _strong_components(ports, succ)
+        parts: dict[int, set[PortRef]] = {}
+        for p in ports:  # in port order: each part listed from its first port
+            parts.setdefault(labels[p], set()).add(p)
         loops = []
-        for label in dict.fromkeys(labels):
-            members = {p for p in ports if labels[index[p]] == label}
+        for members in parts.values():
             first = min(members)
             if len(members) > 1 or first in succ.get(first, ()):
                 cycle = _cycle(first, {p: [q for q in succ.get(p, ()) if q in members] for p in members})
                 loops.append(f"{self.ssd}: algebraic loop: " + " -> ".join(map(str, cycle)))
         return loops
+
+
+def _strong_components(nodes: list[PortRef], succ: Mapping[PortRef, list[PortRef]]) -> dict[PortRef, int]:
+    """Tarjan's strongly connected components, iterative: node -> label (equal labels, one part).
+    A few lines here instead of scipy.sparse.csgraph, whose import alone (0.18 s) cost more than a
+    whole short run; the graphs are a scenario's ports (tens to thousands)."""
+    index: dict[PortRef, int] = {}
+    low: dict[PortRef, int] = {}
+    labels: dict[PortRef, int] = {}
+    stack: list[PortRef] = []
+    parts = 0
+    for root in nodes:
+        if root in index:
+            continue
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        work = [(root, iter(succ.get(root, ())))]
+        while work:
+            node, children = work[-1]
+            child = next(children, None)
+            if child is None:
+                work.pop()
+                if work:
+                    parent = work[-1][0]
+                    low[parent] = min(low[parent], low[node])
+                if low[node] == index[node]:  # node is the root of a part: pop it
+                    while True:
+                        member = stack.pop()
+                        labels[member] = parts
+                        if member == node:
+                            break
+                    parts += 1
+            elif child not in index:
+                index[child] = low[child] = len(index)
+                stack.append(child)
+                work.append((child, iter(succ.get(child, ()))))
+            elif child not in labels:  # on the stack: same part
+                low[node] = min(low[node], index[child])
+    return labels
 
 
 def _cycle(first: PortRef, succ: Mapping[PortRef, list[PortRef]]) -> list[PortRef]:

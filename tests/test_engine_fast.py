@@ -17,6 +17,8 @@ import numpy as np
 import pytest
 from fmpy.fmi2 import fmi2Discard, fmi2Error, fmi2Fatal, fmi2OK
 from fmpy.model_description import CoSimulation, ModelDescription, ModelVariable, Unknown
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from orchestrator.errors import NonFiniteError, ScenarioError, SimulationError
 from orchestrator.fmi import InstanceBase
@@ -30,7 +32,7 @@ from orchestrator.ssp import (
     ParameterSet,
     SystemStructure,
 )
-from orchestrator.system import PortRef, System
+from orchestrator.system import PortRef, System, _strong_components
 
 H, K, X0 = 0.1, -2.0, 1.0
 
@@ -169,6 +171,30 @@ def test_system_reports_an_algebraic_loop_naming_its_ports():
     with pytest.raises(ScenarioError, match="algebraic loop") as info:
         System(structure, model_descriptions=fmus)
     assert "a.y" in str(info.value) and "b.u" in str(info.value)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(1, 12).flatmap(lambda n: st.tuples(
+    st.just(n), st.lists(st.tuples(st.integers(0, n - 1), st.integers(0, n - 1)), max_size=3 * n))))
+def test_strong_components_agree_with_scipy(graph):
+    """The engine's own strongly connected parts (no scipy import at start-up) against scipy's
+    csgraph on random directed graphs: the same partition of the nodes."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n, edges = graph
+    nodes = [PortRef(f"c{i:02d}", "y") for i in range(n)]
+    succ: dict[PortRef, list[PortRef]] = {}
+    for a, b in edges:
+        succ.setdefault(nodes[a], []).append(nodes[b])
+    ours = _strong_components(nodes, succ)
+    pairs = np.array(edges, dtype=int).reshape(-1, 2)
+    matrix = csr_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, theirs = connected_components(matrix, directed=True, connection="strong")
+    assert len(set(ours.values())) == len(set(theirs))
+    for i in range(n):
+        for j in range(n):
+            assert (ours[nodes[i]] == ours[nodes[j]]) == (theirs[i] == theirs[j])
 
 
 def test_gauss_seidel_solves_the_loop_without_delay_on_the_exact_grid():
