@@ -44,6 +44,7 @@ from fmpy.fmi3 import FMU3Slave
 from lxml import etree
 
 from .errors import ScenarioError, SimulationError
+from .fmucache import release, unpack_fmu
 
 __all__ = ["CALLS", "FAILED", "Instance", "InstanceBase", "MessageLog", "fmi_version", "interpreter_guard",
            "trace"]
@@ -221,16 +222,27 @@ class Instance(InstanceBase):
     @classmethod
     def open(cls, name: str, fmu_path: str | os.PathLike, guid: str, model_identifier: str, workdir: str,
              messages: MessageLog, time: float) -> Instance:
-        """Extract ``fmu_path`` into ``workdir/name`` and instantiate it (fmi2Instantiate, or
-        fmi3InstantiateCoSimulation for an FMI 3.0 FMU)."""
+        """Unpack ``fmu_path`` (:func:`orchestrator.fmucache.unpack_fmu`: its cache entry, or
+        ``workdir/name``) and instantiate it (fmi2Instantiate, or fmi3InstantiateCoSimulation for an
+        FMI 3.0 FMU)."""
         try:
-            unzipdir = fmpy.extract(str(fmu_path), unzipdir=os.path.join(workdir, name))
+            unzipdir = unpack_fmu(fmu_path, os.path.join(workdir, name))
         except OSError:
             raise  # the temporary folder: full or unwritable (not the scenario's fault)
         except Exception as exc:  # fmpy raises bare Exceptions; zipfile, zlib their own
             detail = " ".join(str(exc).split()) or type(exc).__name__
             raise ScenarioError(f"component '{name}': FMU '{os.path.basename(fmu_path)}' cannot be "
                                 f"unpacked: {detail}") from exc
+        try:
+            return cls._instantiate(name, unzipdir, guid, model_identifier, messages, time)
+        except BaseException:
+            release(unzipdir)
+            raise
+
+    @classmethod
+    def _instantiate(cls, name: str, unzipdir: str, guid: str, model_identifier: str, messages: MessageLog,
+                     time: float) -> Instance:
+        """Load the unpacked FMU's library and instantiate it."""
         fmi3 = fmi_version(unzipdir).startswith("3.")
         kind = FMU3Slave if fmi3 else FMU2Slave
         fmu = kind(guid=guid, unzipDirectory=unzipdir, modelIdentifier=model_identifier, instanceName=name)
@@ -311,6 +323,7 @@ class Instance(InstanceBase):
             self.fmu.freeInstance()
         except Exception:  # noqa: BLE001
             log.warning("%s: fmi2FreeInstance failed during cleanup", self.name)
+        release(self.fmu.unzipDirectory)
 
 
 CALLS = logging.getLogger("orchestrator.fmi.calls")

@@ -13,6 +13,7 @@ when the run ends.
 from __future__ import annotations
 
 import datetime
+import glob
 import hashlib
 import json
 import os
@@ -24,6 +25,8 @@ from pathlib import Path
 
 from . import files
 from .errors import OutputError
+from .fmucache import sha256
+from .results import FLUSH_ROWS, FLUSH_SECONDS
 from .system import System
 
 __all__ = ["PACKAGES", "column_units", "commit", "describe", "digest", "finish", "overrides_text",
@@ -42,6 +45,8 @@ def sidecar(result: str | os.PathLike) -> Path:
 def digest(path: str | os.PathLike) -> str:
     """SHA-256 of a file, or of a folder's files (relative names and contents, in sorted order)."""
     path = Path(path)
+    if path.is_file():
+        return sha256(path)  # computed once per process (the FMU cache needs it too)
     h = hashlib.sha256()
     files = [path] if path.is_file() else sorted(f for f in path.rglob("*") if f.is_file())
     for f in files:
@@ -148,9 +153,13 @@ def read_provenance(result: str | os.PathLike) -> dict[str, object] | None:
     process = record.get("process")
     if (record.get("status") == "running" and isinstance(process, dict) and process.get("host") == files.HOST
             and isinstance(process.get("pid"), int) and not files.alive(process["pid"])):
+        result = Path(result)
+        left = sorted(result.parent.glob(f".{glob.escape(result.name)}.{files.HOST}-{process['pid']}.*.part"))
+        where = (f"the rows it wrote (every {FLUSH_ROWS} rows or {FLUSH_SECONDS:g} s) are in {left[0]}"
+                 if left else "no rows of it were kept")
         record.update(status="failed", rows=None, last_time=None,
                       message=f"the process that ran it (pid {process['pid']}) ended without finishing it "
-                              "(killed?); the result file holds the rows flushed before")
+                              f"(killed?); {where}")
     return record
 
 

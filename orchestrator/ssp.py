@@ -39,6 +39,7 @@ from lxml import etree
 
 from . import files
 from .errors import ScenarioError
+from .fmucache import member_sha256
 from .units import UnitDef, read_units
 
 __all__ = [
@@ -426,6 +427,9 @@ def _safe_extract(archive: Path, dest: Path, limits: Limits) -> tuple[list[str],
             return problems + limit_problems, True
         for info in wanted[1:]:
             zf.extract(info, dest)
+    for name in dict.fromkeys(fmus):
+        if (dest / name).is_file():
+            member_sha256(dest / name, archive, name)  # remembered: not hashed again by every run
     return problems, False
 
 

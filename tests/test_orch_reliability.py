@@ -27,6 +27,7 @@ from orch_helpers import loop_scenario, write_zip, zip_members
 
 from orchestrator.cli import main
 from orchestrator.provenance import read_provenance
+from orchestrator.results import read_result
 from orchestrator.ssp import SSD_NAME
 
 pytestmark = pytest.mark.system
@@ -329,7 +330,8 @@ def test_a_killed_run_is_not_running_forever_and_its_leftovers_go(ramp, tmp_path
                                start_new_session=True)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and not (list(tmp.glob("orchestrate-*")) and
-                                               (read_provenance(csv) or {}).get("status") == "running"):
+                                               (read_provenance(csv) or {}).get("status") == "running" and
+                                               sum(p.stat().st_size for p in tmp_path.glob(".r.csv.*")) > 1e5):
         time.sleep(0.1)
     left = sorted(p.name for p in tmp.iterdir())
     assert any(n.startswith("ssp-") for n in left) and any(n.startswith("orchestrate-") for n in left), left
@@ -338,6 +340,12 @@ def test_a_killed_run_is_not_running_forever_and_its_leftovers_go(ramp, tmp_path
     record = read_provenance(csv)
     assert record is not None and record["status"] == "failed" and record["rows"] is None
     assert f"pid {process.pid}" in record["message"]
+    # the rows written before the kill: a complete CSV (whole lines) under the name the sidecar gives
+    left = Path(str(record["message"]).rsplit(" are in ", 1)[1])
+    assert left.parent == tmp_path and left.name.startswith(".r.csv.")
+    rows = read_result(left)
+    assert len(rows) > 1000 and rows["time"][-1] == (len(rows) - 1) / 1000
+    assert left.read_bytes().endswith(b"\n")
     r = orchestrate("run", str(ramp), "--output", str(tmp_path / "again.csv"), "--no-plot", "--quiet",
                     tmp=tmp)
     assert r.returncode == 0, r.stderr
