@@ -31,6 +31,7 @@ import argparse
 import ast
 import hashlib
 import importlib.metadata
+import json
 import os
 import re
 import shutil
@@ -48,7 +49,7 @@ from xml.etree import ElementTree
 import pythonfmu
 from pythonfmu import FmuBuilder
 
-from .runtime import Runtime, RuntimeBundleError, ensure_runtime, runtime_members
+from .runtime import PYTHON_VERSION, Runtime, RuntimeBundleError, ensure_runtime, runtime_members
 
 __all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "c_compiler", "main"]
 
@@ -64,7 +65,7 @@ FMU_SCRIPTS = {
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
-BUILD_FORMAT = "3"
+BUILD_FORMAT = "4"
 SHIM_DIR = Path("fmu_src", "shim")  # relative to the source root
 SHIM_SOURCES = ("fmi2_shim.c", "start_python.c")
 SHIM_HEADERS = ("start_python.h", "fmi2_types.h")
@@ -340,7 +341,50 @@ def _write_normalized(
     entries["modelDescription.xml"] = _normalized_description(
         entries["modelDescription.xml"], digest, bundle.model
     )
+    entries.update(_bytecode(entries))
     write_archive(target, entries)
+
+
+# Compiles in a fresh interpreter (no site, hash seed 0), as the runtime's standard-library zip
+# is, so that the same sources give the same bytes in any build.
+PYC_WRITER = """
+import json, py_compile, sys
+for source, cfile, dfile in json.loads(sys.stdin.read()):
+    py_compile.compile(source, cfile=cfile, dfile=dfile, doraise=True,
+                       invalidation_mode=py_compile.PycInvalidationMode.UNCHECKED_HASH)
+"""
+
+
+def compiles_bytecode() -> bool:
+    """Whether this build adds ``.pyc`` files: only a Python of the runtime's version writes ones
+    the runtime (and a host of that version) can read."""
+    return sys.version_info[:2] == PYTHON_VERSION and sys.implementation.name == "cpython"
+
+
+def _bytecode(entries: dict[str, bytes]) -> dict[str, bytes]:
+    """``__pycache__`` members for every Python source under ``resources/``: unchecked-hash
+    ``.pyc`` files (PEP 552), read whatever the unpacked files' times. Without them a Python FMU's
+    sources are compiled on every instantiation wherever bytecode is not written (the runtime
+    never writes it; nor does a host with PYTHONDONTWRITEBYTECODE): 36 modules, about 0.04 s per
+    run for example1's four FMUs."""
+    if not compiles_bytecode():
+        return {}
+    sources = sorted(n for n in entries if n.startswith("resources/") and n.endswith(".py"))
+    tag = sys.implementation.cache_tag
+    with tempfile.TemporaryDirectory() as tmp:
+        jobs, members = [], []
+        for i, name in enumerate(sources):
+            source = Path(tmp, f"{i}.py")
+            source.write_bytes(entries[name])
+            folder, file = name.rsplit("/", 1)
+            members.append(f"{folder}/__pycache__/{file[:-3]}.{tag}.pyc")
+            jobs.append((str(source), str(Path(tmp, f"{i}.pyc")), name.removeprefix("resources/")))
+        env = {"PYTHONHASHSEED": "0", "PATH": os.environ.get("PATH", "/usr/bin:/bin")}
+        result = subprocess.run([sys.executable, "-S", "-c", PYC_WRITER], input=json.dumps(jobs), env=env,
+                                capture_output=True, text=True)
+        if result.returncode != 0:
+            raise BuildError(f"cannot compile the FMU's Python sources: {result.stderr.strip()}")
+        return {member: Path(cfile).read_bytes() for member, (_, cfile, _) in zip(members, jobs, strict=True)}
 
 
 def write_archive(target: Path, entries: dict[str, bytes]) -> None:
@@ -365,6 +409,7 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT) -> Path:
         native_digest = hashlib.sha256()
         for name in sorted(native):
             native_digest.update(name.encode() + b"\0" + hashlib.sha256(native[name]).digest())
+        native_digest.update(b"pyc" if compiles_bytecode() else b"py")  # _bytecode's members
         digest = bundle.digest(native_digest.hexdigest())
         script, package_dir = _stage(bundle, digest, Path(tmp) / "stage")
         with _isolated_imports():
