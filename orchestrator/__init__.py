@@ -150,7 +150,8 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
             provenance.write_provenance(output, record)
         runner = MASTERS[options.master](system, start, stop, h, stream, progress,
                                          keep=options.keep or output is None, timeout=options.timeout,
-                                         inputs=series, instances=tracing(options.fmi_log))
+                                         inputs=series, instances=tracing(options.fmi_log),
+                                         binary_copy=stream is not None and stream != Path(output or ""))
         texts = descriptions(system)
         try:
             runner.run()
@@ -223,6 +224,7 @@ def _finish(runner: Master, record: dict[str, object], status: str, message: str
         if saved and Path(stream).is_file():
             formats.write_selected(stream, output, selection, texts)  # the rows kept, in the format asked for
             outputs["result"] = Path(output)
+        formats.binary_copy_path(stream).unlink(missing_ok=True)
     else:
         record.update(status=status, rows=count, last_time=last)
         if message:

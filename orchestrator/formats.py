@@ -23,12 +23,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import orjson
 
 from . import files
 from .errors import OutputError, UsageError
 
-__all__ = ["FORMATS", "Selection", "check_output", "read_table", "read_tool_csv", "staging_path",
-           "write_selected"]
+__all__ = ["FORMATS", "Selection", "binary_copy_path", "check_output", "csv_rows", "read_table",
+           "read_tool_csv", "staging_path", "write_selected"]
 
 FORMATS = (".csv", ".parquet", ".mat")
 NS_PER_S = 1_000_000_000
@@ -102,19 +103,25 @@ def staging_path(output: str | os.PathLike, selection: Selection = Selection()) 
     return output.with_name(f"{output.name}.{os.getpid()}.partial.csv")
 
 
+def binary_copy_path(staged: str | os.PathLike) -> Path:
+    """Where the rows of a staged CSV are also written as raw float64 (``<staged>.f64``): what
+    :func:`write_selected` converts from, removed with the staged CSV."""
+    staged = Path(staged)
+    return staged.with_name(staged.name + ".f64")
+
+
 def write_selected(csv: str | os.PathLike, output: str | os.PathLike,
                    selection: Selection = Selection(), descriptions: Mapping[str, str] | None = None) -> Path:
     """Write the selected columns and rows of the result CSV ``csv`` to ``output`` in the format
     of its extension (written to a temporary name, then renamed), and remove ``csv`` when it is
     not ``output`` itself. ``descriptions`` (column -> text, e.g. ``Plant output [rad]``) go into a
     ``.mat`` file's ``description`` matrix. Returns ``output``."""
-    from fmpy.util import read_csv
-
     csv, output = Path(csv), Path(output)
     if csv == output and selection.everything:
         return output
-    data = read_csv(csv)
-    columns = selection.columns(data.dtype.names)
+    data = _read_staged(csv)
+    binary_copy_path(csv).unlink(missing_ok=True)
+    columns = selection.columns(data.dtype.names or ())
     data = data[selection.rows(data["time"])]
     suffix = output.suffix.lower()
     with files.replacing(output) as partial:
@@ -122,18 +129,64 @@ def write_selected(csv: str | os.PathLike, output: str | os.PathLike,
             import pyarrow as pa
             import pyarrow.parquet as pq
 
-            table = pa.table({c: np.ascontiguousarray(data[c], dtype=np.float64) for c in columns})
+            # from the buffers: pa.table and pa.array import pandas to inspect their argument (0.15 s)
+            table = pa.Table.from_arrays(
+                [pa.Array.from_buffers(pa.float64(), len(data),
+                                       [None, pa.py_buffer(np.ascontiguousarray(data[c], dtype=np.float64))])
+                 for c in columns], names=columns)
             pq.write_table(table, partial)
         elif suffix == ".mat":
             _write_mat(partial, data, columns, descriptions or {})
         else:
-            with open(partial, "w", encoding="utf-8", newline="\n") as out:
-                out.write(",".join(columns) + "\n")
-                for row in zip(*(data[c].tolist() for c in columns), strict=True):
-                    out.write(",".join(map(repr, row)) + "\n")
+            with open(partial, "wb") as out:
+                out.write((",".join(columns) + "\n").encode("utf-8"))
+                if len(data):
+                    out.write(csv_rows(np.column_stack([data[c] for c in columns])))
     if csv != output:
         csv.unlink(missing_ok=True)
     return output
+
+
+def csv_rows(block: np.ndarray) -> bytes:
+    """The CSV lines of a 2-D float64 array: each value the shortest text that reads back to the
+    same double (orjson's, e.g. ``1e-6`` where ``repr`` gives ``1e-06``); NaN and infinities as
+    ``nan``, ``inf``, ``-inf`` (orjson would write ``null``), one line per row, each ended by a
+    newline."""
+    if not block.size:
+        return b""
+    block = np.ascontiguousarray(block, dtype=np.float64)
+    if block.ndim != 2 or block.shape[1] == 0:
+        raise ValueError("csv_rows takes a 2-D array with at least one column")
+    if np.isfinite(block).all():
+        text = orjson.dumps(block, option=orjson.OPT_SERIALIZE_NUMPY)  # [[a,b],[c,d]]
+        return text[2:-2].replace(b"],[", b"\n") + b"\n"
+    return "".join(",".join(map(repr, row)) + "\n" for row in block.tolist()).encode("ascii")
+
+
+def _read_staged(csv: Path) -> np.ndarray:
+    """The CSV the master streamed, as a structured array: from its float64 copy when it is whole
+    (:func:`binary_copy_path`), else parsed by pyarrow (0.1 s CPU for 30 001 rows of 26 columns,
+    where fmpy's ``read_csv`` took 0.32 s); every value the same double either way."""
+    with open(csv, "rb") as stream:
+        names = stream.readline().decode("utf-8").rstrip("\n").split(",")
+    copy = binary_copy_path(csv)
+    try:
+        values = np.fromfile(copy, dtype=np.float64)
+    except (OSError, ValueError):
+        values = None
+    if values is not None and values.size % len(names) == 0:
+        rows = values.reshape(-1, len(names))
+        with open(csv, "rb") as stream:
+            lines = sum(1 for _ in stream)
+        if len(rows) == lines - 1:  # the same rows as the CSV
+            return np.ascontiguousarray(rows).view([(n, np.float64) for n in names]).reshape(len(rows))
+    import pyarrow.csv as pacsv
+
+    table = pacsv.read_csv(csv)
+    result = np.empty(table.num_rows, dtype=[(n, np.float64) for n in table.column_names])
+    for name in table.column_names:
+        result[name] = table[name].to_numpy()
+    return result
 
 
 def _chars(texts: Sequence[str]) -> np.ndarray:

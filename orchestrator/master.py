@@ -257,8 +257,9 @@ class Master:
                  output: str | os.PathLike | None = None,
                  progress: Callable[[int, int], None] | None = None, keep: bool = True,
                  timeout: float | None = None, instances: InstanceFactory = open_instance,
-                 inputs: InputSeries | None = None) -> None:
+                 inputs: InputSeries | None = None, binary_copy: bool = False) -> None:
         self.system = system
+        self.binary_copy = binary_copy  # the CSV is staged for another format: a float64 copy beside it
         self._t0, self._h, self.n = grid(start_time, stop_time, step)
         self.start_time = self._t0 / NS_PER_S
         self.stop_time = stop_time
@@ -368,7 +369,8 @@ class Master:
             stack.callback(instance.release)
             self.instances.append(instance)
         self._layout()
-        self.recorder = Recorder(self.columns, self.n + 1, self.output, keep=self.keep or self.output is None)
+        self.recorder = Recorder(self.columns, self.n + 1, self.output, keep=self.keep or self.output is None,
+                                 binary_copy=self.binary_copy)
 
     def initialize(self) -> None:
         """FMI initialization; afterwards every FMU is in step mode and row t0 is recorded."""
