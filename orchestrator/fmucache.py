@@ -151,7 +151,7 @@ def unpack_fmu(fmu: str | os.PathLike, fallback: str | os.PathLike) -> str:
     entry = None if folder is None else folder / sha256(fmu)
     with _lock:
         if folder is None or entry is None or str(entry) in _in_use:
-            return fmpy.extract(str(fmu), unzipdir=str(fallback))
+            return str(fmpy.extract(str(fmu), unzipdir=str(fallback)))
         _in_use.add(str(entry))
     try:
         return _entry(fmu, folder, entry)

@@ -220,3 +220,46 @@ def test_platform_floor_is_glibc_2_35_and_gcc_12s_libstdcxx(fmus: dict, tmp_path
             limit = machine if "/fallback/" in name else (2, 35)
             assert newest.get("GLIBC", ()) <= limit, (name, newest)
             assert newest.get("GLIBCXX", ()) <= (3, 4, 30), (name, newest)
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_every_python_source_ships_with_its_unchecked_hash_bytecode(fmus: dict, model: str) -> None:
+    """Before: no .pyc in the FMU, so every instantiation compiled its 36 modules again wherever
+    bytecode is not written (the bundled runtime; a host with PYTHONDONTWRITEBYTECODE). Oracle:
+    importlib's own PEP 552 layout (magic number, flags, source hash) for each source."""
+    import importlib.util
+
+    with zipfile.ZipFile(fmus[model]) as archive:
+        names = set(archive.namelist())
+        sources = sorted(n for n in names if n.startswith("resources/") and n.endswith(".py"))
+        assert sources
+        for name in sources:
+            folder, file = name.rsplit("/", 1)
+            pyc = archive.read(f"{folder}/__pycache__/{file[:-3]}.cpython-311.pyc")
+            assert pyc[:4] == importlib.util.MAGIC_NUMBER  # the build runs on 3.11, as the runtime
+            assert int.from_bytes(pyc[4:8], "little") == 0b01  # hash-based, not checked
+            assert pyc[8:16] == importlib.util.source_hash(archive.read(name)), name
+        assert not [n for n in names if n.endswith(".pyc") and "/__pycache__/" in n
+                    and n.replace("/__pycache__", "").rsplit(".", 2)[0] + ".py" not in names]
+
+
+def test_the_fmus_python_is_not_compiled_when_bytecode_is_not_written(fmus: dict, tmp_path: Path) -> None:
+    """Instantiate the controller FMU in a fresh interpreter with PYTHONDONTWRITEBYTECODE: Python's
+    verbose import log shows every module of the FMU loaded from its shipped bytecode."""
+    script = (
+        "import sys, fmpy\n"
+        "from fmpy.fmi2 import FMU2Slave\n"
+        "md = fmpy.read_model_description(sys.argv[1])\n"
+        "d = fmpy.extract(sys.argv[1], unzipdir=sys.argv[2])\n"
+        "s = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier,"
+        " instanceName='c')\n"
+        "s.instantiate(); s.freeInstance()\n"
+    )
+    result = subprocess.run([sys.executable, "-v", "-c", script, str(fmus["FixedTimeController"]),
+                             str(tmp_path / "u")], capture_output=True, text=True,
+                            env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}, check=True)
+    unpacked = str(tmp_path / "u")
+    loaded = [line for line in result.stderr.splitlines() if line.startswith("# code object from")
+              and unpacked in line]
+    assert len(loaded) >= 10, result.stderr[-2000:]
+    assert all("__pycache__" in line for line in loaded), [x for x in loaded if "__pycache__" not in x]

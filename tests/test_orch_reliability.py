@@ -329,9 +329,13 @@ def test_a_killed_run_is_not_running_forever_and_its_leftovers_go(ramp, tmp_path
                                 str(csv), "--no-plot", "--quiet"], env={**os.environ, "TMPDIR": str(tmp)},
                                start_new_session=True)
     deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and not (list(tmp.glob("orchestrate-*")) and
-                                               (read_provenance(csv) or {}).get("status") == "running" and
-                                               sum(p.stat().st_size for p in tmp_path.glob(".r.csv.*")) > 1e5):
+
+    def started() -> bool:
+        return (bool(list(tmp.glob("orchestrate-*"))) and
+                (read_provenance(csv) or {}).get("status") == "running" and
+                sum(p.stat().st_size for p in tmp_path.glob(".r.csv.*")) > 1e5)
+
+    while time.monotonic() < deadline and not started():
         time.sleep(0.1)
     left = sorted(p.name for p in tmp.iterdir())
     assert any(n.startswith("ssp-") for n in left) and any(n.startswith("orchestrate-") for n in left), left
