@@ -1,0 +1,148 @@
+"""End to end, as a user runs it: ``orchestrate run`` against libcosim on the same archive.
+
+    python benchmarks/end_to_end.py [--scenarios example1 pendulum] [--repeat 5] [--stop-time 30]
+        [--orchestrate .venv/bin/orchestrate]
+
+For each built scenario (``build/ssp/<name>.ssp``, run ``make build`` first) this times whole
+processes, started one after the other in alternation (ours, libcosim, ours, ...), so that a
+change of the machine's load hits both alike:
+
+* ``orchestrate run`` with the full CSV (every column, every step) and with ``--output /dev/null``
+  (rows still formatted, nothing stored: the closest the CLI has to no output);
+* libcosim (libcosimpy) reading the archive's own algorithm (``from_ssp_file(path)``: its
+  ``FixedStepAlgorithm`` with ``numWorkerThreads="0"``, serial), with its file observer writing
+  every variable of every FMU to CSV, and with no observer;
+* start-up: both with a stop time of one step.
+
+Each figure is the median of ``--repeat`` processes: wall time (``perf_counter`` around the
+process) and CPU time (user + system of the process and its children, ``getrusage``). The CPU per
+step is ``(CPU of the whole run - CPU of the one-step run) / steps``. Ratios are ours / libcosim's
+from the same run. Before timing, one untimed run of each fills the FMU cache
+(:mod:`orchestrator.fmucache`); the first run on a machine (cache empty, ``ORCHESTRATE_CACHE``
+pointing at a new folder) is timed separately, once.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+
+LIBCOSIM = """
+import sys
+from libcosimpy import CosimLogging
+from libcosimpy.CosimExecution import CosimExecution
+from libcosimpy.CosimObserver import CosimObserver
+CosimLogging.log_output_level(CosimLogging.CosimLogLevel.ERROR)
+execution = CosimExecution.from_ssp_file(sys.argv[1])
+if sys.argv[3]:
+    observer = CosimObserver.create_to_dir(sys.argv[3])
+    execution.add_observer(observer)
+if not execution.simulate_until(round(float(sys.argv[2]) * 1e9)):
+    sys.exit("libcosim failed")
+"""
+
+
+def timed(command: Sequence[str], env: dict[str, str] | None = None) -> tuple[float, float]:
+    """Run ``command`` to completion; its wall and CPU seconds (children's user + system)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    subprocess.run(command, check=True, env=env, stdout=subprocess.DEVNULL)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def step_of(archive: Path) -> float:
+    """The communication step the archive's SSD gives."""
+    from orchestrator import open_system
+
+    with open_system(archive) as system:
+        step = system.structure.experiment.step
+    if step is None:
+        raise SystemExit(f"{archive}: no step annotation")
+    return step
+
+
+def commands(orchestrate: str, archive: Path, stop: float, out: Path) -> dict[str, list[str]]:
+    """The timed command lines, by label."""
+    ours = [orchestrate, "run", str(archive), "--quiet", "--no-plot", "--stop-time", repr(stop)]
+    lib = [sys.executable, "-c", LIBCOSIM, str(archive), repr(stop)]
+    return {"ours, CSV": [*ours, "--output", str(out / "r.csv")],
+            "ours, /dev/null": [*ours, "--output", os.devnull],
+            "libcosim, CSV": [*lib, str(out / "libcosim")],
+            "libcosim, none": [*lib, ""]}
+
+
+def measure(orchestrate: str, archive: Path, stop: float, repeat: int) -> dict[str, tuple[float, float]]:
+    """Median (wall, CPU) per label for the whole run and for one step (labels ending in
+    ``start-up``), alternating the processes."""
+    h = step_of(archive)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp)
+        runs = {**commands(orchestrate, archive, stop, out),
+                **{f"{k} start-up": v for k, v in commands(orchestrate, archive, h, out).items()}}
+        for command in runs.values():  # untimed: fills the FMU cache, warms the page cache
+            subprocess.run(command, check=True, stdout=subprocess.DEVNULL)
+        samples: dict[str, list[tuple[float, float]]] = {k: [] for k in runs}
+        for _ in range(repeat):
+            for label, command in runs.items():
+                samples[label].append(timed(command))
+    return {k: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v))
+            for k, v in samples.items()}
+
+
+def cold_start(orchestrate: str, archive: Path) -> float:
+    """Wall seconds of a one-step run with an empty FMU cache (a machine's first run)."""
+    with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as tmp:
+        env = {**os.environ, "ORCHESTRATE_CACHE": cache}
+        command = [orchestrate, "run", str(archive), "--quiet", "--no-plot", "--stop-time",
+                   repr(step_of(archive)), "--output", str(Path(tmp, "r.csv"))]
+        return timed(command, env)[0]
+
+
+def report(name: str, stop: float, steps: int, figures: dict[str, tuple[float, float]], cold: float) -> None:
+    """Print one scenario's table."""
+    print(f"\n{name}: {stop:g} s, {steps} steps (median of the alternating processes)")
+    print(f"{'':18s} {'wall s':>8s} {'CPU s':>8s} {'start-up wall':>14s} {'CPU us/step':>12s}")
+    for label in ("ours, CSV", "ours, /dev/null", "libcosim, CSV", "libcosim, none"):
+        wall, cpu = figures[label]
+        start_wall, start_cpu = figures[f"{label} start-up"]
+        per_step = (cpu - start_cpu) / steps * 1e6
+        print(f"{label:18s} {wall:8.3f} {cpu:8.3f} {start_wall:14.3f} {per_step:12.1f}")
+    ratio = figures["ours, CSV"][0] / figures["libcosim, CSV"][0]
+    bare = figures["ours, CSV"][0] / figures["libcosim, none"][0]
+    print(f"wall ratio ours/libcosim, both with full CSV: {ratio:.2f}; ours with CSV / libcosim with no "
+          f"output: {bare:.2f}; start-up ours/libcosim: "
+          f"{figures['ours, CSV start-up'][0] / figures['libcosim, none start-up'][0]:.2f}")
+    print(f"first run on a machine (empty FMU cache), start-up wall: {cold:.3f} s")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scenarios", nargs="+", default=["example1", "pendulum"])
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--stop-time", type=float, default=30.0)
+    parser.add_argument("--orchestrate", default=str(REPO / ".venv" / "bin" / "orchestrate"))
+    args = parser.parse_args(argv)
+    for name in args.scenarios:
+        archive = REPO / "build" / "ssp" / f"{name}.ssp"
+        if not archive.is_file():
+            parser.error(f"{archive} does not exist: run 'make build' first")
+        figures = measure(args.orchestrate, archive, args.stop_time, args.repeat)
+        steps = round(args.stop_time / step_of(archive))
+        report(name, args.stop_time, steps, figures, cold_start(args.orchestrate, archive))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
