@@ -14,7 +14,6 @@ import argparse
 import logging
 import math
 import os
-import platform
 import signal
 import sys
 import threading
@@ -276,7 +275,7 @@ def version_line() -> str:
             return "not installed"
 
     return (f"orchestrate {installed('fixed-time-cosim')} (fmpy {installed('fmpy')}, "
-            f"numpy {installed('numpy')}, Python {platform.python_version()})")
+            f"numpy {installed('numpy')}, Python {sys.version.split()[0]})")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -19,7 +19,6 @@ import os
 import re
 import secrets
 import shutil
-import socket
 import stat
 import tempfile
 import time
@@ -30,7 +29,7 @@ from pathlib import Path
 __all__ = ["HOST", "alive", "not_regular", "remove_stale", "replacing", "reserve", "temporary_folder",
            "write_text"]
 
-HOST = hashlib.sha256(socket.gethostname().encode()).hexdigest()[:8]  # in temporary names: whose pid
+HOST = hashlib.sha256(os.uname().nodename.encode()).hexdigest()[:8]  # in temporary names: whose pid
 QUIET = 60.0  # s without a change after which a dead process's temporary file is certainly abandoned
 
 

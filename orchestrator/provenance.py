@@ -12,13 +12,13 @@ when the run ends.
 
 from __future__ import annotations
 
-import datetime
 import glob
 import hashlib
 import json
 import os
-import platform
 import subprocess
+import sys
+import time
 from collections.abc import Iterable, Mapping
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
@@ -60,7 +60,7 @@ def digest(path: str | os.PathLike) -> str:
 
 def versions() -> dict[str, str]:
     """Versions of Python and of the packages a result depends on."""
-    found = {"python": platform.python_version()}
+    found = {"python": sys.version.split()[0]}  # platform.python_version(), without importing platform
     for name in PACKAGES:
         try:
             found[name] = version(name)
@@ -105,7 +105,7 @@ def describe(scenario: str | os.PathLike, system: System, *, start: float, stop:
         "start_time": start, "stop_time": stop, "step": step, "master": master,
         "versions": versions(),
         "git": commit(),
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "date": time.strftime("%Y-%m-%dT%H:%M:%S+00:00", time.gmtime()),  # isoformat, UTC
         "status": "running",
         "process": {"pid": os.getpid(), "host": files.HOST},  # a dead 'running' run: read_provenance
     }

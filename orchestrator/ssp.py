@@ -871,9 +871,9 @@ def write_ssd(folder: str | os.PathLike, structure: SystemStructure) -> Path:
 def pack_ssp(folder: str | os.PathLike, fmus: Mapping[str, str | os.PathLike],
              dest: str | os.PathLike) -> Path:
     """Zip ``folder`` (SSD at the root, .ssv files beside it) with ``fmus`` (archive name -> file)
-    placed under ``resources/``; written to a temporary name first so a failed build leaves no
-    half-written archive. The same files give the same bytes: members in sorted order, with a fixed
-    date and mode (not the files' modification times)."""
+    placed under ``resources/`` (stored, not compressed again); written to a temporary name first so
+    a failed build leaves no half-written archive. The same files give the same bytes: members in
+    sorted order, with a fixed date and mode (not the files' modification times)."""
     source, target = Path(folder), Path(dest)
     members = [(path.relative_to(source).as_posix(), path) for path in sorted(source.rglob("*"))
                if path.is_file() and not path.name.startswith(".")]
@@ -881,7 +881,8 @@ def pack_ssp(folder: str | os.PathLike, fmus: Mapping[str, str | os.PathLike],
     with files.replacing(target) as partial, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zf:
         for name, path in members:
             info = zipfile.ZipInfo(name, date_time=ZIP_DATE)
-            info.compress_type = zipfile.ZIP_DEFLATED
+            # an FMU is a zip of compressed members already: stored, it unpacks at the cost of a copy
+            info.compress_type = zipfile.ZIP_STORED if name.endswith(".fmu") else zipfile.ZIP_DEFLATED
             info.external_attr = 0o644 << 16
             with path.open("rb") as src, zf.open(info, "w") as dst:
                 shutil.copyfileobj(src, dst, 1 << 20)
