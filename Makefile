@@ -98,6 +98,7 @@ bench: build
 	$(PY) benchmarks/controller_step.py
 	$(PY) benchmarks/fmu_step.py
 	$(PY) benchmarks/cosim_step.py
+	$(PY) benchmarks/end_to_end.py
 
 clean:
 	rm -rf build results $(ALT_VENV)
