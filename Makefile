@@ -37,7 +37,8 @@ build: $(BUILT) $(BYTECODE)
 # The package's own bytecode, as a non-editable install has it: where PYTHONDONTWRITEBYTECODE is
 # set, every start would otherwise compile the engine's modules again (about 30 ms).
 $(BYTECODE): $(STAMP) $(shell find orchestrator -name '*.py' 2>/dev/null)
-	$(PY) -m compileall -q orchestrator controller fmu_src >/dev/null
+	@$(PY) -m compileall -q orchestrator controller fmu_src >/dev/null 2>&1 || \
+	  echo "note: bytecode not written (runs still work, compiling the package in memory)"
 	@mkdir -p $(dir $(BYTECODE)) && touch $(BYTECODE)
 
 $(BUILT): $(STAMP) $(SOURCES)
