@@ -15,6 +15,7 @@ from .fmu_support import assigned, declare, mark_stale, report
 from .models.plants import (
     DOPRI,
     MAX_STEPS,
+    RATE_HORIZON,
     RK4,
     STATE_LIMIT,
     Y_LIMIT,
@@ -63,8 +64,8 @@ def declare_plant_outputs(slave: Fmi2Slave, x1_unit: str | None, x2_unit: str | 
 
 def declare_integrator(slave: Fmi2Slave) -> None:
     """Register ``max_step`` and, after every other variable (value references are a contract),
-    ``method``, ``rtol`` and ``atol``, then the fail-fast bounds ``state_limit``, ``max_steps``
-    and ``y_limit``, with their defaults."""
+    ``method``, ``rtol`` and ``atol``, then the fail-fast bounds ``state_limit``, ``max_steps``,
+    ``y_limit`` and ``rate_horizon``, with their defaults."""
     parameter = Fmi2Causality.parameter
     slave.max_step = DEFAULT_MAX_STEP
     slave.method = DOPRI
@@ -73,6 +74,7 @@ def declare_integrator(slave: Fmi2Slave) -> None:
     slave.state_limit = STATE_LIMIT
     slave.max_steps = MAX_STEPS
     slave.y_limit = Y_LIMIT
+    slave.rate_horizon = RATE_HORIZON
     slave.state = None
     slave._method = DOPRI  # resolved at exit_initialization_mode
     slave._next_step = 0.0  # Dormand-Prince step size carried to the next communication step
@@ -122,6 +124,16 @@ def declare_integrator(slave: Fmi2Slave) -> None:
         "(fail fast on a finite escape)",
         minimum=0.0,
     )
+    declare(
+        slave,
+        "rate_horizon",
+        parameter,
+        "Rate bound, in communication steps h: a derivative that would carry a state beyond its bound "
+        "(x1: y_limit, x2 and z: state_limit) within rate_horizon * h (|dx/dt| * rate_horizon * h above "
+        "it, at the step's start or at an accepted point inside it) ends the step with fmi2Discard "
+        "(fail fast on a held input that drives the state out of range); 0: no rate bound",
+        minimum=0.0,
+    )
 
 
 def resolved_method(slave: Fmi2Slave) -> int:
@@ -151,6 +163,8 @@ def plant_problems(slave: Fmi2Slave) -> list[str]:
         problems.append(f"y_limit must satisfy y_limit > 0 (got {slave.y_limit!r})")
     elif not abs(slave.x1_0) <= slave.y_limit:
         problems.append(f"x1_0 must satisfy |x1_0| <= y_limit = {slave.y_limit!r} (got {slave.x1_0!r})")
+    if not (math.isfinite(slave.rate_horizon) and slave.rate_horizon >= 0.0):
+        problems.append(f"rate_horizon must satisfy rate_horizon >= 0, finite (got {slave.rate_horizon!r})")
     return problems
 
 
@@ -173,8 +187,9 @@ def step_plant(slave: Fmi2Slave, rhs: RightHandSide, current_time: float, step_s
     """Advance over [t, t + h] with ``slave.uf`` held.
 
     Returns False (fmi2Discard, with a logged reason) if the states stop being finite, leave
-    ``state_limit`` (x1: ``y_limit``) or the integrator spends its ``max_steps`` (the states of the
-    last good step stay).
+    ``state_limit`` (x1: ``y_limit``), change fast enough to leave it within ``rate_horizon``
+    communication steps, or the integrator spends its ``max_steps`` (the states of the last good
+    step stay).
     """
     new: State
     limit = slave.state_limit
@@ -182,10 +197,13 @@ def step_plant(slave: Fmi2Slave, rhs: RightHandSide, current_time: float, step_s
         if slave._method == DOPRI:
             new, slave._next_step, _, _ = dopri_hold_step(
                 rhs, current_time, slave.state, slave.uf, step_size, slave.rtol, slave.atol, slave._next_step,
-                limit, slave.max_steps, slave.y_limit,
+                limit, slave.max_steps, slave.y_limit, slave.rate_horizon,
             )
         else:
-            new = hold_step(rhs, current_time, slave.state, slave.uf, step_size, slave.max_step)
+            new = hold_step(
+                rhs, current_time, slave.state, slave.uf, step_size, slave.max_step,
+                limit, slave.y_limit, slave.rate_horizon,
+            )
     except (ValueError, OverflowError) as error:  # overflow, state limit, step budget
         report(
             slave,

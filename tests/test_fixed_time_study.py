@@ -12,7 +12,14 @@ import pytest
 from controller.params import FINITE_TIME, ControllerParameters
 from fmu_src.models.actuator import ActuatorParameters, actuator_output, actuator_problems, dead_zone
 from fmu_src.models.examples import EXAMPLE1, EXAMPLE2
-from fmu_src.models.plants import StateLimitError, dopri_hold_step, example1_rhs
+from fmu_src.models.plants import (
+    MAX_STEPS,
+    StateLimitError,
+    dopri_hold_step,
+    example1_rhs,
+    hold_step,
+    pendulum_rhs,
+)
 from orchestrator.campaign.report import colour_norm
 from orchestrator.campaign.table import Journal, read_rows
 from orchestrator.experiments.campaigns import PARTIAL, tracking_row
@@ -139,6 +146,30 @@ def test_the_plant_fmu_fails_fast_on_a_diverging_run(fmus: dict, caplog: pytest.
     assert np.all(np.abs(result["x1"]) <= 3.0) and result["time"][-1] < 1.0
 
 
+@pytest.mark.system
+def test_the_plant_fmu_names_the_rate_bound(fmus: dict, caplog: pytest.LogCaptureFixture) -> None:
+    """main: the Example 1 FMU under the explicit fixed-time law's first sample from (-10, -10),
+    1.07e7, spent its step budget of 50 000 integrator steps (0.2-0.3 s of CPU) in its first doStep.
+    Now the rate bound ends that doStep at its first evaluation (the message names x2, the bound and
+    the communication step), the states stay at the initial ones; rate_horizon = 0 turns it off and
+    the step budget ends it as before."""
+    import logging
+
+    from fmpy import simulate_fmu
+
+    start = {"uf": 1.07e7, "x1_0": -10.0, "x2_0": -10.0}
+    with caplog.at_level(logging.ERROR, logger="fixed_time_cosim.fmu"):
+        result = simulate_fmu(fmus["Example1Plant"], stop_time=0.01, output_interval=1e-3, start_values=start)
+    assert "would carry x2 beyond the plant's state_limit 10000 within 0.001 s" in caplog.text
+    assert "step rejected (fmi2Discard)" in caplog.text
+    assert np.all(result["time"] == 0.0) and np.all(result["x2"] == -10.0)  # no step was taken
+    caplog.clear()
+    with caplog.at_level(logging.ERROR, logger="fixed_time_cosim.fmu"):
+        simulate_fmu(fmus["Example1Plant"], stop_time=0.001, output_interval=1e-3,
+                     start_values={**start, "rate_horizon": 0.0, "max_steps": 500})
+    assert "step budget of 500 integrator steps" in caplog.text
+
+
 def test_the_step_budget_ends_a_crawling_step() -> None:
     """A held uf of 1e7 from (-10, -10) (the explicit fixed-time law's first sample): the integrator
     needs more than 100 000 steps for the first millisecond; a budget of 500 ends it after 500."""
@@ -154,6 +185,54 @@ def test_the_limits_leave_an_ordinary_step_alone() -> None:
     plain = dopri_hold_step(example1_rhs, 0.0, state, 770.0, 1e-3, 1e-10, 1e-12, 0.0, math.inf, 10**9)
     assert plain.accepted + plain.rejected < 1000
     assert dopri_hold_step(example1_rhs, 0.0, state, 770.0, 1e-3, 1e-10, 1e-12, 0.0, 1e4, 1000) == plain
+    bounded = dopri_hold_step(example1_rhs, 0.0, state, 770.0, 1e-3, 1e-10, 1e-12, 0.0, 1e4, 1000, 20.0, 1.0)
+    assert bounded == plain
+
+
+class Counted:
+    """A right-hand side that counts its evaluations."""
+
+    def __init__(self, rhs) -> None:
+        self.rhs, self.calls = rhs, 0
+
+    def __call__(self, t, state, uf):
+        self.calls += 1
+        return self.rhs(t, state, uf)
+
+
+def test_a_held_input_that_drives_the_state_out_ends_at_the_first_evaluation() -> None:
+    """main: the explicit fixed-time law's first sample from (-10, -10), 1.07e7, held on Example 1
+    crawled through 50 000 integrator steps (about 300 000 evaluations, 0.2-0.3 s) before the step
+    budget ended it. x2' = (2 + cos(x1 x2)) uf + 0.5 sin(x1^2 x2^2) + x1^2 z >= 1.07e7 - 0.5 at the
+    start, so x2 moves by more than 1e4 = state_limit within h = 1 ms at that rate: the rate bound
+    (rate_horizon 1) ends the step on the first evaluation, naming x2 and state_limit."""
+    rhs = Counted(example1_rhs)
+    with pytest.raises(StateLimitError, match=r"dx2/dt = 3\.0\d+e\+07 at t = 0\.0 would carry x2 beyond the "
+                       r"plant's state_limit 10000 within 0\.001 s") as raised:
+        dopri_hold_step(rhs, 0.0, (-10.0, -10.0, 0.0), 1.07e7, 1e-3, 1e-10, 1e-12, 0.0, 1e4, MAX_STEPS, 20.0,
+                        1.0)
+    assert rhs.calls == 1 and "rate_horizon" in str(raised.value)
+    assert (2 + math.cos(100.0)) * 1.07e7 * 1e-3 > 1e4  # the oracle: the bound holds
+    # the same with RK4, and x1's bound is y_limit: x1' = (2 + sin x1) x2 >= 1 * 1e4 at x2 = 1e4,
+    # y_limit 5 passed within 1 ms at that rate (1e4 * 1e-3 = 10 > 5)
+    rhs = Counted(example1_rhs)
+    with pytest.raises(StateLimitError, match=r"dx1/dt = .* would carry x1 beyond the plant's y_limit 5 "):
+        hold_step(rhs, 0.0, (1.0, 1e4, 0.0), 0.0, 1e-3, 2.5e-5, 1e6, 5.0, 1.0)
+    assert rhs.calls == 1
+
+
+def test_the_rate_bound_leaves_the_largest_settling_transients_alone() -> None:
+    """The largest held controls of the study's runs that settle, at their step: Example 1,
+    semi-implicit, |uf| 3.45e5 at 1 ms (x2' h <= 3 * 3.45e5 * 1e-3 + 1 ~ 1.04e3), the pendulum,
+    semi-implicit, |uf| 5.1e6 at 0.5 ms (x2' h ~ uf h / (M L) = 2.6e3), both below state_limit 1e4:
+    the step with the rate bound equals the step without it, bit for bit."""
+    cases = (
+        (example1_rhs, (10.0, 10.0, 0.0), -3.45e5, 1e-3),
+        (lambda t, x, u: pendulum_rhs(t, x, u, EXAMPLE2.plant), (10.0, 10.0, 0.0), -5.1e6, 5e-4),
+    )
+    for rhs, state, uf, h in cases:
+        plain = dopri_hold_step(rhs, 0.0, state, uf, h, 1e-10, 1e-12, 0.0, 1e4, 10**6, 20.0, 0.0)
+        assert dopri_hold_step(rhs, 0.0, state, uf, h, 1e-10, 1e-12, 0.0, 1e4, 10**6, 20.0, 1.0) == plain
 
 
 # -- the study's rows, table and figures ----------------------------------------------------------

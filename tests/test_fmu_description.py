@@ -93,7 +93,7 @@ PARAMETERS = {  # model -> parameter -> (default, unit)
 }
 # plant integrator parameters, in declaration order (Integer method: 0 Dormand-Prince, 1 RK4), then
 # the fail-fast bounds (issue 20)
-INTEGRATOR = ("max_step", "method", "rtol", "atol", "state_limit", "max_steps", "y_limit")
+INTEGRATOR = ("max_step", "method", "rtol", "atol", "state_limit", "max_steps", "y_limit", "rate_horizon")
 # output -> the inputs it depends on directly (SPEC section 5; z1 and zeta1 use fewer inputs)
 DEPENDENCIES = {
     "Reference": {"yd": (), "yd_dot": (), "yd_ddot": ()},
