@@ -433,6 +433,30 @@ def test_other_programs_importing_the_package_keep_their_signals():
     assert outcome.stdout.strip() == "True", outcome.stderr
 
 
+def test_a_signal_while_main_installs_its_handlers_is_one_line(monkeypatch, capsys):
+    """main: orchestrate's main() installed its handlers before its try: a SIGINT that came right
+    after the first one went in raised KeyboardInterrupt out of main() (a traceback). The signal
+    is sent by the process to itself from inside signal.signal, once, so it arrives exactly there."""
+    import orchestrator.cli as cli
+
+    real, sent = signal.signal, []
+
+    def install(signum, handler):
+        previous = real(signum, handler)
+        if handler is signal.default_int_handler and not sent:
+            sent.append(signum)
+            os.kill(os.getpid(), signal.SIGINT)  # Python runs the handler at the next bytecode
+        return previous
+
+    monkeypatch.setattr(cli.signal, "signal", install)
+    try:
+        status = cli.main(["--version"])
+    except KeyboardInterrupt:  # what main did (it would end the test session)
+        pytest.fail("KeyboardInterrupt escaped main()")
+    assert status == 130 and sent
+    assert capsys.readouterr().err == "orchestrate: interrupted by SIGINT\n"
+
+
 def test_signals_at_random_moments_of_the_first_second(loop, tmp_path):
     """40 signals (SIGINT and SIGTERM in turn, seeded) at random moments of the first second of
     ``orchestrate run``: every one that finds the start-up guard in place (the kernel says the
