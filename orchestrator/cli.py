@@ -281,12 +281,15 @@ def version_line() -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``orchestrate``; returns the exit status."""
     main_thread = threading.current_thread() is threading.main_thread()
-    if main_thread:  # SIGINT, SIGTERM at any moment: cleanup runs, one line, 130 or 143 (an ignored
-        previous = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)  # one stays so)
-        for signum, handler in ((signal.SIGINT, signal.default_int_handler), (signal.SIGTERM, terminate)):
-            if signal.getsignal(signum) is not signal.SIG_IGN:
-                signal.signal(signum, handler)
+    if main_thread:
+        previous = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
+    # SIGINT, SIGTERM at any moment (while these handlers go in too): cleanup runs, one line, 130
+    # or 143; an ignored one stays so
     try:
+        if main_thread:
+            for signum, handler in ((signal.SIGINT, signal.default_int_handler), (signal.SIGTERM, terminate)):
+                if signal.getsignal(signum) is not signal.SIG_IGN:
+                    signal.signal(signum, handler)
         words = sys.argv[1:] if argv is None else list(argv)
         parser = _parser(next((w for w in words if not w.startswith("-")), None))
         args = parser.parse_args(words)
