@@ -82,10 +82,13 @@ study: $(STAMP)
 
 ## study-fixed-time: the fixed-time claim over [-10, 10]^2 (issue 24): campaigns + continuous law,
 ## table and figures into results/study-fixed-time/ and docs/fixed-time-study/; prints its wall time.
-## STATES=21 runs the designs' full 21 x 21 grid (the README's figures: STATES=11, every other state)
-STATES ?= 11
+## STATES and CONTINUOUS: grid points per axis of the sampled runs and of the continuous law (the
+## README's study: 21 and 21; 11 takes every other state, about 4 times faster)
+STATES ?= 21
+CONTINUOUS ?= 21
 study-fixed-time: build
-	$(PY) -m orchestrator.experiments.fixed_time_study --states $(STATES) --docs docs/fixed-time-study
+	$(PY) -m orchestrator.experiments.fixed_time_study --states $(STATES) --continuous-states $(CONTINUOUS) \
+	  --docs docs/fixed-time-study
 
 ## report: results/report/report.md with the paper's figures, tables and the settling study
 report: build

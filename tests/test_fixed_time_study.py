@@ -20,6 +20,7 @@ from fmu_src.models.plants import (
     hold_step,
     pendulum_rhs,
 )
+from orchestrator.campaign import read_design
 from orchestrator.campaign.report import colour_norm
 from orchestrator.campaign.table import Journal, read_rows
 from orchestrator.experiments.campaigns import PARTIAL, tracking_row
@@ -422,3 +423,13 @@ def test_a_subgrid_keeps_the_designs_runs_on_every_other_state() -> None:
     assert {p[i] for p in sub.points} == {p[j] for p in sub.points} == {float(v) for v in range(-10, 11, 2)}
     assert set(sub.points) <= set(design.points)
     assert on_grid(design, 21) == design
+
+
+def test_integer_values_of_a_design_reach_the_table_as_integers(tmp_path) -> None:
+    """The journal test above wrote ints by hand; the design itself made every value a float, so
+    the study's table said controller.mode = 0.0 (issue 24, item 4)."""
+    design = tmp_path / "d.toml"
+    design.write_text('[grid]\n"controller.mode" = [0, 1]\n"plant.x1_0" = [-1, 0.5]\n')
+    points = read_design(design).points
+    assert [type(p[0]) for p in points] == [int, int, int, int]
+    assert [p[1] for p in points] == [-1, 0.5, -1, 0.5]

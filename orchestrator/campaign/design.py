@@ -145,7 +145,9 @@ def _axis(where: str, spec: object) -> list[float]:
         start, stop = _number(f"{where}.start", spec["start"]), _number(f"{where}.stop", spec["stop"])
         return [float(v) for v in np.linspace(start, stop, num)]
     if isinstance(spec, list) and spec:
-        return [_number(f"{where}[{i}]", v) for i, v in enumerate(spec)]
+        # an integer stays one (a mode, a discretization): the table then writes 1, not 1.0
+        return [v if isinstance(v, int) and not isinstance(v, bool) else _number(f"{where}[{i}]", v)
+                for i, v in enumerate(spec)]
     raise DesignError(f"{where}: expected a list of values or {{start, stop, num}} (got {spec!r})")
 
 
