@@ -1,7 +1,7 @@
 """End to end, as a user runs it: ``orchestrate run`` against libcosim on the same archive.
 
     python benchmarks/end_to_end.py [--scenarios example1 pendulum] [--repeat 5] [--stop-time 30]
-        [--orchestrate .venv/bin/orchestrate]
+        [--before CHECKOUT]
 
 For each built scenario (``build/ssp/<name>.ssp``, run ``make build`` first) this times whole
 processes, started one after the other in alternation (ours, libcosim, ours, ...), so that a
@@ -12,7 +12,9 @@ change of the machine's load hits both alike:
 * libcosim (libcosimpy) reading the archive's own algorithm (``from_ssp_file(path)``: its
   ``FixedStepAlgorithm`` with ``numWorkerThreads="0"``, serial), with its file observer writing
   every variable of every FMU to CSV, and with no observer;
-* start-up: both with a stop time of one step.
+* start-up: both with a stop time of one step;
+* with ``--before CHECKOUT`` (another checkout of this repository with its own ``make build``):
+  that revision's ``orchestrate run`` on its own build of the scenario, in the same alternation.
 
 Each figure is the median of ``--repeat`` processes: wall time (``perf_counter`` around the
 process) and CPU time (user + system of the process and its children, ``getrusage``). The CPU per
@@ -73,24 +75,30 @@ def step_of(archive: Path) -> float:
     return step
 
 
-def commands(orchestrate: str, archive: Path, stop: float, out: Path) -> dict[str, list[str]]:
+def commands(archive: Path, stop: float, out: Path, before: Path | None) -> dict[str, list[str]]:
     """The timed command lines, by label."""
-    ours = [orchestrate, "run", str(archive), "--quiet", "--no-plot", "--stop-time", repr(stop)]
+    def run(checkout: Path, scenario: Path) -> list[str]:
+        return [str(checkout / ".venv" / "bin" / "orchestrate"), "run", str(scenario), "--quiet", "--no-plot",
+                "--stop-time", repr(stop)]
+
+    ours = run(REPO, archive)
     lib = [sys.executable, "-c", LIBCOSIM, str(archive), repr(stop)]
-    return {"ours, CSV": [*ours, "--output", str(out / "r.csv")],
-            "ours, /dev/null": [*ours, "--output", os.devnull],
-            "libcosim, CSV": [*lib, str(out / "libcosim")],
-            "libcosim, none": [*lib, ""]}
+    labels = {"ours, CSV": [*ours, "--output", str(out / "r.csv")],
+              "ours, /dev/null": [*ours, "--output", os.devnull]}
+    if before is not None:
+        labels["before, CSV"] = [*run(before, before / "build" / "ssp" / archive.name), "--output",
+                                 str(out / "before.csv")]
+    return {**labels, "libcosim, CSV": [*lib, str(out / "libcosim")], "libcosim, none": [*lib, ""]}
 
 
-def measure(orchestrate: str, archive: Path, stop: float, repeat: int) -> dict[str, tuple[float, float]]:
+def measure(archive: Path, stop: float, repeat: int, before: Path | None) -> dict[str, tuple[float, float]]:
     """Median (wall, CPU) per label for the whole run and for one step (labels ending in
     ``start-up``), alternating the processes."""
     h = step_of(archive)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
-        runs = {**commands(orchestrate, archive, stop, out),
-                **{f"{k} start-up": v for k, v in commands(orchestrate, archive, h, out).items()}}
+        runs = {**commands(archive, stop, out, before),
+                **{f"{k} start-up": v for k, v in commands(archive, h, out, before).items()}}
         for command in runs.values():  # untimed: fills the FMU cache, warms the page cache
             subprocess.run(command, check=True, stdout=subprocess.DEVNULL)
         samples: dict[str, list[tuple[float, float]]] = {k: [] for k in runs}
@@ -101,12 +109,12 @@ def measure(orchestrate: str, archive: Path, stop: float, repeat: int) -> dict[s
             for k, v in samples.items()}
 
 
-def cold_start(orchestrate: str, archive: Path) -> float:
+def cold_start(archive: Path) -> float:
     """Wall seconds of a one-step run with an empty FMU cache (a machine's first run)."""
     with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as tmp:
         env = {**os.environ, "ORCHESTRATE_CACHE": cache}
-        command = [orchestrate, "run", str(archive), "--quiet", "--no-plot", "--stop-time",
-                   repr(step_of(archive)), "--output", str(Path(tmp, "r.csv"))]
+        command = [str(REPO / ".venv" / "bin" / "orchestrate"), "run", str(archive), "--quiet", "--no-plot",
+                   "--stop-time", repr(step_of(archive)), "--output", str(Path(tmp, "r.csv"))]
         return timed(command, env)[0]
 
 
@@ -114,7 +122,7 @@ def report(name: str, stop: float, steps: int, figures: dict[str, tuple[float, f
     """Print one scenario's table."""
     print(f"\n{name}: {stop:g} s, {steps} steps (median of the alternating processes)")
     print(f"{'':18s} {'wall s':>8s} {'CPU s':>8s} {'start-up wall':>14s} {'CPU us/step':>12s}")
-    for label in ("ours, CSV", "ours, /dev/null", "libcosim, CSV", "libcosim, none"):
+    for label in [k for k in figures if not k.endswith("start-up")]:
         wall, cpu = figures[label]
         start_wall, start_cpu = figures[f"{label} start-up"]
         per_step = (cpu - start_cpu) / steps * 1e6
@@ -124,6 +132,9 @@ def report(name: str, stop: float, steps: int, figures: dict[str, tuple[float, f
     print(f"wall ratio ours/libcosim, both with full CSV: {ratio:.2f}; ours with CSV / libcosim with no "
           f"output: {bare:.2f}; start-up ours/libcosim: "
           f"{figures['ours, CSV start-up'][0] / figures['libcosim, none start-up'][0]:.2f}")
+    if "before, CSV" in figures:
+        print(f"wall ratio before/libcosim, both with full CSV: "
+              f"{figures['before, CSV'][0] / figures['libcosim, CSV'][0]:.2f}")
     print(f"first run on a machine (empty FMU cache), start-up wall: {cold:.3f} s")
 
 
@@ -132,15 +143,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--scenarios", nargs="+", default=["example1", "pendulum"])
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--stop-time", type=float, default=30.0)
-    parser.add_argument("--orchestrate", default=str(REPO / ".venv" / "bin" / "orchestrate"))
+    parser.add_argument("--before", type=Path, metavar="CHECKOUT",
+                        help="another checkout (with its .venv and build/) to time beside this one")
     args = parser.parse_args(argv)
+    if args.before is not None and not (args.before / ".venv" / "bin" / "orchestrate").is_file():
+        parser.error(f"{args.before}: no .venv/bin/orchestrate (run 'make build' there)")
     for name in args.scenarios:
         archive = REPO / "build" / "ssp" / f"{name}.ssp"
         if not archive.is_file():
             parser.error(f"{archive} does not exist: run 'make build' first")
-        figures = measure(args.orchestrate, archive, args.stop_time, args.repeat)
+        figures = measure(archive, args.stop_time, args.repeat, args.before)
         steps = round(args.stop_time / step_of(archive))
-        report(name, args.stop_time, steps, figures, cold_start(args.orchestrate, archive))
+        report(name, args.stop_time, steps, figures, cold_start(archive))
     return 0
 
 
