@@ -54,11 +54,13 @@ if not execution.simulate_until(round(float(sys.argv[2]) * 1e9)):
 """
 
 
-def timed(command: Sequence[str], env: dict[str, str] | None = None) -> tuple[float, float]:
-    """Run ``command`` to completion; its wall and CPU seconds (children's user + system)."""
+def timed(command: Sequence[str], cwd: Path, env: dict[str, str] | None = None) -> tuple[float, float]:
+    """Run ``command`` to completion in ``cwd`` (a neutral folder: ``python -m`` children of an
+    older checkout must not import this checkout's package); its wall and CPU seconds (children's
+    user + system)."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    subprocess.run(command, check=True, env=env, stdout=subprocess.DEVNULL)
+    subprocess.run(command, check=True, env=env, stdout=subprocess.DEVNULL, cwd=cwd)
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -100,11 +102,11 @@ def measure(archive: Path, stop: float, repeat: int, before: Path | None) -> dic
         runs = {**commands(archive, stop, out, before),
                 **{f"{k} start-up": v for k, v in commands(archive, h, out, before).items()}}
         for command in runs.values():  # untimed: fills the FMU cache, warms the page cache
-            subprocess.run(command, check=True, stdout=subprocess.DEVNULL)
+            timed(command, out)
         samples: dict[str, list[tuple[float, float]]] = {k: [] for k in runs}
         for _ in range(repeat):
             for label, command in runs.items():
-                samples[label].append(timed(command))
+                samples[label].append(timed(command, out))
     return {k: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v))
             for k, v in samples.items()}
 
@@ -115,7 +117,7 @@ def cold_start(archive: Path) -> float:
         env = {**os.environ, "ORCHESTRATE_CACHE": cache}
         command = [str(REPO / ".venv" / "bin" / "orchestrate"), "run", str(archive), "--quiet", "--no-plot",
                    "--stop-time", repr(step_of(archive)), "--output", str(Path(tmp, "r.csv"))]
-        return timed(command, env)[0]
+        return timed(command, Path(tmp), env)[0]
 
 
 def report(name: str, stop: float, steps: int, figures: dict[str, tuple[float, float]], cold: float) -> None:
