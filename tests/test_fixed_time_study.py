@@ -433,3 +433,14 @@ def test_integer_values_of_a_design_reach_the_table_as_integers(tmp_path) -> Non
     points = read_design(design).points
     assert [type(p[0]) for p in points] == [int, int, int, int]
     assert [p[1] for p in points] == [-1, 0.5, -1, 0.5]
+
+
+def test_a_campaign_row_keeps_an_integer_parameter_an_integer() -> None:
+    """The sweep wrote float(value) for every varied parameter (controller.mode = 0.0 in the
+    study's runs.csv, measured on the 21 x 21 run)."""
+    from orchestrator.campaign.sweep import _row
+    from orchestrator.campaign.worker import RunOutcome, RunSpec
+
+    spec = RunSpec(0, "a", "s", "d", {"controller.mode": 1, "plant.x1_0": -10}, 2.0, 0.001)
+    row = _row(spec, RunOutcome(0, "ok", "", 0.1), ["controller.mode", "plant.x1_0"])
+    assert row["controller.mode"] == 1 and isinstance(row["controller.mode"], int)

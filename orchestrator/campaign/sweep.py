@@ -255,9 +255,14 @@ def _resume(folder: Path, columns: list[str], specs: list[RunSpec], resume: bool
     return [r for r in rows if r["status"] in (OK, FAILED)]
 
 
+def _number(value: object) -> int | float:
+    """A varied parameter's cell: always a number, an integer of the design kept one (mode = 1)."""
+    return value if isinstance(value, int) and not isinstance(value, bool) else float(cast(float, value))
+
+
 def _row(spec: RunSpec, outcome: RunOutcome, params: Sequence[str]) -> dict[str, object]:
     row: dict[str, object] = {"run": spec.index, "run_id": spec.run_id, "scenario": spec.scenario}
-    row.update({p: float(cast(float, spec.overrides[p])) for p in params})  # varied: always numbers
+    row.update({p: _number(spec.overrides[p]) for p in params})
     row.update(
         stop_time=spec.stop_time,
         step=spec.step,
