@@ -490,7 +490,7 @@ def run_study(
         }
         name = f"{tag}_settling.png"
         draw_maps(panels, "settling", "settling time (s), band 0.05", out / name, caps=caps,
-                  title=f"{example.name}: settling time from x(0) (continuous law on an "
+                  title=f"{example.name}: settling time from x(0) (continuous law: "
                         f"{continuous_states} x {continuous_states} grid)")
         figures.append(name)
         name = f"{tag}_peak_v.png"
