@@ -19,8 +19,10 @@ CSV. Every ``check_rows`` rows the new rows are checked to be finite.
 from __future__ import annotations
 
 import os
+import signal
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -122,7 +124,6 @@ class Recorder:
         self._next_flush = self._flush_rows
         self._preview = None if self.keep else _Preview(max(1, -(-rows // PREVIEW_BUCKETS)), PREVIEW_HEAD)
         self._fd: int | None = None  # the temporary file (or device) the CSV is written to
-        self._unwritten = b""  # formatted, not yet written (a write interrupted by an exception)
         self._flushed_at = time.monotonic()
         self.failed = False  # the CSV could not be written: no rows of this run are on disk
         self.path = None if path is None else Path(path)
@@ -152,7 +153,7 @@ class Recorder:
         except OSError as exc:
             self.failed = True
             raise OutputError(f"{path}: {exc.strerror or exc}") from exc
-        self._write((",".join(self.columns) + "\n").encode("utf-8"))
+        self._append((",".join(self.columns) + "\n").encode("utf-8"), b"")
 
     def _open_binary(self, path: Path) -> None:
         """Open the float64 copy of the rows that a conversion to another format reads (instead of
@@ -163,32 +164,21 @@ class Recorder:
             self._discard()
             raise OutputError(f"{path}: {exc.strerror or exc}") from exc
 
-    def _write(self, data: bytes) -> None:
-        """Append ``data`` to the CSV; on an error (disk full, ...) remove the temporary file and raise
-        OutputError with the reason."""
+    def _append(self, text: bytes, raw: bytes) -> None:
+        """Append one block: ``text`` to the CSV, ``raw`` to the float64 copy. On an error (disk
+        full, ...) the temporary files are removed and OutputError gives the reason."""
         assert self._fd is not None
-        self._unwritten += data
         try:
-            while self._unwritten:
-                self._unwritten = self._unwritten[os.write(self._fd, self._unwritten):]
-        except OSError as exc:
-            self._discard()
-            raise OutputError(f"{self.path}: {exc.strerror or exc}") from exc
-
-    def _write_binary(self, data: bytes) -> None:
-        """Append ``data`` to the float64 copy (a failure gives the CSV up too: they go together)."""
-        assert self._binary is not None
-        try:
-            view = memoryview(data)
-            while view:
-                view = view[os.write(self._binary, view):]
+            _write_all(self._fd, text)
+            if self._binary is not None:
+                _write_all(self._binary, raw)
         except OSError as exc:
             self._discard()
             raise OutputError(f"{self.path}: {exc.strerror or exc}") from exc
 
     def _discard(self) -> None:
         """Give the CSV up: close it and remove the temporary file (nothing of this run on disk)."""
-        fd, self._fd, self._unwritten = self._fd, None, b""
+        fd, self._fd = self._fd, None
         self.failed = True
         if fd is not None:
             os.close(fd)
@@ -239,9 +229,10 @@ class Recorder:
         end = self._checked
         if self._fd is not None and self._sent < end:
             block = self.data[self._sent - self._base:end - self._base]
-            self._write(csv_rows(block))
-            if self._binary is not None:
-                self._write_binary(block.tobytes())
+            text, raw = csv_rows(block), block.tobytes() if self._binary is not None else b""
+            with _signals_held():  # written and counted as one: a handler's exception comes after
+                self._append(text, raw)
+                self._sent = end
             self._flushed_at = time.monotonic()
         self._sent = end
         if self._preview is not None and end - self._base == len(self.data):
@@ -261,7 +252,6 @@ class Recorder:
             except NonFiniteError:
                 pass  # reported by whoever appended; the rows before it are written
             self.flush()
-            self._write(b"")  # what an exception interrupted
         finally:
             fd, self._fd = self._fd, None
             if fd is not None:  # not given up by _write
@@ -280,6 +270,28 @@ class Recorder:
         if self._preview is None:
             return structured(current.copy(), self.columns)
         return structured(self._preview.rows(current, len(self.columns)), self.columns)
+
+
+HELD = (signal.SIGINT, signal.SIGTERM, signal.SIGALRM)  # the signals whose handlers end a run
+
+
+@contextmanager
+def _signals_held() -> Iterator[None]:
+    """Hold SIGINT, SIGTERM and SIGALRM for the block: a handler that raises (a second Ctrl-C, the
+    timeout's grace) runs after it, never between writing a block of rows and counting it (the
+    rows would be written twice, or half). Two system calls per block of 208 rows."""
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, HELD)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    """``os.write`` until every byte of ``data`` is written (OSError as it raises)."""
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view):]
 
 
 class _Preview:

@@ -164,3 +164,32 @@ def test_fmi_log_traces_the_calls_of_the_chosen_components(loop, tmp_path, capsy
     with pytest.raises(SystemExit) as exit_:
         main(["run", str(loop), "--quiet", "--no-plot", "--output", str(out), "--fmi-log", "gian"])
     assert exit_.value.code == 2 and "--fmi-log: no component matches gian" in capsys.readouterr().err
+
+
+def test_ctrl_c_while_a_block_is_written_writes_no_row_twice_or_half(tmp_path, monkeypatch):
+    """A handler that raises (a second Ctrl-C) at the moment a block of rows has been written but
+    not yet counted made close() write the block again. The signal is now held for that moment:
+    the exception comes after, and the CSV holds every row once (oracle: the rows appended)."""
+    import os
+    import signal
+
+    from orchestrator import results
+    from orchestrator.results import Recorder, read_result
+
+    real = results._write_all
+    fired = []
+
+    def write_then_signal(fd: int, data: bytes) -> None:
+        real(fd, data)
+        if len(data) > 1000 and not fired:
+            fired.append(True)
+            os.kill(os.getpid(), signal.SIGINT)  # handled as soon as Python may: KeyboardInterrupt
+
+    monkeypatch.setattr(results, "_write_all", write_then_signal)
+    recorder = Recorder(["time", "x"], 1000, tmp_path / "r.csv")
+    with pytest.raises(KeyboardInterrupt):
+        for k in range(1000):
+            recorder.append(np.array([k / 1000, float(k)]))
+    recorder.close()
+    rows = read_result(tmp_path / "r.csv")
+    assert fired and rows["x"].tolist() == [float(k) for k in range(len(rows))] and len(rows) >= 208
