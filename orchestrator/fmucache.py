@@ -66,14 +66,7 @@ def sha256(path: str | os.PathLike) -> str:
         return _digests[key]
     folder = cache_folder()
     note = None if folder is None else _note(folder, f"{os.path.realpath(path)}\0{key}")
-    digest = _read_note(note)
-    if digest is None:
-        h = hashlib.sha256()
-        with open(path, "rb") as stream:
-            for block in iter(lambda: stream.read(1 << 20), b""):
-                h.update(block)
-        digest = h.hexdigest()
-        _write_note(note, digest)
+    digest = _read_note(note) or _hash(path, note)
     _digests[key] = digest
     return digest
 
@@ -84,13 +77,19 @@ def member_sha256(path: str | os.PathLike, archive: str | os.PathLike, member: s
     that the FMUs unpacked from a scenario archive are not hashed on every run."""
     folder = cache_folder()
     note = None if folder is None else _note(folder, f"{sha256(archive)}\0{member}")
-    digest = _read_note(note)
-    if digest is None:
-        _digests.pop(_stat_key(path), None)
-        digest = hashlib.sha256(Path(path).read_bytes()).hexdigest()
-        _write_note(note, digest)
+    digest = _read_note(note) or _hash(path, note)
     _digests[_stat_key(path)] = digest
     return digest
+
+
+def _hash(path: str | os.PathLike, note: Path | None) -> str:
+    """SHA-256 of the file's bytes, read in blocks, and remembered in ``note``."""
+    h = hashlib.sha256()
+    with open(path, "rb") as stream:
+        for block in iter(lambda: stream.read(1 << 20), b""):
+            h.update(block)
+    _write_note(note, h.hexdigest())
+    return h.hexdigest()
 
 
 def _note(folder: Path, key: str) -> Path:
