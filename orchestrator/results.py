@@ -19,10 +19,8 @@ CSV. Every ``check_rows`` rows the new rows are checked to be finite.
 from __future__ import annotations
 
 import os
-import signal
 import time
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -117,7 +115,9 @@ class Recorder:
         self.data = np.empty((max(capacity, 1), len(self.columns)))
         self._base = 0  # row number of data[0]
         self._checked = 0
-        self._sent = 0
+        # (rows, bytes) of the CSV up to its last whole block: one attribute, stored in one step, so
+        # that an exception from a signal handler never finds the two disagreeing
+        self._committed = (0, 0)
         self._check_rows = check_rows
         self._next_check = check_rows
         self._flush_rows = flush_rows if self.keep else capacity
@@ -137,7 +137,7 @@ class Recorder:
     @property
     def saved(self) -> int:
         """The rows of this run in the CSV (all sent once ``close`` returned; none if it failed)."""
-        return 0 if self.failed or self.path is None else self._sent
+        return 0 if self.failed or self.path is None else self._committed[0]
 
     def _start_writer(self, path: Path) -> None:
         """Create the temporary file (an unwritable folder fails here, before any step) and write the
@@ -153,7 +153,9 @@ class Recorder:
         except OSError as exc:
             self.failed = True
             raise OutputError(f"{path}: {exc.strerror or exc}") from exc
-        self._append((",".join(self.columns) + "\n").encode("utf-8"), b"")
+        header = (",".join(self.columns) + "\n").encode("utf-8")
+        self._append(header, b"")
+        self._committed = (0, len(header))
 
     def _open_binary(self, path: Path) -> None:
         """Open the float64 copy of the rows that a conversion to another format reads (instead of
@@ -172,6 +174,24 @@ class Recorder:
             _write_all(self._fd, text)
             if self._binary is not None:
                 _write_all(self._binary, raw)
+        except OSError as exc:
+            self._discard()
+            raise OutputError(f"{self.path}: {exc.strerror or exc}") from exc
+
+    def _cut(self) -> None:
+        """Cut the CSV and its float64 copy back to the last committed block: an exception (a
+        second Ctrl-C, the timeout's grace) between writing a block and committing it would
+        otherwise have ``close`` write the block again. A device keeps what it got."""
+        assert self._fd is not None
+        sent, size = self._committed
+        try:
+            if self.part != self.path:
+                os.ftruncate(self._fd, size)
+                os.lseek(self._fd, size, os.SEEK_SET)
+            if self._binary is not None:
+                kept = sent * self.data.shape[1] * self.data.itemsize
+                os.ftruncate(self._binary, kept)
+                os.lseek(self._binary, kept, os.SEEK_SET)
         except OSError as exc:
             self._discard()
             raise OutputError(f"{self.path}: {exc.strerror or exc}") from exc
@@ -227,14 +247,14 @@ class Recorder:
         """Write the checked rows not yet written to the CSV (and, keep=False, fold them into the
         preview and reuse the buffer)."""
         end = self._checked
-        if self._fd is not None and self._sent < end:
-            block = self.data[self._sent - self._base:end - self._base]
-            text, raw = csv_rows(block), block.tobytes() if self._binary is not None else b""
-            with _signals_held():  # written and counted as one: a handler's exception comes after
-                self._append(text, raw)
-                self._sent = end
+        sent, size = self._committed
+        if self._fd is not None and sent < end:
+            block = self.data[sent - self._base:end - self._base]
+            text = csv_rows(block)
+            self._append(text, block.tobytes() if self._binary is not None else b"")
+            size += len(text)
             self._flushed_at = time.monotonic()
-        self._sent = end
+        self._committed = (end, size)
         if self._preview is not None and end - self._base == len(self.data):
             self._preview.add(self.data)
             self._base = end
@@ -247,6 +267,7 @@ class Recorder:
         if self._fd is None:
             return
         try:
+            self._cut()
             try:
                 self.check()
             except NonFiniteError:
@@ -270,21 +291,6 @@ class Recorder:
         if self._preview is None:
             return structured(current.copy(), self.columns)
         return structured(self._preview.rows(current, len(self.columns)), self.columns)
-
-
-HELD = (signal.SIGINT, signal.SIGTERM, signal.SIGALRM)  # the signals whose handlers end a run
-
-
-@contextmanager
-def _signals_held() -> Iterator[None]:
-    """Hold SIGINT, SIGTERM and SIGALRM for the block: a handler that raises (a second Ctrl-C, the
-    timeout's grace) runs after it, never between writing a block of rows and counting it (the
-    rows would be written twice, or half). Two system calls per block of 208 rows."""
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, HELD)
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _write_all(fd: int, data: bytes) -> None:

@@ -168,8 +168,9 @@ def test_fmi_log_traces_the_calls_of_the_chosen_components(loop, tmp_path, capsy
 
 def test_ctrl_c_while_a_block_is_written_writes_no_row_twice_or_half(tmp_path, monkeypatch):
     """A handler that raises (a second Ctrl-C) at the moment a block of rows has been written but
-    not yet counted made close() write the block again. The signal is now held for that moment:
-    the exception comes after, and the CSV holds every row once (oracle: the rows appended)."""
+    not yet counted made close() write the block again. close() now cuts the CSV back to the last
+    committed block first: it holds every row once (oracle: the rows appended). Holding the signals
+    was not enough: under xdist another thread of the process took the signal."""
     import os
     import signal
 
