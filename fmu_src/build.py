@@ -51,7 +51,7 @@ from pythonfmu import FmuBuilder
 
 from .runtime import PYTHON_VERSION, Runtime, RuntimeBundleError, ensure_runtime, runtime_members
 
-__all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "c_compiler", "main"]
+__all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "c_compiler", "compile_extension", "main"]
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 LOCAL_PACKAGES = ("fmu_src", "controller")
@@ -65,7 +65,7 @@ FMU_SCRIPTS = {
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
-BUILD_FORMAT = "4"
+BUILD_FORMAT = "5"
 SHIM_DIR = Path("fmu_src", "shim")  # relative to the source root
 SHIM_SOURCES = ("fmi2_shim.c", "start_python.c")
 SHIM_HEADERS = ("start_python.h", "fmi2_types.h")
@@ -76,6 +76,16 @@ SHIM_FLAGS = tuple(
     "-Wl,--build-id=none -s -Wl,--enable-new-dtags".split()
 ) + ("-Wl,-rpath,$ORIGIN/python/lib",)
 SHIM_LIBS = ("-ldl", "-pthread")
+# C extension modules bundled with the FMUs that import them (dotted name -> C source, relative to
+# the source root): built against the runtime's headers for the stable ABI, so that one binary
+# loads in the FMU's runtime and in a host's Python alike. -ffp-contract=off: no fused
+# multiply-add, so the compiled arithmetic rounds as Python's does (see fmu_src/models/_dopri.c).
+EXTENSIONS = {"fmu_src.models._dopri": Path("fmu_src", "models", "_dopri.c")}
+EXTENSION_SUFFIX = ".abi3.so"
+EXTENSION_FLAGS = (
+    "-std=c11 -O2 -fPIC -shared -fvisibility=hidden -g0 -Wall -Wextra -Werror -ffp-contract=off "
+    "-DPy_LIMITED_API=0x03080000 -Wl,--build-id=none -s".split()
+)
 CLASS_LINE = re.compile(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", re.MULTILINE)  # pythonfmu's loader regex
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 GUID_NAMESPACE = uuid.UUID("5b0f3a52-4c1e-4d59-9a4e-2f6f1c1e7a10")
@@ -93,6 +103,7 @@ class Bundle:
     script: Path
     modules: dict[str, Path]  # dotted name (e.g. "controller.law") -> source file
     third_party: frozenset[str]  # top-level names of non-local, non-stdlib imports
+    extensions: dict[str, Path]  # dotted name -> C source of the extension modules it imports
 
     def digest(self, native: str) -> str:
         """SHA-256 over everything that ends up in the archive (sources, pythonfmu version, format,
@@ -104,6 +115,8 @@ class Bundle:
         h.update(self.script.read_bytes() + b"\0")
         for name in sorted(self.modules):
             h.update(name.encode() + b"\0" + self.modules[name].read_bytes() + b"\0")
+        for name in sorted(self.extensions):
+            h.update(name.encode() + b"\0" + self.extensions[name].read_bytes() + b"\0")
         return h.hexdigest()
 
 
@@ -150,9 +163,15 @@ def collect_bundle(model: str, root: Path = REPO_ROOT) -> Bundle:
                 third_party.add(node.module.split(".")[0])
 
     modules: dict[str, Path] = {}
+    extensions: dict[str, Path] = {}
     while pending:
         name = pending.pop()
-        if name in modules:
+        if name in modules or name in extensions:
+            continue
+        if name in EXTENSIONS:
+            extensions[name] = root / EXTENSIONS[name]
+            if not extensions[name].is_file():
+                raise BuildError(f"C source of the extension module {name} not found: {extensions[name]}")
             continue
         path = modules[name] = _module_file(root, name)
         package = name.rpartition(".")[0]
@@ -180,7 +199,7 @@ def collect_bundle(model: str, root: Path = REPO_ROOT) -> Bundle:
                         f"{path}:{node.lineno}: relative imports beyond the package cannot be bundled"
                     )
     ignored = set(sys.stdlib_module_names) | {"__future__", "pythonfmu"}
-    return Bundle(model, script, modules, frozenset(third_party - ignored))
+    return Bundle(model, script, modules, frozenset(third_party - ignored), extensions)
 
 
 def c_compiler() -> tuple[str, str]:
@@ -199,11 +218,24 @@ def c_compiler() -> tuple[str, str]:
     )
 
 
+def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequence[str],
+             libraries: Sequence[str], what: Path) -> bytes:
+    """Compile ``sources`` (in ``work``) into a shared object against the runtime's headers; its
+    bytes (the same for the same sources, compiler, flags and runtime). ``what`` names the sources
+    in the error."""
+    compiler, _ = c_compiler()
+    includes = [f"-I{d}" for d in runtime.include_dirs]
+    command = [compiler, *flags, *includes, "-o", "out.so", *sources, *libraries]
+    result = subprocess.run(command, cwd=work, capture_output=True, text=True)
+    if result.returncode != 0:
+        raise BuildError(f"{what}: {compiler} failed:\n{result.stderr.strip()}")
+    return (work / "out.so").read_bytes()
+
+
 def compile_shim(root: Path, runtime: Runtime, where: Path, sources: Sequence[str] = SHIM_SOURCES,
                  defines: Sequence[str] = ()) -> bytes:
     """Compile the FMI shim (``sources`` of ``fmu_src/shim``, ``-D`` ``defines``) against the runtime's
     headers; returns the shared object's bytes (the same for the same sources, compiler and runtime)."""
-    compiler, _ = c_compiler()
     work = where / "shim"
     work.mkdir(parents=True)
     for name in (*sources, *SHIM_HEADERS):
@@ -211,13 +243,17 @@ def compile_shim(root: Path, runtime: Runtime, where: Path, sources: Sequence[st
         if not source.is_file():
             raise BuildError(f"FMI shim source not found: {source}")
         shutil.copyfile(source, work / name)
-    includes = [f"-I{d}" for d in runtime.include_dirs]
-    flags = [f"-D{d}" for d in defines]
-    command = [compiler, *SHIM_FLAGS, *flags, *includes, "-o", "shim.so", *sources, *SHIM_LIBS]
-    result = subprocess.run(command, cwd=work, capture_output=True, text=True)
-    if result.returncode != 0:
-        raise BuildError(f"{root / SHIM_DIR}: {compiler} failed:\n{result.stderr.strip()}")
-    return (work / "shim.so").read_bytes()
+    flags = [*SHIM_FLAGS, *(f"-D{d}" for d in defines)]
+    return _compile(work, runtime, flags, sources, SHIM_LIBS, root / SHIM_DIR)
+
+
+def compile_extension(source: Path, runtime: Runtime, where: Path) -> bytes:
+    """Compile the C extension module ``source`` for the stable ABI against the runtime's headers;
+    the bytes of its ``<name>.abi3.so``."""
+    work = where / f"ext_{source.stem}"
+    work.mkdir(parents=True)
+    shutil.copyfile(source, work / source.name)
+    return _compile(work, runtime, EXTENSION_FLAGS, [source.name], ["-lm"], source)
 
 
 def _ensure_runtime() -> Runtime:
@@ -406,12 +442,19 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT) -> Path:
         shim = compile_shim(root, _ensure_runtime(), Path(tmp))
         native = _runtime(bundle) | {f"binaries/linux64/{model}.so": shim}
         native["documentation/licenses/pythonfmu-LICENSE.txt"] = _licence("pythonfmu")
+        extensions = {name: compile_extension(source, _ensure_runtime(), Path(tmp))
+                      for name, source in bundle.extensions.items()}
         native_digest = hashlib.sha256()
         for name in sorted(native):
             native_digest.update(name.encode() + b"\0" + hashlib.sha256(native[name]).digest())
+        for name in sorted(extensions):
+            native_digest.update(name.encode() + b"\0" + hashlib.sha256(extensions[name]).digest())
         native_digest.update(b"pyc" if compiles_bytecode() else b"py")  # _bytecode's members
         digest = bundle.digest(native_digest.hexdigest())
         script, package_dir = _stage(bundle, digest, Path(tmp) / "stage")
+        for name, binary in extensions.items():  # into the bundled package, beside its importer
+            relative = name.replace(".", "/")
+            native[f"resources/{package_dir.name}/{relative}{EXTENSION_SUFFIX}"] = binary
         with _isolated_imports():
             try:
                 raw = FmuBuilder.build_FMU(

@@ -9,6 +9,7 @@ from __future__ import annotations
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from fmu_src.fmu_support import declare, fmu_model, raise_problems
+from fmu_src.models.native import EXAMPLE1
 from fmu_src.models.plants import example1_rhs
 from fmu_src.plant_core import (
     declare_integrator,
@@ -52,4 +53,4 @@ class Example1Plant(Fmi2Slave):
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         """Integrate the plant over the step with uf held."""
-        return step_plant(self, example1_rhs, current_time, step_size)
+        return step_plant(self, example1_rhs, EXAMPLE1, current_time, step_size)

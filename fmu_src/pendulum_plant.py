@@ -12,6 +12,7 @@ from dataclasses import fields
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from fmu_src.fmu_support import declare, fmu_model, raise_problems
+from fmu_src.models.native import pendulum_native
 from fmu_src.models.plants import PendulumParameters, pendulum_problems, pendulum_rhs_for
 from fmu_src.plant_core import (
     declare_integrator,
@@ -41,6 +42,7 @@ class PendulumPlant(Fmi2Slave):
         self.x2_0 = 0.1
         self.z_0 = 0.0
         self._rhs = pendulum_rhs_for(defaults)  # with the parameters of exit_initialization_mode
+        self._native = pendulum_native(defaults)
         declare(
             self, "uf", Fmi2Causality.input, "Control applied by the actuator, held over each step", unit="N"
         )
@@ -61,6 +63,7 @@ class PendulumPlant(Fmi2Slave):
         params = PendulumParameters(**{f.name: getattr(self, f.name) for f in fields(PendulumParameters)})
         raise_problems(self.modelName, pendulum_problems(params) + plant_problems(self))
         self._rhs = pendulum_rhs_for(params)
+        self._native = pendulum_native(params)
         start_plant(self)
 
     def refresh_outputs(self) -> None:
@@ -69,4 +72,4 @@ class PendulumPlant(Fmi2Slave):
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         """Integrate the pendulum over the step with uf held."""
-        return step_plant(self, self._rhs, current_time, step_size)
+        return step_plant(self, self._rhs, self._native, current_time, step_size)

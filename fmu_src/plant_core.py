@@ -12,6 +12,7 @@ import math
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from .fmu_support import assigned, declare, mark_stale, report
+from .models.native import COMPILED, NativePlant, native_hold_step
 from .models.plants import (
     DOPRI,
     MAX_STEPS,
@@ -183,8 +184,12 @@ def refresh_plant_outputs(slave: Fmi2Slave) -> None:
     slave.y = state[0]
 
 
-def step_plant(slave: Fmi2Slave, rhs: RightHandSide, current_time: float, step_size: float) -> bool:
-    """Advance over [t, t + h] with ``slave.uf`` held.
+def step_plant(
+    slave: Fmi2Slave, rhs: RightHandSide, native: NativePlant, current_time: float, step_size: float
+) -> bool:
+    """Advance over [t, t + h] with ``slave.uf`` held: by Dormand-Prince, compiled in a built FMU
+    (``native``, :mod:`~fmu_src.models.native`: the same bits) and in Python (``rhs``) in the
+    source tree; or by RK4 (``rhs``).
 
     Returns False (fmi2Discard, with a logged reason) if the states stop being finite, leave
     ``state_limit`` (x1: ``y_limit``), change fast enough to leave it within ``rate_horizon``
@@ -194,7 +199,12 @@ def step_plant(slave: Fmi2Slave, rhs: RightHandSide, current_time: float, step_s
     new: State
     limit = slave.state_limit
     try:
-        if slave._method == DOPRI:
+        if slave._method == DOPRI and COMPILED:
+            new, slave._next_step, _, _ = native_hold_step(
+                native, current_time, slave.state, slave.uf, step_size, slave.rtol, slave.atol,
+                slave._next_step, limit, slave.max_steps, slave.y_limit, slave.rate_horizon,
+            )
+        elif slave._method == DOPRI:
             new, slave._next_step, _, _ = dopri_hold_step(
                 rhs, current_time, slave.state, slave.uf, step_size, slave.rtol, slave.atol, slave._next_step,
                 limit, slave.max_steps, slave.y_limit, slave.rate_horizon,

@@ -32,11 +32,14 @@ __all__ = [
     "RightHandSide",
     "State",
     "StateLimitError",
+    "beyond_limit",
+    "budget_spent",
     "dopri_hold_step",
     "escape_rate",
     "example1_rhs",
     "hold_step",
     "integration_problems",
+    "no_step_size",
     "pendulum_problems",
     "pendulum_rhs",
     "pendulum_rhs_for",
@@ -202,6 +205,32 @@ def escape_rate(rate: State, t: float, reach: float, limit: float, y_limit: floa
     )
 
 
+def beyond_limit(state: State, t: float, limit: float, y_limit: float) -> StateLimitError:
+    """The error of an accepted step whose ``state`` at ``t`` is beyond a bound (x1: ``y_limit``)."""
+    n1, n2, n3 = state
+    name, bound = ("y_limit", y_limit) if abs(n1) > y_limit else ("state_limit", limit)
+    return StateLimitError(
+        f"state ({n1:.6g}, {n2:.6g}, {n3:.6g}) at t = {t!r} beyond the plant's "
+        f"{name} {bound:g} (left its range of validity)"
+    )
+
+
+def budget_spent(max_steps: int, t: float, accepted: int, rejected: int) -> ValueError:
+    """The error of a communication step that spent its ``max_steps`` integrator steps by ``t``."""
+    return ValueError(
+        f"step budget of {max_steps} integrator steps spent at t = {t!r} "
+        f"({accepted} accepted, {rejected} rejected in this communication step)"
+    )
+
+
+def no_step_size(rtol: float, atol: float, t: float, accepted: int, rejected: int) -> ValueError:
+    """The error of a trial step shrunk below 1e-12 h without meeting the tolerances."""
+    return ValueError(
+        f"no step size meets rtol = {rtol!r}, atol = {atol!r} at t = {t!r} "
+        f"({accepted} steps accepted, {rejected} rejected in this communication step)"
+    )
+
+
 class AdaptiveStep(NamedTuple):
     """Result of :func:`dopri_hold_step`: the new states, the step size to try next, and how many
     steps were accepted and rejected (rejected steps cost the same 6 evaluations as accepted ones)."""
@@ -298,20 +327,13 @@ def dopri_hold_step(
         if err <= 1.0:  # accepted (False for nan)
             accepted += 1
             if abs(n1) > y_limit or abs(n1) > limit or abs(n2) > limit or abs(n3) > limit:
-                name, bound = ("y_limit", y_limit) if abs(n1) > y_limit else ("state_limit", limit)
-                raise StateLimitError(
-                    f"state ({n1:.6g}, {n2:.6g}, {n3:.6g}) at t = {t_new!r} beyond the plant's "
-                    f"{name} {bound:g} (left its range of validity)"
-                )
+                raise beyond_limit((n1, n2, n3), t_new, limit, y_limit)
             fac = min(grow, _SAFETY * err**-0.2) if err > 0.0 else grow
             proposal = dt * max(_FAC_MIN, fac)
             if last:
                 return AdaptiveStep((n1, n2, n3), max(proposal, wanted), accepted, rejected)
             if accepted + rejected >= max_steps:
-                raise ValueError(
-                    f"step budget of {max_steps} integrator steps spent at t = {t_new!r} "
-                    f"({accepted} accepted, {rejected} rejected in this communication step)"
-                )
+                raise budget_spent(max_steps, t_new, accepted, rejected)
             t, y1, y2, y3 = t_new, n1, n2, n3
             k11, k12, k13 = k71, k72, k73  # first same as last
             if reach > 0.0 and (
@@ -323,15 +345,9 @@ def dopri_hold_step(
         else:
             rejected += 1
             if dt <= 1e-12 * h:
-                raise ValueError(
-                    f"no step size meets rtol = {rtol!r}, atol = {atol!r} at t = {t!r} "
-                    f"({accepted} steps accepted, {rejected} rejected in this communication step)"
-                )
+                raise no_step_size(rtol, atol, t, accepted, rejected)
             if accepted + rejected >= max_steps:
-                raise ValueError(
-                    f"step budget of {max_steps} integrator steps spent at t = {t!r} "
-                    f"({accepted} accepted, {rejected} rejected in this communication step)"
-                )
+                raise budget_spent(max_steps, t, accepted, rejected)
             dt *= max(_FAC_MIN, _SAFETY * err**-0.2) if math.isfinite(err) else _FAC_MIN
             grow = 1.0
 

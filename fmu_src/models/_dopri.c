@@ -1,0 +1,192 @@
+/* _dopri: the plants' Dormand-Prince 5(4) step over one communication step, compiled.
+
+   The same algorithm as fmu_src/models/plants.py:dopri_hold_step, operation for operation, so
+   that it gives the same bits: the plant's right-hand side and the step-size control are written
+   in the order Python evaluates them (left to right, no reassociation: built without
+   -ffast-math and with -ffp-contract=off, so no fused multiply-add), sin, cos, pow and sqrt are
+   the C library's, which Python's math module and float ** call too, and min/max follow
+   Python's builtins (the first argument unless the second is strictly smaller/larger), which
+   matters for nan. Python's math.sin and math.cos raise ValueError on an infinite argument where
+   C returns nan: such an evaluation marks the trial step as failed (err = inf), as the Python
+   code's `except ValueError` does, and at the step's first evaluation it is reported as a math
+   domain error.
+
+   Why compiled: a plant FMU spends its step in this loop, about 5 us per integrator step in
+   Python. Runs whose state escapes (the finite-time law's finite escapes in a campaign over
+   initial states) need hundreds to thousands of integrator steps per communication step while
+   the state is still inside its range of validity; compiled, such a run costs milliseconds.
+
+   hold_step(kind, c1, c2, c3, c4, t, y1, y2, y3, uf, h, rtol, atol, first_step, limit,
+             max_steps, y_limit, rate_horizon)
+   kind 0: Example 1 (eq. 85; c1..c4 unused); kind 1: the pendulum (eq. 99) with c1 = d1,
+   c2 = d2, c3 = M L, c4 = g / L + B / M, as plants.pendulum_rhs_for binds them.
+   Returns (status, t, a, b, c, next_step, accepted, rejected); plants.native_hold_step turns
+   a status other than OK into the Python code's exception and message. Built against the
+   stable ABI (Py_LIMITED_API) so that one binary loads in any CPython 3.8 or later: the FMU's
+   own runtime, or the host's Python when the host runs one. */
+
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+
+enum { OK = 0, RATE = 1, BEYOND = 2, BUDGET = 3, NO_STEP = 4, DOMAIN = 5 };
+enum { EXAMPLE1 = 0, PENDULUM = 1 };
+
+static const double C2 = 1.0 / 5, C3 = 3.0 / 10, C4 = 4.0 / 5, C5 = 8.0 / 9;
+static const double A21 = 1.0 / 5;
+static const double A31 = 3.0 / 40, A32 = 9.0 / 40;
+static const double A41 = 44.0 / 45, A42 = -56.0 / 15, A43 = 32.0 / 9;
+static const double A51 = 19372.0 / 6561, A52 = -25360.0 / 2187, A53 = 64448.0 / 6561, A54 = -212.0 / 729;
+static const double A61 = 9017.0 / 3168, A62 = -355.0 / 33, A63 = 46732.0 / 5247, A64 = 49.0 / 176,
+                    A65 = -5103.0 / 18656;
+static const double B1 = 35.0 / 384, B3 = 500.0 / 1113, B4 = 125.0 / 192, B5 = -2187.0 / 6784, B6 = 11.0 / 84;
+static const double E1 = 71.0 / 57600, E3 = -71.0 / 16695, E4 = 71.0 / 1920, E5 = -17253.0 / 339200,
+                    E6 = 22.0 / 525, E7 = -1.0 / 40;
+static const double SAFETY = 0.9, FAC_MIN = 0.2, FAC_MAX = 10.0;
+
+struct plant {
+    int kind;
+    double c1, c2, c3, c4;
+    double uf;
+    int domain; /* a sin/cos argument was infinite (Python: ValueError) */
+};
+
+static double sin_(struct plant *p, double x) {
+    if (isinf(x)) p->domain = 1;
+    return sin(x);
+}
+
+static double cos_(struct plant *p, double x) {
+    if (isinf(x)) p->domain = 1;
+    return cos(x);
+}
+
+/* plants.example1_rhs and plants.pendulum_rhs_for, term by term. */
+static void rhs(struct plant *p, double t, double x1, double x2, double z, double *k) {
+    double uf = p->uf;
+    if (p->kind == EXAMPLE1) {
+        k[0] = (2.0 + sin_(p, x1)) * x2 + 0.1 * sin_(p, x1 * x2) + z * sin_(p, x1 * x1);
+        k[1] = (2.0 + cos_(p, x1 * x2)) * uf + 0.5 * sin_(p, x1 * x1 * x2 * x2) + x1 * x1 * z;
+        k[2] = -z - x1 * x1 + 0.5;
+    } else {
+        k[0] = x2 + z * x1 + p->c1 * sin_(p, t);
+        k[1] = uf / p->c3 - p->c4 * sin_(p, x1 * x2) + z * x2 * sin_(p, x1) + p->c2 * cos_(p, t);
+        k[2] = -2.0 * z + 0.25 * x1 * x1;
+    }
+}
+
+static double py_max(double a, double b) { return b > a ? b : a; }
+static double py_min(double a, double b) { return b < a ? b : a; }
+
+/* Whether the rate bound ends the step (plants.dopri_hold_step's `reach > 0.0 and (...)`). */
+static int too_fast(const double *k, double reach, double x1_limit, double limit) {
+    return reach > 0.0 && (fabs(k[0]) * reach > x1_limit || fabs(k[1]) * reach > limit ||
+                           fabs(k[2]) * reach > limit);
+}
+
+static PyObject *result(int status, double t, double a, double b, double c, double next, long long accepted,
+                        long long rejected) {
+    return Py_BuildValue("(idddddLL)", status, t, a, b, c, next, accepted, rejected);
+}
+
+static PyObject *hold_step(PyObject *self, PyObject *args) {
+    (void)self;
+    struct plant p = {0};
+    double t, y1, y2, y3, h, rtol, atol, first_step, limit, y_limit, rate_horizon;
+    long long max_steps;
+    if (!PyArg_ParseTuple(args, "iddddddddddddddLdd", &p.kind, &p.c1, &p.c2, &p.c3, &p.c4, &t, &y1, &y2, &y3,
+                          &p.uf, &h, &rtol, &atol, &first_step, &limit, &max_steps, &y_limit, &rate_horizon))
+        return NULL;
+    if (p.kind != EXAMPLE1 && p.kind != PENDULUM) {
+        PyErr_SetString(PyExc_ValueError, "unknown plant kind");
+        return NULL;
+    }
+    double k1[3], k2[3], k3[3], k4[3], k5[3], k6[3], k7[3];
+    double t_end = t + h;
+    rhs(&p, t, y1, y2, y3, k1);
+    if (p.domain) return result(DOMAIN, t, 0.0, 0.0, 0.0, 0.0, 0, 0);
+    double reach = rate_horizon * h;
+    double x1_limit = py_min(limit, y_limit);
+    if (too_fast(k1, reach, x1_limit, limit)) return result(RATE, t, k1[0], k1[1], k1[2], 0.0, 0, 0);
+    double dt = first_step > 0.0 ? py_min(first_step, h) : h;
+    long long accepted = 0, rejected = 0;
+    double grow = FAC_MAX;
+    for (;;) {
+        double remaining = t_end - t;
+        double wanted = dt;
+        int last = dt >= remaining * (1.0 - 1e-12);
+        if (last) dt = remaining;
+        p.domain = 0;
+        rhs(&p, t + C2 * dt, y1 + dt * A21 * k1[0], y2 + dt * A21 * k1[1], y3 + dt * A21 * k1[2], k2);
+        rhs(&p, t + C3 * dt,
+            y1 + dt * (A31 * k1[0] + A32 * k2[0]),
+            y2 + dt * (A31 * k1[1] + A32 * k2[1]),
+            y3 + dt * (A31 * k1[2] + A32 * k2[2]), k3);
+        rhs(&p, t + C4 * dt,
+            y1 + dt * (A41 * k1[0] + A42 * k2[0] + A43 * k3[0]),
+            y2 + dt * (A41 * k1[1] + A42 * k2[1] + A43 * k3[1]),
+            y3 + dt * (A41 * k1[2] + A42 * k2[2] + A43 * k3[2]), k4);
+        rhs(&p, t + C5 * dt,
+            y1 + dt * (A51 * k1[0] + A52 * k2[0] + A53 * k3[0] + A54 * k4[0]),
+            y2 + dt * (A51 * k1[1] + A52 * k2[1] + A53 * k3[1] + A54 * k4[1]),
+            y3 + dt * (A51 * k1[2] + A52 * k2[2] + A53 * k3[2] + A54 * k4[2]), k5);
+        double t_new = last ? t_end : t + dt;
+        rhs(&p, t_new,
+            y1 + dt * (A61 * k1[0] + A62 * k2[0] + A63 * k3[0] + A64 * k4[0] + A65 * k5[0]),
+            y2 + dt * (A61 * k1[1] + A62 * k2[1] + A63 * k3[1] + A64 * k4[1] + A65 * k5[1]),
+            y3 + dt * (A61 * k1[2] + A62 * k2[2] + A63 * k3[2] + A64 * k4[2] + A65 * k5[2]), k6);
+        double n1 = y1 + dt * (B1 * k1[0] + B3 * k3[0] + B4 * k4[0] + B5 * k5[0] + B6 * k6[0]);
+        double n2 = y2 + dt * (B1 * k1[1] + B3 * k3[1] + B4 * k4[1] + B5 * k5[1] + B6 * k6[1]);
+        double n3 = y3 + dt * (B1 * k1[2] + B3 * k3[2] + B4 * k4[2] + B5 * k5[2] + B6 * k6[2]);
+        rhs(&p, t_new, n1, n2, n3, k7);
+        double err = INFINITY;
+        if (!p.domain) {
+            double e1 = dt * (E1 * k1[0] + E3 * k3[0] + E4 * k4[0] + E5 * k5[0] + E6 * k6[0] + E7 * k7[0]);
+            double e2 = dt * (E1 * k1[1] + E3 * k3[1] + E4 * k4[1] + E5 * k5[1] + E6 * k6[1] + E7 * k7[1]);
+            double e3 = dt * (E1 * k1[2] + E3 * k3[2] + E4 * k4[2] + E5 * k5[2] + E6 * k6[2] + E7 * k7[2]);
+            double s1 = e1 / (atol + rtol * py_max(fabs(y1), fabs(n1)));
+            double s2 = e2 / (atol + rtol * py_max(fabs(y2), fabs(n2)));
+            double s3 = e3 / (atol + rtol * py_max(fabs(y3), fabs(n3)));
+            err = sqrt((s1 * s1 + s2 * s2 + s3 * s3) / 3.0);
+        }
+        if (err <= 1.0) { /* accepted (false for nan) */
+            accepted += 1;
+            if (fabs(n1) > y_limit || fabs(n1) > limit || fabs(n2) > limit || fabs(n3) > limit)
+                return result(BEYOND, t_new, n1, n2, n3, 0.0, accepted, rejected);
+            double fac = err > 0.0 ? py_min(grow, SAFETY * pow(err, -0.2)) : grow;
+            double proposal = dt * py_max(FAC_MIN, fac);
+            if (last) return result(OK, t_new, n1, n2, n3, py_max(proposal, wanted), accepted, rejected);
+            if (accepted + rejected >= max_steps)
+                return result(BUDGET, t_new, n1, n2, n3, 0.0, accepted, rejected);
+            t = t_new;
+            y1 = n1;
+            y2 = n2;
+            y3 = n3;
+            k1[0] = k7[0]; /* first same as last */
+            k1[1] = k7[1];
+            k1[2] = k7[2];
+            if (too_fast(k1, reach, x1_limit, limit)) return result(RATE, t, k1[0], k1[1], k1[2], 0.0, 0, 0);
+            dt = proposal;
+            grow = FAC_MAX;
+        } else {
+            rejected += 1;
+            if (dt <= 1e-12 * h) return result(NO_STEP, t, y1, y2, y3, 0.0, accepted, rejected);
+            if (accepted + rejected >= max_steps) return result(BUDGET, t, y1, y2, y3, 0.0, accepted, rejected);
+            dt *= isfinite(err) ? py_max(FAC_MIN, SAFETY * pow(err, -0.2)) : FAC_MIN;
+            grow = 1.0;
+        }
+    }
+}
+
+static PyMethodDef methods[] = {
+    {"hold_step", hold_step, METH_VARARGS,
+     "One communication step of a plant by Dormand-Prince 5(4) (see fmu_src/models/plants.py)."},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "_dopri", "The plants' Dormand-Prince 5(4) step, compiled.", -1, methods,
+    NULL, NULL, NULL, NULL,
+};
+
+PyMODINIT_FUNC PyInit__dopri(void) { return PyModule_Create(&module); }
