@@ -48,7 +48,7 @@ DEFAULT_MAX_STEP = 2.5e-5
 # Dormand-Prince tolerances: over the 30 s of tests/test_fmu_plants.py within 1.3e-9 (Example 1)
 # and 2.6e-10 (pendulum) of solve_ivp, where the RK4 above gives 2.5e-8 and 6.9e-10. In the
 # closed loops one accepted step (7 evaluations) per communication step after the stiff first
-# 50 ms; one doStep costs about 9 us.
+# 50 ms; one doStep costs about 2.5 us compiled (native.py), 9 us in Python.
 DEFAULT_RTOL = 1e-10
 DEFAULT_ATOL = 1e-12
 

@@ -1,6 +1,7 @@
 """The plants' Dormand-Prince step compiled (``_dopri.c`` beside this module): the same
 algorithm as :func:`~fmu_src.models.plants.dopri_hold_step`, giving the same bits, the same
-exceptions and messages, about 40 times faster.
+exceptions and messages, about 11 times faster (0.36 us per integrator step of Example 1
+against 3.9 us, replaying a finite escape of 174 416 steps).
 
 The FMU build (:mod:`fmu_src.build`) compiles ``_dopri.c`` into every plant FMU, so an FMU always
 steps with it (``tests/test_plant_native.py`` checks that the built FMUs load it). In the source

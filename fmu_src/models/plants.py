@@ -166,9 +166,10 @@ _SAFETY, _FAC_MIN, _FAC_MAX = 0.9, 0.2, 10.0
 # integrator crawls (resolving sin(x1^2 x2^2)) for 0.05 s more before any state reaches 1e4:
 # two thirds of the run's CPU. Y_LIMIT (|x1| = |y|) ends such a step early; STATE_LIMIT (any
 # state) ends what passes it otherwise; MAX_STEPS (accepted and rejected steps in one
-# communication step, about 5 us each) ends a step that a held control of 1e7 makes the
-# integrator crawl through (explicit sampling from far states: more than 100 000 at 1 ms; a
-# campaign at a finer step from such states may need more: 58 455 at 0.1 ms from (10, 10)).
+# communication step, about 4 us each in Python, 0.4 us compiled) ends a step that a held
+# control of 1e7 makes the integrator crawl through (explicit sampling from far states: more
+# than 100 000 at 1 ms; a campaign at a finer step from such states may need more: 58 455 at
+# 0.1 ms from (10, 10)).
 # Before, a diverging run ran into the old budget of 100 000 steps: 0.6-3 s of CPU per run.
 #
 # RATE_HORIZON (in communication steps) ends a step whose right-hand side would carry a state
