@@ -160,3 +160,24 @@ def test_unreadable_design(tmp_path: Path) -> None:
         read_design(tmp_path / "d.toml")
     with pytest.raises(DesignError, match="cannot read the design"):
         read_design(tmp_path / "absent.toml")
+
+
+@pytest.mark.parametrize("name, data", [
+    ("runs.csv", b"\xde\xad\xbe\xef" * 100),  # not UTF-8
+    ("runs.csv", b"a,b\n1,2\n"),  # a CSV, not a campaign table
+    ("runs.csv", b""),
+    ("runs.parquet", b"PAR1 not really"),
+])
+def test_campaign_report_on_a_file_that_is_no_campaign_table_is_one_line(tmp_path, capsys, name, data):
+    """main (third attack): ``campaign-report`` on bytes that are not UTF-8 was a UnicodeDecodeError
+    traceback, and a CSV without the table's columns a KeyError one."""
+    from orchestrator.cli import main
+
+    table = tmp_path / name
+    table.write_bytes(data)
+    with pytest.raises(SystemExit) as info:
+        main(["campaign-report", str(table), "--out", str(tmp_path / "report")])
+    assert info.value.code == 2
+    errors = [line for line in capsys.readouterr().err.splitlines() if not line.startswith("usage:")]
+    assert len(errors) == 1 and errors[0].startswith(f"orchestrate: error: {table}: not a campaign table")
+    assert not (tmp_path / "report").exists()

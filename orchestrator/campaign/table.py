@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO, cast
 
 from .. import files
+from ..errors import UsageError
 
 if TYPE_CHECKING:
     from _csv import Writer
@@ -36,6 +37,7 @@ CSV_NAME = "runs.csv"
 PARQUET_NAME = "runs.parquet"
 META_KEY = b"orchestrate.campaign"
 STRING_COLUMNS = ("run_id", "scenario", "status", "reason")
+REQUIRED_COLUMNS = ("run", "run_id", "scenario", "status", "reason")  # what a report reads of every row
 
 
 def _cell(value: object) -> str:
@@ -140,14 +142,23 @@ def write_parquet(
 
 def read_table(path: str | os.PathLike) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """Rows and campaign metadata of a campaign table (``runs.parquet``, or ``runs.csv`` with the
-    metadata read from ``campaign.json`` beside it)."""
+    metadata read from ``campaign.json`` beside it). A file that is not one (bytes that are not
+    UTF-8, not CSV or Parquet, no ``run``/``status`` columns) is a :class:`UsageError` naming it."""
     path = Path(path)
-    if path.suffix == ".parquet":
-        import pyarrow.parquet as pq
+    try:
+        if path.suffix == ".parquet":
+            import pyarrow.parquet as pq
 
-        table = pq.read_table(path)
-        raw = (table.schema.metadata or {}).get(META_KEY, b"{}")
-        return table.to_pylist(), json.loads(raw)
-    _, rows = read_rows(path)
-    meta = path.with_name("campaign.json")
-    return rows, json.loads(meta.read_text(encoding="utf-8")) if meta.is_file() else {}
+            table = pq.read_table(path)
+            raw = (table.schema.metadata or {}).get(META_KEY, b"{}")
+            header, rows, meta = table.column_names, table.to_pylist(), json.loads(raw)
+        else:
+            header, rows = read_rows(path)
+            meta_path = path.with_name("campaign.json")
+            meta = json.loads(meta_path.read_text(encoding="utf-8")) if meta_path.is_file() else {}
+    except (OSError, UnicodeDecodeError, ValueError, csv.Error) as error:  # pyarrow's errors are ValueErrors
+        raise UsageError(f"{path}: not a campaign table ({error})") from error
+    missing = [column for column in REQUIRED_COLUMNS if column not in header]
+    if missing or not isinstance(meta, dict):
+        raise UsageError(f"{path}: not a campaign table (no {', '.join(missing) or 'metadata object'})")
+    return rows, meta
