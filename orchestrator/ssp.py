@@ -507,13 +507,13 @@ def _load(path: Path, schema: str, label: str) -> tuple[etree._Element | None, l
     try:
         root = etree.parse(str(path), _parser()).getroot()
     except etree.XMLSyntaxError as exc:
-        return None, [f"{label}: broken XML: {exc}"]
+        return None, [f"{label}: broken XML: {_one_line(exc)}"]  # lxml's may span lines
     except (OSError, ValueError) as exc:  # lxml: undecodable bytes, unreadable file
         return None, [f"{label}: cannot be read: {_one_line(exc)}"]
     validator = _schema(schema)
     if validator.validate(root):
         return root, []
-    return root, [f"{label} line {e.line}: {e.message}" for e in validator.error_log]
+    return root, [f"{label} line {e.line}: {' '.join(e.message.split())}" for e in validator.error_log]
 
 
 def _convert(type_: str, text: str | None) -> float | int | bool | str:

@@ -165,6 +165,14 @@ def test_regression_cases(base, tmp_path, file, old, new, message):
     assert outcome.startswith("refused: ") and message in outcome, outcome
 
 
+def test_an_xml_error_message_that_spans_lines_is_one_line(base, tmp_path):
+    """main (third attack, 500 + 200 unseeded mutants): a NUL byte at the SSD's second byte made
+    lxml's message span two lines ('Char 0x0 out of allowed range\\n, line 1, column 2'), so
+    validate printed a line that was no error, warning or verdict."""
+    outcome = check(_ssd(base, tmp_path / "r", "<?xml", "<\x00xml"))
+    assert outcome.startswith("refused: ") and "Char 0x0 out of allowed range" in outcome, outcome
+
+
 def test_a_removed_connection_runs_with_a_warning(base, tmp_path):
     """Found as 'corrupted double-linked list' by the first fuzzing pass (heap corruption at exit,
     fixed in the FMU shim); here a clean run with the input at its start value."""
