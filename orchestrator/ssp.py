@@ -233,6 +233,13 @@ def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
 
 
+def _shown(name: str) -> str:
+    """A member name or reference as a message shows it: characters that are not printable (a
+    carriage return, a line or paragraph separator, control characters) escaped, so that a hostile
+    name cannot break the message's single line."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in name)
+
+
 def _size(n: float) -> str:
     """``1536`` -> ``1.5 KiB``."""
     for unit in ("bytes", "KiB", "MiB", "GiB"):
@@ -332,7 +339,7 @@ def check_zip(path: Path, label: str, limits: Limits = DEFAULT_LIMITS,
     for info in infos:
         size, name = info.file_size, info.filename
         total += size
-        where = f"{label}: member '{name}'"
+        where = f"{label}: member '{_shown(name)}'"
         if _escapes(name):
             problems.append(f"{where} points outside the archive folder")
         elif "\\" in name or ":" in name:
@@ -371,7 +378,7 @@ def test_zip(path: Path, label: str) -> list[str]:
                     while member.read(1 << 20):
                         pass
     except Exception as exc:  # noqa: BLE001 - zipfile, zlib, bz2, lzma each raise their own
-        where = f"member '{name}'" if name else "its directory"
+        where = f"member '{_shown(name)}'" if name else "its directory"
         return [f"{label}: {where} cannot be unpacked: {_one_line(exc)}"]
     return []
 
@@ -387,9 +394,9 @@ def _unsafe(info: zipfile.ZipInfo, dest: Path, label: str) -> str:
     name = info.filename
     target = dest.joinpath(*PurePosixPath(name).parts)
     if _escapes(name) or not target.resolve().is_relative_to(dest.resolve()):
-        return f"{label}: member '{name}' points outside the archive folder"
+        return f"{label}: member '{_shown(name)}' points outside the archive folder"
     if stat.S_ISLNK(info.external_attr >> 16):
-        return f"{label}: member '{name}' is a symbolic link"
+        return f"{label}: member '{_shown(name)}' is a symbolic link"
     return ""
 
 
@@ -487,7 +494,7 @@ def _inside(folder: Path, reference: str, where: str, problems: list[str]) -> Pa
     if not problem and not path.resolve().is_relative_to(folder.resolve()):
         problem = "leads outside the scenario through a symbolic link"
     if problem:
-        problems.append(f"{where}: reference '{reference}' {problem}; a scenario may only reference "
+        problems.append(f"{where}: reference '{_shown(reference)}' {problem}; a scenario may only reference "
                         "files inside itself")
         return None
     return path

@@ -259,6 +259,8 @@ def test_mutated_bytes_encodings_and_fmu_members_run_or_are_refused_cleanly(
     ("add", "../x.txt", "points outside the archive folder"),
     ("add", "x" * 300, "has a name part longer than 255 bytes"),  # validate said ok, run OSError
     ("symlink", "resources/link", "is a symbolic link"),
+    ("symlink", "\r", "member '\\r' is a symbolic link"),  # third attack: the name broke the line
+    ("add", "a\u2028b\x85\\c", "member 'a\\u2028b\\x85\\c' has a backslash"),
     ("flip", "", "cannot be unpacked"),
 ])
 def test_fmu_member_regressions(base, tmp_path, operation, name, expected):
