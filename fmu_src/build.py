@@ -452,9 +452,8 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT) -> Path:
         native_digest.update(b"pyc" if compiles_bytecode() else b"py")  # _bytecode's members
         digest = bundle.digest(native_digest.hexdigest())
         script, package_dir = _stage(bundle, digest, Path(tmp) / "stage")
-        for name, binary in extensions.items():  # into the bundled package, beside its importer
-            relative = name.replace(".", "/")
-            native[f"resources/{package_dir.name}/{relative}{EXTENSION_SUFFIX}"] = binary
+        for name, binary in extensions.items():  # beside its importer: pythonfmu imports the script
+            package_dir.joinpath(*name.split(".")).with_suffix(EXTENSION_SUFFIX).write_bytes(binary)
         with _isolated_imports():
             try:
                 raw = FmuBuilder.build_FMU(

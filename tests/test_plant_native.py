@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import importlib.util
 import math
+import subprocess
 import sys
+import zipfile
 from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
@@ -144,3 +146,23 @@ def test_built_plant_fmus_step_with_the_compiled_integrator(fmus, model):
     loaded = [module for name, module in list(sys.modules.items())
               if name.startswith(f"_ftc_{model.lower()}_") and name.endswith(".models._dopri")]
     assert loaded and all(Path(str(module.__file__)).name == "_dopri.abi3.so" for module in loaded)
+
+
+@pytest.mark.system
+def test_a_plant_fmu_without_its_compiled_step_does_not_instantiate(fmus, tmp_path):
+    """A built FMU whose _dopri.abi3.so is missing is broken: it fails to instantiate instead of
+    stepping with the Python reference (slower, and silently)."""
+    broken = tmp_path / "Example1Plant.fmu"
+    with zipfile.ZipFile(fmus["Example1Plant"]) as source, zipfile.ZipFile(broken, "w") as target:
+        members = [info for info in source.infolist() if not info.filename.endswith("_dopri.abi3.so")]
+        assert len(members) == len(source.infolist()) - 1
+        for info in members:
+            target.writestr(info, source.read(info))
+    script = ("import sys; sys.path.insert(0, sys.argv[2]); from pathlib import Path; "
+              "from fmu_helpers import open_slave\n"
+              "try:\n    open_slave(Path(sys.argv[1])).__enter__()\nexcept Exception as e:\n    print(e)")
+    # a fresh interpreter: in this one the FMU's package may be imported already, _dopri included
+    done = subprocess.run([sys.executable, "-c", script, str(broken), str(Path(__file__).parent)],
+                          capture_output=True, text=True, timeout=120)
+    last = done.stdout.strip().splitlines()[-1:]
+    assert last == ["Failed to instantiate model"], (done.stdout, done.stderr)
