@@ -16,10 +16,25 @@ SOURCES := $(shell find controller fmu_src ssp -type f -not -path '*/__pycache__
 
 .PHONY: run test unit build lint crosscheck table study study-fixed-time report baselines bench clean
 
-$(STAMP): pyproject.toml constraints.txt
+# pip's console script 'orchestrate' is then replaced by orchestrator/launcher.c, which holds SIGINT and
+# SIGTERM from its first instruction until the package's handlers are in (issue 20). Compiled to a
+# temporary file first: a failed compile leaves pip's script working and make fails with the
+# compiler's message. Linked statically where the compiler finds a static C library (libc6-dev has
+# it): the shortest start before the mask. Without -P (Python 3.10) the launcher would put the
+# working directory on sys.path, so there pip's script stays.
+LAUNCHER := orchestrator/launcher.c
+LAUNCHER_FLAGS = -std=c11 -O2 -Wall -Wextra \
+  $(if $(filter /%,$(shell $(CC) -print-file-name=libc.a 2>/dev/null)),-static)
+$(STAMP): pyproject.toml constraints.txt $(LAUNCHER)
+	@command -v $(firstword $(CC)) >/dev/null || { echo "make: no C compiler '$(CC)' (needed for the orchestrate launcher and the FMUs): install gcc, or set CC" >&2; exit 1; }
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip==25.3
 	$(PY) -m pip install --quiet -e '.[test]' -c constraints.txt
+	@if $(PY) -c 'import sys; sys.exit(sys.version_info < (3, 11))'; then \
+	  echo "$(CC) $(LAUNCHER_FLAGS) -o $(ORCH) $(LAUNCHER)"; \
+	  $(CC) $(LAUNCHER_FLAGS) -o $(ORCH).new $(LAUNCHER) || { rm -f $(ORCH).new; exit 1; }; \
+	  mv -f $(ORCH).new $(ORCH); \
+	else echo "note: Python before 3.11 (no -P): orchestrate stays pip's console script"; fi
 	touch $(STAMP)
 
 # No second Python on the machine: the test that needs it says so and skips.

@@ -2,22 +2,30 @@
 SIGTERM while the interpreter imports numpy, fmpy, lxml ... (about a second) ends the command at once
 with one line and the shell's status (130, 143), not a traceback (SIGINT) or a silent death
 (SIGTERM). Nothing has been written yet, so nothing needs cleaning up. Only in the ``orchestrate``
-command's own process, as the console script or as ``python -m orchestrator`` (not a library
-user's, not a worker process it starts); :func:`orchestrator.cli.main` replaces these handlers by
+command's own process, started by the launcher (``python -P -m orchestrator``), typed as ``python
+-m orchestrator`` or as pip's console script where no launcher is installed (not a library user's,
+not a worker process it starts); :func:`orchestrator.cli.main` replaces these handlers by
 its own when it starts.
 
 Only built-in modules are used before the handlers are in place (``_signal``, not ``signal``, which
-imports ``enum``): every import before them is a moment a signal would still find Python's
-defaults. What runs before this module cannot be covered by any code of the package: the
-interpreter's initialization (SIGINT and SIGTERM kill the process silently until Python installs
-its SIGINT handler, about 7 ms after exec; SIGTERM stays deadly until the guard) and ``site``,
-whose ``.pth`` files import the editable install's finder (pathlib, re, urllib.parse: about 10 ms;
-SIGINT there is a ``KeyboardInterrupt`` traceback). Measured from the parent's fork, polling
-``/proc/PID/status`` (SigCgt) over 30 starts of ``orchestrate run`` on 2 shared cores at load 3:
-SIGINT caught at a median 7 ms (5-14), the guard in place at a median 24 ms (18-35); with a plain
-path ``.pth`` instead of the finder (``pip install -e . --config-settings editable_mode=compat``)
-the guard is in place at 14 ms (9-19). The console script itself imports only ``sys`` before the
-package, whose first import is this module: the guard follows ``site`` within about 1 ms.
+imports ``enum``): every import before them is a moment longer that a signal waits. What runs
+before this module, the interpreter's initialization and ``site`` (whose ``.pth`` files import the
+editable install's finder), no code of the package can cover: SIGINT and SIGTERM kill silently
+until Python installs its SIGINT handler (about 7 ms after exec), SIGINT in ``site`` is a
+``KeyboardInterrupt`` traceback, SIGTERM stays deadly until the guard. So the ``orchestrate``
+command covers it from outside: ``make`` installs a small native launcher (orchestrator/launcher.c)
+over pip's console script, which blocks both signals as its first action and execs ``python -P -m
+orchestrator``. A signal meanwhile stays pending; :func:`guard` unblocks exactly those the launcher
+held (``ORCHESTRATE_HELD_SIGNALS``, removed from the environment here so that no process the command
+starts inherits it) once the handlers are in, and it is delivered to them. Measured from the
+parent's Popen, polling ``/proc/PID/status`` over 30 starts of ``orchestrate run`` on 2 shared
+cores at load 1: the launcher's mask (SigBlk) in place at 0.9 ms (0.9-3.1, the fork included),
+the guard (SigCgt) and the unblocking at a median 22 ms (20-34); pip's console script: no mask,
+the guard at 20 ms (17-21), a signal before it a silent death or a traceback. What nothing can
+cover is the kernel's part of exec: a signal sent as soon as Popen returns reaches the launcher
+before its first instruction (a silent death, as for any program; see launcher.c: within about
+0.5 ms). Typed ``python -m orchestrator`` has no launcher: its guard follows ``site`` as the
+console script's did.
 """
 
 from __future__ import annotations
@@ -28,6 +36,7 @@ import sys
 
 __all__ = ["exit_now", "guard"]
 
+HELD = "ORCHESTRATE_HELD_SIGNALS"  # set by the launcher: the signals it blocked, e.g. "2,15"
 NAMES = {_signal.SIGINT: ("interrupted", "SIGINT"), _signal.SIGTERM: ("terminated", "SIGTERM")}
 
 
@@ -54,11 +63,30 @@ def _dash_m_orchestrator(argv: list[str]) -> bool:
     return False
 
 
+def _held_by_the_launcher() -> list[int]:
+    """The signals the launcher (orchestrator/launcher.c) blocked before exec, named in
+    ``ORCHESTRATE_HELD_SIGNALS``; the variable leaves the environment here, so that no process the
+    command starts (Dask workers, tools) takes it for its own."""
+    named = os.environ.pop(HELD, "").split(",")
+    return [signum for signum in NAMES if str(signum) in named]
+
+
 def guard() -> None:
     """Install :func:`exit_now` for SIGINT and SIGTERM in the ``orchestrate`` command's process
-    (the console script, or ``python -m orchestrator``): not in a process that multiprocessing
+    (started by the launcher, or ``python -m orchestrator``): not in a process that multiprocessing
     started (a worker re-imports the command's script), nor in any other program that imports the
-    package."""
+    package. Then unblock what the launcher held, handlers or not (a signal sent meanwhile is
+    delivered now: one line, 130 or 143)."""
+    held = _held_by_the_launcher()
+    try:
+        _install()
+    finally:
+        if held:
+            _signal.pthread_sigmask(_signal.SIG_UNBLOCK, held)
+
+
+def _install() -> None:
+    """The handlers of :func:`guard`, where they belong."""
     command = os.path.basename(sys.argv[0] if sys.argv else "") == "orchestrate"
     if not (command or _dash_m_orchestrator(getattr(sys, "orig_argv", []))):
         return

@@ -41,7 +41,8 @@ def test_make_build_reuses_an_up_to_date_build(tmp_path):
     Makefile in a tree of fake sources, with an 'orchestrate' that only counts its calls."""
     if shutil.which("make") is None:
         pytest.skip("no make")
-    for name in ("Makefile", "pyproject.toml", "constraints.txt"):
+    for name in ("Makefile", "pyproject.toml", "constraints.txt", "orchestrator/launcher.c"):  # the set-up's
+        (tmp_path / name).parent.mkdir(exist_ok=True)
         shutil.copy(ROOT / name, tmp_path / name)
     for source in ("controller/law.py", "fmu_src/build.py", "ssp/loop/SystemStructure.ssd"):
         (tmp_path / source).parent.mkdir(parents=True, exist_ok=True)
