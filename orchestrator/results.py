@@ -275,15 +275,20 @@ class Recorder:
             self.flush()
         finally:
             fd, self._fd = self._fd, None
-            if fd is not None:  # not given up by _write
+            if fd is not None:  # not given up by _append
                 try:
                     self._close_binary(remove=False)
                     os.close(fd)
-                    if self.part is not None and self.path is not None and self.part != self.path:
-                        os.replace(self.part, self.path)
                 except OSError as exc:
                     self._discard()
                     raise OutputError(f"{self.path}: {exc.strerror or exc}") from exc
+                if self.part is not None and self.path is not None and self.part != self.path:
+                    try:
+                        os.replace(self.part, self.path)
+                    except OSError as exc:  # the rows are whole in the temporary file: kept there
+                        self.failed = True  # the result's name holds none of them
+                        raise OutputError(f"{self.path}: {exc.strerror or exc}; the {self._committed[0]} "
+                                          f"rows written are kept in {self.part}") from exc
 
     def result(self) -> np.ndarray:
         """The rows recorded so far as a structured array (``time`` first); keep=False: the preview."""

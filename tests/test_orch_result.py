@@ -194,3 +194,25 @@ def test_ctrl_c_while_a_block_is_written_writes_no_row_twice_or_half(tmp_path, m
     recorder.close()
     rows = read_result(tmp_path / "r.csv")
     assert fired and rows["x"].tolist() == [float(k) for k in range(len(rows))] and len(rows) >= 208
+
+
+def test_a_result_that_cannot_be_renamed_into_place_keeps_its_rows(tmp_path):
+    """Review: when the last step of close(), renaming the temporary file onto the result's name,
+    failed (here a folder put at that name during the run), the temporary file holding every row
+    was removed with it. It is now kept, and the error names it."""
+    from orchestrator.errors import OutputError
+    from orchestrator.results import Recorder
+
+    target = tmp_path / "r.csv"
+    recorder = Recorder(["time", "x"], 500, target)
+    for k in range(500):
+        recorder.append(np.array([k * 0.01, k * k * 0.5]))
+    target.mkdir()
+    (target / "something").write_text("x")  # a folder that is not empty: no rename replaces it
+    with pytest.raises(OutputError, match="the 500 rows written are kept in") as info:
+        recorder.close()
+    kept = Path(str(info.value).rsplit(" kept in ", 1)[1])
+    data = read_csv(kept)
+    assert kept.parent == tmp_path and len(data) == 500
+    assert np.array_equal(data["x"], np.arange(500) ** 2 * 0.5)
+    assert recorder.saved == 0
