@@ -83,7 +83,7 @@ SHIM_LIBS = ("-ldl", "-pthread")
 EXTENSIONS = {"fmu_src.models._dopri": Path("fmu_src", "models", "_dopri.c")}
 EXTENSION_SUFFIX = ".abi3.so"
 EXTENSION_FLAGS = (
-    "-std=c11 -O2 -fPIC -shared -fvisibility=hidden -g0 -Wall -Wextra -Werror -ffp-contract=off "
+    "-std=c11 -O2 -fPIC -shared -fvisibility=hidden -g0 -Wall -Wextra -ffp-contract=off "
     "-DPy_LIMITED_API=0x03080000 -Wl,--build-id=none -s".split()
 )
 CLASS_LINE = re.compile(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", re.MULTILINE)  # pythonfmu's loader regex

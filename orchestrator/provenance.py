@@ -48,7 +48,7 @@ def digest(path: str | os.PathLike) -> str:
     if path.is_file():
         return sha256(path)  # computed once per process (the FMU cache needs it too)
     h = hashlib.sha256()
-    files = [path] if path.is_file() else sorted(f for f in path.rglob("*") if f.is_file())
+    files = sorted(f for f in path.rglob("*") if f.is_file())
     for f in files:
         if path.is_dir():
             h.update(f.relative_to(path).as_posix().encode() + b"\0")
