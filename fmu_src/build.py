@@ -80,7 +80,8 @@ SHIM_LIBS = ("-ldl", "-pthread")
 # the source root): built against the runtime's headers for the stable ABI, so that one binary
 # loads in the FMU's runtime and in a host's Python alike. -ffp-contract=off: no fused
 # multiply-add, so the compiled arithmetic rounds as Python's does (see fmu_src/models/_dopri.c).
-EXTENSIONS = {"fmu_src.models._dopri": Path("fmu_src", "models", "_dopri.c")}
+EXTENSIONS = {"fmu_src.models._dopri": Path("fmu_src", "models", "_dopri.c"),
+              "controller._law": Path("controller", "_law.c")}
 EXTENSION_SUFFIX = ".abi3.so"
 EXTENSION_FLAGS = (
     "-std=c11 -O2 -fPIC -shared -fvisibility=hidden -g0 -Wall -Wextra -ffp-contract=off "

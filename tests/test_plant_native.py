@@ -6,7 +6,6 @@ FMUs step with it, giving the reference's bits."""
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import subprocess
 import sys
@@ -16,14 +15,13 @@ from pathlib import Path
 from types import ModuleType
 
 import pytest
-from fmu_helpers import open_slave
+from fmu_helpers import compiled_extension, open_slave
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fmu_src.build import EXTENSIONS, REPO_ROOT, collect_bundle, compile_extension
+from fmu_src.build import collect_bundle
 from fmu_src.models import native
 from fmu_src.models.plants import PendulumParameters, dopri_hold_step, example1_rhs, pendulum_rhs_for
-from fmu_src.runtime import ensure_runtime
 
 PENDULUM = PendulumParameters()
 PLANTS = {"example1": (native.EXAMPLE1, example1_rhs),
@@ -34,14 +32,7 @@ PLANTS = {"example1": (native.EXAMPLE1, example1_rhs),
 def compiled(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ModuleType]:
     """_dopri.c compiled as the FMU build compiles it, loaded into this process as the one
     fmu_src.models.native steps with (as in a built FMU)."""
-    where = tmp_path_factory.mktemp("dopri")
-    binary = compile_extension(REPO_ROOT / EXTENSIONS["fmu_src.models._dopri"], ensure_runtime(), where)
-    path = where / "_dopri.abi3.so"
-    path.write_bytes(binary)
-    spec = importlib.util.spec_from_file_location("_dopri", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = compiled_extension("fmu_src.models._dopri", tmp_path_factory.mktemp("dopri"))
     saved, native._dopri = native._dopri, module
     yield module
     native._dopri = saved
