@@ -20,12 +20,11 @@
    controller/order2.py does in Python; a power computed early keeps its error until the point where
    the reference computes it.
 
-   Functions (constants: bytes packed by controller.native.law_constants, n = 1..4):
-   evaluate(constants, r, eta_1..eta_n, x_1..x_n, yd, yd', ..., yd^(n))
-       -> (v, z_1..z_n, zeta_1..zeta_n, ptp_1..ptp_n, r', eta_1'..eta_n')
-   advance(constants, substeps, h, first, r, eta_1..eta_n, x_1..x_n, yd..yd^(n))
-       -> (r, eta_1..eta_n) after h; first: None or evaluate's result at this state and inputs
-       (its derivative is the first RK4 stage).
+   Functions (constants: bytes packed by controller.native.law_constants, n = 1..4; state: the tuple
+   (r, eta_1..eta_n); inputs: the tuple (x_1..x_n, yd, yd', ..., yd^(n))):
+   evaluate(constants, state, inputs) -> (v, z_1..z_n, zeta_1..zeta_n, ptp_1..ptp_n, r', eta_1'..eta_n')
+   advance(constants, substeps, h, first, state, inputs) -> (r, eta_1..eta_n) after h; first: None or
+       evaluate's result at this state and inputs (its derivative is the first RK4 stage).
    Built against the stable ABI (Py_LIMITED_API) so that one binary loads in any CPython 3.8 or
    later: the FMU's own runtime, or the host's Python when the host runs one. */
 
@@ -268,19 +267,28 @@ static int unpack(PyObject *constants, Law *law) {
     return 0;
 }
 
-/* args[first..] as the 3n + 2 doubles r, eta_1..eta_n, x_1..x_n, yd..yd^(n); -1 if not. */
-static int values(PyObject *args, Py_ssize_t first, int n, double *out) {
-    Py_ssize_t count = 3 * (Py_ssize_t)n + 2;
-    if (PyTuple_Size(args) != first + count) {
-        PyErr_Format(PyExc_TypeError, "the law of order n = %d takes %zd values r, eta_hat_1..eta_hat_%d, "
-                     "x1..x%d, yd..yd^(%d) (got %zd)", n, count, n, n, n, PyTuple_Size(args) - first);
+/* The tuple t of count doubles into out (what names them, for the message); -1 if it is not one. */
+static int doubles_of(PyObject *t, Py_ssize_t count, const char *what, int n, double *out) {
+    if (!PyTuple_Check(t)) {
+        PyErr_Format(PyExc_TypeError, "the law of order n = %d takes %s as a tuple", n, what);
+        return -1;
+    }
+    if (PyTuple_Size(t) != count) {
+        PyErr_Format(PyExc_TypeError, "the law of order n = %d takes %s: %zd values (got %zd)", n, what, count,
+                     PyTuple_Size(t));
         return -1;
     }
     for (Py_ssize_t i = 0; i < count; i++) {
-        out[i] = PyFloat_AsDouble(PyTuple_GetItem(args, first + i));
+        out[i] = PyFloat_AsDouble(PyTuple_GetItem(t, i));
         if (out[i] == -1.0 && PyErr_Occurred()) return -1;
     }
     return 0;
+}
+
+/* state (r, eta_1..eta_n) and inputs (x_1..x_n, yd..yd^(n)) into in[0..n] and in[n + 1..3n + 1]. */
+static int arguments(PyObject *state, PyObject *inputs, int n, double *in) {
+    if (doubles_of(state, n + 1, "state (r, eta_hat_1..eta_hat_n)", n, in)) return -1;
+    return doubles_of(inputs, 2 * n + 1, "inputs (x1..xn, yd..yd^(n))", n, in + n + 1);
 }
 
 static PyObject *doubles(const double *v, Py_ssize_t count) {
@@ -301,9 +309,11 @@ static PyObject *evaluate(PyObject *self, PyObject *args) {
     (void)self;
     Law law;
     double in[3 * MAX_ORDER + 2], out[4 * MAX_ORDER + 2];
-    if (PyTuple_Size(args) < 1 || unpack(PyTuple_GetItem(args, 0), &law)) return NULL;
+    PyObject *constants, *state, *inputs;
+    if (!PyArg_UnpackTuple(args, "evaluate", 3, 3, &constants, &state, &inputs) || unpack(constants, &law))
+        return NULL;
     int n = law.n;
-    if (values(args, 1, n, in)) return NULL;
+    if (arguments(state, inputs, n, in)) return NULL;
     Held held;
     hold(&law, in + n + 1, in + 2 * n + 1, &held);
     double *z = out + 1, *zeta = out + 1 + n, *ptp = out + 1 + 2 * n, *rates = out + 1 + 3 * n;
@@ -345,21 +355,19 @@ static PyObject *advance(PyObject *self, PyObject *args) {
     (void)self;
     Law law;
     double in[3 * MAX_ORDER + 2], first[MAX_ORDER + 1];
-    if (PyTuple_Size(args) < 4) {
-        PyErr_SetString(PyExc_TypeError, "advance(constants, substeps, h, first, state..., inputs...)");
+    PyObject *constants, *count, *step, *stage, *state, *inputs;
+    if (!PyArg_UnpackTuple(args, "advance", 6, 6, &constants, &count, &step, &stage, &state, &inputs) ||
+        unpack(constants, &law))
         return NULL;
-    }
-    if (unpack(PyTuple_GetItem(args, 0), &law)) return NULL;
     int n = law.n;
-    long substeps = PyLong_AsLong(PyTuple_GetItem(args, 1));
+    long substeps = PyLong_AsLong(count);
     if (substeps == -1 && PyErr_Occurred()) return NULL;
     if (substeps < 1) {
         PyErr_Format(PyExc_ValueError, "substeps must be >= 1 (got %ld)", substeps);
         return NULL;
     }
-    double h = PyFloat_AsDouble(PyTuple_GetItem(args, 2));
+    double h = PyFloat_AsDouble(step);
     if (h == -1.0 && PyErr_Occurred()) return NULL;
-    PyObject *stage = PyTuple_GetItem(args, 3);
     const double *start = NULL;
     if (stage != Py_None) {
         if (!PyTuple_Check(stage) || PyTuple_Size(stage) != 4 * n + 2) {
@@ -372,7 +380,7 @@ static PyObject *advance(PyObject *self, PyObject *args) {
         }
         start = first;
     }
-    if (values(args, 4, n, in)) return NULL;
+    if (arguments(state, inputs, n, in)) return NULL;
     Held held;
     hold(&law, in + n + 1, in + 2 * n + 1, &held);
     if (rk4(&law, &held, substeps, h, start, in)) return NULL;

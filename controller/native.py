@@ -5,11 +5,11 @@ reference (:func:`controller.law.evaluate`, :func:`controller.law.derivative`,
 Both forms offer one flat interface, :class:`Law` (what a controller FMU calls per communication
 step, with no object built per call but the result tuple):
 
-* ``evaluate(r, eta_1..eta_n, x_1..x_n, yd, yd', ..., yd^(n))`` -> ``(v, z_1..z_n, zeta_1..zeta_n,
-  ptp_1..ptp_n, r', eta_1'..eta_n')``;
-* ``advance(h, first, r, eta_1..eta_n, x_1..x_n, yd..yd^(n))`` -> ``(r, eta_1..eta_n)`` after one
-  communication step of length h with the inputs held; ``first`` is None or ``evaluate``'s result
-  at this state and these inputs (its derivative is the first RK4 stage).
+* ``evaluate(state, inputs)`` -> ``(v, z_1..z_n, zeta_1..zeta_n, ptp_1..ptp_n, r', eta_1'..eta_n')``
+  for the tuples ``state = (r, eta_1..eta_n)`` and ``inputs = (x_1..x_n, yd, yd', ..., yd^(n))``;
+* ``advance(h, first, state, inputs)`` -> ``(r, eta_1..eta_n)`` after one communication step of
+  length h with the inputs held; ``first`` is None or ``evaluate``'s result at this state and these
+  inputs (its derivative is the first RK4 stage).
 
 :func:`law_for` gives the compiled one (:class:`CompiledLaw`) where it is built and the plant order
 is 1..4, else the Python reference (:class:`ReferenceLaw`). The FMU build (:mod:`fmu_src.build`)
@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from array import array
 from collections.abc import Callable
+from functools import partial
 from typing import Protocol
 
 from .law import _law as _reference_law
@@ -44,9 +45,17 @@ MAX_ORDER = 4  # the plant orders the compiled law (and the controller FMUs) sup
 class Law(Protocol):
     """The flat interface of both forms (module docstring)."""
 
-    n: int
-    evaluate: Callable[..., tuple[float, ...]]
-    advance: Callable[..., tuple[float, ...]]
+    @property
+    def n(self) -> int:
+        """The plant order."""
+
+    @property
+    def evaluate(self) -> Callable[..., tuple[float, ...]]:
+        """``evaluate(state, inputs)``."""
+
+    @property
+    def advance(self) -> Callable[..., tuple[float, ...]]:
+        """``advance(h, first, state, inputs)``."""
 
 
 def law_constants(p: ControllerParameters) -> bytes:
@@ -79,16 +88,9 @@ class CompiledLaw:
             raise ValueError(f"substeps must be >= 1 (got {substeps})")
         constants = law_constants(params)
         self.n = params.n
-        evaluate, advance = _law.evaluate, _law.advance
-
-        def evaluate_law(*args: float) -> tuple[float, ...]:
-            return evaluate(constants, *args)
-
-        def advance_law(h: float, first: tuple[float, ...] | None, *args: float) -> tuple[float, ...]:
-            return advance(constants, substeps, h, first, *args)
-
-        self.evaluate = evaluate_law
-        self.advance = advance_law
+        # partial: no Python frame per call
+        self.evaluate: partial[tuple[float, ...]] = partial(_law.evaluate, constants)
+        self.advance: partial[tuple[float, ...]] = partial(_law.advance, constants, substeps)
 
 
 class ReferenceLaw:
@@ -101,19 +103,25 @@ class ReferenceLaw:
             raise ValueError(f"substeps must be >= 1 (got {substeps})")
         n = self.n = params.n
 
-        def split(args: tuple[float, ...]) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
-            if len(args) != 3 * n + 2:
-                raise TypeError(f"the law of order n = {n} takes {3 * n + 2} values r, "
-                                f"eta_hat_1..eta_hat_{n}, x1..x{n}, yd..yd^({n}) (got {len(args)})")
-            return args[: n + 1], args[n + 1 : 2 * n + 1], args[2 * n + 1 :]
+        def parts(state: tuple[float, ...], inputs: tuple[float, ...]
+                  ) -> tuple[tuple[float, ...], tuple[float, ...]]:
+            for values, count, what in ((state, n + 1, "state (r, eta_hat_1..eta_hat_n)"),
+                                        (inputs, 2 * n + 1, "inputs (x1..xn, yd..yd^(n))")):
+                if not isinstance(values, tuple):
+                    raise TypeError(f"the law of order n = {n} takes {what} as a tuple")
+                if len(values) != count:
+                    raise TypeError(f"the law of order n = {n} takes {what}: {count} values "
+                                    f"(got {len(values)})")
+            return inputs[:n], inputs[n:]
 
-        def evaluate_law(*args: float) -> tuple[float, ...]:
-            state, x, yd = split(args)
+        def evaluate_law(state: tuple[float, ...], inputs: tuple[float, ...]) -> tuple[float, ...]:
+            x, yd = parts(state, inputs)
             z, zeta, ptp, rates = _reference_law(state, x, yd, params, True)
             return (zeta[-1], *z, *zeta, *ptp, *rates)
 
-        def advance_law(h: float, first: tuple[float, ...] | None, *args: float) -> tuple[float, ...]:
-            state, x, yd = split(args)
+        def advance_law(h: float, first: tuple[float, ...] | None, state: tuple[float, ...],
+                        inputs: tuple[float, ...]) -> tuple[float, ...]:
+            x, yd = parts(state, inputs)
             start = None if first is None else first[3 * n + 1 :]
             return tuple(rk4_step(state, x, yd, params, h, substeps, start))
 

@@ -6,7 +6,8 @@ see whichever was imported first. To rule that out, every FMU bundles its script
 ``ftc_<model>_<hash>.py`` and the code it needs (modules of ``fmu_src`` and ``controller``) as a
 package ``_ftc_<model>_<hash>``, where ``<hash>`` is a digest of every bundled byte. Only the
 script's own ``from fmu_src... / from controller... import`` lines are rewritten (with ``ast``);
-bundled modules must import each other relatively.
+bundled modules must import their own package relatively, and the other local package with a
+module-level ``from ... import`` (rewritten likewise: ``fmu_src.controller_core`` uses ``controller``).
 
 Each FMU carries its own CPython runtime (``fmu_src/runtime.py``: libpython, the two libraries it
 links and the standard-library modules the FMU's code can import, from pinned Debian 12
@@ -59,6 +60,9 @@ LOCAL_PACKAGES = ("fmu_src", "controller")
 FMU_SCRIPTS = {
     "Reference": "reference.py",
     "FixedTimeController": "fixed_time_controller.py",
+    "FixedTimeController1": "fixed_time_controller1.py",
+    "FixedTimeController3": "fixed_time_controller3.py",
+    "FixedTimeController4": "fixed_time_controller4.py",
     "Actuator": "actuator.py",
     "Example1Plant": "example1_plant.py",
     "PendulumPlant": "pendulum_plant.py",
@@ -187,11 +191,14 @@ def collect_bundle(model: str, root: Path = REPO_ROOT) -> Bundle:
             elif isinstance(node, ast.ImportFrom):
                 if node.level == 0:
                     assert node.module is not None  # an absolute "from X import" always names X
-                    if _is_local(node.module):
+                    if _is_local(node.module) and node.module.split(".")[0] == name.split(".")[0]:
                         raise BuildError(
                             f"{path}:{node.lineno}: bundled modules must import {node.module} relatively"
                         )
-                    third_party.add(node.module.split(".")[0])
+                    if _is_local(node.module):  # the other local package: rewritten by _stage
+                        pending.append(node.module)
+                    else:
+                        third_party.add(node.module.split(".")[0])
                 elif node.level == 1:
                     targets = [node.module] if node.module else [alias.name for alias in node.names]
                     pending.extend(f"{package}.{target}" for target in targets)
@@ -288,20 +295,24 @@ def _licence(distribution: str) -> bytes:
     raise BuildError(f"no licence file in the installed {distribution} distribution")
 
 
-def _rewrite_script(bundle: Bundle, package: str) -> str:
-    """The script text with only its local ``from X import ...`` lines pointed into ``package``."""
-    lines = bundle.script.read_text(encoding="utf-8").splitlines(keepends=True)
-    tree = _parse(bundle.script)
+def _rewrite_imports(path: Path, package: str) -> str:
+    """The text of ``path`` with its absolute local ``from X import ...`` lines pointed into ``package``."""
+    lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
+    tree = _parse(path)
     for node in sorted(tree.body, key=lambda n: n.lineno, reverse=True):
-        if isinstance(node, ast.ImportFrom) and _is_local(node.module):
+        if isinstance(node, ast.ImportFrom) and not node.level and _is_local(node.module):
             new = ast.ImportFrom(module=f"{package}.{node.module}", names=node.names, level=0)
             lines[node.lineno - 1 : node.end_lineno] = [ast.unparse(new) + "\n"]
     text = "".join(lines)
     for found in ast.walk(ast.parse(text)):
-        if isinstance(found, ast.ImportFrom) and _is_local(found.module):
-            raise BuildError(
-                f"{bundle.script}:{found.lineno}: local import of {found.module} outside module level"
-            )
+        if isinstance(found, ast.ImportFrom) and not found.level and _is_local(found.module):
+            raise BuildError(f"{path}:{found.lineno}: local import of {found.module} outside module level")
+    return text
+
+
+def _rewrite_script(bundle: Bundle, package: str) -> str:
+    """The script text with only its local ``from X import ...`` lines pointed into ``package``."""
+    text = _rewrite_imports(bundle.script, package)
     classes = CLASS_LINE.findall(text)
     if classes != [bundle.model]:
         raise BuildError(
@@ -325,7 +336,7 @@ def _stage(bundle: Bundle, digest: str, where: Path) -> tuple[Path, Path]:
                 (package_dir / parent).mkdir(exist_ok=True)
                 (package_dir / parent / "__init__.py").write_text(init, encoding="utf-8")
         if target.name != "__init__.py":
-            shutil.copyfile(source, target)
+            target.write_text(_rewrite_imports(source, package), encoding="utf-8")
     script = where / f"ftc_{bundle.model.lower()}_{digest[:12]}.py"
     script.write_text(_rewrite_script(bundle, package), encoding="utf-8")
     return script, package_dir

@@ -86,26 +86,27 @@ def parameters(draw: st.DrawFn, n: int | None = None) -> ControllerParameters:
 
 @st.composite
 def law_arguments(draw: st.DrawFn, values: st.SearchStrategy[float]
-                  ) -> tuple[ControllerParameters, list[float]]:
-    """Gains and the 3n + 2 values r, eta_hat_1..n (non-negative, as the law keeps them), x1..xn,
+                  ) -> tuple[ControllerParameters, tuple[float, ...], tuple[float, ...]]:
+    """Gains, the state r, eta_hat_1..n (non-negative, as the law keeps them) and the inputs x1..xn,
     yd..yd^(n)."""
     params = draw(parameters())
     n = params.n
-    state = [abs(draw(values)) for _ in range(n + 1)]
-    return params, state + [draw(values) for _ in range(2 * n + 1)]
+    state = tuple(abs(draw(values)) for _ in range(n + 1))
+    return params, state, tuple(draw(values) for _ in range(2 * n + 1))
 
 
 @settings(max_examples=600, deadline=None)
 @given(case=law_arguments(wide), substeps=st.integers(1, 3), h=st.sampled_from([1e-3, 5e-4, 1e-2]))
 def test_compiled_law_gives_the_references_bits_and_errors(compiled, case, substeps, h) -> None:
-    params, args = case
+    params, state, inputs = case
     fast, reference = native.CompiledLaw(params, substeps), native.ReferenceLaw(params, substeps)
-    terms = outcome(fast.evaluate, *args)
-    assert terms == outcome(reference.evaluate, *args)
-    assert outcome(fast.advance, h, None, *args) == outcome(reference.advance, h, None, *args)
+    terms = outcome(fast.evaluate, state, inputs)
+    assert terms == outcome(reference.evaluate, state, inputs)
+    assert outcome(fast.advance, h, None, state, inputs) == outcome(reference.advance, h, None, state, inputs)
     if isinstance(terms[0], bytes):  # the law evaluated: reused as the first stage
-        first = fast.evaluate(*args)
-        assert outcome(fast.advance, h, first, *args) == outcome(reference.advance, h, first, *args)
+        first = fast.evaluate(state, inputs)
+        assert outcome(fast.advance, h, first, state, inputs) == outcome(reference.advance, h, first, state,
+                                                                         inputs)
 
 
 @settings(max_examples=60, deadline=None)
@@ -124,10 +125,10 @@ def test_many_steps_equal_the_library_controller(compiled, params, seed, substep
         x = [rng.uniform(-2, 2) for _ in range(n)]
         yd = [rng.uniform(-1, 1) for _ in range(n + 1)]
         terms = library.output(x, yd)
-        stage = law.evaluate(*state, *x, *yd)
+        stage = law.evaluate(state, (*x, *yd))
         assert bits(stage) == bits((terms.v, *terms.z, *terms.zeta, *terms.ptp, *terms.derivative))
         library.advance(x, yd, 1e-3)
-        state = law.advance(1e-3, stage, *state, *x, *yd)
+        state = law.advance(1e-3, stage, state, (*x, *yd))
         assert bits(state) == bits(tuple(library.state))
     assert all(math.isfinite(v) for v in state)
 
@@ -143,12 +144,12 @@ def test_order_two_is_the_previous_fmus_law_bit_for_bit(compiled, params, seed) 
     law, before = native.CompiledLaw(params), Order2Controller(params)
     state = tuple(before.state)
     for _ in range(50):
-        x1, x2, yd, yd1, yd2 = (rng.uniform(-3, 3) for _ in range(5))
-        stage = law.evaluate(*state, x1, x2, yd, yd1, yd2)
+        x1, x2, yd, yd1, yd2 = inputs = tuple(rng.uniform(-3, 3) for _ in range(5))
+        stage = law.evaluate(state, inputs)
         old = before.stage(x1, x2, yd, yd1, yd2)
         v, z1, z2, zeta1, ptp1, ptp2, dr, deta1, deta2 = old[0]
         assert bits(stage) == bits((v, z1, z2, zeta1, v, ptp1, ptp2, dr, deta1, deta2))
-        state = law.advance(1e-3, stage, *state, x1, x2, yd, yd1, yd2)
+        state = law.advance(1e-3, stage, state, inputs)
         before.advance(x1, x2, yd, yd1, yd2, 1e-3, old)
         assert bits(state) == bits(tuple(before.state))
 
@@ -157,9 +158,12 @@ def test_inputs_that_do_not_fit_the_order_are_refused(compiled) -> None:
     """One line each, the same from both forms; the library's controller names what it needs."""
     params = EXAMPLE1.controller
     for law in (native.CompiledLaw(params), native.ReferenceLaw(params)):
-        error = outcome(law.evaluate, 0.0, 0.0, 0.0, 0.5, 0.5, 0.0, 0.5)  # yd'' missing
-        assert error == ("TypeError", "the law of order n = 2 takes 8 values r, eta_hat_1..eta_hat_2, "
-                                      "x1..x2, yd..yd^(2) (got 7)")
+        error = outcome(law.evaluate, (0.0, 0.0, 0.0), (0.5, 0.5, 0.0, 0.5))  # yd'' missing
+        assert error == ("TypeError", "the law of order n = 2 takes inputs (x1..xn, yd..yd^(n)): 5 values "
+                                      "(got 4)")
+        error = outcome(law.advance, 1e-3, None, [0.0, 0.0, 0.0], (0.5, 0.5, 0.0, 0.5, 0.0))
+        assert error == ("TypeError", "the law of order n = 2 takes state (r, eta_hat_1..eta_hat_n) as a "
+                                      "tuple")
     library = AdaptiveController(params)
     with pytest.raises(InputError, match=r"^x must have n = 2 entries x1\.\.x2 \(got 3\)") as error:
         library.output([0.5, 0.5, 0.1], [0.0, 0.5, 0.0])

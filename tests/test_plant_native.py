@@ -114,8 +114,11 @@ def test_finite_escape_trajectory_is_the_references(compiled):
 def test_only_the_plants_bundle_the_extension():
     for model in ("Example1Plant", "PendulumPlant"):
         assert set(collect_bundle(model).extensions) == {"fmu_src.models._dopri"}
-    for model in ("Reference", "FixedTimeController", "Actuator"):
+    for model in ("Reference", "Actuator"):
         assert collect_bundle(model).extensions == {}
+    for model in ("FixedTimeController", "FixedTimeController1", "FixedTimeController3",
+                  "FixedTimeController4"):
+        assert set(collect_bundle(model).extensions) == {"controller._law"}
 
 
 @pytest.mark.system
