@@ -66,6 +66,7 @@ FMU_SCRIPTS = {
     "Actuator": "actuator.py",
     "Example1Plant": "example1_plant.py",
     "PendulumPlant": "pendulum_plant.py",
+    "ManipulatorPlant": "manipulator_plant.py",
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.

@@ -24,7 +24,7 @@ from abc import update_abstractmethods
 from collections.abc import Callable
 from math import isfinite
 from operator import itemgetter
-from typing import Any, TypeVar, cast
+from typing import TypeVar, cast
 
 from pythonfmu import Fmi2Causality, Fmi2Slave
 from pythonfmu.enums import Fmi2Status
@@ -72,21 +72,15 @@ SlaveClass = TypeVar("SlaveClass", bound=type[Fmi2Slave])
 
 def controller_fmu(n: int) -> Callable[[SlaveClass], SlaveClass]:
     """Class decorator making ``class FixedTimeController<n>(Fmi2Slave)`` the controller FMU of order n:
-    its description, ``__init__`` (:func:`declare_controller`), and the core's functions as
-    ``refresh_outputs``, ``exit_initialization_mode`` and ``do_step`` (no frame of the class's own per
-    call: the hot path of every step). Apply :func:`~fmu_src.fmu_support.fmu_model` on top."""
+    its description and the core's functions as ``refresh_outputs``, ``exit_initialization_mode`` and
+    ``do_step`` (no frame of the class's own per call: the hot path of every step). The class defines
+    ``__init__`` itself (calling :func:`declare_controller`): with one set by the decorator, pythonfmu
+    0.7.0's binary frees the script's module after instantiating the slave (the host then crashes at
+    exit). Apply :func:`~fmu_src.fmu_support.fmu_model` on top."""
 
     def make(cls: SlaveClass) -> SlaveClass:
-        base_init = Fmi2Slave.__init__
-
-        def init(self: Fmi2Slave, **kwargs: Any) -> None:
-            base_init(self, **kwargs)
-            declare_controller(self, n)
-
-        init.__doc__ = f"Register the variables of the controller for plant order {n}."
         cls.description = (f"Adaptive fixed-time NN backstepping controller (order {n}) with actuator-fault "
                            "compensation")
-        cls.__init__ = init
         cls.refresh_outputs = refresh_controller_outputs
         cls.exit_initialization_mode = start_controller
         cls.do_step = step_controller

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pythonfmu import Fmi2Slave
 
-from fmu_src.controller_core import controller_fmu
+from fmu_src.controller_core import controller_fmu, declare_controller
 from fmu_src.fmu_support import fmu_model
 
 
@@ -15,3 +15,7 @@ from fmu_src.fmu_support import fmu_model
 @controller_fmu(2)
 class FixedTimeController(Fmi2Slave):
     """v = zeta_2 from the backstepping law of SPEC section 1, with states r and eta_hat_1..eta_hat_2."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        declare_controller(self, 2)
