@@ -50,6 +50,7 @@ from xml.etree import ElementTree
 import pythonfmu
 from pythonfmu import FmuBuilder
 
+from .controller_doc import controller_documentation
 from .runtime import PYTHON_VERSION, Runtime, RuntimeBundleError, ensure_runtime, runtime_members
 
 __all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "c_compiler", "compile_extension", "main"]
@@ -390,6 +391,10 @@ def _write_normalized(
     entries["modelDescription.xml"] = _normalized_description(
         entries["modelDescription.xml"], digest, bundle.model
     )
+    try:  # the controller FMUs' documentation/index.html, from their model description
+        entries.update(controller_documentation(bundle.model, entries["modelDescription.xml"]))
+    except ValueError as error:
+        raise BuildError(str(error)) from error
     entries.update(_bytecode(entries))
     write_archive(target, entries)
 
