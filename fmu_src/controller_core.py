@@ -151,16 +151,15 @@ def _defaults(slave: Fmi2Slave, n: int) -> None:
     slave.sample_time = 1e-3
     slave.b_max = 1.0
     slave._order = n
-    slave._warned_step = False  # the step != sample_time warning, logged once
+    slave._check_step = False  # semi-implicit and the step != sample_time warning not logged yet
     for name in output_names(n):  # written by refresh_controller_outputs
         setattr(slave, name, 0.0)
     slave._law = None  # built at exit_initialization_mode
     slave._state = ()  # (r, eta_hat_1..eta_hat_n)
     slave._stage = None  # the law behind the outputs (current unless stale)
     slave._inputs = itemgetter(*inputs)
-    slave._terms = itemgetter(*range(2 * n))  # v, z_1..z_n, zeta_1..zeta_(n-1) of the law's result
-    slave._law_outputs = output_names(n)[: 2 * n]  # the outputs refresh_outputs writes
-    slave._state_outputs = ("r", *(f"eta{i}_hat" for i in range(1, n + 1)))  # the outputs of the state
+    # the outputs in the order refresh_outputs computes them: the law's v, z_i, zeta_i, then the state's
+    slave._outputs = (*output_names(n)[: 2 * n], "r", *(f"eta{i}_hat" for i in range(1, n + 1)))
 
 
 def _declare_inputs_and_outputs(slave: Fmi2Slave, n: int) -> None:
@@ -257,18 +256,16 @@ def _initial_state(params: ControllerParameters) -> tuple[float, ...]:
 
 def refresh_controller_outputs(slave: Fmi2Slave) -> None:
     """The law for the inputs set now and the current states (in initialization mode: the
-    parameters set so far, validated, and the initial states r0, eta0). The outputs of the states
-    (r, eta_hat) are written where the states change (:func:`start_controller`, :func:`step_controller`)."""
+    parameters set so far, validated, and the initial states r0, eta0)."""
     d = slave.__dict__
-    law = d["_law"]
+    law, state = d["_law"], d["_state"]
     if law is None:  # initialization mode
         params = _parameters(slave)
         state = _initial_state(params)
-        d.update(zip(d["_state_outputs"], state, strict=True))
-        d["_stage"] = stage = law_for(params, slave.substeps).evaluate(state, d["_inputs"](d))
-    else:
-        d["_stage"] = stage = law.evaluate(d["_state"], d["_inputs"](d))
-    d.update(zip(d["_law_outputs"], d["_terms"](stage), strict=True))
+        law = law_for(params, slave.substeps)
+    d["_stage"] = stage = law.evaluate(state, d["_inputs"](d))
+    n = d["_order"]
+    d.update(zip(d["_outputs"], (*stage[: 2 * n], *state), strict=True))  # v, z_i, zeta_i; r, eta_hat_i
 
 
 def start_controller(slave: Fmi2Slave) -> None:
@@ -276,9 +273,9 @@ def start_controller(slave: Fmi2Slave) -> None:
     d = slave.__dict__
     params = _parameters(slave)
     d["_law"] = law_for(params, slave.substeps)
-    d["_state"] = state = _initial_state(params)
-    d.update(zip(d["_state_outputs"], state, strict=True))
+    d["_state"] = _initial_state(params)
     d["_params"] = params
+    d["_check_step"] = bool(params.discretization)
     mark_stale(slave)
 
 
@@ -291,7 +288,7 @@ def step_controller(slave: Fmi2Slave, current_time: float, step_size: float) -> 
     d = slave.__dict__
     law = d["_law"]
     assert law is not None, "doStep before exitInitializationMode"
-    if d["discretization"] and not d["_warned_step"]:
+    if d["_check_step"]:
         _check_step(slave, current_time, step_size)
     # The law behind the outputs is the first RK4 stage, unless something changed since.
     inputs = d["_inputs"](d)
@@ -305,8 +302,7 @@ def step_controller(slave: Fmi2Slave, current_time: float, step_size: float) -> 
             f"x = {inputs[:n]}, yd = {inputs[n:]}; step rejected (fmi2Discard)",
         )
         return False
-    d["_state"] = state
-    d.update(zip(d["_state_outputs"], state, strict=True))
+    d["_state"] = state  # its outputs r, eta_hat_i at the next refresh_outputs (the state is stale)
     return True
 
 
@@ -314,7 +310,7 @@ def _check_step(slave: Fmi2Slave, current_time: float, step_size: float) -> None
     """Warn once when the communication step differs from the semi-implicit law's sample time."""
     params = slave._params
     if not math.isclose(step_size, params.sample_time, rel_tol=1e-9):
-        slave._warned_step = True
+        slave._check_step = False  # logged once
         report(slave, f"communication step {step_size!r} s at t = {current_time!r} differs from "
                f"sample_time = {params.sample_time!r} s that the semi-implicit law assumes "
                "(logged once)", Fmi2Status.warning)
