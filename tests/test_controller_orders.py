@@ -37,8 +37,8 @@ def library(n: int, **changes: object) -> AdaptiveController:
 def test_controller_of_order_n_is_the_librarys_law_bit_for_bit(fmus: dict, n: int,
                                                                 discretization: int) -> None:
     """500 steps of 1 ms under inputs that change every step (large early errors, |v| in the
-    thousands): every output read after the inputs are set, and the states after each step, equal the
-    library's (the FMU runs the compiled twin of the same arithmetic)."""
+    thousands for the higher orders): every output read after the inputs are set, and the states after
+    each step, equal the library's (the FMU runs the compiled twin of the same arithmetic)."""
     h = 1e-3
     model = controller_model(n)
     reference = library(n, discretization=discretization, b_max=5.0)
@@ -59,7 +59,7 @@ def test_controller_of_order_n_is_the_librarys_law_bit_for_bit(fmus: dict, n: in
             slave.step(t, h)
             reference.advance(x, yd, h)
             assert slave.get("r", *(f"eta{i}_hat" for i in range(1, n + 1))) == reference.state, k
-    assert peak > 100  # a transient worth the name
+    assert peak > 20  # a transient worth the name (26 for n = 1, up to thousands for n = 4)
 
 
 def test_orders_without_an_fmu_are_refused_with_one_line(capsys: pytest.CaptureFixture[str]) -> None:
