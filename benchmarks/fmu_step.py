@@ -83,8 +83,10 @@ def measure_fmpy(path: Path, steps: int, method: int | None = None) -> tuple[flo
         step_times, io_times = [], []
         for k in range(steps):
             start = time.perf_counter_ns()
-            fmu.getReal([vr[n] for n in outputs])
+            out = dict(zip(outputs, fmu.getReal([vr[n] for n in outputs]), strict=True))
             values = fmpy_inputs(md.modelName, inputs, k)
+            if "Plant" in md.modelName:  # under a PD law, as in the C host
+                values["uf"] += -20.0 * out["x1"] - 10.0 * out["x2"]
             if values:
                 fmu.setReal([vr[n] for n in values], list(values.values()))
                 fmu.getReal([vr[n] for n in outputs])  # direct-feedthrough outputs for the new inputs

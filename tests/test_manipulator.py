@@ -22,6 +22,7 @@ from fmu_src.models.examples import MANIPULATOR
 from fmu_src.models.manipulator import ManipulatorParameters, input_gains, manipulator_rhs
 from orchestrator.experiments.closed_loop import simulate
 from orchestrator.experiments.fixed_time_bound import fixed_time_bound
+from orchestrator.experiments.fixed_time_study import run_map
 from orchestrator.experiments.metrics import tracking_metrics
 
 # Dawson, Carroll and Schneider (1994): link, load and motor, SI units
@@ -109,3 +110,20 @@ def test_scenario_tracks_and_settles_within_the_fixed_time_bound(cosimulation: n
     assert metrics.settling_time < 0.2 < bound.t_m
     assert metrics.rmse < 0.05
     assert d["time"][-1] == pytest.approx(30.0)
+
+
+@pytest.mark.system
+def test_the_map_of_the_manipulator_on_a_coarse_grid(built, tmp_path) -> None:
+    """fixed_time_study --map manipulator on the 3 x 3 subgrid of its design (36 runs): the table with
+    T_m of eq. (83) for n = 3 (12 s at Phi = 0.5, as for the paper's examples: c = c_hat = 1 from
+    rho_bar and a_bar), every semi-implicit fixed-time run settled, and the figures."""
+    text = run_map("manipulator", tmp_path, tmp_path / "docs", built, workers=1, states=3)
+    semi = next(line for line in text.splitlines() if line.startswith("| 3 | fixed-time | semi-implicit |"))
+    runs, diverged, never = (int(cell) for cell in semi.split("|")[4:7])
+    assert (runs, diverged, never) == (9, 0, 0)
+    settling_max = float(semi.split("|")[7].split("/")[1])
+    assert settling_max < fixed_time_bound(MANIPULATOR.controller, b_m=1.0, m_bar=1.0).t_m == 12.0
+    assert "| T_m (Phi = 0.5) | 12 s | eq. (83) |" in text
+    for figure in ("manipulator_settling.png", "manipulator_peak_v.png"):
+        assert (tmp_path / figure).stat().st_size > 10_000
+    assert (tmp_path / "docs" / "manipulator.md").read_text().startswith("# The fixed-time claim")
