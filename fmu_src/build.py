@@ -1,4 +1,4 @@
-"""Build the project's five FMUs with pythonfmu, reproducibly and safe to load side by side.
+"""Build the project's FMUs with pythonfmu, reproducibly and safe to load side by side.
 
 All pythonfmu FMUs in one process share one interpreter and one module cache, and each FMU's
 ``resources`` folder goes to ``sys.path[0]``. So two FMUs that bundle modules of the same name

@@ -151,7 +151,7 @@ def _defaults(slave: Fmi2Slave, n: int) -> None:
     slave.sample_time = 1e-3
     slave.b_max = 1.0
     slave._order = n
-    slave._check_step = False  # semi-implicit and the step != sample_time warning not logged yet
+    slave._step_unchecked = False  # semi-implicit, and no step-size warning logged yet
     for name in output_names(n):  # written by refresh_controller_outputs
         setattr(slave, name, 0.0)
     slave._law = None  # built at exit_initialization_mode
@@ -275,7 +275,7 @@ def start_controller(slave: Fmi2Slave) -> None:
     d["_law"] = law_for(params, slave.substeps)
     d["_state"] = _initial_state(params)
     d["_params"] = params
-    d["_check_step"] = bool(params.discretization)
+    d["_step_unchecked"] = bool(params.discretization)
     mark_stale(slave)
 
 
@@ -288,7 +288,7 @@ def step_controller(slave: Fmi2Slave, current_time: float, step_size: float) -> 
     d = slave.__dict__
     law = d["_law"]
     assert law is not None, "doStep before exitInitializationMode"
-    if d["_check_step"]:
+    if d["_step_unchecked"] and step_size != d["_params"].sample_time:  # equal: nothing to check
         _check_step(slave, current_time, step_size)
     # The law behind the outputs is the first RK4 stage, unless something changed since.
     inputs = d["_inputs"](d)
@@ -310,7 +310,7 @@ def _check_step(slave: Fmi2Slave, current_time: float, step_size: float) -> None
     """Warn once when the communication step differs from the semi-implicit law's sample time."""
     params = slave._params
     if not math.isclose(step_size, params.sample_time, rel_tol=1e-9):
-        slave._check_step = False  # logged once
+        slave._step_unchecked = False  # logged once
         report(slave, f"communication step {step_size!r} s at t = {current_time!r} differs from "
                f"sample_time = {params.sample_time!r} s that the semi-implicit law assumes "
                "(logged once)", Fmi2Status.warning)
