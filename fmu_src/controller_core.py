@@ -158,8 +158,9 @@ def _defaults(slave: Fmi2Slave, n: int) -> None:
     slave._state = ()  # (r, eta_hat_1..eta_hat_n)
     slave._stage = None  # the law behind the outputs (current unless stale)
     slave._inputs = itemgetter(*inputs)
-    # the outputs in the order refresh_outputs computes them: the law's v, z_i, zeta_i, then the state's
-    slave._outputs = (*output_names(n)[: 2 * n], "r", *(f"eta{i}_hat" for i in range(1, n + 1)))
+    # the outputs in the order refresh_outputs has them: the state's r, eta_hat_i, then the law's v, z_i,
+    # zeta_i (the first 2n values of its result)
+    slave._outputs = ("r", *(f"eta{i}_hat" for i in range(1, n + 1)), *output_names(n)[: 2 * n])
 
 
 def _declare_inputs_and_outputs(slave: Fmi2Slave, n: int) -> None:
@@ -264,8 +265,7 @@ def refresh_controller_outputs(slave: Fmi2Slave) -> None:
         state = _initial_state(params)
         law = law_for(params, slave.substeps)
     d["_stage"] = stage = law.evaluate(state, d["_inputs"](d))
-    n = d["_order"]
-    d.update(zip(d["_outputs"], (*stage[: 2 * n], *state), strict=True))  # v, z_i, zeta_i; r, eta_hat_i
+    d.update(zip(d["_outputs"], state + stage, strict=False))  # r, eta_hat_i; v, z_i, zeta_i (then unused)
 
 
 def start_controller(slave: Fmi2Slave) -> None:
