@@ -14,7 +14,7 @@ BYTECODE := build/.bytecode
 SOURCES := $(shell find controller fmu_src ssp -type f -not -path '*/__pycache__/*' -not -name '*.pyc' \
                      -not -name '.*' 2>/dev/null)
 
-.PHONY: run test unit build lint crosscheck table study study-fixed-time report baselines bench clean
+.PHONY: run test unit build lint docs docs-figure crosscheck table study study-fixed-time report baselines bench clean
 
 # pip's console script 'orchestrate' is then replaced by orchestrator/launcher.c, which holds SIGINT and
 # SIGTERM from its first instruction until the package's handlers are in (issue 20). Compiled to a
@@ -29,7 +29,7 @@ $(STAMP): pyproject.toml constraints.txt $(LAUNCHER)
 	@command -v $(firstword $(CC)) >/dev/null || { echo "make: no C compiler '$(CC)' (needed for the orchestrate launcher and the FMUs): install gcc, or set CC" >&2; exit 1; }
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip==25.3
-	$(PY) -m pip install --quiet -e '.[test]' -c constraints.txt
+	$(PY) -m pip install --quiet -e '.[test,docs]' -c constraints.txt
 	@if $(PY) -c 'import sys; sys.exit(sys.version_info < (3, 11))'; then \
 	  echo "$(CC) $(LAUNCHER_FLAGS) -o $(ORCH) $(LAUNCHER)"; \
 	  $(CC) $(LAUNCHER_FLAGS) -o $(ORCH).new $(LAUNCHER) || { rm -f $(ORCH).new; exit 1; }; \
@@ -76,6 +76,15 @@ test: build $(ALT_STAMP)
 ## crosscheck: every built scenario in every installed SSP tool -> results/crosscheck/matrix.md
 crosscheck: build
 	$(ORCH) crosscheck
+
+## docs: the documentation site (MkDocs, warnings are errors) into build/site/; open build/site/index.html
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet
+	@echo "docs: build/site/index.html"
+
+## docs-figure: redraw the README's figure, docs/images/pendulum.png, as 'make run' draws it (commit it)
+docs-figure: build
+	$(ORCH) run pendulum --quiet --output results/pendulum.csv --plot docs/images/pendulum.png
 
 ## unit: the fast unit tests only (no FMU, no other tool, no 30 s reference)
 unit: $(STAMP)
