@@ -13,7 +13,7 @@ from ..provenance import read_provenance, summary
 from ..results import read_result
 from . import regression, report
 from .metrics import format_table, tracking_metrics
-from .scenarios import build_scenarios
+from .scenarios import SCENARIO_DIR, build_scenarios
 
 __all__ = ["register"]
 
@@ -21,9 +21,10 @@ __all__ = ["register"]
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the experiments' subcommands to ``orchestrate``."""
     p = add_command(sub, "build", _build, help="build the FMUs and pack the scenarios into .ssp archives")
-    p.add_argument("scenarios", nargs="*", metavar="NAME", help="scenarios to pack (default: all in ssp/)")
-    p.add_argument("--sources", type=Path, default=Path("ssp"), help="scenario sources (default: ssp/)")
-    p.add_argument("--dest", type=Path, default=Path("build"), help="output folder (default: build/)")
+    p.add_argument("scenarios", nargs="*", metavar="NAME", help="scenarios to pack (default: all)")
+    p.add_argument("--sources", type=Path, default=SCENARIO_DIR,
+                   help="scenario sources (default: the project's ssp/, or its installed copy)")
+    p.add_argument("--dest", type=Path, default=Path("build"), help="output folder (default: ./build/)")
 
     p = add_command(sub, "metrics", _metrics, help="tracking metrics of result files (SPEC section 4)")
     p.add_argument("results", nargs="+", type=Path, metavar="RESULT.csv")
