@@ -109,9 +109,13 @@ study-fixed-time: build
 report: build
 	$(ORCH) report
 
-## baselines: regenerate tests/baselines/ after an intended change (review the diff)
+## baselines: after an intended change, run every scenario of ssp/ against tests/baselines/ and
+## write the review (results/baseline-review/index.html, one line per signal that moved); ACCEPT
+## names what to rewrite (default: every baseline that changed; ACCEPT= writes none; review the diff)
+SCENARIOS := $(patsubst ssp/%/SystemStructure.ssd,%,$(wildcard ssp/*/SystemStructure.ssd))
+ACCEPT ?= --accept-all
 baselines: build
-	$(ORCH) baseline
+	$(ORCH) baseline $(SCENARIOS) --baselines tests/baselines --review results/baseline-review $(ACCEPT)
 
 bench: build
 	$(PY) benchmarks/controller_step.py
