@@ -23,6 +23,7 @@ from .report import REPORT_NAME, write_report
 from .suite import (
     ERROR,
     FAIL,
+    LABELS,
     PASS,
     Case,
     Outcome,
@@ -254,8 +255,8 @@ def _baseline(args: argparse.Namespace) -> int:
         heading = (f"baseline review: {len(outcomes)} scenarios, {len(pending)} with changes not accepted "
                    f"({seconds:.1f} s)")
         shown = [_as_review(o) for o in outcomes]
-        title = "Baseline review"
-        path = _write("review", lambda: write_report(shown, args.review, title, heading, "new run"))
+        title, labels = "Baseline review", {**LABELS, PASS: "OK", FAIL: "CHANGED"}
+        path = _write("review", lambda: write_report(shown, args.review, title, heading, "new run", labels))
         if path:
             print(f"review: {path}")
     if failed:

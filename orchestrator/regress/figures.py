@@ -44,7 +44,7 @@ def signal_png(check: SignalCheck, result_label: str = "result", dpi: int = 90) 
     ax_d.set_xlabel("time (s)")
     for a in (ax, ax_d):
         a.grid(True, alpha=0.3)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.11, right=0.98, top=0.93, bottom=0.1, hspace=0.28)  # tight_layout: 2x slower
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=dpi)
     return buffer.getvalue()

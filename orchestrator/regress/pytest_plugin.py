@@ -136,8 +136,6 @@ class ScenarioItem(pytest.Item):
     def runtest(self) -> None:
         """Run the scenario; a regression or a failed run raises."""
         outcome = check_case(self.case, _settings(self.config))
-        self.user_properties.append(("scenario", str(self.case.scenario)))
-        self.user_properties.append(("baseline", str(self.case.baseline)))
         if outcome.warnings:
             self.add_report_section("call", "stderr", "".join(f"warning: {w}\n" for w in outcome.warnings))
         if outcome.status == FAIL:

@@ -12,7 +12,7 @@ import base64
 import html
 import os
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -110,10 +110,10 @@ def _figure(o: Outcome, s: SignalCheck, ids: _Ids, label: str) -> str:
             f'<a href="#summary">summary</a></figcaption></figure>')
 
 
-def _section(o: Outcome, ids: _Ids, label: str) -> str:
+def _section(o: Outcome, ids: _Ids, label: str, labels: Mapping[str, str]) -> str:
     cls = _CLASSES[o.status]
     parts = [f'<section class="scenario {cls}" id="{ids(o.case.name)}">',
-             f'<h2>{_e(o.case.name)} <span class="badge">{LABELS[o.status]}</span></h2>',
+             f'<h2>{_e(o.case.name)} <span class="badge">{labels[o.status]}</span></h2>',
              f'<p>{_e(o.message)}</p>',
              f'<p class="meta">scenario {_e(o.case.scenario)} &middot; baseline {_e(o.case.baseline)}'
              f'{" &middot; " + _e(f"{o.seconds:.1f} s") if o.status != NOT_RUN else ""}</p>']
@@ -145,7 +145,7 @@ def _section(o: Outcome, ids: _Ids, label: str) -> str:
     return "\n".join(parts)
 
 
-def _summary_row(o: Outcome, ids: _Ids) -> str:
+def _summary_row(o: Outcome, ids: _Ids, labels: Mapping[str, str]) -> str:
     c = o.comparison
     signals = f"{len(c.checks) - len(c.failed)} of {len(c.checks)}" if c is not None else ""
     worst = ""
@@ -155,21 +155,23 @@ def _summary_row(o: Outcome, ids: _Ids) -> str:
                  f'at t = {s.worst_time:.3f} s')
     took = f"{o.seconds:.1f}" if o.status != NOT_RUN else ""
     return (f'<tr class="{_CLASSES[o.status]}"><td><a href="#{ids(o.case.name)}">{_e(o.case.name)}</a></td>'
-            f'<td><span class="badge">{LABELS[o.status]}</span></td><td class="num">{signals}</td>'
+            f'<td><span class="badge">{labels[o.status]}</span></td><td class="num">{signals}</td>'
             f'<td>{worst or _e(o.message if o.status != PASS else "")}</td><td class="num">{took}</td></tr>')
 
 
-def report_html(outcomes: Sequence[Outcome], title: str, heading: str, label: str = "result") -> str:
+def report_html(outcomes: Sequence[Outcome], title: str, heading: str, label: str = "result",
+                labels: Mapping[str, str] = LABELS) -> str:
     """The report as a string: ``title`` for the window, ``heading`` the one-line verdict,
-    ``label`` what the compared runs are called in the figures (``result``, ``new run``)."""
+    ``label`` what the compared runs are called in the figures (``result``, ``new run``),
+    ``labels`` the badge of each status (those of the terminal, or a review's ``CHANGED``)."""
     ids = _Ids()
     ids("summary")
     failing = sum(o.status != PASS for o in outcomes)
     cls = "pass" if not failing else "fail"
-    verdict = "PASS" if not failing else "REGRESSION"
+    verdict = labels[PASS if not failing else FAIL]
     when = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    rows = "\n".join(_summary_row(o, ids) for o in outcomes)
-    sections = "\n".join(_section(o, ids, label) for o in outcomes)
+    rows = "\n".join(_summary_row(o, ids, labels) for o in outcomes)
+    sections = "\n".join(_section(o, ids, label, labels) for o in outcomes)
     return f"""<!DOCTYPE html>
 <html lang="en">
 <head>
@@ -197,6 +199,6 @@ def report_html(outcomes: Sequence[Outcome], title: str, heading: str, label: st
 
 
 def write_report(outcomes: Sequence[Outcome], folder: str | os.PathLike, title: str, heading: str,
-                 label: str = "result") -> Path:
+                 label: str = "result", labels: Mapping[str, str] = LABELS) -> Path:
     """Write :func:`report_html` to ``folder/index.html``; returns its path."""
-    return files.write_text(Path(folder) / REPORT_NAME, report_html(outcomes, title, heading, label))
+    return files.write_text(Path(folder) / REPORT_NAME, report_html(outcomes, title, heading, label, labels))

@@ -321,27 +321,94 @@ class SuiteInterrupted(KeyboardInterrupt):
         self.exit_status = exit_status
 
 
-def _child(conn: multiprocessing.connection.Connection, case: Case, settings: Settings) -> None:
-    """A worker process: one scenario, its outcome sent back. Ctrl-C reaches the whole process
-    group; only the parent handles it (it ends the workers)."""
+def _serve(conn: multiprocessing.connection.Connection, settings: Settings) -> None:
+    """A worker process: scenarios received one at a time, each outcome sent back, until None.
+    Ctrl-C reaches the whole process group; only the parent handles it (it ends the workers)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    conn.send(check_case(case, settings))
-    conn.close()
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # blocked since its start (below)
+    try:
+        while (case := conn.recv()) is not None:
+            conn.send(check_case(case, settings))
+    except KeyboardInterrupt:  # SIGTERM to the process group: the parent says so, once
+        return
 
 
-def _died(case: Case, process: multiprocessing.process.BaseProcess, seconds: float) -> Outcome:
-    code = process.exitcode
-    how = (f"signal {-code} ({signal.Signals(-code).name})" if code is not None and code < 0
-           else f"exit status {code}")
-    return Outcome(case, ERROR, f"the process running it died ({how}) before it reported: an FMU crashed",
-                   seconds=seconds)
+class _Worker:
+    """A worker process, the pipe to it, and the scenario it runs (None: idle)."""
+
+    def __init__(self, context: multiprocessing.context.SpawnContext, settings: Settings,
+                 number: int) -> None:
+        self.conn, child = context.Pipe()
+        self.process = context.Process(target=_serve, args=(child, settings), daemon=True,
+                                       name=f"regress worker {number}")
+        # SIGINT blocked while the worker starts: a Ctrl-C while it imports waits for _serve to
+        # ignore it, instead of a traceback from the worker; the parent gets its own at once after
+        held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            self.process.start()
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)
+        child.close()
+        self.index: int | None = None
+        self.started = 0.0
+
+    def give(self, index: int, case: Case) -> None:
+        """Start scenario number ``index``."""
+        self.index, self.started = index, time.monotonic()
+        self.conn.send(case)
+
+    def outcome(self, case: Case) -> Outcome | None:
+        """The outcome it sent; an error naming how it died if it died first (the worker is then
+        ended); None while it still runs."""
+        try:
+            if not self.conn.poll():
+                if self.process.is_alive():
+                    return None
+                raise EOFError
+            outcome: Outcome = self.conn.recv()
+        except (EOFError, OSError):
+            self.process.join()
+            code = self.process.exitcode
+            how = (f"died (signal {-code} ({signal.Signals(-code).name}))" if code is not None and code < 0
+                   else f"ended (exit status {code})")
+            outcome = Outcome(case, ERROR, f"the process running it {how} before it reported",
+                              seconds=time.monotonic() - self.started)
+            self.end()
+        self.index = None
+        return outcome
+
+    def end(self, wait: float = 5.0) -> None:
+        """Ask it to stop (when alive and idle), wait ``wait`` s, then kill it; close the pipe."""
+        if self.process.is_alive() and self.index is None:
+            try:
+                self.conn.send(None)
+            except OSError:
+                pass
+        self.process.join(wait)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join()
+        self.conn.close()
 
 
 def run_cases(cases: Sequence[Case], jobs: int = 1, settings: Settings | None = None,
-              done: Callable[[Outcome], None] | None = None) -> list[Outcome]:
-    """Run every case, ``jobs`` processes at a time (1: in this process, one after the other);
-    ``done(outcome)`` is called as each one finishes. Returns the outcomes in the order of
+              done: Callable[[Outcome], None] | None = None, *, isolate: bool = True) -> list[Outcome]:
+    """Run every case and compare it with its baseline; returns the outcomes in the order of
     ``cases``.
+
+    Parameters
+    ----------
+    cases : sequence of Case
+        The scenarios (:func:`find_cases`).
+    jobs : int
+        Scenarios run at once, each worker process running one after the other.
+    settings : Settings, optional
+        Timeout and baseline mode.
+    done : callable, optional
+        ``done(outcome)``, called as each scenario finishes.
+    isolate : bool
+        Run in worker processes (default), so that an FMU that crashes its process fails its
+        scenario only (a new worker takes the rest); False: in this process, one after the other.
 
     Raises
     ------
@@ -360,63 +427,46 @@ def run_cases(cases: Sequence[Case], jobs: int = 1, settings: Settings | None = 
         return [outcomes.get(i) or Outcome(c, NOT_RUN, "not run: the suite was interrupted")
                 for i, c in enumerate(cases)]
 
-    running: dict[int, _Worker] = {}
+    workers: list[_Worker] = []
     try:
-        if jobs <= 1 or len(cases) == 1:
+        if not isolate:
             for index, case in enumerate(cases):
                 finish(index, check_case(case, settings))
             return every()
-        context = multiprocessing.get_context("spawn")  # no fork of a process holding threads or FMUs
-        pending = list(enumerate(cases))
-        while pending or running:
-            while pending and len(running) < jobs:
-                index, case = pending.pop(0)
-                receive, send = context.Pipe(duplex=False)
-                process = context.Process(target=_child, args=(send, case, settings), daemon=True,
-                                          name=f"regress {case.name}")
-                process.start()
-                send.close()
-                running[index] = _Worker(process, receive, time.monotonic())
-            waiting: dict[object, int] = {w.conn: i for i, w in running.items()}
-            waiting.update({w.process.sentinel: i for i, w in running.items()})
-            for ready in multiprocessing.connection.wait(list(waiting)):  # type: ignore[arg-type]
-                index = waiting[ready]
-                if index in running:
-                    finish(index, running.pop(index).outcome(cases[index]))
+        _run_isolated(cases, max(1, jobs), settings, finish, workers)
         return every()
-    except KeyboardInterrupt as exc:
-        for worker in running.values():
-            worker.process.terminate()
-        for worker in running.values():
-            worker.end()
+    except KeyboardInterrupt as exc:  # the workers hold nothing to keep: ended at once, without a word
+        for worker in workers:
+            if worker.process.is_alive():
+                worker.process.kill()
         raise SuiteInterrupted(every(), getattr(exc, "exit_status", 130)) from None
+    finally:
+        for worker in workers:
+            worker.end()
 
 
-@dataclass
-class _Worker:
-    """A process running one scenario, the pipe its outcome comes through, when it started."""
-
-    process: multiprocessing.process.BaseProcess
-    conn: multiprocessing.connection.Connection
-    started: float
-
-    def outcome(self, case: Case) -> Outcome:
-        """The outcome it sent, or an error naming how it died without sending one."""
-        try:
-            outcome: Outcome = self.conn.recv()
-        except (EOFError, OSError):
-            self.process.join()
-            outcome = _died(case, self.process, time.monotonic() - self.started)
-        self.end()
-        return outcome
-
-    def end(self) -> None:
-        """Wait for the process to end (killed after 5 s) and close the pipe."""
-        self.process.join(5)
-        if self.process.is_alive():
-            self.process.kill()
-            self.process.join()
-        self.conn.close()
+def _run_isolated(cases: Sequence[Case], jobs: int, settings: Settings,
+                  finish: Callable[[int, Outcome], None], workers: list[_Worker]) -> None:
+    """Every case in ``jobs`` worker processes (kept in ``workers``, which the caller ends); a
+    worker that dies is replaced for the scenarios left."""
+    context = multiprocessing.get_context("spawn")  # no fork of a process holding threads or FMUs
+    pending = list(enumerate(cases))
+    started = 0
+    while pending or any(w.index is not None for w in workers):
+        workers[:] = [w for w in workers if w.process.is_alive() or w.index is not None]
+        while pending and len(workers) < jobs:
+            started += 1
+            workers.append(_Worker(context, settings, started))
+        for worker in workers:
+            if worker.index is None and pending:
+                worker.give(*pending.pop(0))
+        busy = [w for w in workers if w.index is not None]
+        multiprocessing.connection.wait([*(w.conn for w in busy), *(w.process.sentinel for w in busy)])
+        for worker in busy:
+            index = worker.index
+            outcome = worker.outcome(cases[index]) if index is not None else None
+            if index is not None and outcome is not None:
+                finish(index, outcome)
 
 
 def scenario_line(outcome: Outcome, width: int = 0) -> str:
