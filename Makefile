@@ -69,9 +69,10 @@ run: build
 
 ## test: the whole suite (unit + system tests with real FMUs and real SSP tools) on 2 workers;
 ## tests sharing an expensive reference run in one worker (xdist groups). Also writes the
-## conformance matrix of every scenario in every installed SSP tool to results/crosscheck/.
+## conformance matrix of every scenario in every installed SSP tool to results/crosscheck/, and the
+## sample project's regression (terminal, JUnit XML, report screenshots) to results/regress-sample/.
 test: build $(ALT_STAMP) browser
-	CROSSCHECK_OUTPUT=results/crosscheck $(PY) -m pytest -q -n 2 --dist loadgroup
+	CROSSCHECK_OUTPUT=results/crosscheck REGRESS_SAMPLE_OUTPUT=results/regress-sample $(PY) -m pytest -q -n 2 --dist loadgroup
 
 # The HTML regression report's test opens it in a real browser: Debian's chromium, installed here
 # where it is missing and apt-get can (as root; CI runs so). A failed install is tried again only

@@ -52,9 +52,10 @@ __all__ = ["register"]
 LAYOUT = """\
 layout: each scenario (NAME.ssp, or a folder NAME/ holding SystemStructure.ssd) has its baseline in
 the folder baselines/ beside it, baselines/NAME.csv, and the tubes of the folder's scenarios in
-baselines/tolerances.json (without it: 1 %% of each signal's range); --baselines DIR puts every
+baselines/tolerances.json (without it: 1 % of each signal's range); --baselines DIR puts every
 baseline and the tolerances in DIR instead. A folder given is searched for scenarios at any
-depth. Each scenario runs its own DefaultExperiment, in a process of its own."""
+depth. Each scenario runs its own DefaultExperiment, in worker processes (--jobs): an FMU that
+crashes fails its scenario only. docs/regression.md describes it all."""
 
 REGRESS_HELP = f"""\
 Run every scenario found in PATH... and compare it with its baseline: every signal of the baseline

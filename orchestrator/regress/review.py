@@ -98,7 +98,7 @@ def review_message(o: Outcome) -> str:
     count = sum(s.max_deviation > 0 for s in c.checks)
     if c.passed:
         return f"{count} of {len(c.checks)} signals moved, all inside their tubes"
-    return f"changed: {o.message}"
+    return o.message
 
 
 def accepted(o: Outcome, acceptance: Acceptance) -> tuple[np.ndarray | None, str]:
