@@ -177,7 +177,9 @@ def test_layout_and_setup_errors_are_one_line_each(ramp_fmu: Path, tmp_path: Pat
     assert exit_status(["regress", str(empty)]) == 2
     assert "no scenarios in it" in capsys.readouterr().err
     assert exit_status(["regress", str(tmp_path / "nowhere")]) == 2
-    assert "no scenario" in capsys.readouterr().err
+    assert f"{tmp_path / 'nowhere'}: no such file or folder" in capsys.readouterr().err
+    assert exit_status(["regress", "nowhere"]) == 2  # a name: a scenario built into build/ssp/
+    assert "no scenario 'nowhere': not a file or folder, and build/ssp/nowhere.ssp" in capsys.readouterr().err
     # two scenarios of one name sharing a baselines folder
     ramp(tmp_path / "two" / "a", "x", ramp_fmu, 1)
     ramp(tmp_path / "two" / "b", "x", ramp_fmu, 1)

@@ -26,6 +26,7 @@ __all__ = ["REPORT_NAME", "write_report"]
 
 REPORT_NAME = "index.html"
 MAX_FIGURES = 12  # per scenario: the worst signals are drawn, the rest listed
+MAX_REPORT_FIGURES = 120  # in the whole report (about 6 MB): a bounded file however many scenarios fail
 
 STYLE = """
 body { font-family: "Liberation Sans", Arial, sans-serif; margin: 1.5em auto; max-width: 68em; color: #222;
@@ -110,7 +111,7 @@ def _figure(o: Outcome, s: SignalCheck, ids: _Ids, label: str) -> str:
             f'<a href="#summary">summary</a></figcaption></figure>')
 
 
-def _section(o: Outcome, ids: _Ids, label: str, labels: Mapping[str, str]) -> str:
+def _section(o: Outcome, ids: _Ids, label: str, labels: Mapping[str, str], budget: list[int]) -> str:
     cls = _CLASSES[o.status]
     parts = [f'<section class="scenario {cls}" id="{ids(o.case.name)}">',
              f'<h2>{_e(o.case.name)} <span class="badge">{labels[o.status]}</span></h2>',
@@ -121,7 +122,9 @@ def _section(o: Outcome, ids: _Ids, label: str, labels: Mapping[str, str]) -> st
     if c is not None:
         parts.append(f'<p class="meta">tolerances: {_e(c.tolerances.source)}; compared at {_e(c.grid)}</p>')
         failed = sorted(c.failed, key=lambda s: -s.severity)
-        drawn = {s.name for s in failed[:MAX_FIGURES]}
+        shown = min(MAX_FIGURES, budget[0], len(failed))
+        budget[0] -= shown
+        drawn = {s.name for s in failed[:shown]}
         heads = ["signal", "tube &plusmn;", "max |deviation|", "first out (s)", "worst beyond tube",
                  "samples out"]
         parts += ['<table class="signals"><thead><tr>' + "".join(f"<th>{h}</th>" for h in heads)
@@ -132,11 +135,11 @@ def _section(o: Outcome, ids: _Ids, label: str, labels: Mapping[str, str]) -> st
             notes.append(f"not in the run (not compared): {', '.join(skipped)}")
         if c.extra:
             notes.append(f"not in the baseline (not compared): {', '.join(c.extra)}")
-        if len(failed) > MAX_FIGURES:
-            notes.append(f"{len(failed) - MAX_FIGURES} more signals outside their tubes are listed, "
-                         "not drawn")
+        if len(failed) > shown:
+            notes.append(f"{len(failed) - shown} more signals outside their tubes are listed, not drawn "
+                         f"(at most {MAX_FIGURES} figures a scenario, {MAX_REPORT_FIGURES} a report)")
         parts += [f"<p>{_e(n)}</p>" for n in notes]
-        parts += [_figure(o, s, ids, label) for s in failed[:MAX_FIGURES]]
+        parts += [_figure(o, s, ids, label) for s in failed[:shown]]
     if o.detail:
         parts.append(f"<pre>{_e(o.detail)}</pre>")
     if o.warnings:
@@ -171,7 +174,8 @@ def report_html(outcomes: Sequence[Outcome], title: str, heading: str, label: st
     verdict = labels[PASS if not failing else FAIL]
     when = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     rows = "\n".join(_summary_row(o, ids, labels) for o in outcomes)
-    sections = "\n".join(_section(o, ids, label, labels) for o in outcomes)
+    budget = [MAX_REPORT_FIGURES]
+    sections = "\n".join(_section(o, ids, label, labels, budget) for o in outcomes)
     return f"""<!DOCTYPE html>
 <html lang="en">
 <head>

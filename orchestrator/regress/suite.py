@@ -132,7 +132,10 @@ def find_cases(paths: Iterable[str | os.PathLike], baselines: str | os.PathLike 
     problems: list[str] = []
     for given in paths:
         path = Path(given)
-        if not path.exists():
+        if not path.exists() and (os.sep in str(given) or path.suffix):
+            problems.append(f"{given}: no such file or folder")
+            continue
+        if not path.exists():  # a name: the scenario built into build/ssp/NAME.ssp
             try:
                 path = resolve_scenario(str(given))
             except ScenarioError as exc:
