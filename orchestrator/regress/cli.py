@@ -12,7 +12,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from ..cli import add_command
-from ..errors import UsageError
+from ..errors import OutputError, UsageError
 from ..files import not_regular
 from ..provenance import read_provenance, summary
 from ..results import read_result
@@ -81,7 +81,7 @@ first (this project: 'orchestrate build' or 'make build'; a stale build is refus
 {LAYOUT}
 
 exit status: 0 done (what was accepted written), 1 a scenario failed to run (nothing of it
-written), 2 usage error, 130/143 interrupted (nothing written).
+written) or a baseline could not be written, 2 usage error, 130/143 interrupted (nothing written).
 """
 
 COMPARE_HELP = """\
@@ -235,16 +235,19 @@ def _baseline(args: argparse.Namespace) -> int:
         return interrupted
     failed = [o for o in outcomes if o.status == ERROR]
     width = max(len(c.name) for c in cases)
-    plans = {o.case.name: review.accepted(o, acceptance) for o in outcomes if o.status != ERROR}
+    plans = {i: review.accepted(o, acceptance) for i, o in enumerate(outcomes) if o.status != ERROR}
     pending = []
-    for o in outcomes:
+    for i, o in enumerate(outcomes):
         if o.status == ERROR:
             continue
         label = ("new" if o.comparison is None else "unchanged" if not review.moved(o)
                  else "moved" if o.status == PASS else "CHANGED")
-        table, done = plans[o.case.name]
+        table, done = plans[i]
         if table is not None:
-            write_baseline(table, o.case.baseline)
+            try:
+                write_baseline(table, o.case.baseline)
+            except OSError as exc:
+                raise OutputError(f"{o.case.baseline}: {exc}") from None
         print(f"{label:<10}  {o.case.name:<{width}}  {done if label == 'new' else review.review_message(o)}")
         for text in review.signal_lines(o) if label in ("moved", "CHANGED") else []:
             print(text)
