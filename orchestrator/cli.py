@@ -57,8 +57,10 @@ Run SSP co-simulation scenarios of FMI 2.0 co-simulation FMUs with fmpy.
   orchestrate inspect example1         components, variables (units, ranges, values), connections
   orchestrate metrics results/example1.csv   tracking metrics (RAE, MSE, RMSE, MAE, ...)
   orchestrate plot results/example1.csv      plot a result file
-  orchestrate compare RESULT.csv BASELINE.csv  regression check against a baseline
-  orchestrate baseline / orchestrate report  rewrite baselines / write the paper report
+  orchestrate regress regression/      every scenario against its baseline (JUnit XML, HTML report)
+  orchestrate compare RESULT.csv BASELINE.csv  one result against one baseline
+  orchestrate baseline regression/     write baselines, review and accept their updates
+  orchestrate report                   write the paper report
 
 Run 'orchestrate COMMAND --help' for the options of a command.
 """
