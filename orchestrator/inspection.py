@@ -73,7 +73,8 @@ class Inspection:
 def inspect_scenario(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.PathLike] = (),
                      overrides: Mapping[str, object] | None = None,
                      fmu_dirs: Iterable[str | os.PathLike] = (),
-                     limits: Limits = DEFAULT_LIMITS) -> Inspection:
+                     limits: Limits = DEFAULT_LIMITS, root: str | os.PathLike | None = None,
+                     strict_fmus: bool = False) -> Inspection:
     """Read ``scenario`` (``.ssp`` archive or folder) with the parameter sets and overrides a run
     would get, and describe it (:class:`Inspection`). Nothing is instantiated or written.
 
@@ -81,13 +82,14 @@ def inspect_scenario(scenario: str | os.PathLike, *, parameter_sets: Iterable[st
     ----------
     scenario : path
         ``.ssp`` archive or folder holding ``SystemStructure.ssd``.
-    parameter_sets, overrides, fmu_dirs, limits
+    parameter_sets, overrides, fmu_dirs, limits, root, strict_fmus
         As for :class:`orchestrator.RunOptions`.
     """
     report = Inspection(str(scenario))
     with ExitStack() as stack:
         system, errors, _ = check_scenario(scenario, stack, parameter_sets=parameter_sets,
-                                           overrides=overrides, fmu_dirs=fmu_dirs, limits=limits)
+                                           overrides=overrides, fmu_dirs=fmu_dirs, limits=limits, root=root,
+                                           strict_fmus=strict_fmus)
     report.problems = list(errors)
     if system is None:
         return report
@@ -99,7 +101,7 @@ def inspect_scenario(scenario: str | os.PathLike, *, parameter_sets: Iterable[st
     targets: dict[str, list[str]] = {}
     for end, link in system.links.items():
         targets.setdefault(str(link.start), []).append(str(end))
-    in_ssd = {ps.origin for _, ps in structure_sets(structure)}
+    in_ssd = {p.origin or ps.origin for _, ps in structure_sets(structure) for p in ps.parameters}
     for c in structure.components:
         comp = system.components.get(c.name)
         if comp is None:
