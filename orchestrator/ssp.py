@@ -698,6 +698,7 @@ class _Edge:
     end: Node
     factor: float
     offset: float
+    system: tuple[str, ...]  # where it is declared
 
 
 @dataclass
@@ -838,7 +839,7 @@ class _SystemReader:
                                      f"offset={offset!r} is not finite")
         start = ((*path, ends[0]) if ends[0] else path, ends[1])
         end = ((*path, ends[2]) if ends[2] else path, ends[3])
-        self.edges.append(_Edge(start, end, factor, offset))
+        self.edges.append(_Edge(start, end, factor, offset, path))
 
     def _bindings(self, element: etree._Element, where: str, strip_prefix: bool,
                   path: tuple[str, ...]) -> list[ParameterSet]:
@@ -924,6 +925,14 @@ class _SystemReader:
                                tuple[tuple[str, Parameter], ...]]:
         """The flat components (their parameter sets in precedence order), the connections between
         components, and the values bound to system connectors (``sub.connector``)."""
+        reversed_ = [e for e in self.edges if (e.factor, e.offset) == (1.0, 0.0)
+                     and (self._role(e.start, e.system), self._role(e.end, e.system)) == ("sink", "source")]
+        if reversed_:
+            first = reversed_[0]
+            self.notes.append(f"{self.label}: {len(reversed_)} connection(s) written from an input to an "
+                              f"output (e.g. {_name(first.start)} -> {_name(first.end)}) read the other way "
+                              "round, as OMSimulator reads them")
+            self.edges = [replace(e, start=e.end, end=e.start) if e in reversed_ else e for e in self.edges]
         into: dict[Node, _Edge] = {}
         for edge in self.edges:
             if edge.end[0] in self.systems:
@@ -963,6 +972,25 @@ class _SystemReader:
                            for path, c in self.components.items())
         return components, tuple(connections), tuple(values.items())
 
+    def _role(self, node: Node, system: tuple[str, ...]) -> str:
+        """Whether a connection end declared in ``system`` gives a value ("source"), takes one
+        ("sink"), or neither is known (""): a component's output or calculated parameter gives, its
+        input or parameter takes; a system's own input or parameter connector gives inside it, a
+        subsystem's takes."""
+        path, name = node
+        if path in self.components:
+            kind = next((k.kind for k in self.components[path].connectors if k.name == name), "")
+            own = False
+        elif path in self.systems and name in self.systems[path].connectors:
+            kind, own = self.systems[path].connectors[name].kind, path == system
+        else:
+            return ""
+        gives = kind in ("output", "calculatedParameter")
+        takes = kind in ("input", "parameter")
+        if own:
+            gives, takes = takes, gives
+        return "source" if gives else "sink" if takes else ""
+
     def _trace(self, edge: _Edge, into: Mapping[Node, _Edge]) -> tuple[Node, float, float] | None:
         """Where the value arriving over ``edge`` comes from: a component's connector (or an unknown
         element, which the system reports), or a system connector nothing feeds; with the composed
@@ -1001,16 +1029,23 @@ class _SystemReader:
               sets: dict[tuple[str, ...], list[tuple[int, int, ParameterSet]]],
               values: dict[str, Parameter], order: int) -> None:
         """Distribute one system-level parameter set over the components (and system connectors)
-        its names reach."""
+        its names reach. A name that reaches nothing is ignored with a note, as SSP 1.0 says (a
+        file written for a larger system), but an SSM entry's target that reaches nothing is an
+        error. A value reaching a component through a system connector applies after every binding
+        (a connection: OMSimulator too gives the connector's value at initialization)."""
         reached: dict[tuple[str, ...], list[Parameter]] = {}
+        through: dict[tuple[str, ...], list[Parameter]] = {}
+        system = f"system '{_flat(info.path) or info.name}'"
         for p in ps.parameters:
             origin = p.origin or ps.origin
             node = self._resolve(info.path, p.name)
+            if node is None and p.origin is not None:
+                self.problems.append(f"{origin}: the target '{p.name}' names no element or connector of "
+                                     f"{system}")
+                continue
             if node is None:
-                self.problems.append(f"{origin}: '{p.name}' names no element or connector of system "
-                                     f"'{_flat(info.path) or info.name}'")
-                self.partial.update(c.name for path, c in self.components.items()
-                                    if path[:len(info.path)] == info.path)
+                self.notes.append(f"{origin}: '{p.name}' names no element or connector of {system}: ignored "
+                                  "(SSP 1.0 ignores names that match nothing)")
                 continue
             if node[0] in self.components:
                 reached.setdefault(node[0], []).append(replace(p, name=node[1], origin=origin))
@@ -1029,10 +1064,10 @@ class _SystemReader:
                 path = tuple(port.component.split(".")) if port.component else ()
                 target = next((k for k, c in self.components.items() if c.name == port.component), path)
                 via = f"{origin} (through system connector {name})"
-                reached.setdefault(target, []).append(Parameter(port.connector, p.type, value, p.unit, via))
-        for path, parameters in reached.items():
-            part = replace(ps, parameters=tuple(parameters))
-            sets.setdefault(path, []).append((-len(info.path), order, part))
+                through.setdefault(target, []).append(Parameter(port.connector, p.type, value, p.unit, via))
+        for rank, found in ((-len(info.path), reached), (1, through)):
+            for path, parameters in found.items():
+                sets.setdefault(path, []).append((rank, order, replace(ps, parameters=tuple(parameters))))
 
 
 def _connectors(element: etree._Element, where: str, problems: list[str]) -> dict[str, Connector]:
