@@ -250,6 +250,10 @@ class System:
             except UnitError as exc:
                 problems.append(f"{self.ssd}: connection {con}: {exc}")
                 continue
+            except _UndefinedUnitError as exc:  # the FMU's own fault, which fmpy's checks reported
+                self.warnings.append(f"{self.ssd}: connection {con}: {exc.args[0]}: the value is passed "
+                                     "unchanged")
+                continue
             if start is None or target is None or start.name == target.name:
                 continue
             try:
@@ -276,7 +280,15 @@ class System:
                          for k in c.connectors if k.name == ref.connector), None)
         if declared is not None:
             return self._resolve(declared)
-        return _unit_def(comp.model, var) if _unit_name(var) is not None else None
+        if _unit_name(var) is None:
+            return None
+        try:
+            return _unit_def(comp.model, var)
+        except UnitError as exc:
+            if self.strict_fmus or any(u.name == _unit_name(var) for u in comp.model.unitDefinitions):
+                raise
+            raise _UndefinedUnitError(f"{ref} has the unit {_unit_name(var)}, which its FMU does not define "
+                                 f"({exc})") from exc
 
     @staticmethod
     def _twice(ps: ParameterSet, problems: list[str]) -> None:
@@ -578,6 +590,10 @@ def _unit_def(md: ModelDescription, var: ModelVariable) -> UnitDef:
     base = unit.baseUnit
     return UnitDef(unit.name, tuple(int(getattr(base, b)) for b in BASE), float(base.factor),
                    float(base.offset))
+
+
+class _UndefinedUnitError(Exception):
+    """A unit an FMU's variable uses without defining it (and orchestrate does not know)."""
 
 
 INT32 = (-(2**31), 2**31 - 1)  # what fmi2SetInteger passes (the value would wrap around)
