@@ -928,10 +928,10 @@ class _SystemReader:
         reversed_ = [e for e in self.edges if (e.factor, e.offset) == (1.0, 0.0)
                      and (self._role(e.start, e.system), self._role(e.end, e.system)) == ("sink", "source")]
         if reversed_:
-            first = reversed_[0]
+            example = reversed_[0]
             self.notes.append(f"{self.label}: {len(reversed_)} connection(s) written from an input to an "
-                              f"output (e.g. {_name(first.start)} -> {_name(first.end)}) read the other way "
-                              "round, as OMSimulator reads them")
+                              f"output (e.g. {_name(example.start)} -> {_name(example.end)}) read the other "
+                              "way round, as OMSimulator reads them")
             self.edges = [replace(e, start=e.end, end=e.start) if e in reversed_ else e for e in self.edges]
         into: dict[Node, _Edge] = {}
         for edge in self.edges:
