@@ -24,6 +24,7 @@ import numpy as np
 from . import formats, provenance
 from .errors import (
     Interrupted,
+    LoopError,
     NonFiniteError,
     OrchestratorError,
     ScenarioError,
@@ -39,7 +40,8 @@ from .ssp import DEFAULT_LIMITS, Limits
 from .system import PortRef, System
 from .validate import DEFAULT_STEP, check_scenario, no_step, timing
 
-__all__ = ["DEFAULT_STEP", "MASTERS", "Interrupted", "Limits", "NonFiniteError", "OrchestratorError",
+__all__ = ["DEFAULT_STEP", "MASTERS", "Interrupted", "Limits", "LoopError", "NonFiniteError",
+           "OrchestratorError",
            "PortRef", "RunOptions", "RunResult", "ScenarioError", "ScenarioWarning", "SimulationError",
            "TimeLimitError", "UsageError", "open_system", "run", "system_columns"]
 
