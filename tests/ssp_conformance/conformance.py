@@ -137,7 +137,9 @@ CASES = [
          notes={"oracle": "libcosim's ssp_loader_unittest: realIn = 1.3 * realOut + 50; with both "
                           "bindings applied (SSP 1.0: the later wins) realOut = 4, as libcosim gives "
                           "with its parameter set 'initialValues2'",
-                "libcosim": "libcosim applies one named parameter set, by default the first (realIn = 2)"}),
+                "libcosim": "libcosimpy 0.11 ends with a segmentation fault loading this FMI 1.0 file; "
+                            "libcosim's unit test applies one named parameter set, by default the first "
+                            "(realIn = 2), where SSP 1.0 applies both, the later winning"}),
     Case("libcosim_demo", "libcosim/ssp/demo", "open-simulation-platform/libcosim tests/data/ssp/demo",
          {}, root="libcosim", stop=0.1, step=1e-4, master="jacobi", libcosim=True,
          omsimulator="the SSD references its FMUs in a sibling folder, which an archive cannot hold",
@@ -303,6 +305,17 @@ def survey(oms_resources: Path | None, libcosim_data: Path | None, output: Path)
              "| file | validate before | validate after | run after | OMSimulator 3 | libcosim |",
              "|---|---|---|---|---|---|"]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
+    lines += ["", "## The conformance set in `make test`", "",
+              "Copied into `tests/ssp_conformance/` and checked by `tests/test_ssp_conformance.py` against "
+              "the values the tool's own test prints (oracle), OMSimulator 3 and libcosim.", "",
+              "| case | what it exercises | oracle | OMSimulator 3 | libcosim |", "|---|---|---|---|---|"]
+    for case in CASES:
+        oracle = ", ".join(f"{k} = {v:g}" for k, v in case.oracle.items()) or "(none printed)"
+        oms = (case.omsimulator or (f"agrees but for {', '.join(case.oms_differs)}: {case.oms_why}"
+                                    if case.oms_differs else "agrees on every value"))
+        cosim = (case.notes.get("libcosim", "agrees (one step later: its observer's labels)")
+                 if case.libcosim else "")
+        lines.append(f"| {case.name} | {case.features} | {oracle} | {oms} | {cosim} |")
     output.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return output
 
