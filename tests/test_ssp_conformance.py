@@ -183,3 +183,13 @@ def test_nested_names_through_the_export_container(tmp_path) -> None:
     loop = "algebraic loop: Add1.u2 -> Add1.y -> Gain1.u -> Gain1.y -> Add1.u2"
     with pytest.raises(ScenarioError, match=f"{loop}: the container does not iterate"):
         export(_loop(tmp_path / "loop", 0.5), tmp_path / "loop.fmu")
+
+
+def test_an_input_file_drives_a_nested_input_by_its_nested_name(tmp_path) -> None:
+    """``--input-file`` columns name nested inputs as the results do: sub-system1.Add1.u2 held at 5
+    gives sub-system1.Add1.y = u1 + u2 = 10 + 5 (k1 = k2 = 1)."""
+    inputs = tmp_path / "u.csv"
+    inputs.write_text("time,sub-system1.Add1.u2\n0,5\n1,5\n")
+    case = BY_NAME["NestedSystemSimulation1"]
+    rows = orchestrator.run(HERE / case.path, RunOptions(step=0.5, input_file=inputs)).rows
+    assert list(rows["sub-system1.Add1.y"]) == [15.0, 15.0, 15.0]
