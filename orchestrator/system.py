@@ -3,8 +3,8 @@
 ``System`` joins what the SSD says with what each FMU's modelDescription.xml says, collects every
 inconsistency into one ScenarioError, and derives the order in which outputs must be read and
 inputs set at a communication point (from the ModelStructure dependencies), so that an input is
-set only after the outputs it depends on are up to date. Real algebraic loops are reported with the
-ports on the loop.
+set only after the outputs it depends on are up to date. Real algebraic loops are named by the
+ports on the loop (a warning) and become spans of the schedule that gauss-seidel iterates.
 """
 
 from __future__ import annotations
@@ -83,9 +83,9 @@ class System:
     ``fmu_warnings`` adds fmpy's full FMU validation (``validate_fmu``) to ``warnings``.
 
     Algebraic loops (a cycle of direct feedthrough through connections) are no error: ``loops``
-    lists them (and ``warnings``); under gauss-seidel the ``schedule`` holds them as ``iterate``
-    spans that the master repeats until the inputs converge, under jacobi every connection is
-    delayed and there is no loop. ``schedule`` is empty when there are problems.
+    lists them (and ``warnings``); under gauss-seidel ``iterated`` holds the spans ``(first, end)``
+    of the ``schedule`` that the master repeats until the inputs on them converge, under jacobi every
+    connection is delayed and there is no loop. ``schedule`` is empty when there are problems.
     """
 
     def __init__(self, structure: SystemStructure,
@@ -287,8 +287,8 @@ class System:
         except UnitError as exc:
             if self.strict_fmus or any(u.name == _unit_name(var) for u in comp.model.unitDefinitions):
                 raise
-            raise _UndefinedUnitError(f"{ref} has the unit {_unit_name(var)}, which its FMU does not define "
-                                 f"({exc})") from exc
+            raise _UndefinedUnitError(f"{ref} has the unit {_unit_name(var)}, which its FMU does not "
+                                      f"define ({exc})") from exc
 
     @staticmethod
     def _twice(ps: ParameterSet, problems: list[str]) -> None:
