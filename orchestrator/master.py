@@ -580,10 +580,8 @@ class Master:
             self._run_ops(ops, t)
             after = values[inputs]
             residual = float(np.max(np.abs(after - before) / (1.0 + np.abs(after)), initial=0.0))
-            if residual <= self.loop_tolerance:
-                return
-            if not math.isfinite(residual):
-                break  # diverged: the recorder names the value at the row's check
+            if residual <= self.loop_tolerance or not math.isfinite(residual):
+                return  # converged; or an FMU gave a value that is not finite, which the recorder names
             before = after
         raise LoopError(names, t, residual, self.loop_iterations, self.loop_tolerance)
 
