@@ -373,12 +373,12 @@ def _libcosim_agreement(scenario: Path, case: Case, names: list[str]) -> str:
     from orchestrator import RunOptions
 
     root = HERE / case.root if case.root else None
+    theirs = libcosim(scenario, case, names)
     with orchestrator.open_system(scenario, root=root) as system:
         if system.structure.experiment.step is None:
-            return "not compared: the SSD gives no step, and libcosim takes its own default"
+            return "runs it; not compared: the SSD gives no step, and libcosim takes its own default"
         inputs = {f"{n}.{v.name}" for n, c in system.components.items() for v in c.model.modelVariables
                   if v.causality == "input"}
-    theirs = libcosim(scenario, case, names)
     rows = orchestrator.run(scenario, RunOptions(stop_time=case.stop, step=case.step, master="jacobi",
                                                  root=root)).rows
     common = [n for n in theirs if n != "time" and n in (rows.dtype.names or ())]
