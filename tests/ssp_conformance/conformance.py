@@ -130,7 +130,7 @@ CASES = [
     Case("libcosim_linear_transformation", "libcosim/ssp/linear_transformation",
          "open-simulation-platform/libcosim tests/data/ssp/linear_transformation",
          {"identity1.realOut": 4.0, "identity2.realIn": 1.3 * 4.0 + 50.0}, root="libcosim",
-         omsimulator="OMSimulator 3 does not run FMI 1.0 FMUs",
+         omsimulator="the SSD references its FMU in a sibling folder, which an archive cannot hold",
          libcosim=True,
          features="FMI 1.0 Co-Simulation FMU, FMUs in a sibling folder (--root), LinearTransformation, "
                   "two bindings on one component",
