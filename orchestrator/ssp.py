@@ -8,8 +8,10 @@ the compression ratio, for the archive and for every FMU in it (see ``Limits``).
 parsed (no entity expansion, no network) and validated against the SSP 1.0 schemas that fmpy
 ships, and the SSD is read into the dataclasses. fmpy's reader is used for parameter sets; the
 parts that ``fmpy.ssp.ssd.read_ssd`` drops (connector types, ``ssc:LinearTransformation``,
-``DefaultExperiment``, the tool annotations that hold the communication step) are read here.
-Every problem names the file it is in.
+``DefaultExperiment``, the tool annotations that hold the communication step) are read here, as
+are what other tools write beyond our own scenarios: nested systems (flattened once, here, into
+components named ``sub.component``), parameter bindings on systems, SSM parameter mappings, and
+files of ``version="2.0"`` (see :func:`scan_scenario`). Every problem names the file it is in.
 
 Writing (lxml) the way every tool reads it (SPEC section 7): literal ``ssd:``/``ssc:``/``ssv:``
 prefixes, ``version="1.0"``, every connector declared with its causality and type, parameter

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import shutil
+from contextlib import ExitStack
 from pathlib import Path
 
 import numpy as np
@@ -32,9 +33,10 @@ from ssp_conformance.conformance import (
 import orchestrator
 from orchestrator import LoopError, RunOptions
 from orchestrator.ssp import Connection, Experiment, SystemStructure, component, write_ssd
-from orchestrator.validate import validate
+from orchestrator.validate import check_scenario, validate
 
-pytestmark = pytest.mark.system
+# other tools' files leave inputs unconnected: the warnings are theirs, and validate's are asserted
+pytestmark = [pytest.mark.system, pytest.mark.filterwarnings("ignore::orchestrator.errors.ScenarioWarning")]
 
 BY_NAME = {c.name: c for c in CASES}
 
@@ -55,11 +57,13 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, d
 
 
 @pytest.mark.parametrize("case", CASES, ids=lambda c: c.name)
-def test_validates_with_the_notes_expected(case: Case, results) -> None:
+def test_checks_pass_with_the_notes_expected(case: Case, results) -> None:
+    """The checks a run makes (validate's, but fmpy's full FMU validation, 28 s on libcosim's crane
+    FMUs) find no error, and the warnings the case expects (version 2.0, the loop)."""
     scenario, _ = results[case.name]
-    report = validate(scenario, root=_root(case))
-    assert report.ok, [str(p) for p in report.errors]
-    warnings = [p.message for p in report.problems if p.severity == "warning"]
+    with ExitStack() as stack:
+        _, errors, warnings = check_scenario(scenario, stack, root=_root(case))
+    assert errors == []
     for text in case.warnings:
         assert any(text in w for w in warnings), (text, warnings)
 

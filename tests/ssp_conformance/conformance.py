@@ -141,7 +141,7 @@ CASES = [
                             "libcosim's unit test applies one named parameter set, by default the first "
                             "(realIn = 2), where SSP 1.0 applies both, the later winning"}),
     Case("libcosim_demo", "libcosim/ssp/demo", "open-simulation-platform/libcosim tests/data/ssp/demo",
-         {}, root="libcosim", stop=0.1, step=1e-4, master="jacobi", libcosim=True,
+         {}, root="libcosim", stop=0.02, step=1e-4, master="jacobi", libcosim=True,
          omsimulator="the SSD references its FMUs in a sibling folder, which an archive cannot hold",
          warnings=("algebraic loop: CraneController.Act_Limits[1]",),
          features="a cycle of connections (an algebraic loop under gauss-seidel) run under jacobi"),
