@@ -47,6 +47,7 @@ class Inspection:
     timing: list[tuple[str, str, str]] = field(default_factory=list)  # (what, value, where from)
     components: list[tuple[str, list[str], list[Variable]]] = field(default_factory=list)
     connections: list[str] = field(default_factory=list)
+    connector_values: list[str] = field(default_factory=list)  # ``sub.x = 3.0 (from file)``
     problems: list[str] = field(default_factory=list)
 
     def lines(self) -> list[str]:
@@ -62,6 +63,9 @@ class Inspection:
             widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
             out += ["  " + "  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip()
                     for r in rows]
+        if self.connector_values:
+            out.append(f"system connectors given a value ({len(self.connector_values)}):")
+            out += [f"  {v}" for v in self.connector_values]
         out.append(f"connections ({len(self.connections)}):")
         out += [f"  {c}" for c in self.connections]
         if self.problems:
@@ -109,6 +113,8 @@ def inspect_scenario(scenario: str | os.PathLike, *, parameter_sets: Iterable[st
             continue
         variables = [replace(v, origin=_origin(v.origin, in_ssd)) for v in _variables(comp, sources, targets)]
         report.components.append((c.name, _about(comp), variables))
+    report.connector_values = [f"{name} = {p.value!r} (from {p.origin})"
+                               for name, p in structure.connector_values]
     report.connections = [f"{link.start} -> {link.end}{_transformation(link.factor, link.offset)}"
                           for link in structure.connections]
     return report

@@ -32,6 +32,7 @@ from ssp_conformance.conformance import (
 
 import orchestrator
 from orchestrator import LoopError, RunOptions
+from orchestrator.cli import main
 from orchestrator.ssp import Connection, Experiment, SystemStructure, component, write_ssd
 from orchestrator.validate import check_scenario, validate
 
@@ -198,3 +199,11 @@ def test_an_input_file_drives_a_nested_input_by_its_nested_name(tmp_path) -> Non
     case = BY_NAME["NestedSystemSimulation1"]
     rows = orchestrator.run(HERE / case.path, RunOptions(step=0.5, input_file=inputs)).rows
     assert list(rows["sub-system1.Add1.y"]) == [15.0, 15.0, 15.0]
+
+
+def test_inspect_lists_the_values_given_to_system_connectors(results, capsys) -> None:
+    """toplevelparameter1: root.ssv gives the root's own connector Input_cref -20, which OMSimulator's
+    test prints as model.root.Input_cref; no component reads it, so inspect is where it shows."""
+    scenario, _ = results["toplevelparameter1"]
+    assert main(["inspect", str(scenario)]) == 0
+    assert "  Input_cref = -20.0 (from resources/root.ssv)" in capsys.readouterr().out.splitlines()
