@@ -22,6 +22,7 @@ import argparse
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -256,8 +257,11 @@ def _validate_line(engine: Path | None, scenario: Path, root: Path | None) -> tu
     return done.returncode == 0, (errors or lines or [""])[0].removeprefix("error: ")
 
 
-def _short(text: str, scenario: Path) -> str:
-    text = text.replace(str(scenario.parent) + "/", "").replace("|", "/")
+def _short(text: str, scenario: Path | None = None) -> str:
+    """One table cell: no folder of this machine (a temporary one changes every run), no '|', short."""
+    if scenario is not None:
+        text = text.replace(str(scenario.parent) + "/", "")
+    text = re.sub(r"/tmp/[^ ']*/", "", text).replace("|", "/")
     return text if len(text) < 160 else text[:157] + "..."
 
 
@@ -353,7 +357,7 @@ def _measure(scenario: Path, root: Path | None, label: str) -> tuple[str, str, s
                          f"differs in {len(wrong)} of {common}: " + ", ".join(
                              f"{k} {a:g} vs {b:g}" for k, (a, b) in list(wrong.items())[:3]))
         except Exception as exc:  # noqa: BLE001
-            agree_oms = f"does not run it: {' '.join(str(exc).split())[:120]}"
+            agree_oms = f"does not run it: {_short(' '.join(str(exc).split()))[:120]}"
     if label.startswith("libcosim"):
         try:
             agree_cosim = _libcosim_agreement(scenario, case, [f"{c}.{v}" for c, v in names])
