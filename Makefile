@@ -14,7 +14,7 @@ BYTECODE := build/.bytecode
 SOURCES := $(shell find controller fmu_src ssp -type f -not -path '*/__pycache__/*' -not -name '*.pyc' \
                      -not -name '.*' 2>/dev/null)
 
-.PHONY: run test unit build lint docs docs-figure browser crosscheck table study study-fixed-time report baselines bench clean
+.PHONY: run test unit build lint docs docs-figure browser crosscheck conformance table study study-fixed-time report baselines bench clean
 
 # pip's console script 'orchestrate' is then replaced by orchestrator/launcher.c, which holds SIGINT and
 # SIGTERM from its first instruction until the package's handlers are in (issue 20). Compiled to a
@@ -100,6 +100,14 @@ docs: $(STAMP)
 ## docs-figure: redraw the README's figure, docs/images/pendulum.png, as 'make run' draws it (commit it)
 docs-figure: build
 	$(ORCH) run pendulum --quiet --output results/pendulum.csv --plot docs/images/pendulum.png
+
+## conformance: OMSimulator's and libcosim's whole SSP test resources (fetched: OMS_RESOURCES is
+## OMSimulator's testsuite/tests/resources, LIBCOSIM_DATA libcosim's tests/data), validated before
+## (main at 5287c35) and after issue 32, run, and compared with OMSimulator 3 and libcosim ->
+## docs/ssp-conformance.md (about 5 minutes)
+conformance: build
+	$(PY) tests/ssp_conformance/conformance.py $(if $(OMS_RESOURCES),--omsimulator $(OMS_RESOURCES)) \
+	  $(if $(LIBCOSIM_DATA),--libcosim $(LIBCOSIM_DATA))
 
 ## unit: the fast unit tests only (no FMU, no other tool, no 30 s reference)
 unit: $(STAMP)
