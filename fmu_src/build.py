@@ -66,8 +66,8 @@ BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
 BUILD_FORMAT = "6"
 SHIM_DIR = Path("fmu_src", "shim")  # relative to the source root
-SHIM_SOURCES = ("fmi2_shim.c", "start_python.c")
-SHIM_HEADERS = ("start_python.h", "fmi2_types.h")
+SHIM_SOURCES = ("fmi2_shim.c", "start_python.c", "guard.c", "platform.c")
+SHIM_HEADERS = ("start_python.h", "fmi2_types.h", "guard.h", "platform.h")
 # No debug info, build id or symbol table, so the bytes depend only on source, compiler and flags;
 # the runtime's libraries are found by soname through $ORIGIN/python/lib (see the shim's header).
 SHIM_FLAGS = tuple(
