@@ -10,7 +10,7 @@
 
        SCENARIO name status=S instance=I messages=M nullcat=N extra=X | first message
 
-   (S: the status of the call under test, I: 1 if the instance under test exists, M: messages the
+   (S: the status of the call under test, -2 if skipped, I: 1 if the instance under test exists, M: messages the
    FMU logged, N: of them with a NULL category, X: a figure of the scenario) and the parent prints
    "EXIT name code" or "EXIT name signal N" when the child ends. Scenarios: see SCENARIOS below.
    Linux and POSIX only (dlopen, fork, pthread), like the test that runs it (tests/test_fmu_hostile.py). */
@@ -259,11 +259,12 @@ static long resident_bytes(void) {
     return resident * sysconf(_SC_PAGESIZE);
 }
 
-/* Memory kept per instantiate/free cycle (extra: bytes per cycle over `n` cycles after 50). */
+/* Memory kept per instantiate/free cycle (extra: bytes per cycle over `n` cycles after 200, which
+   fill the caches of Python and the allocator). */
 static struct result cycles(int n) {
     int s = OK;
     long start = 0;
-    for (int k = -50; k < n && s == OK; k++) {
+    for (int k = -200; k < n && s == OK; k++) {
         if (k == 0) start = resident_bytes();
         component c = fresh("cycle");
         if (!c) s = ERROR;
@@ -323,6 +324,10 @@ static struct result two_threads(void) {
 }
 
 static struct result scenario(const char *name) {
+    const struct result skipped = {-2, 0, 0}; /* the FMU has no variable the scenario needs */
+    if ((par_vr < 0 && (!strcmp(name, "set-fixed-after-init") || !strcmp(name, "model-fails"))) ||
+        (out_vr < 0 && !strncmp(name, "set-output", 10)))
+        return skipped;
     char missing[4300];
     snprintf(missing, sizeof missing, version == 2 ? "file://%s/no-such-folder" : "%s/no-such-folder/", dir);
     if (!strcmp(name, "ok")) return with_resources(resources);
