@@ -15,7 +15,7 @@ BYTECODE := build/.bytecode
 SOURCES := $(shell find controller fmu_src ssp -type f -not -path '*/__pycache__/*' -not -name '*.pyc' \
                      -not -name '.*' 2>/dev/null)
 
-.PHONY: run test unit build lint runtime-pins crosscheck table study study-fixed-time report baselines bench clean
+.PHONY: run test unit build lint runtime-pins hostile crosscheck table study study-fixed-time report baselines bench clean
 
 # pip's console script 'orchestrate' is then replaced by orchestrator/launcher.c, which holds SIGINT and
 # SIGTERM from its first instruction until the package's handlers are in (issue 20). Compiled to a
@@ -75,6 +75,11 @@ run: build
 test: build $(ALT_STAMP)
 	@$(PY) -m fmu_src.runtime check || true
 	CROSSCHECK_OUTPUT=results/crosscheck $(PY) -m pytest -q -n 2 --dist loadgroup
+
+## hostile: the hostile host (tests/fmu_hostile_host.c) on every case: all scenarios under valgrind,
+## FMI 3.0 containers, every leak figure (make test runs one real case of each kind)
+hostile: build
+	FTC_HOSTILE_ALL=1 $(PY) -m pytest -q -n 2 tests/test_fmu_hostile.py
 
 ## runtime-pins: move the FMUs' runtime (fmu_src/runtime_pins.txt) to the newest bookworm and
 ## bookworm-security packages, saying what changed; then 'make build' fetches them

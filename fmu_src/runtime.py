@@ -53,14 +53,17 @@ __all__ = [
     "Runtime",
     "RuntimeBundleError",
     "check_pins",
+    "compare_versions",
+    "compile_bytecode",
     "ensure_runtime",
     "newest_versions",
+    "parse_pins",
     "read_pins",
     "runtime_members",
     "stdlib_closure",
     "unpack_deb",
     "update_pins",
-    "compare_versions",
+    "write_pins",
 ]
 
 PYTHON_VERSION = (3, 11)
@@ -134,18 +137,23 @@ class Pin(NamedTuple):
         return self.path.rsplit("/", 1)[1]
 
 
-def read_pins(path: Path = PINS_FILE) -> tuple[Pin, ...]:
-    """The pins of ``path`` (lines ``name version sha256 size path``; ``#`` starts a comment)."""
+def parse_pins(text: str, source: str = PINS_FILE.name) -> tuple[Pin, ...]:
+    """The pins of ``text`` (lines ``name version sha256 size path``; ``#`` starts a comment)."""
     pins = []
-    for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+    for number, line in enumerate(text.splitlines(), 1):
         fields = line.split("#", 1)[0].split()
         if not fields:
             continue
         if len(fields) != 5 or not fields[3].isdigit() or len(fields[2]) != 64:
             raise RuntimeBundleError(
-                f"{path}:{number}: expected 'package version sha256 size path', got {line!r}")
+                f"{source}:{number}: expected 'package version sha256 size path', got {line!r}")
         pins.append(Pin(fields[0], fields[1], fields[2], int(fields[3]), fields[4]))
     return tuple(pins)
+
+
+def read_pins(path: Path = PINS_FILE) -> tuple[Pin, ...]:
+    """The pins of the file ``path`` (see :func:`parse_pins`)."""
+    return parse_pins(path.read_text(encoding="utf-8"), str(path))
 
 
 PACKAGES = read_pins()

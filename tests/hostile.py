@@ -16,10 +16,11 @@ SOURCE = Path(__file__).with_name("fmu_hostile_host.c")
 CC = shutil.which("cc") or shutil.which("gcc")
 # Every scenario of the host; the leak one (cycles) runs on its own.
 SCENARIOS = (
-    "ok", "resources-missing", "resources-empty", "resources-null", "resources-not-a-file-uri", "guid-wrong",
-    "guid-null", "no-logger", "no-callbacks", "step-before-init", "get-before-init", "step-nan", "step-negative",
-    "step-zero", "step-infinite", "unknown-vr", "set-output", "set-output-twice", "set-fixed-after-init",
-    "step-after-terminate", "after-error", "reset-after-error", "model-fails", "fifty", "two-threads",
+    "ok", "resources-missing", "resources-empty", "resources-null", "resources-not-a-file-uri",
+    "guid-wrong", "guid-null", "no-logger", "no-callbacks", "step-before-init", "get-before-init",
+    "step-nan", "step-negative", "step-zero", "step-infinite", "unknown-vr", "set-output",
+    "set-output-twice", "set-fixed-after-init", "step-after-terminate", "after-error", "reset-after-error",
+    "model-fails", "fifty", "two-threads",
 )
 
 
@@ -73,8 +74,10 @@ def unpack(fmu: Path, dest: Path) -> tuple[Path, list[str]]:
                     first("parameter", "fixed")]
 
 
-def run(host: Path, arguments: list[str], scenarios: tuple[str, ...] | list[str], wrapper: tuple[str, ...] = (),
-        timeout: float = 600) -> tuple[dict[str, Outcome], subprocess.CompletedProcess]:
+def run(
+    host: Path, arguments: list[str], scenarios: tuple[str, ...] | list[str], wrapper: tuple[str, ...] = (),
+    timeout: float = 600,
+) -> tuple[dict[str, Outcome], subprocess.CompletedProcess]:
     """Run ``scenarios`` (under ``wrapper``, e.g. valgrind); the outcome of each, and the process."""
     env = {"PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/tmp")}
     result = subprocess.run([*wrapper, str(host), *arguments, *scenarios], capture_output=True, text=True,

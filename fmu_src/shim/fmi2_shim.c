@@ -415,7 +415,11 @@ static fmi2Status check_references(struct instance *i, const char *function, con
     return fmi2OK;
 }
 
+#ifdef FTC_TIME_VR /* the FMI 3.0 build: FMI 3.0 allows the getters in Instantiated too */
+#define GET_STATES (INSTANTIATED | INITIALIZATION | STEP_COMPLETE | STEP_FAILED | TERMINATED)
+#else
 #define GET_STATES (INITIALIZATION | STEP_COMPLETE | STEP_FAILED | TERMINATED)
+#endif
 #define SET_STATES (INSTANTIATED | INITIALIZATION | STEP_COMPLETE)
 
 /* Served by the FMI 3.0 layer of this shared object (fmi3_shim.c): messages name its function;
