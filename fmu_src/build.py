@@ -75,6 +75,7 @@ SHIM_FLAGS = tuple(
     "-Wl,--build-id=none -s -Wl,--enable-new-dtags".split()
 ) + ("-Wl,-rpath,$ORIGIN/python/lib",)
 SHIM_LIBS = ("-ldl", "-pthread")
+DESCRIPTION_COPY = "_modelDescription.xml"  # guard.h's DESCRIPTION_SUFFIX
 # The bundled runtime as a command (for the build's bytecode and standard-library closure).
 LAUNCHER_SOURCE = "bundled_python.c"
 LAUNCHER_FLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra")
@@ -403,6 +404,8 @@ def _write_normalized(
     entries["modelDescription.xml"] = _normalized_description(
         entries["modelDescription.xml"], digest, bundle.model
     )
+    # the shim's guard reads it beside the binary: hosts may unpack only binaries/ and resources/
+    entries[f"binaries/linux64/{bundle.model}{DESCRIPTION_COPY}"] = entries["modelDescription.xml"]
     entries.update(_bytecode(entries))
     write_archive(target, entries)
 

@@ -129,7 +129,6 @@ struct instance {
 FMI2_PLAIN(INNER_CALL)
 
 static void unload(void);
-static void unload_at_exit(void);
 static void resolve_python_api(void *python);
 
 static ftc_mutex load_lock = FTC_MUTEX_INIT;
@@ -139,7 +138,6 @@ static char model[256];       /* model identifier: the shim's file name without 
 static char failure[TEXT];    /* the one message of a failed load() */
 static char python_info[TEXT]; /* "Python X.Y.Z bundled with the FMU" or "of the host process" */
 static struct ftc_model description; /* the model description's token and variables */
-static int exiting;           /* unload() runs as an exit handler: Python may be gone */
 
 /* Loads a library of the runtime by soname, globally: one already in the process is reused, else
    the search reaches the shim's DT_RUNPATH ($ORIGIN/python/lib, holding libpython only) and then
@@ -257,7 +255,7 @@ static int load(void) {
         snprintf(failure, TEXT, "%s: %s lacks an FMI 2.0 function", model, path);
         return -1;
     }
-    atexit(unload_at_exit); /* after pythonfmu's static destructors were registered: runs before them */
+    atexit(unload); /* after pythonfmu's static destructors were registered: runs before them */
     resolve_python_api(python);
     const char *(*get_version)(void) = (const char *(*)(void))ftc_library_symbol(python, "Py_GetVersion");
     snprintf(python_info, TEXT, "Python %.*s %s", get_version ? (int)strcspn(get_version(), " ") : 1,
@@ -552,6 +550,7 @@ static struct {
     void (*clear_error)(void);
     void (*decref)(PyObject *);
     PyObject *true_object;
+    int (*is_initialized)(void);
 } py;
 
 static void resolve_python_api(void *python) {
@@ -579,6 +578,7 @@ static void resolve_python_api(void *python) {
     FIND(clear_error, "PyErr_Clear");
     FIND(decref, "Py_DecRef");
     FIND(true_object, "_Py_TrueStruct"); /* the object Py_True itself */
+    FIND(is_initialized, "Py_IsInitialized");
 #undef FIND
 }
 
@@ -1028,20 +1028,16 @@ FORWARD(fmi2GetStringStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Strin
    make it NODELETE), so the shim calls finalizePythonInterpreter() itself while the pointer is
    alive: the PyState is freed once, and the later destructors see nullptr. The exit handler is
    registered after pythonfmu's static destructors (at load), so it runs before them. Python itself
-   stays: an interpreter cannot be unloaded. The pool is emptied when the shim is unloaded by its
-   host, not at exit (a Python host's interpreter may be finalized by then). */
+   stays: an interpreter cannot be unloaded. The pool is emptied first while Python is there (a
+   Python host has finalized its interpreter before the exit handlers run: then the components
+   are left to the end of the process). */
 static void unload(void) {
     if (!inner) return;
-    if (!exiting) empty_pool();
+    if (py.ready && py.is_initialized()) empty_pool();
     void (*finalize)(void) = (void (*)(void))ftc_library_symbol(inner, "finalizePythonInterpreter");
     if (finalize) finalize();
     ftc_library_close(inner);
     inner = NULL;
-}
-
-static void unload_at_exit(void) {
-    exiting = 1;
-    unload();
 }
 
 __attribute__((destructor)) static void unload_with_shim(void) { unload(); }

@@ -18,12 +18,13 @@ static char *read_text(const char *path, char *why, size_t size) {
         snprintf(why, size, "cannot read %s", path);
         return NULL;
     }
-    char *text = malloc(MAX_DESCRIPTION + 1);
-    size_t n = text ? fread(text, 1, MAX_DESCRIPTION + 1, f) : 0;
+    long length = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
+    char *text = length >= 0 && length <= (long)MAX_DESCRIPTION ? malloc((size_t)length + 1) : NULL;
+    size_t n = text && fseek(f, 0, SEEK_SET) == 0 ? fread(text, 1, (size_t)length, f) : 0;
     fclose(f);
-    if (!text || n > MAX_DESCRIPTION) {
+    if (!text || n != (size_t)length) {
         free(text);
-        snprintf(why, size, "%s: %s", path, text ? "larger than 16 MB" : "out of memory");
+        snprintf(why, size, "%s: %s", path, length > (long)MAX_DESCRIPTION ? "larger than 16 MB" : "cannot read it");
         return NULL;
     }
     text[n] = '\0';
@@ -108,8 +109,14 @@ int ftc_read_model(const char *binary, struct ftc_model *model, char *why, size_
         }
         *slash = '\0';
     }
+    /* The build's copy beside the binary first (hosts such as fmpy's simulate_fmu unpack only
+       binaries/ and resources/), else the FMU's own. */
     char path[4096 + 32];
-    snprintf(path, sizeof path, "%s/modelDescription.xml", model->root);
+    snprintf(path, sizeof path, "%s", binary);
+    char *dot = strrchr(path, '.');
+    if (dot && dot > strrchr(path, '/')) *dot = '\0';
+    strncat(path, DESCRIPTION_SUFFIX, sizeof path - strlen(path) - 1);
+    if (!ftc_is_file(path)) snprintf(path, sizeof path, "%s/modelDescription.xml", model->root);
     char *text = read_text(path, why, size);
     if (!text) return -1;
     const char *root = strstr(text, "<fmiModelDescription");

@@ -25,7 +25,11 @@ struct ftc_model {
     struct ftc_variable *variables;
 };
 
-/* Reads <root>/modelDescription.xml of the FMU whose binary is `binary`; 0, or -1 and a message. */
+/* The build's copy of the model description beside each binary: <binary without extension> + this. */
+#define DESCRIPTION_SUFFIX "_modelDescription.xml"
+
+/* Reads the model description of the FMU whose binary is `binary` (the copy beside it, else
+   <root>/modelDescription.xml); 0, or -1 and a message. */
 int ftc_read_model(const char *binary, struct ftc_model *model, char *why, size_t size);
 
 /* The variable of value reference `vr`, or NULL. */
