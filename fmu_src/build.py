@@ -20,7 +20,8 @@ Python installed, which an FMU that says ``needsExecutionTool="false"`` must not
 The archive is normalized afterwards: GUID derived from a digest of every bundled byte, no
 generation date, sorted entries with fixed timestamps, licences under ``documentation/licenses``.
 Nothing of the build machine (no path) goes in. Rebuilding the same sources with the same
-compiler and runtime packages gives identical bytes.
+compiler and runtime packages gives identical bytes, whichever Python (3.10 to 3.13) runs the
+build: the bytecode is compiled by the bundled runtime itself (``fmu_src/shim/bundled_python.c``).
 
 Usage: ``python -m fmu_src.build DEST [--model NAME]... [--fmi3 DEST3]`` (FMI 3.0 variants: ``fmu_src.fmi3``)
 """

@@ -914,7 +914,9 @@ EXPORT void fmi2FreeInstance(fmi2Component c) {
 #define MASK_fmi2SetupExperiment INSTANTIATED
 #define MASK_fmi2EnterInitializationMode INSTANTIATED
 #define MASK_fmi2ExitInitializationMode INITIALIZATION
-#define MASK_fmi2Terminate (STEP_COMPLETE | STEP_FAILED)
+/* Also in Initialization Mode, which the standard does not list: hosts terminate every instance
+   when the initialization of another failed (the orchestrator does), and pythonfmu handles it. */
+#define MASK_fmi2Terminate (INITIALIZATION | STEP_COMPLETE | STEP_FAILED)
 #define MASK_fmi2GetFMUstate ANY_STATE
 #define MASK_fmi2SetFMUstate ANY_STATE
 #define MASK_fmi2FreeFMUstate ANY_STATE
