@@ -33,6 +33,7 @@ from pathlib import Path
 from xml.etree import ElementTree
 
 from .build import (
+    DESCRIPTION_COPY,
     GUID_NAMESPACE,
     REPO_ROOT,
     SHIM_SOURCES,
@@ -202,6 +203,7 @@ def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT) -> Path:
     digest = hashlib.sha256(old.get("guid", "").encode() + b"\0" + hashlib.sha256(shim).digest()).hexdigest()
     token = "{" + str(uuid.uuid5(GUID_NAMESPACE, f"{model}:fmi3:{digest}")) + "}"
     moved["modelDescription.xml"] = fmi3_model_description(xml, token)[0]
+    moved[f"{FMI3_PLATFORM}{model}{DESCRIPTION_COPY}"] = moved["modelDescription.xml"]  # not the FMI 2.0 one
     dest = Path(dest)
     dest.mkdir(parents=True, exist_ok=True)
     target = dest / fmu2.name
