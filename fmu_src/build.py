@@ -49,6 +49,7 @@ from xml.etree import ElementTree
 import pythonfmu
 from pythonfmu import FmuBuilder
 
+from .licences import documentation, generation_tool
 from .runtime import Runtime, RuntimeBundleError, compile_bytecode, ensure_runtime, runtime_members
 
 __all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "c_compiler", "compile_extension", "main"]
@@ -377,6 +378,8 @@ def _normalized_description(xml: bytes, digest: str, model: str) -> bytes:
     root = ElementTree.fromstring(xml)
     root.set("guid", "{" + str(uuid.uuid5(GUID_NAMESPACE, f"{model}:{digest}")) + "}")
     root.attrib.pop("generationDateAndTime", None)
+    root.set("generationTool", generation_tool("PythonFMU 0.7.0, the shim and its own CPython"))
+    root.set("license", "BSD-2-Clause; bundled third-party licences: documentation/licenses/license.txt")
     cosimulation = root.find("CoSimulation")
     if cosimulation is None:
         raise BuildError(f"pythonfmu's model description of {model} has no CoSimulation element")
@@ -402,6 +405,7 @@ def _write_normalized(
         raise BuildError(f"pythonfmu's archive for {bundle.model} has no {binary}")
     entries[f"binaries/linux64/{bundle.model}_pythonfmu.so"] = entries[binary]
     entries.update(native)
+    entries.update(documentation(entries))
     entries["modelDescription.xml"] = _normalized_description(
         entries["modelDescription.xml"], digest, bundle.model
     )
