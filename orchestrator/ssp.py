@@ -695,7 +695,10 @@ def _read_component(element: etree._Element, folder: Path, label: str, problems:
     elif element.get("type", "application/x-fmu-sharedlibrary") != "application/x-fmu-sharedlibrary":
         problems.append(f"{where}: only FMU components are supported (type {element.get('type')!r})")
     elif not source.is_file():
-        problems.append(f"{where}: FMU '{element.get('source')}' is missing")
+        looked = [str(p) for p in (source.resolve(), *(d.resolve() / source.name for d in fmu_dirs))]
+        places = "not in the archive" if label.endswith(f":{SSD_NAME}") else \
+            f"looked for {', '.join(dict.fromkeys(looked))}"  # a folder: where, from any working directory
+        problems.append(f"{where}: FMU '{element.get('source')}' is missing ({places})")
     else:
         has_fmu = True
     connectors, seen = [], set()

@@ -83,11 +83,14 @@ def test_an_ssd_without_a_step_annotation_is_not_run_at_1_ms_in_silence(test_fmu
 @pytest.mark.system
 def test_fmu_warnings_are_shown_without_verbose(built, tmp_path, capsys):
     """Before: the controller's sample-time warning needed --verbose."""
-    assert main(["run", str(built / "ssp" / "pendulum.ssp"), "--stop-time", "0.01", "--quiet", "--no-plot",
-                 "--set", "controller.discretization=1", "--output", str(tmp_path / "p.csv")]) == 0
+    argv = ["run", str(built / "ssp" / "pendulum.ssp"), "--stop-time", "0.01", "--no-plot",
+            "--set", "controller.discretization=1", "--output", str(tmp_path / "p.csv")]
+    assert main(argv) == 0
     err = capsys.readouterr().err
     assert "orchestrate: warning: controller (FixedTimeController): communication step 0.0005 s" in err
     assert err.count("differs from sample_time") == 1
+    assert main([*argv, "--quiet"]) == 0  # issue 36: --quiet means quiet, FMU warnings too
+    assert "warning" not in capsys.readouterr().err
 
 
 @pytest.mark.system
