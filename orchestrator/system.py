@@ -139,6 +139,8 @@ class System:
         if fmu_warnings:
             self.warnings.extend(f"{where}: {p}" for p in validate_fmu(str(c.source))
                                  if p not in found and not _is_input_start(p, md))
+        invalid += [f"variable '{v.name}': start=\"{v.start}\" is no {v.type} value"
+                    for v in md.modelVariables if not _start_ok(v)]  # FMI 3.0: fmpy keeps it a string
         if invalid:
             self.problems.extend(f"{where}: {p}" for p in invalid)
             return None
@@ -549,6 +551,26 @@ def _outside(var: ModelVariable, value: float | int | bool | str) -> str:
     if high is not None and not number <= float(high):
         return f"is above the FMU's max {high}"
     return ""
+
+
+NUMBERS = ("Real", "Integer", "Enumeration", "Float32", "Float64", "Int8", "UInt8", "Int16", "UInt16",
+           "Int32", "UInt32", "Int64", "UInt64")
+
+
+def _start_ok(var: ModelVariable) -> bool:
+    """False for a scalar variable whose start attribute is no value of its type (``start=""``,
+    which validate passed and the run died on)."""
+    start = var.start
+    if start is None or getattr(var, "dimensions", None) or not isinstance(start, str):
+        return True
+    if var.type in NUMBERS:
+        try:
+            float(start)
+        except ValueError:
+            return False
+    elif var.type == "Boolean":
+        return start.strip() in ("true", "false", "1", "0")
+    return True
 
 
 def _is_input_start(problem: str, md: ModelDescription) -> bool:

@@ -39,15 +39,16 @@ __all__ = ["DEFAULT_STEP", "STEP_ANNOTATIONS", "Problem", "Validation", "check_s
            "validate"]
 
 DEFAULT_STEP = 1e-3
-STEP_ANNOTATIONS = ("a step annotation: libcosim's osp:FixedStepAlgorithm baseStepSize in the "
-                    "DefaultExperiment, or OMSimulator's oms:FixedStepMaster stepSize in the System")
+STEP_ANNOTATIONS = ("a step annotation (libcosim's osp:FixedStepAlgorithm baseStepSize in the "
+                    "DefaultExperiment, or OMSimulator's oms:FixedStepMaster stepSize in the System)")
 
 
 def no_step(structure: SystemStructure) -> str:
     """Why a run of ``structure`` would take the default step ('' when the SSD gives one)."""
     if structure.experiment.step is not None:
         return ""
-    return (f"{structure.ssd_file}: no communication step: the SSD has no {STEP_ANNOTATIONS}; "
+    return (f"{structure.ssd_file}: no communication step: the SSD has no step annotation "
+            f"{STEP_ANNOTATIONS.removeprefix('a step annotation ')}; "
             f"running at the default {DEFAULT_STEP:g} s (give --step)")
 
 
