@@ -70,7 +70,8 @@ def test_an_ssd_without_a_step_annotation_is_not_run_at_1_ms_in_silence(test_fmu
     """Before: it ran at the default 1 ms without a word."""
     folder = loop_scenario(tmp_path / "loop", test_fmus, stop=0.01, step=None, pack=False)
     assert "step" not in (folder / "SystemStructure.ssd").read_text().lower()
-    with pytest.warns(ScenarioWarning, match=r"no communication step: the SSD has no step annotation \(libcosim"):
+    with pytest.warns(ScenarioWarning,
+                      match=r"no communication step: the SSD has no step annotation \(libcosim"):
         result = orchestrator.run(folder)
     assert result.provenance["step"] == 0.001 and result.count == 11
     with pytest.raises(ScenarioError, match="no communication step"):
