@@ -216,7 +216,7 @@ def _before_the_run(system: System, options: RunOptions, start: float, stop: flo
     return series
 
 
-SHOWN_INPUTS = 8  # inputs named in the one warning about unconnected inputs
+SHOWN_INPUTS = 40  # inputs named in the one warning about unconnected inputs
 
 
 def _unconnected_warning(system: System, unconnected: list[tuple[str, PortRef]]) -> list[str]:
@@ -224,13 +224,15 @@ def _unconnected_warning(system: System, unconnected: list[tuple[str, PortRef]])
     line each, on every run, buried everything else); a single one keeps its own sentence."""
     if len(unconnected) < 2:
         return [m for m, _ in unconnected]
-    names = [f"{port} = {system.components[port.component].variables[port.connector].start}"
-             for _, port in unconnected]
-    shown = ", ".join(names[:SHOWN_INPUTS]) + (f" and {len(names) - SHOWN_INPUTS} more"
-                                                if len(names) > SHOWN_INPUTS else "")
-    return [f"{system.ssd}: {len(names)} inputs are not connected and keep the FMU's start value for the "
-            f"whole run: {shown} (give values with {option('overrides')} or {option('input_file')}; "
-            "'orchestrate validate' lists each)"]
+    by_component: dict[str, list[str]] = {}
+    for _, port in unconnected[:SHOWN_INPUTS]:
+        start = system.components[port.component].variables[port.connector].start
+        by_component.setdefault(port.component, []).append(f"{port.connector} ({start})")
+    shown = "; ".join(f"{c}: {', '.join(names)}" for c, names in by_component.items())
+    more = f" and {len(unconnected) - SHOWN_INPUTS} more" if len(unconnected) > SHOWN_INPUTS else ""
+    return [f"{system.ssd}: {len(unconnected)} inputs are not connected and keep the FMU's start value "
+            f"(in brackets) for the whole run: {shown}{more} (give values with {option('overrides')} or "
+            f"{option('input_file')}; 'orchestrate validate' lists each)"]
 
 
 def system_columns(system: System) -> list[str]:

@@ -19,8 +19,8 @@ FMUs for the same reason. Here the folder of an FMU is ``<cache>/fmus/<sha256 of
   ``~/.cache/orchestrate``); ``ORCHESTRATE_CACHE=off`` unpacks every FMU into the run's own
   temporary folder, as before; so does a cache folder that cannot be made or written;
 * a cache that fails while an FMU is unpacked into it (a full disk, a quota) costs the run
-  nothing: the FMU is unpacked into the run's folder instead, with one CacheWarning naming the
-  folder and the reason;
+  nothing: the FMU, and every later one of this process, is unpacked into the run's folder
+  instead, with one CacheWarning naming the folder and the reason;
 * an entry's ``.complete`` marker lists every file with its size and modification time as
   unpacked (a manifest, checked by ``stat`` on every use, 1 ms for 180 files): an entry whose
   file was deleted, truncated or rewritten is damaged, removed and unpacked again, with one
@@ -56,6 +56,7 @@ IN_USE = 3600.0  # s: an entry used more recently than this is never removed
 COMPLETE = ".complete"
 
 _digests: dict[tuple[int, ...], str] = {}
+_failed: list[str] = []  # why the cache failed in this process (then it is not used again)
 _in_use: set[str] = set()  # entries an instance of this process has loaded
 _lock = threading.Lock()
 
@@ -156,7 +157,7 @@ def unpack_fmu(fmu: str | os.PathLike, fallback: str | os.PathLike) -> str:
     no usable cache, ``fallback`` (a fresh folder the caller removes) with the FMU unpacked into it.
     A cache entry is reserved for the caller until :func:`release`. Raises what fmpy and zipfile
     raise for an FMU that cannot be unpacked, OSError for a full disk."""
-    folder = cache_folder()
+    folder = None if _failed else cache_folder()
     entry = None if folder is None else folder / sha256(fmu)
     with _lock:
         if folder is None or entry is None or str(entry) in _in_use:
@@ -166,8 +167,9 @@ def unpack_fmu(fmu: str | os.PathLike, fallback: str | os.PathLike) -> str:
         return _entry(fmu, folder, entry)
     except OSError as exc:  # the cache's disk is full, a quota, ...: the run's own folder will do
         release(str(entry))
-        warnings.warn(f"FMU cache {folder}: cannot unpack {os.path.basename(fmu)} ({_reason(exc)}); "
-                      f"unpacked into the run's folder instead", CacheWarning, stacklevel=2)
+        _failed.append(_reason(exc))
+        warnings.warn(f"FMU cache {folder}: cannot unpack {os.path.basename(fmu)} ({_reason(exc)}); FMUs are "
+                      "unpacked into the run's folder instead", CacheWarning, stacklevel=2)
         return _extract(fmu, fallback)
     except BaseException:
         release(str(entry))
