@@ -130,9 +130,9 @@ class TimeLimitError(SimulationError):
     def __init__(self, limit: float, time: float, component: str = "", grace: float = 0.0) -> None:
         if component:
             message = (f"{component}: fmi2DoStep did not return within {limit:g} s + {grace:g} s "
-                       f"(--timeout) at t={time:.3f} s; step aborted")
+                       f"({option('timeout')}) at t={time:.3f} s; step aborted")
         else:
-            message = f"wall-clock limit of {limit:g} s (--timeout) reached at t={time:.3f} s"
+            message = f"wall-clock limit of {limit:g} s ({option('timeout')}) reached at t={time:.3f} s"
         RuntimeError.__init__(self, message)
         self.component, self.function, self.status, self.time = component, "fmi2DoStep", "timeout", time
 
