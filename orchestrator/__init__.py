@@ -60,6 +60,15 @@ def __dir__() -> list[str]:
     return sorted({*__all__, *MODULES})
 
 
+def __getattr__(name: str) -> object:
+    """The engine's modules on first use (``orchestrator.plots`` imports matplotlib only then)."""
+    if name in MODULES:
+        import importlib
+
+        return importlib.import_module(f".{name}", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 @contextmanager
 def open_system(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.PathLike] = (),
                 overrides: Mapping[str, object] | None = None,
@@ -236,7 +245,19 @@ def _unconnected_warning(system: System, unconnected: list[tuple[str, PortRef]])
 
 
 def system_columns(system: System) -> list[str]:
-    """Every connector of ``system`` as a result column names it (``component.connector``)."""
+    """Every connector of a system as a result column names it.
+
+    Parameters
+    ----------
+    system : System
+        A validated system (:func:`open_system`).
+
+    Returns
+    -------
+    list of str
+        ``component.connector`` for each input and output, in the order of the result's columns
+        (after ``time``).
+    """
     return [str(PortRef(name, c)) for name, comp in system.components.items()
             for c in (*comp.inputs, *comp.outputs)]
 

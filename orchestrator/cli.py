@@ -64,6 +64,7 @@ Run SSP co-simulation scenarios of FMI 2.0 co-simulation FMUs with fmpy.
   orchestrate plot results/example1.csv      plot a result file
   orchestrate compare RESULT.csv BASELINE.csv  regression check against a baseline
   orchestrate baseline / orchestrate report  rewrite baselines / write the paper report
+  eval "$(orchestrate completion bash)"     shell completion (also zsh, fish)
 
 Run 'orchestrate COMMAND --help' for the options of a command.
 """

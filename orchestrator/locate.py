@@ -19,7 +19,7 @@ SHOWN = 12  # built names listed in a message
 
 
 def built_scenarios(build: Path = BUILD_DIR) -> list[str]:
-    """The names of the built scenarios (``build/ssp/*.ssp``), sorted."""
+    """The names of the built scenarios (``build/ssp/*.ssp``), sorted ([] when there are none)."""
     try:
         return sorted(p.stem for p in (build / "ssp").glob("*.ssp") if p.is_file())
     except OSError:
@@ -27,9 +27,26 @@ def built_scenarios(build: Path = BUILD_DIR) -> list[str]:
 
 
 def resolve_scenario(scenario: str | os.PathLike) -> Path:
-    """The scenario ``scenario`` names: an existing file or folder as it is, else the built
-    scenario of that name. ScenarioError naming what was looked for, the closest built names and
-    the others; an ``.fmu`` file is not a scenario, and the message says how to run one."""
+    """The path a scenario name stands for, as ``orchestrate run`` and :func:`orchestrator.run`
+    take it.
+
+    Parameters
+    ----------
+    scenario : path or str
+        An existing ``.ssp`` file or scenario folder (returned as it is), else the name of a built
+        scenario (``build/ssp/NAME.ssp``, relative to the working directory).
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    ScenarioError
+        Nothing of that name: the message names what was looked for, the closest built names
+        (did you mean ...?) and the others; an ``.fmu`` file is not a scenario, and the message
+        says how to run one.
+    """
     path = Path(scenario)
     if path.suffix.lower() == ".fmu" and path.is_file():
         raise ScenarioError(f"{path} is an FMU, not a scenario (an .ssp archive or a folder holding "

@@ -268,6 +268,7 @@ def test_a_run_result_is_readable_in_a_session_and_keeps_its_units(built, tmp_pa
     plt.close(figure)
     assert not {"np", "os", "Path", "warnings", "fnmatch"} & set(dir(orchestrator))
     assert {"run", "RunOptions", "RunResult", "plots"} <= set(dir(orchestrator))
+    assert all(getattr(orchestrator, name) is not None for name in dir(orchestrator))  # each one reachable
 
 
 # -- item 8: where a missing FMU was looked for --------------------------------------------------------
