@@ -21,7 +21,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from importlib.metadata import PackageNotFoundError, entry_points, version
 from pathlib import Path
-from typing import TypedDict, Unpack
+from typing import NoReturn, TypedDict, Unpack
 
 from . import MASTERS, RunOptions, RunResult, run
 from .errors import (
@@ -126,6 +126,15 @@ Handler = Callable[[argparse.Namespace], int]
 _quiet = threading.local()  # --quiet of the command running in this thread
 
 
+class _CommandParser(argparse.ArgumentParser):
+    """A subcommand's parser: its own usage, then the one line every error of orchestrate has
+    (``orchestrate: error: ...``, not argparse's ``orchestrate run: error: ...``), exit status 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.print_usage(sys.stderr)
+        self.exit(2, f"orchestrate: error: {message}\n")
+
+
 class CommandOptions(TypedDict, total=False):
     """Keyword arguments of :func:`add_command`, passed on to ``add_parser``."""
 
@@ -195,7 +204,7 @@ def _parser(command: str | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="orchestrate", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=version_line())
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, parser_class=_CommandParser)
 
     p = add_command(sub, "run", _run, help="simulate a scenario", description=RUN_HELP, quiet=True,
                     formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -381,9 +390,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 _shown_warnings.clear()
                 return args.handler(args)
         except UsageError as exc:  # the command's own usage (not orchestrate's), then the one line
-            args.command_parser.print_usage(sys.stderr)
-            print(f"orchestrate: error: {exc}", file=sys.stderr)
-            sys.exit(exc.exit_status)  # as argparse's own errors: SystemExit(2)
+            command: _CommandParser = args.command_parser
+            command.error(str(exc))
         except OrchestratorError as exc:
             what = "cannot write the results: " if isinstance(exc, OutputError) else ""
             print(f"orchestrate: error: {what}{exc}", file=sys.stderr)
@@ -487,6 +495,8 @@ def _options(args: argparse.Namespace, scenario: Path, output: Path) -> RunOptio
 def _run(args: argparse.Namespace) -> int:
     scenario = resolve_scenario(args.scenario)
     name = scenario.stem if scenario.is_file() else scenario.resolve().name
+    if args.output is not None and not args.output.name:  # -o '' is Path('.'), -o / has no name
+        raise UsageError(f"--output {str(args.output)!r}: not a file name")
     output = args.output or Path("results") / f"{name}.csv"
     options = _options(args, scenario, output)
     stale = scenario_checks(scenario)

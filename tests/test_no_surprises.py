@@ -636,3 +636,19 @@ def test_the_api_refuses_options_of_the_wrong_type():
     """RunOptions given as a dict: one UsageError, not an AttributeError deep in the run."""
     with pytest.raises(UsageError, match="options must be a RunOptions"):
         orchestrator.run("x.ssp", {"stop_time": 1.0})  # type: ignore[arg-type]
+
+
+# -- found by the attack of 152 bad command lines (issue 36's "tried again") ----------------------------
+@pytest.mark.system
+def test_bad_command_lines_the_attack_found(loop, capsys):
+    """'run X -o ""' was a ValueError traceback (Path('') is '.'); argparse's own errors of a
+    subcommand read 'orchestrate run: error:' where every other error reads 'orchestrate: error:'."""
+    with pytest.raises(SystemExit) as caught:
+        main(["run", str(loop), "-o", ""])
+    assert caught.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1] == "orchestrate: error: --output '.': not a file name"
+    with pytest.raises(SystemExit) as caught:
+        main(["run", str(loop), "--master", "nope"])
+    err = capsys.readouterr().err.splitlines()
+    assert caught.value.code == 2 and err[0].startswith("usage: orchestrate run ")
+    assert err[-1].startswith("orchestrate: error: argument --master: invalid choice: 'nope'")

@@ -162,7 +162,7 @@ def _sweep(args: argparse.Namespace, metrics: Metrics | None) -> int:
             force=args.force,
             timeout=args.timeout,
             keep_every=args.trajectory_every if args.keep_trajectories else None,
-            progress=not args.quiet,
+            progress=not args.quiet and sys.stderr.isatty(),  # as 'run': no bar in a log file
             limits=archive_limits(args),
             dashboard=args.dashboard,
         )
