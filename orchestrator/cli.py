@@ -495,8 +495,6 @@ def _options(args: argparse.Namespace, scenario: Path, output: Path) -> RunOptio
 def _run(args: argparse.Namespace) -> int:
     scenario = resolve_scenario(args.scenario)
     name = scenario.stem if scenario.is_file() else scenario.resolve().name
-    if args.output is not None and not args.output.name:  # -o '' is Path('.'), -o / has no name
-        raise UsageError(f"--output {str(args.output)!r}: not a file name")
     output = args.output or Path("results") / f"{name}.csv"
     options = _options(args, scenario, output)
     stale = scenario_checks(scenario)
@@ -504,7 +502,8 @@ def _run(args: argparse.Namespace) -> int:
         raise ScenarioError(stale)
     if args.no_plot and args.plot is not None:
         raise UsageError(f"--no-plot and --plot {args.plot}: choose one")
-    plot = None if args.no_plot else args.plot or output.with_suffix(".png")
+    # -o '' is Path('.'): no plot of its name (the run refuses the folder as its output)
+    plot = None if args.no_plot or not (args.plot or output.name) else args.plot or output.with_suffix(".png")
     if plot is not None:
         check_plot(plot)
     progress = None if args.quiet or not sys.stderr.isatty() else _Progress(name)

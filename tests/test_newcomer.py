@@ -116,8 +116,8 @@ def test_crosscheck_says_what_an_archive_misses(test_fmus, tmp_path):
     from orchestrator.crosscheck.tools import Scenario
 
     archive = loop_scenario(tmp_path / "loop", test_fmus, stop=0.01, step=None)
-    expected = ("other tools need a step annotation: libcosim's osp:FixedStepAlgorithm baseStepSize in "
-                "the DefaultExperiment, or OMSimulator's oms:FixedStepMaster stepSize in the System; "
+    expected = (r"other tools need a step annotation \(libcosim's osp:FixedStepAlgorithm baseStepSize in "
+                r"the DefaultExperiment, or OMSimulator's oms:FixedStepMaster stepSize in the System\); "
                 "it has none$")
     with pytest.raises(ValueError, match=expected):
         Scenario.read(archive)
