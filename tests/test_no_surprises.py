@@ -646,7 +646,7 @@ def test_bad_command_lines_the_attack_found(loop, capsys):
     'orchestrate: error:'."""
     assert main(["run", str(loop), "-o", ""]) == 1  # as with --no-plot: the folder '.' is refused
     assert capsys.readouterr().err.splitlines() == [
-        "orchestrate: error: cannot write the results: .: Is a directory (not a regular file)"]
+        "orchestrate: error: cannot write the results: .: Is a directory, not a regular file"]
     with pytest.raises(SystemExit) as caught:
         main(["run", str(loop), "--master", "nope"])
     err = capsys.readouterr().err.splitlines()
