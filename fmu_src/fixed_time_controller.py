@@ -28,6 +28,11 @@ OUTPUT = Fmi2Causality.output
 INPUTS = ("x1", "x2", "yd", "yd_dot", "yd_ddot")
 # Example 1 gains (SPEC section 3): name -> default, per backstepping step i = 1, 2.
 GAINS = {"k": 10.0, "q": 8.0, "kappa": 2.0, "rho": 2.0, "rho_bar": 1.0}
+# The law's open bounds (beta < 1, alpha > 1, q > 0 ...) as the closed min/max FMI declares: the
+# nearest doubles inside, so an importer's range check refuses what the law refuses (beta = 1.0
+# passed validate and failed in the FMU at t = 0, issue 36).
+ABOVE_ZERO = math.nextafter(0.0, 1.0)
+POSITIVE_GAINS = ("q", "a", "kappa", "rho", "rho_bar")  # k may be 0: the finite-time law (mode 1)
 GAIN_DESCRIPTIONS = {
     "k": "Fast (fixed-time) gain k_{i} of step {i}",
     "q": "Gain q_{i} of the sig(z)^(2 beta - 1) term of step {i}",
@@ -93,17 +98,19 @@ class FixedTimeController(Fmi2Slave):
         declare(self, "r", OUTPUT, "Dynamic signal r of the unmodeled dynamics", depends_on=())
         for name in ("k", "q", "a", "kappa", "rho", "rho_bar"):
             for i in (1, 2):
-                declare(self, f"{name}{i}", PARAMETER, GAIN_DESCRIPTIONS[name].format(i=i), minimum=0.0)
+                declare(self, f"{name}{i}", PARAMETER, GAIN_DESCRIPTIONS[name].format(i=i),
+                        minimum=ABOVE_ZERO if name in POSITIVE_GAINS else 0.0)
         declare(
-            self, "alpha", PARAMETER, "Exponent alpha > 1 of the fast term sig(z)^(2 alpha - 1)", minimum=1.0
+            self, "alpha", PARAMETER, "Exponent alpha > 1 of the fast term sig(z)^(2 alpha - 1)",
+            minimum=math.nextafter(1.0, 2.0),
         )
         declare(
             self,
             "beta",
             PARAMETER,
             "Exponent 0.5 < beta < 1 of the term sig(z)^(2 beta - 1)",
-            minimum=0.5,
-            maximum=1.0,
+            minimum=math.nextafter(0.5, 1.0),
+            maximum=math.nextafter(1.0, 0.0),
         )
         declare(
             self,
@@ -114,7 +121,8 @@ class FixedTimeController(Fmi2Slave):
             minimum=0,
             maximum=1,
         )
-        declare(self, "a_bar", PARAMETER, "Decay rate a_bar of the dynamic signal r", unit="1/s", minimum=0.0)
+        declare(self, "a_bar", PARAMETER, "Decay rate a_bar of the dynamic signal r", unit="1/s",
+                minimum=ABOVE_ZERO)
         declare(
             self,
             "gamma_gain",
@@ -129,7 +137,7 @@ class FixedTimeController(Fmi2Slave):
         declare(self, "eta2_0", PARAMETER, "Initial value of eta_hat_2", minimum=0.0)
         for j in range(1, len(DEFAULT_CENTERS) + 1):
             declare(self, f"mu{j}", PARAMETER, f"Center of RBF neuron {j} (mu_{j} * ones)")
-        declare(self, "tau", PARAMETER, "Width tau of the Gaussian RBF neurons", minimum=0.0)
+        declare(self, "tau", PARAMETER, "Width tau of the Gaussian RBF neurons", minimum=ABOVE_ZERO)
         declare(
             self,
             "substeps",

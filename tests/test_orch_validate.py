@@ -151,7 +151,7 @@ def test_every_stage_reported_at_once(tmp_path, test_fmus):
         rf"^{re.escape(label)}: connection source\.y -> c\.y: c\.y is an output, not an input$",
         rf"^{re.escape(label)} line \d+: .*System.*'colour'",
         rf"^{re.escape(label)}: component 'source': FMU 'Source\.fmu': cannot read modelDescription\.xml",
-        r"^--set: gain\.k = 20\.0 is above the FMU's max 10$",
+        r"^overrides: gain\.k = 20\.0 is above the FMU's max 10$",  # the API's field (issue 36)
     ]
     for pattern in expected:
         assert sum(bool(re.search(pattern, p)) for p in found) == 1, (pattern, found)
