@@ -55,7 +55,7 @@ COMMAND_GROUP = "orchestrate.commands"
 CHECK_GROUP = "orchestrate.checks"
 
 DESCRIPTION = """\
-Run SSP co-simulation scenarios of FMI 2.0 co-simulation FMUs with fmpy.
+Run SSP co-simulation scenarios of FMI 1.0, 2.0 and 3.0 Co-Simulation FMUs with fmpy.
 
   orchestrate build                    build the FMUs and pack ssp/<name>/ into build/ssp/<name>.ssp
   orchestrate run example1             simulate; writes results/example1.csv and .png

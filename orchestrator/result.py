@@ -239,8 +239,17 @@ class RunResult:
             One column per signal; ``attrs["units"]`` maps each column to the unit its FMU
             declares (None: none; ``time`` is in s), ``attrs["status"]`` is :attr:`status`.
             ``DataFrame.to_parquet`` keeps ``attrs`` in the file's metadata.
+        Raises
+        ------
+        ImportError
+            pandas is not installed: it is the optional extra ``pandas``
+            (``pip install 'fixed-time-cosim[pandas]'``).
         """
-        import pandas
+        try:
+            import pandas
+        except ImportError as exc:
+            raise ImportError("RunResult.to_pandas() needs pandas, the optional extra 'pandas': "
+                              "pip install 'fixed-time-cosim[pandas]'") from exc
 
         frame = pandas.DataFrame.from_records(self.rows).set_index("time")
         frame.attrs["units"] = {"time": "s", **{c: self.units.get(c) for c in self.columns[1:]}}
