@@ -122,8 +122,7 @@ def test_baseline_resolves_paths_from_the_working_directory(tmp_path):
                           cwd=tmp_path, capture_output=True, text=True,
                           env={**os.environ, "PYTHONWARNINGS": "ignore"})
     assert done.returncode == 2
-    assert ("no scenario 'example1': not a file or folder, and build/ssp/example1.ssp does not exist"
-            in done.stderr)
+    assert "no scenario 'example1'" in done.stderr and "build/ssp/example1.ssp" in done.stderr
     assert not (tmp_path / "tests").exists() and not (tmp_path / "baselines").exists()
 
 
