@@ -55,6 +55,11 @@ ORDERS = tuple(range(1, MAX_ORDER + 1))  # plant orders with a controller FMU
 # Example 1's gains (SPEC section 3): name -> default for every step (a: a1 = 5, a_i = 2 from step 2
 # on; SPEC 11: steps beyond 2 repeat step 2's values, the paper gives gains for n = 2 only).
 GAINS = {"k": 10.0, "q": 8.0, "kappa": 2.0, "rho": 2.0, "rho_bar": 1.0}
+# The law's open bounds (beta < 1, alpha > 1, q > 0 ...) as the closed min/max FMI declares: the
+# nearest doubles inside, so an importer's range check refuses what the law refuses (beta = 1.0
+# passed validate and failed in the FMU at t = 0, issue 36).
+ABOVE_ZERO = math.nextafter(0.0, 1.0)
+POSITIVE_GAINS = ("q", "a", "kappa", "rho", "rho_bar")  # k may be 0: the finite-time law (mode 1)
 GAIN_DESCRIPTIONS = {
     "k": "Fast (fixed-time) gain k_{i} of step {i}",
     "q": "Gain q_{i} of the sig(z)^(2 beta - 1) term of step {i}",
@@ -187,14 +192,16 @@ def _declare_parameters(slave: Fmi2Slave, n: int) -> None:
     steps = range(1, n + 1)
     for name in GAIN_DESCRIPTIONS:
         for i in steps:
-            declare(slave, f"{name}{i}", PARAMETER, GAIN_DESCRIPTIONS[name].format(i=i), minimum=0.0)
+            declare(slave, f"{name}{i}", PARAMETER, GAIN_DESCRIPTIONS[name].format(i=i),
+                    minimum=ABOVE_ZERO if name in POSITIVE_GAINS else 0.0)
     declare(slave, "alpha", PARAMETER, "Exponent alpha > 1 of the fast term sig(z)^(2 alpha - 1)",
-            minimum=1.0)
-    declare(slave, "beta", PARAMETER, "Exponent 0.5 < beta < 1 of the term sig(z)^(2 beta - 1)", minimum=0.5,
-            maximum=1.0)
+            minimum=math.nextafter(1.0, 2.0))
+    declare(slave, "beta", PARAMETER, "Exponent 0.5 < beta < 1 of the term sig(z)^(2 beta - 1)",
+            minimum=math.nextafter(0.5, 1.0), maximum=math.nextafter(1.0, 0.0))
     declare(slave, "mode", PARAMETER, "Control law: 0 = fixed-time, 1 = finite-time (k = 0)", integer=True,
             minimum=0, maximum=1)
-    declare(slave, "a_bar", PARAMETER, "Decay rate a_bar of the dynamic signal r", unit="1/s", minimum=0.0)
+    declare(slave, "a_bar", PARAMETER, "Decay rate a_bar of the dynamic signal r", unit="1/s",
+            minimum=ABOVE_ZERO)
     declare(slave, "gamma_gain", PARAMETER, "Gain of x1^gamma_power in r' (unmodeled dynamics bound)",
             minimum=0.0)
     declare(slave, "gamma_power", PARAMETER, "Power of x1 in r'", minimum=0.0)
@@ -204,7 +211,7 @@ def _declare_parameters(slave: Fmi2Slave, n: int) -> None:
         declare(slave, f"eta{i}_0", PARAMETER, f"Initial value of eta_hat_{i}", minimum=0.0)
     for j in range(1, len(DEFAULT_CENTERS) + 1):
         declare(slave, f"mu{j}", PARAMETER, f"Center of RBF neuron {j} (mu_{j} * ones)")
-    declare(slave, "tau", PARAMETER, "Width tau of the Gaussian RBF neurons", minimum=0.0)
+    declare(slave, "tau", PARAMETER, "Width tau of the Gaussian RBF neurons", minimum=ABOVE_ZERO)
     declare(slave, "substeps", PARAMETER, "RK4 sub-steps per communication step for r and eta_hat",
             integer=True, minimum=1)
     # Added last (issue 11), so the value references above stay where they were.

@@ -21,7 +21,7 @@ from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import OrchestratorError, ScenarioError, UsageError
+from .errors import OrchestratorError, ScenarioError, UsageError, is_option, option
 from .master import NS_PER_S, grid
 from .ssp import (
     DEFAULT_LIMITS,
@@ -39,15 +39,16 @@ __all__ = ["DEFAULT_STEP", "STEP_ANNOTATIONS", "Problem", "Validation", "check_s
            "validate"]
 
 DEFAULT_STEP = 1e-3
-STEP_ANNOTATIONS = ("a step annotation: libcosim's osp:FixedStepAlgorithm baseStepSize in the "
-                    "DefaultExperiment, or OMSimulator's oms:FixedStepMaster stepSize in the System")
+STEP_ANNOTATIONS = ("a step annotation (libcosim's osp:FixedStepAlgorithm baseStepSize in the "
+                    "DefaultExperiment, or OMSimulator's oms:FixedStepMaster stepSize in the System)")
 
 
 def no_step(structure: SystemStructure) -> str:
     """Why a run of ``structure`` would take the default step ('' when the SSD gives one)."""
     if structure.experiment.step is not None:
         return ""
-    return (f"{structure.ssd_file}: no communication step: the SSD has no {STEP_ANNOTATIONS}; "
+    return (f"{structure.ssd_file}: no communication step: the SSD has no step annotation "
+            f"{STEP_ANNOTATIONS.removeprefix('a step annotation ')}; "
             f"running at the default {DEFAULT_STEP:g} s (give --step)")
 
 
@@ -89,19 +90,32 @@ def check_scenario(scenario: str | os.PathLike, stack: ExitStack, *,
                    fmu_warnings: bool = False,
                    fmu_dirs: Iterable[str | os.PathLike] = (),
                    limits: Limits = DEFAULT_LIMITS,
-                   unpack_fmus: bool = False) -> tuple[System | None, list[str], list[str]]:
+                   unpack_fmus: bool = False,
+                   root: str | os.PathLike | None = None,
+                   strict_fmus: bool = False) -> tuple[System | None, list[str], list[str]]:
     """Unpack (into a folder ``stack`` removes; within ``limits``), read and check a scenario, every
     stage as far as it can go. Returns the system (None when no SSD could be read; its ``schedule``
     is empty when there are errors), the errors and the warnings (``fmu_warnings``: add fmpy's full
     FMU validation). FMUs missing from the scenario are looked up by file name in ``fmu_dirs``.
     ``unpack_fmus``: also read every member of every FMU, as a run unpacks it (a corrupt member, or
-    one whose declared size lies, is an error here rather than when the run starts)."""
-    folder, errors = unpack_scenario(scenario, stack, limits)
+    one whose declared size lies, is an error here rather than when the run starts). ``root``: a
+    folder scenario may reference files below it with '..' (never an archive). ``strict_fmus``:
+    what fmpy's checks of a model description find is an error even where the FMU still runs (else
+    a warning)."""
+    path = Path(scenario)
+    if root is not None and not path.is_dir():
+        raise UsageError(f"--root {root}: only a scenario folder may reference files outside itself, "
+                         f"not an archive ({path})")
+    if root is not None and not Path(root).is_dir():
+        raise UsageError(f"--root {root}: no such folder")
+    if root is not None and not path.resolve().is_relative_to(Path(root).resolve()):
+        raise UsageError(f"--root {root}: the scenario {path} is not below it")
+    top = Path(root) if root is not None else None
+    folder, errors = unpack_scenario(scenario, stack, limits, top)
     if folder is None:
         return None, errors, []
-    path = Path(scenario)
     reading = scan_scenario(folder, f"{path}:{SSD_NAME}" if path.is_file() else str(folder / SSD_NAME),
-                            [Path(d) for d in fmu_dirs])
+                            [Path(d) for d in fmu_dirs], top)
     errors += reading.problems
     sets, unreadable = [], False
     for file in parameter_sets:
@@ -121,8 +135,8 @@ def check_scenario(scenario: str | os.PathLike, stack: ExitStack, *,
     # a value lost from a --parameter-set may have been meant for any input of any component
     partial = {c.name for c in structure.components} if unreadable else reading.partial
     system = System(structure, sets, overrides, strict=False, no_fmu=reading.no_fmu, partial=partial,
-                    fmu_warnings=fmu_warnings)
-    return system, errors + system.problems, system.warnings
+                    fmu_warnings=fmu_warnings, strict_fmus=strict_fmus)
+    return system, errors + system.problems, [*reading.notes, *system.warnings]
 
 
 def timing(structure: SystemStructure, stop_time: float | None = None,
@@ -142,20 +156,20 @@ def timing(structure: SystemStructure, stop_time: float | None = None,
         raise ScenarioError(f"{structure.ssd_file}: no stopTime in DefaultExperiment; give a stop time")
     h = step if step is not None else experiment.step if experiment.step is not None else DEFAULT_STEP
     ssd = structure.ssd_file
-    origin = {"start time": "--start-time" if start_time is not None else ssd,
-              "stop time": "--stop-time" if stop_time is not None else ssd,
-              "communication step": "--step" if step is not None else
+    origin = {"start time": option("start_time") if start_time is not None else ssd,
+              "stop time": option("stop_time") if stop_time is not None else ssd,
+              "communication step": option("step") if step is not None else
               ssd if experiment.step is not None else "default"}
 
     def error(message: str, *at_fault: str) -> OrchestratorError:
-        options = [origin[name] for name in at_fault if origin[name].startswith("--")]
+        options = [origin[name] for name in at_fault if is_option(origin[name])]
         return (UsageError if options else ScenarioError)(f"{', '.join(options) or ssd}: {message}")
 
     def source(*names: str) -> str:
         """`` (from SSD)`` for the values the SSD (or the default) gave, when options are named in
         front of the message (with none, the SSD is, and it gave them all)."""
-        given = sorted({origin[name] for name in names if not origin[name].startswith("--")})
-        options = any(name.startswith("--") for name in origin.values())
+        given = sorted({origin[name] for name in names if not is_option(origin[name])})
+        options = any(is_option(name) for name in origin.values())
         return f" (from {' and '.join(given)})" if given and options else ""
 
     step_text = f"the step {h:g} s{source('communication step')}"
@@ -178,14 +192,15 @@ def timing(structure: SystemStructure, stop_time: float | None = None,
 
 def validate(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.PathLike] = (),
              overrides: Mapping[str, object] | None = None,
-             fmu_dirs: Iterable[str | os.PathLike] = (), limits: Limits = DEFAULT_LIMITS) -> Validation:
+             fmu_dirs: Iterable[str | os.PathLike] = (), limits: Limits = DEFAULT_LIMITS,
+             root: str | os.PathLike | None = None, strict_fmus: bool = False) -> Validation:
     """Check a scenario without simulating and report every problem found; nothing is written.
 
     Parameters
     ----------
     scenario : path
         ``.ssp`` archive or folder holding ``SystemStructure.ssd``.
-    parameter_sets, overrides, fmu_dirs, limits
+    parameter_sets, overrides, fmu_dirs, limits, root, strict_fmus
         As for :func:`orchestrator.open_system` (what ``run`` would get).
 
     Returns
@@ -197,7 +212,8 @@ def validate(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.P
     with ExitStack() as stack:
         system, errors, warnings = check_scenario(scenario, stack, parameter_sets=parameter_sets,
                                                   overrides=overrides, fmu_warnings=True, fmu_dirs=fmu_dirs,
-                                                  limits=limits, unpack_fmus=True)
+                                                  limits=limits, unpack_fmus=True, root=root,
+                                                  strict_fmus=strict_fmus)
     if system is None:
         return Validation(str(scenario), tuple(Problem(e) for e in errors))
     structure = system.structure
