@@ -6,8 +6,10 @@ import argparse
 from pathlib import Path
 from typing import cast
 
+from fmu_src.build import BuildError
+
 from ..cli import add_command, quiet, warn
-from ..errors import ScenarioError, UsageError
+from ..errors import OrchestratorError, ScenarioError, UsageError
 from ..provenance import read_provenance, summary
 from ..results import read_result
 from . import report
@@ -52,7 +54,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _build(args: argparse.Namespace) -> int:
     if not args.scenarios and not list(args.sources.glob("*/SystemStructure.ssd")):
         raise UsageError(f"no scenarios found in {args.sources}/")
-    for target in build_scenarios(args.scenarios, args.dest, args.sources).values():
+    try:
+        targets = build_scenarios(args.scenarios, args.dest, args.sources)
+    except BuildError as error:  # a compiler or source missing: what, not a traceback
+        raise OrchestratorError(f"build: {error}") from None
+    for target in targets.values():
         if not quiet():
             print(target)
     return 0
