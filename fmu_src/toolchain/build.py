@@ -9,10 +9,10 @@ script's own ``from fmu_src... / from controller... import`` lines are rewritten
 bundled modules must import their own package relatively, and the other local package with a
 module-level ``from ... import`` (rewritten likewise: ``fmu_src.controller_core`` uses ``controller``).
 
-Each FMU carries its own CPython runtime (``fmu_src/runtime.py``: libpython, the two libraries it
+Each FMU carries its own CPython runtime (``fmu_src/toolchain/runtime.py``: libpython, the two libraries it
 links and the standard-library modules the FMU's code can import, from pinned Debian 12
 packages) and no third-party package: a bundled module that imports one is refused. pythonfmu's
-linux64 binary does not link libpython, so the build compiles ``fmu_src/shim/`` with the system C
+linux64 binary does not link libpython, so the build compiles ``fmu_src/toolchain/shim/`` with the system C
 compiler into ``binaries/linux64/<model>.so`` and keeps pythonfmu's binary beside it as
 ``<model>_pythonfmu.so``; the shim starts the bundled runtime when the host has no Python (see
 the shim's header). Only the linux64 platform is shipped: pythonfmu's win64 binary needs a
@@ -22,9 +22,10 @@ The archive is normalized afterwards: GUID derived from a digest of every bundle
 generation date, sorted entries with fixed timestamps, licences under ``documentation/licenses``.
 Nothing of the build machine (no path) goes in. Rebuilding the same sources with the same
 compiler and runtime packages gives identical bytes, whichever Python (3.10 to 3.13) runs the
-build: the bytecode is compiled by the bundled runtime itself (``fmu_src/shim/bundled_python.c``).
+build: the bytecode is compiled by the bundled runtime itself (``fmu_src/toolchain/shim/bundled_python.c``).
 
-Usage: ``python -m fmu_src.build DEST [--model NAME]... [--fmi3 DEST3]`` (FMI 3.0 variants: ``fmu_src.fmi3``)
+Usage: ``python -m fmu_src.toolchain.build DEST [--model NAME]... [--fmi3 DEST3]`` (FMI 3.0
+variants: ``fmu_src.toolchain.fmi3``)
 """
 
 from __future__ import annotations
@@ -56,7 +57,7 @@ from .runtime import Runtime, RuntimeBundleError, compile_bytecode, ensure_runti
 
 __all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "c_compiler", "compile_extension", "main"]
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
+REPO_ROOT = Path(__file__).resolve().parents[2]
 LOCAL_PACKAGES = ("fmu_src", "controller")
 # Model name -> script in fmu_src/ (the model names are a contract with the scenarios).
 FMU_SCRIPTS = {
@@ -73,7 +74,7 @@ FMU_SCRIPTS = {
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
 BUILD_FORMAT = "6"
-SHIM_DIR = Path("fmu_src", "shim")  # relative to the source root
+SHIM_DIR = Path("fmu_src", "toolchain", "shim")  # relative to the source root
 SHIM_SOURCES = ("fmi2_shim.c", "start_python.c", "guard.c", "platform.c")
 SHIM_HEADERS = ("start_python.h", "fmi2_types.h", "guard.h", "platform.h")
 # No debug info, build id or symbol table, so the bytes depend only on source, compiler and flags;
@@ -249,8 +250,9 @@ def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequen
 
 def compile_shim(root: Path, runtime: Runtime, where: Path, sources: Sequence[str] = SHIM_SOURCES,
                  defines: Sequence[str] = ()) -> bytes:
-    """Compile the FMI shim (``sources`` of ``fmu_src/shim``, ``-D`` ``defines``) against the runtime's
-    headers; returns the shared object's bytes (the same for the same sources, compiler and runtime)."""
+    """Compile the FMI shim (``sources`` of ``fmu_src/toolchain/shim``, ``-D`` ``defines``) against
+    the runtime's headers; returns the shared object's bytes (the same for the same sources,
+    compiler and runtime)."""
     work = where / "shim"
     work.mkdir(parents=True)
     for name in (*sources, *SHIM_HEADERS):
@@ -279,7 +281,7 @@ def _ensure_runtime() -> Runtime:
 
 
 def bundled_python(runtime: Runtime, root: Path = REPO_ROOT) -> Path:
-    """The bundled runtime as a command (``fmu_src/shim/bundled_python.c``, compiled once into
+    """The bundled runtime as a command (``fmu_src/toolchain/shim/bundled_python.c``, compiled once into
     the runtime's cache): the interpreter that compiles every FMU's bytecode, so that the bytes do
     not depend on the Python running the build."""
     source = root / SHIM_DIR / LAUNCHER_SOURCE
@@ -498,7 +500,8 @@ def build_all(dest: Path, root: Path = REPO_ROOT) -> list[Path]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: build FMUs into a folder; prints one path per line."""
-    parser = argparse.ArgumentParser(prog="python -m fmu_src.build", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m fmu_src.toolchain.build",
+                                     description=__doc__.split("\n\n")[0])
     parser.add_argument("dest", type=Path, help="output folder, e.g. build/fmus")
     parser.add_argument(
         "--model", action="append", choices=list(FMU_SCRIPTS), help="build only these (repeatable)"

@@ -1,5 +1,5 @@
 /* Starts the CPython runtime the FMU carries, isolated from the host: compiled against the headers
-   of exactly that runtime (fmu_src/runtime.py pins both), so the PyPreConfig/PyConfig layouts match.
+   of exactly that runtime (fmu_src/toolchain/runtime.py pins both), so the PyPreConfig/PyConfig layouts match.
 
    The functions are looked up with dlsym in the libpython the shim loaded: the shim does not link
    libpython, so that a host which already runs Python keeps its own. */
