@@ -187,6 +187,11 @@ class InstanceBase:
             if status >= FAILED:
                 self.fail("fmi2SetReal", status, time)
 
+    def native(self) -> tuple[int, int] | None:
+        """The FMU's library handle (``dlopen``) and instance pointer, for the compiled executor to
+        call its FMI 2.0 or 3.0 functions itself; None when it cannot (a fake, FMI 1.0)."""
+        return None
+
     # -- the rare calls, provided by a subclass ------------------------------------------------
     def set_start_values(self, values: Mapping[str, tuple[str, int, object]], time: float) -> None:
         """Set parameters and start values ``name -> (type, value reference, value)``."""
@@ -249,6 +254,12 @@ class Instance(InstanceBase):
         self.get_real = lambda c, vr, n, values: get(c, vr, n, values, n)
         self.set_real = lambda c, vr, n, values: set_(c, vr, n, values, n)
         self.do_step = lambda c, t, h, no_set: step(c, t, h, no_set, event, terminate, early, last)
+
+    def native(self) -> tuple[int, int] | None:
+        """fmpy's library handle and the instance (FMI 1.0: None, its functions carry a prefix)."""
+        if self.fmi1 or not self.c.value:
+            return None
+        return int(self.fmu.dll._handle), int(self.c.value)
 
     @classmethod
     def open(cls, name: str, fmu_path: str | os.PathLike, guid: str, model_identifier: str, workdir: str,

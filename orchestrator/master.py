@@ -55,6 +55,7 @@ from . import files
 from .errors import Interrupted, LoopError, NonFiniteError, SimulationError, TimeLimitError, terminate
 from .fmi import CALLS, FAILED, Instance, InstanceBase, MessageLog, interpreter_guard, trace
 from .inputs import InputSeries
+from .native import FUNCTIONS, Stepper
 from .plan import MAX_TIME, NS_PER_S, Transfer, grid, make_plan, time_grid
 from .results import NonFiniteError as NonFiniteRow
 from .results import Recorder
@@ -67,6 +68,7 @@ __all__ = ["GRACE", "LOOP_ITERATIONS", "LOOP_TOLERANCE", "MASTERS", "MAX_TIME", 
 GRACE = 2.0  # s a step may still take after the wall-clock limit or a second Ctrl-C before it is aborted
 LOOP_TOLERANCE = 1e-10  # an algebraic loop has converged when no input on it moves by more (relative)
 LOOP_ITERATIONS = 100  # sweeps of an algebraic loop at one communication point before it is a LoopError
+BLOCK = 256  # steps the compiled executor makes between two looks at signals, the clock and progress
 
 
 class _Abort(BaseException):
@@ -84,6 +86,7 @@ class Stopper:
     def __init__(self, timeout: float | None) -> None:
         self.timeout = timeout
         self.reason: int | str | None = None  # a signal number or "timeout"
+        self.flag = ctypes.c_int(0)  # 1 once there is a reason: the compiled executor stops at the next point
         self.aborted = False
         self._previous: dict[int, Any] = {}
         self.deadline = math.inf
@@ -108,10 +111,12 @@ class Stopper:
             self.aborted = True
             raise _Abort
         self.reason = signum
+        self.flag.value = 1
 
     def _on_alarm(self, signum: int, frame: FrameType | None) -> None:
         if self.reason is None:
             self.reason = "timeout"
+            self.flag.value = 1
             signal.setitimer(signal.ITIMER_REAL, GRACE)  # the step under way gets GRACE s to return
         else:
             self.aborted = True
@@ -121,6 +126,7 @@ class Stopper:
         """Whether the run must stop at this communication point."""
         if self.reason is None and time.monotonic() > self.deadline:
             self.reason = "timeout"
+            self.flag.value = 1
         return self.reason is not None
 
     def disarm(self) -> None:
@@ -238,8 +244,10 @@ class Master:
                  progress: Callable[[int, int], None] | None = None, keep: bool = True,
                  timeout: float | None = None, instances: InstanceFactory = open_instance,
                  inputs: InputSeries | None = None, binary_copy: bool = False,
-                 loop_tolerance: float = LOOP_TOLERANCE, loop_iterations: int = LOOP_ITERATIONS) -> None:
+                 loop_tolerance: float = LOOP_TOLERANCE, loop_iterations: int = LOOP_ITERATIONS,
+                 compiled: bool = False) -> None:
         self.system = system
+        self.compiled = compiled
         self.loop_tolerance, self.loop_iterations = loop_tolerance, loop_iterations
         self.binary_copy = binary_copy  # the CSV is staged for another format: a float64 copy beside it
         self.plan = make_plan(system, start_time, stop_time, step, self.name,
@@ -284,16 +292,7 @@ class Master:
             stack.callback(recorder.close)
             try:
                 self.initialize()
-                n = self.n
-                stride = max(1, n // 100)
-                poll = stopper.deadline != math.inf  # no timer: compare the clock at each point
-                for k in range(n):
-                    self.step(k)
-                    if stopper.reason is not None or (poll and stopper.requested()):
-                        stopper.disarm()
-                        raise stopper.error(self.time(k + 1))
-                    if self.progress is not None and (k + 1) % stride == 0:
-                        self.progress(k + 1, n)
+                self._step_all(stopper, stack)
                 recorder.check()
                 self.terminate()
             except NonFiniteRow as exc:
@@ -305,6 +304,46 @@ class Master:
             except (Interrupted, TimeLimitError) as exc:
                 raise self._kept(exc) from None
         return recorder.result()
+
+    def _step_all(self, stopper: Stopper, stack: ExitStack) -> None:
+        """Every step of the run: one at a time in Python, or blocks of up to ``BLOCK`` in C (the
+        compiled executor); after each, a stop request ends the run and progress is reported at
+        every 1 % of the steps."""
+        n, k = self.n, 0
+        stride = max(1, n // 100)
+        poll = stopper.deadline != math.inf  # no timer: compare the clock at each point
+        stepper = None
+        if self.compiled:
+            stepper = Stepper(self.plan, self.instances)
+            stack.callback(stepper.close)
+        while k < n:
+            if stepper is None:
+                self.step(k)
+                k += 1
+            else:
+                k += self._block(stepper, k, min(n - k, BLOCK, stride - k % stride), stopper.flag)
+            if stopper.reason is not None or (poll and stopper.requested()):
+                stopper.disarm()
+                raise stopper.error(self.time(k))
+            if self.progress is not None and k % stride == 0:
+                self.progress(k, n)
+
+    def _block(self, stepper: Stepper, k: int, most: int, stop: ctypes.c_int) -> int:
+        """At most ``most`` steps from t_k in C, their rows recorded; a failed call raises its
+        SimulationError after the rows before it are recorded."""
+        assert self.recorder is not None  # setup() creates it
+        rows = self.recorder.space(most)
+        driven = None
+        if self._driven:
+            assert self.inputs is not None  # _driven is laid out from it
+            times = (self._t0 + self._h * np.arange(k + 1, k + 1 + len(rows), dtype=np.int64)) / NS_PER_S
+            driven = np.ascontiguousarray(self.inputs.table(times)[:, self._driven_columns])
+        made = stepper.run(self.values, k, rows, driven, stop)
+        self.recorder.commit(made)
+        failure = stepper.failure
+        if failure.status:
+            self.instances[failure.component].fail(FUNCTIONS[failure.function], failure.status, failure.time)
+        return made
 
     def _kept(self, exc: SimulationError | Interrupted) -> SimulationError | Interrupted:
         """``exc`` with the rows kept: ``rows`` (their number) and ``result`` (as ``run`` returns)."""
@@ -399,6 +438,7 @@ class Master:
         self._cvalues = self._view(slice(0, len(plan.columns)))
         self._all_copy, self._all_scaled = self._transfers(plan.transfers)
         self._driven = []
+        self._driven_columns = [j for part in plan.components for j in part.columns]
         for inst, part in zip(self.instances, plan.components, strict=True):
             inst.out_vr, inst.out_ptr = self._vrs(part.outputs.vrs), self._view(part.outputs.slice)
             if part.inputs.vrs:

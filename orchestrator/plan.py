@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from urllib.parse import quote
 
@@ -193,7 +193,6 @@ class Plan:
     transfers: tuple[Transfer, ...]
     first_output: int
     output_order: tuple[int, ...]
-    extra: tuple[str, ...] = field(default=())  # records an application adds (the container's variables)
 
     @property
     def start_time(self) -> float:
@@ -229,15 +228,18 @@ class Plan:
             components[i] = replace(components[i], starts=starts)
         return replace(self, components=tuple(components))
 
-    def text(self, guid: str = "", folders: Mapping[str, str] | None = None) -> str:
+    def text(self, guid: str = "", folders: Mapping[str, str] | None = None,
+             exposed: Sequence[str] = ()) -> str:
         """The plan as the C executors read it: ``guid`` in its first record; each component's
         ``folder`` (``folders``; relative to the container's ``resources/fmus``) where the C code
-        loads the FMU itself, none where the caller binds instances it made."""
+        loads the FMU itself, none where the caller binds instances it made; ``exposed``: the
+        container's ``exposed`` records."""
         folders = folders or {}
         calls = self.start_calls()
         lines = [f"plan {PLAN_VERSION} {word(guid)}", f"master {self.master}",
                  f"grid {self.t0} {self.h} {self.n}",
-                 f"sizes {len(self.columns)} {len(self.components)} {len(calls)} {len(self.propagation)}"]
+                 f"sizes {len(self.columns)} {len(self.components)} {len(calls)} {len(self.propagation)} "
+                 f"{len(exposed)}"]
         lines += [f"value {slot} {real(v)}" for slot, v in enumerate(self.initial) if v or slot == 0]
         for c in self.components:
             lines.append(f"component {word(c.name)} {word(folders.get(c.name, ''))} {word(c.identifier)} "
@@ -252,7 +254,7 @@ class Plan:
         for c in self.components:
             lines.append(f"io {_batch(c.inputs)} {_batch(c.outputs)} {_batch(c.driven)}")
         lines.append(f"transfers {_transfers(self.transfers)}")
-        return "\n".join([*lines, *self.extra]) + "\n"
+        return "\n".join([*lines, *exposed]) + "\n"
 
 
 def word(text: str) -> str:

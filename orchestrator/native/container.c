@@ -3,33 +3,24 @@
 
    The container is this shared library, a plan (resources/container.plan) and the scenario's
    FMUs unpacked under resources/fmus/<folder>/. It carries no interpreter of its own: each
-   embedded FMU is loaded with dlopen as any C host would load it, so the project's FMUs start
-   their own bundled Python through their shim (one interpreter per process, whatever the number
-   of FMUs) or use the host's.
+   embedded FMU (FMI 2.0 or 3.0 Co-Simulation) is loaded with dlopen as any C host would load it,
+   so the project's FMUs start their own bundled Python through their shim (one interpreter per
+   process, whatever the number of FMUs) or use the host's.
 
-   The plan is everything the exporter (orchestrator/export/) computed from the engine's validated
-   System: components, start values (SSD, SSV, --parameter-set, --set, units converted), the grid
-   t_k = t0 + k h in integer nanoseconds, the value buffer laid out as the engine's master lays it
-   out, and the master's operations. This file only replays them, making the same FMI calls with
-   the same arguments in the same order as orchestrator/master.py:
+   The plan is the engine's own (orchestrator/plan.py, read by plan.c): components, start values
+   (SSD, SSV, --parameter-set, --set, units converted), the grid t_k = t0 + k h in integer
+   nanoseconds, the value buffer and the master's operations, plus the container's variables. The
+   core (core.c) replays it, making the same FMI calls with the same arguments in the same order as
+   the engine's executors; this file is the FMI API around it:
 
-   * instantiate every FMU in the scenario's order;
-   * at fmi2EnterInitializationMode, per FMU: start values, fmi2SetupExperiment,
-     fmi2EnterInitializationMode, start values again;
-   * gauss-seidel: at fmi2ExitInitializationMode: propagate, exit every FMU, propagate; each step:
-     every FMU's fmi2DoStep(t_k, t_k+1 - t_k), then propagate at t_k+1, where propagating runs the
-     schedule's operations (read a component's outputs; transfer connections into some of its
-     inputs, value = factor * source + offset, and write them);
-   * jacobi: libcosim's algorithm (N sweeps of set, get, transfer in initialization mode; each
-     step: set, step, get per FMU, then transfer all connections).
-
-   A host's fmi2DoStep(t, H) runs the internal steps from the container's own count k up to the
-   grid point t + H, so H must be a whole number of the scenario's steps; the time passed to the
-   FMUs is always (t0 + k h) / 1e9, never the host's sum. Inputs the host sets are passed on at
-   once; with gauss-seidel, outputs that depend on them are propagated again before they are read.
-
-   Plan format: one record per line, space-separated tokens; reals as C99 hexadecimal floats
-   (exact), strings percent-encoded. See orchestrator/export/plan.py, which writes it. */
+   * fmi2Instantiate instantiates every FMU in the scenario's order;
+   * fmi2EnterInitializationMode: per FMU start values, setup, initialization mode, start values
+     again (core_enter_initialization); fmi2ExitInitializationMode: the master's initialization
+     (core_exit_initialization);
+   * fmi2DoStep(t, H) runs the internal steps from the container's own count k up to the grid point
+     t + H, so H must be a whole number of the scenario's steps; the time passed to the FMUs is
+     always (t0 + k h) / 1e9, never the host's sum. Inputs the host sets are passed on at once;
+     with gauss-seidel, outputs that depend on them are propagated again before they are read. */
 
 #define _GNU_SOURCE
 #include <dlfcn.h>
@@ -40,109 +31,27 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define EXPORT __attribute__((visibility("default")))
+#include "core.h"
+#include "fmi2Functions.h"
+#include "fmi3Functions.h"
+#include "plan.h"
+
+#define EXPORT FMI2_Export
 #define TEXT 4096
-#define PLAN_VERSION "1"
 
-#include "fmi2_types.h" /* the FMI 2.0 types, shared with the FMUs' shim */
-
-static const char *STATUS[] = {"fmi2OK", "fmi2Warning", "fmi2Discard", "fmi2Error", "fmi2Fatal", "fmi2Pending"};
-
-/* The functions of one embedded FMU the container calls. */
-struct api {
-    fmi2Component (*instantiate)(fmi2String, fmi2Type, fmi2String, fmi2String, const fmi2CallbackFunctions *,
-                                 fmi2Boolean, fmi2Boolean);
-    void (*free_instance)(fmi2Component);
-    fmi2Status (*set_debug_logging)(fmi2Component, fmi2Boolean, size_t, const fmi2String[]);
-    fmi2Status (*setup_experiment)(fmi2Component, fmi2Boolean, fmi2Real, fmi2Real, fmi2Boolean, fmi2Real);
-    fmi2Status (*enter_initialization)(fmi2Component);
-    fmi2Status (*exit_initialization)(fmi2Component);
-    fmi2Status (*terminate)(fmi2Component);
-    fmi2Status (*reset)(fmi2Component);
-    fmi2Status (*get_real)(fmi2Component, const fmi2ValueReference[], size_t, fmi2Real[]);
-    fmi2Status (*set_real)(fmi2Component, const fmi2ValueReference[], size_t, const fmi2Real[]);
-    fmi2Status (*set_integer)(fmi2Component, const fmi2ValueReference[], size_t, const fmi2Integer[]);
-    fmi2Status (*set_boolean)(fmi2Component, const fmi2ValueReference[], size_t, const fmi2Boolean[]);
-    fmi2Status (*set_string)(fmi2Component, const fmi2ValueReference[], size_t, const fmi2String[]);
-    fmi2Status (*do_step)(fmi2Component, fmi2Real, fmi2Real, fmi2Boolean);
-};
-
-/* One call setting start values of one type ('r', 'i', 'b', 's') on one component. */
-struct starts {
-    int component;
-    char type;
-    size_t n;
-    fmi2ValueReference *vr;
-    double *reals;    /* 'r' */
-    int *ints;        /* 'i', 'b' */
-    char **strings;   /* 's' */
-};
-
-/* A connection: values[dst] = values[src] (scaled == 0) or factor * values[src] + offset. */
-struct transfer {
-    int scaled;
-    size_t dst, src;
-    double factor, offset;
-};
-
-/* A batch of value references of one component and the buffer slots they read or write. */
-struct batch {
-    int component;
-    size_t n;
-    fmi2ValueReference *vr;
-    size_t *slot;
-    double *tmp;
-};
-
-/* One operation of the propagation: read a component's outputs (ntransfers == 0, is_set == 0), or
-   transfer connections into some of its inputs and write them. */
-struct operation {
-    int is_set;
-    struct batch io;
-    size_t ntransfers;
-    struct transfer *transfers;
-};
-
-/* An exposed variable: the host's value reference -> a buffer slot (outputs, inputs) and, for
-   inputs, the component's input; for parameters, a start value (call, position). */
-struct exposed {
-    fmi2ValueReference vr;
-    char kind;   /* 'o' output, 'i' input, 'p' parameter */
-    char type;   /* 'r', 'i', 'b' */
-    size_t slot; /* 'o', 'i' */
-    int component;            /* 'i' */
-    fmi2ValueReference inner; /* 'i' */
-    int feedthrough;          /* 'i': some exposed output depends on it (gauss-seidel re-propagates) */
-    size_t call, position;    /* 'p' */
-};
-
-struct component {
-    char *name, *folder, *identifier, *guid;
-    void *library;
-    struct api f;
-    fmi2Component c;
-    int broken; /* returned fmi2Fatal: no further call */
-};
-
-struct plan {
-    char guid[256];
-    int jacobi;
-    int64_t t0, h; /* nanoseconds */
-    size_t nvalues;
-    double *initial;
-    size_t ncomponents, nstarts, noperations, nexposed, njacobi_transfers;
-    struct component *components;
-    struct starts *starts;
-    struct operation *operations;
-    struct batch *jacobi_in, *jacobi_out; /* per component */
-    struct transfer *jacobi_transfers;
-    struct exposed *exposed;
+/* What an embedded FMI 3.0 FMU's logMessage needs (FMI 3.0 passes no instance name). */
+struct relay3 {
+    struct container *x;
+    const char *name;
 };
 
 enum state { INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED, FAILED };
 
 struct container {
     struct plan plan;
+    struct core core;
+    void **libraries;       /* dlopen handles, per component */
+    struct relay3 *relays;  /* per component */
     char name[256];
     char resources[TEXT];
     fmi2CallbackFunctions host;
@@ -187,19 +96,14 @@ static void say(struct container *x, fmi2Status status, const char *format, ...)
     x->host.logger(x->host.componentEnvironment, x->name, status, category, escaped);
 }
 
-/* The embedded FMUs' logger: their message, formatted, to the host's logger under the container's
-   name (an embedded FMU's instance name is its component name, which the message starts with). */
-static void relay(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status, fmi2String category,
-                  fmi2String message, ...) {
-    struct container *x = env;
-    char text[TEXT], escaped[2 * TEXT + 300];
-    va_list args;
-    va_start(args, message);
-    vsnprintf(text, sizeof text, message ? message : "", args);
-    va_end(args);
+/* An embedded FMU's message (formatted) to the host's logger under the container's name, prefixed
+   with the FMU's instance name (its component name). */
+static void pass_on(struct container *x, const char *instance, int status, const char *category,
+                    const char *text) {
+    char escaped[2 * TEXT + 300];
     if (x && x->log3) {
         snprintf(escaped, sizeof escaped, "%s: %s", instance ? instance : "?", text);
-        x->log3(x->env3, (int)status, category ? category : "logAll", escaped);
+        x->log3(x->env3, status, category ? category : "logAll", escaped);
         return;
     }
     if (!x || !x->host.logger) {
@@ -212,264 +116,43 @@ static void relay(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status 
         escaped[j++] = *p;
     }
     escaped[j] = '\0';
-    x->host.logger(x->host.componentEnvironment, x->name, status, category ? category : "logAll", escaped);
+    x->host.logger(x->host.componentEnvironment, x->name, (fmi2Status)status, category ? category : "logAll",
+                   escaped);
 }
 
-/* A failed call of an embedded FMU: one line as `orchestrate run` reports it; the container's status. */
-static fmi2Status failed(struct container *x, int i, const char *function, fmi2Status status, double t) {
-    struct component *c = &x->plan.components[i];
-    if (status >= fmi2Fatal) c->broken = 1;
-    say(x, status >= fmi2Error ? status : fmi2Error, "%s: %s returned %s at t=%.3f s", c->name, function,
-        STATUS[status <= fmi2Pending ? status : fmi2Error], t);
+/* The embedded FMI 2.0 FMUs' logger. */
+static void relay(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status, fmi2String category,
+                  fmi2String message, ...) {
+    char text[TEXT];
+    va_list args;
+    va_start(args, message);
+    vsnprintf(text, sizeof text, message ? message : "", args);
+    va_end(args);
+    pass_on(env, instance, status, category, text);
+}
+
+/* The embedded FMI 3.0 FMUs' logMessage (the message comes formatted). */
+static void relay3(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category, fmi3String message) {
+    const struct relay3 *r = env;
+    pass_on(r ? r->x : NULL, r ? r->name : NULL, status, category, message ? message : "");
+}
+
+/* The core's failure: one line as `orchestrate run` reports it; the container's status. */
+static fmi2Status failed(struct container *x) {
+    const struct failure *f = &x->core.failure;
+    const struct part *c = &x->plan.components[f->component];
+    say(x, f->status >= fmi2Error ? (fmi2Status)f->status : fmi2Error, "%s: %s returned %s at t=%.3f s", c->name,
+        fmu_function(c->version, f->function), fmu_status(c->version, f->status), f->time);
     x->state = FAILED;
-    return status >= fmi2Fatal ? fmi2Fatal : fmi2Error;
+    return f->status >= fmi2Fatal ? fmi2Fatal : fmi2Error;
 }
 
-#define CHECK(x, i, function, call, t)                                                                       \
-    do {                                                                                                     \
-        fmi2Status status_ = (call);                                                                         \
-        if (status_ >= fmi2Discard) return failed((x), (i), (function), status_, (t));                       \
-    } while (0)
-
-/* ---- the plan -------------------------------------------------------------------------------- */
-
-static void decode(char *s) { /* percent-decoding in place */
-    char *out = s;
-    for (char *p = s; *p; p++) {
-        if (p[0] == '%' && p[1] && p[2]) {
-            char hex[3] = {p[1], p[2], 0};
-            *out++ = (char)strtol(hex, NULL, 16);
-            p += 2;
-        } else {
-            *out++ = *p;
-        }
-    }
-    *out = '\0';
-}
-
-struct reader {
-    char *line;
-    char *next;
-    int number;
-    int error;
-};
-
-static char *token(struct reader *r) {
-    char *t = strtok_r(NULL, " \t", &r->next);
-    if (!t) r->error = 1;
-    return t ? t : "0";
-}
-
-static long long integer(struct reader *r) {
-    char *end, *t = token(r);
-    long long v = strtoll(t, &end, 10);
-    if (*end) r->error = 1;
-    return v;
-}
-
-static size_t count(struct reader *r, size_t limit) {
-    long long v = integer(r);
-    if (v < 0 || (size_t)v > limit) r->error = 1;
-    return v < 0 || (size_t)v > limit ? 0 : (size_t)v;
-}
-
-static double real(struct reader *r) {
-    char *end, *t = token(r);
-    double v = strtod(t, &end);
-    if (*end) r->error = 1;
-    return v;
-}
-
-static char *text(struct reader *r) { /* "=" and the text, percent-encoded */
-    char *word = token(r);
-    if (word[0] != '=') r->error = 1;
-    char *t = strdup(word[0] == '=' ? word + 1 : word);
-    if (t) decode(t);
-    else r->error = 1;
-    return t;
-}
-
-static void *array(size_t n, size_t size, struct reader *r) {
-    void *p = calloc(n ? n : 1, size);
-    if (!p) r->error = 1;
-    return p;
-}
-
-#define LIMIT 10000000
-
-static void read_transfers(struct reader *r, struct plan *p, size_t n, struct transfer *t) {
-    for (size_t j = 0; j < n && !r->error; j++) {
-        t[j].scaled = (int)integer(r);
-        t[j].dst = count(r, p->nvalues - 1);
-        t[j].src = count(r, p->nvalues - 1);
-        t[j].factor = real(r);
-        t[j].offset = real(r);
-    }
-}
-
-static void read_batch(struct reader *r, struct plan *p, struct batch *b) {
-    b->component = (int)count(r, p->ncomponents - 1);
-    b->n = count(r, LIMIT);
-    b->vr = array(b->n, sizeof *b->vr, r);
-    b->slot = array(b->n, sizeof *b->slot, r);
-    b->tmp = array(b->n, sizeof *b->tmp, r);
-    for (size_t j = 0; j < b->n && !r->error; j++) {
-        b->vr[j] = (fmi2ValueReference)count(r, UINT32_MAX);
-        b->slot[j] = count(r, p->nvalues - 1);
-    }
-}
-
-/* Reads the plan; returns 0, or -1 with `why` filled. */
-static int read_plan(const char *path, struct plan *p, char *why, size_t size) {
-    FILE *file = fopen(path, "r");
-    if (!file) {
-        snprintf(why, size, "cannot open the container's plan %s", path);
-        return -1;
-    }
-    memset(p, 0, sizeof *p);
-    struct reader r = {0};
-    char *line = NULL;
-    size_t capacity = 0;
-    size_t ci = 0, si = 0, oi = 0, ei = 0;
-    while (!r.error && getline(&line, &capacity, file) >= 0) {
-        r.number++;
-        line[strcspn(line, "\r\n")] = '\0';
-        char *kind = strtok_r(line, " \t", &r.next);
-        if (!kind || kind[0] == '#') continue;
-        if (!strcmp(kind, "container")) {
-            if (strcmp(token(&r), PLAN_VERSION)) r.error = 1;
-            char *guid = text(&r);
-            snprintf(p->guid, sizeof p->guid, "%s", guid ? guid : "");
-            free(guid);
-        } else if (!strcmp(kind, "master")) {
-            p->jacobi = !strcmp(token(&r), "jacobi");
-        } else if (!strcmp(kind, "grid")) {
-            p->t0 = integer(&r);
-            p->h = integer(&r);
-            if (p->h <= 0) r.error = 1;
-        } else if (!strcmp(kind, "sizes")) { /* values components starts operations exposed */
-            p->nvalues = count(&r, LIMIT) + 1;
-            p->ncomponents = count(&r, 100000);
-            p->nstarts = count(&r, LIMIT);
-            p->noperations = count(&r, LIMIT);
-            p->nexposed = count(&r, LIMIT);
-            p->initial = array(p->nvalues, sizeof *p->initial, &r);
-            p->components = array(p->ncomponents, sizeof *p->components, &r);
-            p->starts = array(p->nstarts, sizeof *p->starts, &r);
-            p->operations = array(p->noperations, sizeof *p->operations, &r);
-            p->jacobi_in = array(p->ncomponents, sizeof *p->jacobi_in, &r);
-            p->jacobi_out = array(p->ncomponents, sizeof *p->jacobi_out, &r);
-            p->exposed = array(p->nexposed, sizeof *p->exposed, &r);
-        } else if (!p->components) {
-            r.error = 1; /* "sizes" comes first */
-        } else if (!strcmp(kind, "value")) {
-            size_t slot = count(&r, p->nvalues - 1);
-            p->initial[slot] = real(&r);
-        } else if (!strcmp(kind, "component") && ci < p->ncomponents) {
-            struct component *c = &p->components[ci++];
-            c->name = text(&r);
-            c->folder = text(&r);
-            c->identifier = text(&r);
-            c->guid = text(&r);
-        } else if (!strcmp(kind, "starts") && si < p->nstarts) {
-            struct starts *s = &p->starts[si++];
-            s->component = (int)count(&r, p->ncomponents - 1);
-            s->type = token(&r)[0];
-            s->n = count(&r, LIMIT);
-            s->vr = array(s->n, sizeof *s->vr, &r);
-            if (s->type == 'r') s->reals = array(s->n, sizeof *s->reals, &r);
-            else if (s->type == 'i' || s->type == 'b') s->ints = array(s->n, sizeof *s->ints, &r);
-            else if (s->type == 's') s->strings = array(s->n, sizeof *s->strings, &r);
-            else r.error = 1;
-            for (size_t j = 0; j < s->n && !r.error; j++) {
-                s->vr[j] = (fmi2ValueReference)count(&r, UINT32_MAX);
-                if (s->reals) s->reals[j] = real(&r);
-                else if (s->ints) s->ints[j] = (int)integer(&r);
-                else if (s->strings) s->strings[j] = text(&r);
-            }
-        } else if (!strcmp(kind, "get") && oi < p->noperations) {
-            struct operation *o = &p->operations[oi++];
-            read_batch(&r, p, &o->io);
-        } else if (!strcmp(kind, "set") && oi < p->noperations) {
-            struct operation *o = &p->operations[oi++];
-            o->is_set = 1;
-            read_batch(&r, p, &o->io);
-            o->ntransfers = count(&r, LIMIT);
-            o->transfers = array(o->ntransfers, sizeof *o->transfers, &r);
-            read_transfers(&r, p, o->ntransfers, o->transfers);
-        } else if (!strcmp(kind, "jacobi-in") || !strcmp(kind, "jacobi-out")) {
-            struct batch b;
-            read_batch(&r, p, &b);
-            if (!r.error) (kind[7] == 'i' ? p->jacobi_in : p->jacobi_out)[b.component] = b;
-        } else if (!strcmp(kind, "jacobi-transfers")) {
-            p->njacobi_transfers = count(&r, LIMIT);
-            p->jacobi_transfers = array(p->njacobi_transfers, sizeof *p->jacobi_transfers, &r);
-            read_transfers(&r, p, p->njacobi_transfers, p->jacobi_transfers);
-        } else if (!strcmp(kind, "exposed") && ei < p->nexposed) {
-            struct exposed *e = &p->exposed[ei++];
-            e->vr = (fmi2ValueReference)count(&r, UINT32_MAX);
-            e->kind = token(&r)[0];
-            e->type = token(&r)[0];
-            if (e->kind == 'o') {
-                e->slot = count(&r, p->nvalues - 1);
-            } else if (e->kind == 'i') {
-                e->slot = count(&r, p->nvalues - 1);
-                e->component = (int)count(&r, p->ncomponents - 1);
-                e->inner = (fmi2ValueReference)count(&r, UINT32_MAX);
-                e->feedthrough = (int)integer(&r);
-            } else if (e->kind == 'p') {
-                e->call = count(&r, p->nstarts - 1);
-                e->position = count(&r, LIMIT);
-                if (e->call < p->nstarts && e->position >= p->starts[e->call].n) r.error = 1;
-            } else {
-                r.error = 1;
-            }
-        } else {
-            r.error = 1;
-        }
-    }
-    free(line);
-    fclose(file);
-    if (!r.error && (ci != p->ncomponents || si != p->nstarts || oi != p->noperations || ei != p->nexposed))
-        r.error = 1, r.number++;
-    if (r.error || !p->components) {
-        snprintf(why, size, "%s: line %d is not a valid plan record (plan version " PLAN_VERSION ")", path,
-                 r.number);
-        return -1;
-    }
-    return 0;
-}
-
-static void free_batch(struct batch *b) {
-    free(b->vr);
-    free(b->slot);
-    free(b->tmp);
-}
-
-static void free_plan(struct plan *p) {
-    for (size_t i = 0; p->components && i < p->ncomponents; i++) {
-        struct component *c = &p->components[i];
-        free(c->name), free(c->folder), free(c->identifier), free(c->guid);
-        if (p->jacobi_in) free_batch(&p->jacobi_in[i]);
-        if (p->jacobi_out) free_batch(&p->jacobi_out[i]);
-    }
-    for (size_t i = 0; p->starts && i < p->nstarts; i++) {
-        struct starts *s = &p->starts[i];
-        for (size_t j = 0; s->strings && j < s->n; j++) free(s->strings[j]);
-        free(s->vr), free(s->reals), free(s->ints), free(s->strings);
-    }
-    for (size_t i = 0; p->operations && i < p->noperations; i++) {
-        free_batch(&p->operations[i].io);
-        free(p->operations[i].transfers);
-    }
-    free(p->initial), free(p->components), free(p->starts), free(p->operations), free(p->jacobi_in);
-    free(p->jacobi_out), free(p->jacobi_transfers), free(p->exposed);
-    memset(p, 0, sizeof *p);
-}
+/* The core's result as the container's status. */
+#define CORE(x, call) ((call) ? failed(x) : fmi2OK)
 
 /* ---- loading the embedded FMUs ------------------------------------------------------------- */
 
-/* The container's resources folder: ../../resources from this library (binaries/linux64/X.so). */
+/* The container's resources folder: ../../resources from this library (binaries/<platform>/X.so). */
 static int own_resources(char *out, size_t size) {
     Dl_info self;
     if (!dladdr((void *)&own_resources, &self) || !self.dli_fname) return -1;
@@ -498,138 +181,73 @@ static void file_uri(const char *path, char *out, size_t size) {
     out[j] = '\0';
 }
 
-static int load_component(struct container *x, struct component *c, char *why, size_t size) {
-    char path[2 * TEXT];
-    snprintf(path, sizeof path, "%s/fmus/%s/binaries/linux64/%s.so", x->resources, c->folder, c->identifier);
-    c->library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
-    if (!c->library) {
+static void *instantiate(struct container *x, size_t i) {
+    const struct part *c = &x->plan.components[i];
+    struct fmu *f = &x->core.fmus[i];
+    char resources[2 * TEXT], uri[6 * TEXT];
+    snprintf(resources, sizeof resources, "%s/fmus/%s/resources%s", x->resources, c->folder,
+             c->version == 3 ? "/" : "");
+    if (c->version == 3) {
+        x->relays[i] = (struct relay3){x, c->name};
+        return f->instantiate3(c->name, c->guid, resources, fmi3False, x->logging != 0, fmi3False, fmi3False, NULL,
+                               0, &x->relays[i], relay3, NULL);
+    }
+    file_uri(resources, uri, sizeof uri);
+    return f->instantiate2(c->name, fmi2CoSimulation, c->guid, uri, &x->inner, fmi2False, x->logging);
+}
+
+static int load_component(struct container *x, size_t i, char *why, size_t size) {
+    const struct part *c = &x->plan.components[i];
+    char path[2 * TEXT], reason[TEXT];
+    snprintf(path, sizeof path, "%s/fmus/%s/binaries/%s/%s.so", x->resources, c->folder,
+             c->version == 3 ? "x86_64-linux" : "linux64", c->identifier);
+    x->libraries[i] = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!x->libraries[i]) {
         snprintf(why, size, "%s: cannot load %s: %s", c->name, path, dlerror());
         return -1;
     }
-    int ok = 1;
-#define FIND(field, symbol) ok &= (*(void **)(&c->f.field) = dlsym(c->library, symbol)) != NULL
-    FIND(instantiate, "fmi2Instantiate");
-    FIND(free_instance, "fmi2FreeInstance");
-    FIND(set_debug_logging, "fmi2SetDebugLogging");
-    FIND(setup_experiment, "fmi2SetupExperiment");
-    FIND(enter_initialization, "fmi2EnterInitializationMode");
-    FIND(exit_initialization, "fmi2ExitInitializationMode");
-    FIND(terminate, "fmi2Terminate");
-    FIND(reset, "fmi2Reset");
-    FIND(get_real, "fmi2GetReal");
-    FIND(set_real, "fmi2SetReal");
-    FIND(set_integer, "fmi2SetInteger");
-    FIND(set_boolean, "fmi2SetBoolean");
-    FIND(set_string, "fmi2SetString");
-    FIND(do_step, "fmi2DoStep");
-#undef FIND
-    if (!ok) {
-        snprintf(why, size, "%s: %s lacks an FMI 2.0 Co-Simulation function", c->name, path);
+    if (fmu_bind(&x->core.fmus[i], x->libraries[i], c->version, 1, reason, sizeof reason) != 0) {
+        snprintf(why, size, "%s: %s: %s", c->name, path, reason);
         return -1;
     }
-    char resources[2 * TEXT], uri[6 * TEXT];
-    snprintf(resources, sizeof resources, "%s/fmus/%s/resources", x->resources, c->folder);
-    file_uri(resources, uri, sizeof uri);
-    c->c = c->f.instantiate(c->name, fmi2CoSimulation, c->guid, uri, &x->inner, 0, x->logging);
-    if (!c->c) {
-        snprintf(why, size, "%s: fmi2Instantiate returned NULL", c->name);
+    x->core.fmus[i].instance = instantiate(x, i);
+    if (!x->core.fmus[i].instance) {
+        snprintf(why, size, "%s: %s returned NULL", c->name, fmu_function(c->version, INSTANTIATE));
         return -1;
     }
     return 0;
 }
 
 static void release(struct container *x) {
-    for (size_t i = x->plan.ncomponents; i-- > 0;) {
-        struct component *c = &x->plan.components[i];
-        if (c->c && !c->broken) c->f.free_instance(c->c);
-        c->c = NULL;
-        if (c->library) dlclose(c->library);
-        c->library = NULL;
+    for (size_t i = x->plan.ncomponents; x->core.fmus && i-- > 0;) {
+        fmu_free(&x->core.fmus[i]);
+        if (x->libraries && x->libraries[i]) dlclose(x->libraries[i]);
     }
-    free_plan(&x->plan);
+    plan_free(&x->plan);
+    free(x->core.fmus);
+    free(x->libraries);
+    free(x->relays);
     free(x->values);
     free(x->input_set);
     free(x);
 }
 
-/* ---- the master -------------------------------------------------------------------------------- */
-
-static double grid_time(const struct container *x, int64_t k) {
-    return (double)(x->plan.t0 + x->plan.h * k) / 1e9;
-}
-
-static void transfer(double *v, const struct transfer *t, size_t n) {
-    for (size_t j = 0; j < n; j++)
-        if (!t[j].scaled) v[t[j].dst] = v[t[j].src];
-    for (size_t j = 0; j < n; j++)
-        if (t[j].scaled) v[t[j].dst] = t[j].factor * v[t[j].src] + t[j].offset;
-}
-
-static fmi2Status get_batch(struct container *x, const struct batch *b, double t) {
-    struct component *c = &x->plan.components[b->component];
-    CHECK(x, b->component, "fmi2GetReal", c->f.get_real(c->c, b->vr, b->n, b->tmp), t);
-    for (size_t j = 0; j < b->n; j++) x->values[b->slot[j]] = b->tmp[j];
-    return fmi2OK;
-}
-
-static fmi2Status set_batch(struct container *x, const struct batch *b, double t) {
-    struct component *c = &x->plan.components[b->component];
-    for (size_t j = 0; j < b->n; j++) b->tmp[j] = x->values[b->slot[j]];
-    CHECK(x, b->component, "fmi2SetReal", c->f.set_real(c->c, b->vr, b->n, b->tmp), t);
-    return fmi2OK;
-}
-
-/* gauss-seidel at a communication point: the schedule's reads and writes in dependency order. */
-static fmi2Status propagate(struct container *x, double t) {
-    for (size_t j = 0; j < x->plan.noperations; j++) {
-        const struct operation *o = &x->plan.operations[j];
-        fmi2Status s;
-        if (o->is_set) {
-            transfer(x->values, o->transfers, o->ntransfers);
-            s = set_batch(x, &o->io, t);
-        } else {
-            s = o->io.n ? get_batch(x, &o->io, t) : fmi2OK;
-        }
-        if (s != fmi2OK) return s;
-    }
-    x->dirty = 0;
-    return fmi2OK;
-}
-
-static fmi2Status jacobi_write(struct container *x, size_t i, double t) {
-    return x->plan.jacobi_in[i].n ? set_batch(x, &x->plan.jacobi_in[i], t) : fmi2OK;
-}
-
-static fmi2Status jacobi_read(struct container *x, size_t i, double t) {
-    return x->plan.jacobi_out[i].n ? get_batch(x, &x->plan.jacobi_out[i], t) : fmi2OK;
-}
-
-static fmi2Status apply_starts(struct container *x, size_t i, double t) {
-    struct component *c = &x->plan.components[i];
-    for (size_t j = 0; j < x->plan.nstarts; j++) {
-        struct starts *s = &x->plan.starts[j];
-        if (s->component != (int)i) continue;
-        switch (s->type) {
-        case 'r': CHECK(x, (int)i, "fmi2SetReal", c->f.set_real(c->c, s->vr, s->n, s->reals), t); break;
-        case 'i': CHECK(x, (int)i, "fmi2SetInteger", c->f.set_integer(c->c, s->vr, s->n, s->ints), t); break;
-        case 'b': CHECK(x, (int)i, "fmi2SetBoolean", c->f.set_boolean(c->c, s->vr, s->n, s->ints), t); break;
-        default:
-            CHECK(x, (int)i, "fmi2SetString",
-                  c->f.set_string(c->c, s->vr, s->n, (const fmi2String *)s->strings), t);
-        }
-    }
-    return fmi2OK;
-}
+/* ---- the host's inputs ----------------------------------------------------------------------- */
 
 /* The host's inputs set so far, passed on (after the start values, which they override). */
 static fmi2Status apply_inputs(struct container *x, double t) {
     for (size_t j = 0; j < x->plan.nexposed; j++) {
         struct exposed *e = &x->plan.exposed[j];
         if (e->kind != 'i' || !x->input_set[j]) continue;
-        struct component *c = &x->plan.components[e->component];
-        CHECK(x, e->component, "fmi2SetReal", c->f.set_real(c->c, &e->inner, 1, &x->values[e->slot]), t);
+        if (core_set_input(&x->core, e->component, e->inner, &x->values[e->slot], t)) return failed(x);
     }
     return fmi2OK;
+}
+
+static fmi2Status propagate(struct container *x, double t) {
+    fmi2Status s = CORE(x, core_propagate(&x->core, t));
+    if (s == fmi2OK) x->dirty = 0;
+    return s;
 }
 
 /* ---- FMI 2.0 functions ----------------------------------------------------------------------- */
@@ -652,6 +270,30 @@ EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
 
 EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
 
+/* The plan read and the value buffer made as it lays it out; -1 after one message. */
+static int read_own_plan(struct container *x, const char *function) {
+    char why[2 * TEXT], path[TEXT + 32];
+    snprintf(path, sizeof path, "%s/container.plan", x->resources);
+    if (plan_load(path, &x->plan, why, sizeof why) != 0) {
+        say(x, fmi2Error, "%s: %s", function, why);
+        return -1;
+    }
+    x->core.plan = &x->plan;
+    size_t n = x->plan.ncomponents ? x->plan.ncomponents : 1;
+    x->core.fmus = calloc(n, sizeof *x->core.fmus);
+    x->libraries = calloc(n, sizeof *x->libraries);
+    x->relays = calloc(n, sizeof *x->relays);
+    x->values = calloc(x->plan.nvalues, sizeof *x->values);
+    x->input_set = calloc(x->plan.nexposed ? x->plan.nexposed : 1, sizeof *x->input_set);
+    if (!x->core.fmus || !x->libraries || !x->relays || !x->values || !x->input_set) {
+        say(x, fmi2Error, "%s: out of memory", function);
+        return -1;
+    }
+    memcpy(x->values, x->plan.initial, x->plan.nvalues * sizeof *x->values);
+    x->core.values = x->values;
+    return 0;
+}
+
 /* A new container: the plan read, every FMU loaded and instantiated; NULL after one message. `x` comes
    with its name, logging and host callbacks set; `function` names the host's call in messages. */
 static struct container *create(struct container *x, const char *function, const char *token) {
@@ -659,17 +301,14 @@ static struct container *create(struct container *x, const char *function, const
     if (!x->inner.allocateMemory) x->inner.allocateMemory = calloc;
     if (!x->inner.freeMemory) x->inner.freeMemory = free;
     x->inner.componentEnvironment = x;
-    char why[2 * TEXT], path[TEXT + 32];
+    char why[2 * TEXT];
     if (own_resources(x->resources, sizeof x->resources) != 0) {
         say(x, fmi2Error, "%s: cannot find the container's own file (dladdr failed)", function);
         free(x);
         return NULL;
     }
-    snprintf(path, sizeof path, "%s/container.plan", x->resources);
-    if (read_plan(path, &x->plan, why, sizeof why) != 0) {
-        say(x, fmi2Error, "%s: %s", function, why);
-        free_plan(&x->plan);
-        free(x);
+    if (read_own_plan(x, function) != 0) {
+        release(x);
         return NULL;
     }
     if (token && strcmp(token, x->plan.guid) != 0) {
@@ -677,15 +316,8 @@ static struct container *create(struct container *x, const char *function, const
         release(x);
         return NULL;
     }
-    x->values = calloc(x->plan.nvalues, sizeof *x->values);
-    x->input_set = calloc(x->plan.nexposed ? x->plan.nexposed : 1, sizeof *x->input_set);
-    if (!x->values || !x->input_set) {
-        release(x);
-        return NULL;
-    }
-    memcpy(x->values, x->plan.initial, x->plan.nvalues * sizeof *x->values);
     for (size_t i = 0; i < x->plan.ncomponents; i++) {
-        if (load_component(x, &x->plan.components[i], why, sizeof why) != 0) {
+        if (load_component(x, i, why, sizeof why) != 0) {
             say(x, fmi2Error, "%s: %s", function, why);
             release(x);
             return NULL;
@@ -722,13 +354,12 @@ EXPORT void fmi2FreeInstance(fmi2Component c) {
 EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[]) {
     CONTAINER(c, ANY);
     x->logging = on;
-    fmi2Status worst = fmi2OK;
+    int worst = fmi2OK;
     for (size_t i = 0; i < x->plan.ncomponents; i++) {
-        struct component *k = &x->plan.components[i];
-        fmi2Status s = k->f.set_debug_logging(k->c, on, n, categories);
+        int s = fmu_set_debug_logging(&x->core.fmus[i], on, n, categories);
         if (s > worst) worst = s;
     }
-    return worst > fmi2Warning ? fmi2Warning : worst;
+    return worst > fmi2Warning ? fmi2Warning : (fmi2Status)worst;
 }
 
 EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
@@ -748,86 +379,34 @@ EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefi
 
 EXPORT fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
     CONTAINER(c, 1 << INSTANTIATED);
-    double t0 = grid_time(x, 0);
-    x->values[0] = t0;
-    for (size_t i = 0; i < x->plan.ncomponents; i++) {
-        struct component *k = &x->plan.components[i];
-        fmi2Status s = apply_starts(x, i, t0);
-        if (s != fmi2OK) return s;
-        CHECK(x, (int)i, "fmi2SetupExperiment",
-              k->f.setup_experiment(k->c, 0, 0.0, t0, x->stop_defined, x->stop), t0);
-        CHECK(x, (int)i, "fmi2EnterInitializationMode", k->f.enter_initialization(k->c), t0);
-        s = apply_starts(x, i, t0);
-        if (s != fmi2OK) return s;
-    }
-    fmi2Status s = apply_inputs(x, t0);
+    double t0 = plan_time(&x->plan, 0);
+    fmi2Status s = CORE(x, core_enter_initialization(&x->core, t0, x->stop_defined, x->stop));
+    if (s == fmi2OK) s = apply_inputs(x, t0);
     if (s != fmi2OK) return s;
     x->state = INITIALIZATION;
     x->dirty = 1;
     return fmi2OK;
 }
 
-/* jacobi in initialization mode: N sweeps of (set, get) per FMU, then transfer all. */
-static fmi2Status jacobi_sweeps(struct container *x, double t0) {
-    for (size_t sweep = 0; sweep < x->plan.ncomponents; sweep++) {
-        for (size_t i = 0; i < x->plan.ncomponents; i++) {
-            fmi2Status s = sweep ? jacobi_write(x, i, t0) : fmi2OK;
-            if (s == fmi2OK) s = jacobi_read(x, i, t0);
-            if (s != fmi2OK) return s;
-        }
-        transfer(x->values, x->plan.jacobi_transfers, x->plan.njacobi_transfers);
-    }
-    x->dirty = 0;
-    return fmi2OK;
-}
-
 EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     CONTAINER(c, 1 << INITIALIZATION);
-    double t0 = grid_time(x, 0);
-    fmi2Status s = x->plan.jacobi ? jacobi_sweeps(x, t0) : propagate(x, t0);
+    fmi2Status s = CORE(x, core_exit_initialization(&x->core, plan_time(&x->plan, 0)));
     if (s != fmi2OK) return s;
-    for (size_t i = 0; i < x->plan.ncomponents; i++) {
-        struct component *k = &x->plan.components[i];
-        if (x->plan.jacobi && (s = jacobi_write(x, i, t0)) != fmi2OK) return s;
-        CHECK(x, (int)i, "fmi2ExitInitializationMode", k->f.exit_initialization(k->c), t0);
-        if (x->plan.jacobi && (s = jacobi_read(x, i, t0)) != fmi2OK) return s;
-    }
-    if (x->plan.jacobi) {
-        transfer(x->values, x->plan.jacobi_transfers, x->plan.njacobi_transfers);
-        x->dirty = 0;
-    } else if ((s = propagate(x, t0)) != fmi2OK) {
-        return s;
-    }
+    x->dirty = 0;
     x->state = STEPPING;
     x->k = 0;
     return fmi2OK;
 }
 
-static fmi2Status one_step(struct container *x) {
-    double t = grid_time(x, x->k), t_next = grid_time(x, x->k + 1), h = t_next - t;
-    size_t n = x->plan.ncomponents;
-    if (x->plan.jacobi) {
-        for (size_t i = 0; i < n; i++) {
-            struct component *k = &x->plan.components[i];
-            struct batch *out = &x->plan.jacobi_out[i];
-            fmi2Status s = jacobi_write(x, i, t);
-            if (s != fmi2OK) return s;
-            CHECK(x, (int)i, "fmi2DoStep", k->f.do_step(k->c, t, h, 1), t);
-            CHECK(x, (int)i, "fmi2GetReal", k->f.get_real(k->c, out->vr, out->n, out->tmp), t);
-            for (size_t j = 0; j < out->n; j++) x->values[out->slot[j]] = out->tmp[j];
-        }
-        x->values[0] = t_next;
-        transfer(x->values, x->plan.jacobi_transfers, x->plan.njacobi_transfers);
-        x->k++;
-        return fmi2OK;
-    }
-    for (size_t i = 0; i < n; i++) {
-        struct component *k = &x->plan.components[i];
-        CHECK(x, (int)i, "fmi2DoStep", k->f.do_step(k->c, t, h, 1), t);
-    }
-    x->values[0] = t_next;
-    x->k++;
-    return propagate(x, t_next);
+/* Whether the host's step [t, t + H] ends on the grid after the container's time; the target count. */
+static int on_grid(const struct container *x, double t, double H, int64_t *target) {
+    const struct plan *p = &x->plan;
+    double now = (double)(p->t0 + p->h * x->k);
+    double start = t * 1e9, end = (t + H) * 1e9;
+    *target = llround((end - (double)p->t0) / (double)p->h);
+    /* The host's time may be a sum of steps: within a thousandth of a step of the grid counts as on it. */
+    double slack = 1e-3 * (double)p->h;
+    return fabs(start - now) <= slack && fabs(end - (double)(p->t0 + p->h * *target)) <= slack && *target > x->k;
 }
 
 EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
@@ -835,28 +414,22 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint
     CONTAINER(c, 1 << STEPPING);
     (void)noSetFMUStatePriorToCurrentPoint;
     const struct plan *p = &x->plan;
-    double now = (double)(p->t0 + p->h * x->k);
-    double start = currentCommunicationPoint * 1e9, end = (currentCommunicationPoint + communicationStepSize) * 1e9;
-    double steps = (end - (double)p->t0) / (double)p->h;
-    int64_t target = llround(steps);
-    /* The host's time may be a sum of steps: within a thousandth of a step of the grid counts as on it. */
-    double slack = 1e-3 * (double)p->h;
-    if (!(fabs(start - now) <= slack) || !(fabs(end - (double)(p->t0 + p->h * target)) <= slack) ||
-        target <= x->k) {
+    int64_t target;
+    if (!on_grid(x, currentCommunicationPoint, communicationStepSize, &target)) {
         say(x, fmi2Error,
             "fmi2DoStep(t=%.17g s, h=%.17g s): the container steps on its scenario's grid t0 + k*%.9g s and is at "
             "t=%.17g s: the communication points must be on that grid and the step a positive multiple of %.9g s",
-            currentCommunicationPoint, communicationStepSize, (double)p->h / 1e9, now / 1e9, (double)p->h / 1e9);
+            currentCommunicationPoint, communicationStepSize, (double)p->h / 1e9, plan_time(p, x->k),
+            (double)p->h / 1e9);
         return fmi2Error;
     }
     if (!p->jacobi && x->dirty) { /* an input set since the last propagation feeds other inputs */
-        fmi2Status s = propagate(x, grid_time(x, x->k));
+        fmi2Status s = propagate(x, plan_time(p, x->k));
         if (s != fmi2OK) return s;
     }
-    while (x->k < target) {
-        fmi2Status s = one_step(x);
-        if (s != fmi2OK) return s;
-    }
+    for (; x->k < target; x->k++)
+        if (core_step(&x->core, x->k, NULL)) return failed(x);
+    x->dirty = 0;
     return fmi2OK;
 }
 
@@ -869,7 +442,7 @@ static struct exposed *find(struct container *x, fmi2ValueReference vr, char typ
 EXPORT fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real value[]) {
     CONTAINER(c, ANY);
     if (!x->plan.jacobi && x->dirty && (x->state == INITIALIZATION || x->state == STEPPING)) {
-        fmi2Status s = propagate(x, grid_time(x, x->k));
+        fmi2Status s = propagate(x, plan_time(&x->plan, x->k));
         if (s != fmi2OK) return s;
     }
     for (size_t j = 0; j < n; j++) {
@@ -899,11 +472,9 @@ EXPORT fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], si
         x->values[e->slot] = value[j];
         x->input_set[e - x->plan.exposed] = 1;
         x->dirty |= e->feedthrough;
-        if (x->state == INITIALIZATION || x->state == STEPPING) {
-            struct component *k = &x->plan.components[e->component];
-            CHECK(x, e->component, "fmi2SetReal", k->f.set_real(k->c, &e->inner, 1, &value[j]),
-                  grid_time(x, x->k));
-        }
+        if ((x->state == INITIALIZATION || x->state == STEPPING) &&
+            core_set_input(&x->core, e->component, e->inner, &value[j], plan_time(&x->plan, x->k)))
+            return failed(x);
     }
     return fmi2OK;
 }
@@ -975,40 +546,32 @@ EXPORT fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], 
 
 EXPORT fmi2Status fmi2Terminate(fmi2Component c) {
     CONTAINER(c, 1 << STEPPING | 1 << INITIALIZATION);
-    fmi2Status worst = fmi2OK;
-    double t = grid_time(x, x->k);
-    for (size_t i = 0; i < x->plan.ncomponents; i++) {
-        struct component *k = &x->plan.components[i];
-        fmi2Status s = k->f.terminate(k->c);
-        if (s >= fmi2Discard) worst = failed(x, (int)i, "fmi2Terminate", s, t);
-    }
-    if (worst == fmi2OK) x->state = TERMINATED;
-    return worst;
+    fmi2Status s = CORE(x, core_terminate(&x->core, plan_time(&x->plan, x->k)));
+    if (s == fmi2OK) x->state = TERMINATED;
+    return s;
 }
 
 EXPORT fmi2Status fmi2Reset(fmi2Component c) {
     CONTAINER(c, ANY);
+    double t = plan_time(&x->plan, x->k);
     for (size_t i = 0; i < x->plan.ncomponents; i++) {
-        struct component *k = &x->plan.components[i];
-        CHECK(x, (int)i, "fmi2Reset", k->f.reset(k->c), grid_time(x, x->k));
+        int status = fmu_reset(&x->core.fmus[i]);
+        if (status >= fmi2Discard) {
+            x->core.failure = (struct failure){(int)i, RESET, status, t};
+            return failed(x);
+        }
     }
     /* Start values as exported: the plan is read again. */
     char path[TEXT + 32], why[2 * TEXT];
     struct plan fresh;
     snprintf(path, sizeof path, "%s/container.plan", x->resources);
-    if (read_plan(path, &fresh, why, sizeof why) != 0) {
-        free_plan(&fresh);
+    if (plan_load(path, &fresh, why, sizeof why) != 0) {
+        plan_free(&fresh);
         say(x, fmi2Error, "fmi2Reset: %s", why);
         x->state = FAILED;
         return fmi2Error;
     }
-    for (size_t i = 0; i < fresh.ncomponents; i++) {
-        fresh.components[i].library = x->plan.components[i].library;
-        fresh.components[i].f = x->plan.components[i].f;
-        fresh.components[i].c = x->plan.components[i].c;
-        x->plan.components[i].library = NULL;
-    }
-    free_plan(&x->plan);
+    plan_free(&x->plan);
     x->plan = fresh;
     memcpy(x->values, x->plan.initial, x->plan.nvalues * sizeof *x->values);
     memset(x->input_set, 0, (x->plan.nexposed ? x->plan.nexposed : 1) * sizeof *x->input_set);
@@ -1073,7 +636,7 @@ EXPORT fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Sta
 EXPORT fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
     struct container *x = c;
     if (x && s == fmi2LastSuccessfulTime && value) {
-        *value = grid_time(x, x->k);
+        *value = plan_time(&x->plan, x->k);
         return fmi2OK;
     }
     return unsupported(c, "fmi2GetRealStatus");
@@ -1098,12 +661,10 @@ EXPORT fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, f
 /* ---- FMI 3.0 ------------------------------------------------------------------------------------
 
    The same container behind the FMI 3.0 Co-Simulation API (an FMU exported with --fmi 3 declares
-   fmiVersion 3.0; the FMUs inside stay FMI 2.0): each function maps onto its FMI 2.0 counterpart
-   above (fmi3EnterInitializationMode = fmi2SetupExperiment + fmi2EnterInitializationMode,
-   Float64 = Real, Int32 = Integer), scalar variables only, no event mode. Compiled against the
-   FMI 3.0 headers FMPy ships (fmpy/c-code), so every signature is the standard's. */
-
-#include "fmi3Functions.h"
+   fmiVersion 3.0; the FMUs inside are FMI 2.0 or 3.0 as the scenario has them): each function maps
+   onto its FMI 2.0 counterpart above (fmi3EnterInitializationMode = fmi2SetupExperiment +
+   fmi2EnterInitializationMode, Float64 = Real, Int32 = Integer), scalar variables only, no event
+   mode. Compiled against the official FMI 3.0 headers (fmi/), so every signature is the standard's. */
 
 static fmi3Status unsupported3(fmi3Instance instance, const char *function) {
     say(instance, fmi2Error, "%s is not supported by the scenario container", function);
@@ -1185,7 +746,7 @@ FMI3_Export fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentComm
     if (earlyReturn) *earlyReturn = fmi3False;
     if (lastSuccessfulTime && instance) {
         const struct container *x = instance;
-        *lastSuccessfulTime = grid_time(x, x->k);
+        *lastSuccessfulTime = plan_time(&x->plan, x->k);
     }
     return (fmi3Status)s;
 }
