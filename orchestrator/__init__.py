@@ -21,8 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import formats, provenance
+from . import formats, native, provenance
 from .errors import (
+    EngineNote,
     Interrupted,
     LoopError,
     NonFiniteError,
@@ -40,7 +41,7 @@ from .ssp import DEFAULT_LIMITS, Limits
 from .system import PortRef, System
 from .validate import DEFAULT_STEP, check_scenario, no_step, timing
 
-__all__ = ["DEFAULT_STEP", "MASTERS", "Interrupted", "Limits", "LoopError", "NonFiniteError",
+__all__ = ["DEFAULT_STEP", "MASTERS", "EngineNote", "Interrupted", "Limits", "LoopError", "NonFiniteError",
            "OrchestratorError",
            "PortRef", "RunOptions", "RunResult", "ScenarioError", "ScenarioWarning", "SimulationError",
            "TimeLimitError", "UsageError", "open_system", "run", "system_columns"]
@@ -141,8 +142,10 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
                      strict_fmus=options.strict_fmus) as system:
         start, stop, h = timing(system.structure, options.stop_time, options.step, options.start_time)
         series = _before_the_run(system, options, start, stop)
+        compiled = _compiled(system, options)
         record = provenance.describe(scenario, system, start=start, stop=stop, step=h, master=options.master,
                                      parameter_sets=options.parameter_sets, overrides=options.overrides)
+        record["executor"] = "compiled" if compiled else "python"
         if options.input_file is not None and series is not None:
             record["input_file"] = {"path": str(Path(options.input_file).resolve()),
                                     "sha256": provenance.digest(options.input_file),
@@ -163,7 +166,7 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
                                          inputs=series, instances=tracing(options.fmi_log),
                                          binary_copy=stream is not None and stream != Path(output or ""),
                                          loop_tolerance=options.loop_tolerance,
-                                         loop_iterations=options.loop_iterations)
+                                         loop_iterations=options.loop_iterations, compiled=compiled)
         texts = descriptions(system)
         try:
             runner.run()
@@ -197,6 +200,25 @@ def _before_the_run(system: System, options: RunOptions, start: float, stop: flo
     for message in [*unconnected, *defaulted, *noted]:
         warnings.warn(message, ScenarioWarning, stacklevel=3)
     return series
+
+
+def _compiled(system: System, options: RunOptions) -> bool:
+    """Whether the compiled executor runs the scenario (``options.executor``); where ``auto`` finds
+    that it cannot, the Python master does, with an EngineNote saying why (``compiled``: a
+    UsageError)."""
+    if options.executor == "python":
+        return False
+    old = [name for name, c in system.components.items() if c.model.fmiVersion.startswith("1.")]
+    loop = options.master == "gauss-seidel" and bool(system.iterated)
+    why = ("--fmi-log traces the calls the Python master makes" if options.fmi_log else
+           f"FMI 1.0 component{'s' if len(old) > 1 else ''} {', '.join(old)}" if old else
+           "an algebraic loop is iterated to a fixed point" if loop else native.unavailable())
+    if not why:
+        return True
+    if options.executor == "compiled":
+        raise UsageError(f"--executor compiled cannot run this scenario: {why}")
+    warnings.warn(f"the Python master runs this scenario: {why}", EngineNote, stacklevel=3)
+    return False
 
 
 def system_columns(system: System) -> list[str]:

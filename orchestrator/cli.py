@@ -25,6 +25,7 @@ from typing import TypedDict, Unpack
 
 from . import MASTERS, RunOptions, RunResult, run
 from .errors import (
+    EngineNote,
     Interrupted,
     OrchestratorError,
     OutputError,
@@ -39,6 +40,7 @@ from .inspection import inspect_scenario
 from .master import LOOP_ITERATIONS, LOOP_TOLERANCE
 from .plots import check_plot, plot_run
 from .provenance import overrides_text, read_provenance
+from .result import EXECUTORS
 from .results import read_result
 from .ssp import DEFAULT_LIMITS, Limits
 from .validate import validate
@@ -169,6 +171,9 @@ def _parser(command: str | None = None) -> argparse.ArgumentParser:
     _plot_variables(p)
     p.add_argument("--no-plot", action="store_true", help="do not plot")
     p.add_argument("--master", choices=list(MASTERS), default="gauss-seidel", help="master algorithm")
+    p.add_argument("--executor", choices=EXECUTORS, default="auto",
+                   help="who steps the plan: the compiled executor (auto: where it can, else the Python "
+                        "master, with a note), or always the Python master; the same rows bit for bit")
     p.add_argument("--allow-stale", action="store_true",
                    help="run a scenario even when an application's check finds it stale (e.g. a build older "
                         "than its sources)")
@@ -421,7 +426,7 @@ def _options(args: argparse.Namespace, scenario: Path, output: Path) -> RunOptio
                       strict=args.strict, timeout=args.timeout, fmu_dirs=fmu_dirs(scenario),
                       limits=archive_limits(args), input_file=args.input_file, fmi_log=args.fmi_log,
                       root=args.root, strict_fmus=args.strict_fmus, loop_tolerance=args.loop_tolerance,
-                      loop_iterations=args.loop_iterations)
+                      loop_iterations=args.loop_iterations, executor=args.executor)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -504,6 +509,8 @@ def _print_warnings(caught: Sequence[warnings.WarningMessage]) -> None:
     for w in caught:
         if issubclass(w.category, ScenarioWarning):
             print(f"orchestrate: warning: {w.message}", file=sys.stderr)
+        elif issubclass(w.category, EngineNote):
+            print(f"orchestrate: note: {w.message}", file=sys.stderr)
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["Interrupted", "LoopError", "NonFiniteError", "OrchestratorError", "OutputError", "ScenarioError",
-           "ScenarioWarning", "SimulationError", "Terminated", "TimeLimitError", "UsageError", "terminate"]
+__all__ = ["EngineNote", "Interrupted", "LoopError", "NonFiniteError", "OrchestratorError", "OutputError",
+           "ScenarioError", "ScenarioWarning", "SimulationError", "Terminated", "TimeLimitError",
+           "UsageError", "terminate"]
 
 
 class OrchestratorError(Exception):
@@ -145,3 +146,8 @@ def terminate(signum: int, frame: object) -> None:
 class ScenarioWarning(UserWarning):
     """A scenario that runs but is probably not what was meant (e.g. an input no connection feeds);
     ``run(strict=True)`` (``orchestrate run --strict``) makes it a ScenarioError."""
+
+
+class EngineNote(UserWarning):
+    """How the engine runs a scenario when that is not the default (the Python master instead of the
+    compiled executor, and why); informative, never a problem of the scenario."""

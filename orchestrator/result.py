@@ -24,9 +24,10 @@ from .ssp import DEFAULT_LIMITS, Limits
 if TYPE_CHECKING:
     import pandas
 
-__all__ = ["STATUSES", "RunOptions", "RunResult"]
+__all__ = ["EXECUTORS", "STATUSES", "RunOptions", "RunResult"]
 
 STATUSES = ("complete", "failed", "timeout", "interrupted")
+EXECUTORS = ("auto", "compiled", "python")
 
 
 def _paths(items: str | os.PathLike | Sequence[str | os.PathLike]) -> tuple[Path, ...]:
@@ -78,6 +79,11 @@ class RunOptions:
         Convergence of an algebraic loop under gauss-seidel: no input on it moving by more than
         ``loop_tolerance`` (relative to 1 + its size) between two sweeps, within ``loop_iterations``
         sweeps at each communication point (else a :class:`~orchestrator.errors.LoopError`).
+    executor : str
+        ``auto`` (default): the compiled executor, else the Python master with an
+        :class:`~orchestrator.errors.EngineNote` saying why (FMI 1.0, a loop iterated to a fixed
+        point, ``fmi_log``, no C compiler); ``compiled``: the compiled executor or a UsageError;
+        ``python``: the Python master. Every executor gives the same rows, bit for bit.
 
     Raises
     ------
@@ -106,6 +112,7 @@ class RunOptions:
     strict_fmus: bool = False
     loop_tolerance: float = LOOP_TOLERANCE
     loop_iterations: int = LOOP_ITERATIONS
+    executor: str = "auto"
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -121,6 +128,8 @@ class RunOptions:
                 set_(self, name, Path(value))
         if self.master not in MASTERS:
             raise UsageError(f"unknown master '{self.master}' (choose from {', '.join(MASTERS)})")
+        if self.executor not in EXECUTORS:
+            raise UsageError(f"unknown executor '{self.executor}' (choose from {', '.join(EXECUTORS)})")
         if not (isinstance(self.loop_iterations, int) and self.loop_iterations >= 1):
             raise UsageError(f"loop_iterations must be a positive integer (got {self.loop_iterations!r})")
         for name in ("step", "timeout", "output_interval", "loop_tolerance"):
