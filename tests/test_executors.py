@@ -153,3 +153,12 @@ def test_the_python_master_serves_what_c_cannot_with_one_note(loop: Path, test_f
     assert notes == ["the Python master runs this scenario: an algebraic loop is iterated to a fixed point"]
     notes, record = _notes(archive, master="jacobi")  # jacobi delays the loop: C steps it
     assert notes == [] and record["executor"] == "compiled"
+
+
+def test_fmi1_components_run_in_the_python_master_with_one_note() -> None:
+    """libcosim's own FMI 1.0 test scenario (tests/ssp_conformance): the values of libcosim's unit
+    test, stepped by the Python master, which binds FMI 1.0's prefixed functions."""
+    libcosim = Path(__file__).parent / "ssp_conformance" / "libcosim"
+    notes, record = _notes(libcosim / "ssp" / "linear_transformation", root=libcosim, stop_time=0.1, step=0.01)
+    assert notes == ["the Python master runs this scenario: FMI 1.0 components identity1, identity2"]
+    assert record["executor"] == "python"
