@@ -263,12 +263,12 @@ class Instance(InstanceBase):
 
     @classmethod
     def open(cls, name: str, fmu_path: str | os.PathLike, guid: str, model_identifier: str, workdir: str,
-             messages: MessageLog, time: float) -> Instance:
-        """Unpack ``fmu_path`` (:func:`orchestrator.fmucache.unpack_fmu`: its cache entry, or
-        ``workdir/name``) and instantiate it (fmi2Instantiate, or fmi3InstantiateCoSimulation for an
-        FMI 3.0 FMU)."""
+             messages: MessageLog, time: float, shared: bool = True) -> Instance:
+        """Unpack ``fmu_path`` (:func:`orchestrator.fmucache.unpack_fmu`: its cache entry, shared by
+        every instance of the FMU unless ``shared`` is False, or a folder in ``workdir``) and
+        instantiate it (fmi2Instantiate, or fmi3InstantiateCoSimulation for an FMI 3.0 FMU)."""
         try:
-            unzipdir = unpack_fmu(fmu_path, os.path.join(workdir, name))
+            unzipdir = unpack_fmu(fmu_path, os.path.join(workdir, name), shared)
         except OSError:
             raise  # the temporary folder: full or unwritable (not the scenario's fault)
         except Exception as exc:  # fmpy raises bare Exceptions; zipfile, zlib their own

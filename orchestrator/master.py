@@ -190,8 +190,9 @@ class Operation(NamedTuple):
 
 def open_instance(comp: ComponentModel, workdir: str, messages: MessageLog, time: float) -> InstanceBase:
     """The real instance of ``comp``: its FMU extracted into ``workdir`` and instantiated."""
-    return Instance.open(comp.name, comp.fmu, comp.model.guid, comp.model.coSimulation.modelIdentifier,
-                         workdir, messages, time)
+    cs = comp.model.coSimulation
+    return Instance.open(comp.name, comp.fmu, comp.model.guid, cs.modelIdentifier, workdir, messages, time,
+                         shared=not cs.canBeInstantiatedOnlyOncePerProcess)
 
 
 InstanceFactory = Callable[[ComponentModel, str, MessageLog, float], InstanceBase]

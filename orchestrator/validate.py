@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import OrchestratorError, ScenarioError, UsageError
+from .fmucache import materialize
 from .master import NS_PER_S, grid
 from .ssp import (
     DEFAULT_LIMITS,
@@ -130,7 +131,8 @@ def check_scenario(scenario: str | os.PathLike, stack: ExitStack, *,
         label = path.name if path.is_file() else str(folder)
         for c in structure.components:
             if c.name not in reading.no_fmu:
-                errors += test_zip(c.source, f"{label}: component '{c.name}': FMU '{c.source.name}'")
+                where = f"{label}: component '{c.name}': FMU '{c.source.name}'"
+                errors += test_zip(materialize(c.source), where)
     # a value lost from a --parameter-set may have been meant for any input of any component
     partial = {c.name for c in structure.components} if unreadable else reading.partial
     system = System(structure, sets, overrides, strict=False, no_fmu=reading.no_fmu, partial=partial,

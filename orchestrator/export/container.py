@@ -24,6 +24,7 @@ from fmpy.model_description import ModelVariable
 from .. import open_system
 from ..errors import ScenarioError, UsageError
 from ..files import replacing
+from ..fmucache import materialize
 from ..master import MASTERS
 from ..native import NativeError, container_library
 from ..plan import Plan
@@ -51,7 +52,7 @@ def _folders(system: System) -> dict[str, str]:
     by_digest: dict[str, str] = {}
     folders: dict[str, str] = {}
     for comp in system.components.values():
-        digest = hashlib.sha256(Path(comp.fmu).read_bytes()).hexdigest()
+        digest = hashlib.sha256(materialize(comp.fmu).read_bytes()).hexdigest()
         if digest not in by_digest:
             stem = re.sub(r"[^\w.-]", "_", Path(comp.fmu).stem, flags=re.ASCII) or "fmu"
             name, n = stem, 1
@@ -66,7 +67,7 @@ def _folders(system: System) -> dict[str, str]:
 def _members(comp: ComponentModel, folder: str) -> dict[str, bytes]:
     """The FMU's files under ``resources/fmus/<folder>/`` (names checked to stay inside it)."""
     members: dict[str, bytes] = {}
-    with zipfile.ZipFile(comp.fmu) as archive:
+    with zipfile.ZipFile(materialize(comp.fmu)) as archive:
         for info in archive.infolist():
             name = info.filename
             parts = PurePosixPath(name).parts
