@@ -269,6 +269,8 @@ def test_do_step_writes_every_output_argument(plant: Boundary) -> None:
     try:
         assert plant.do_step(instance, 0.0, H) == (ERROR, [0, 0, 0], 0.0)
         assert "fmi3DoStep: not allowed in Instantiated" in plant.messages[-1][1]
+        # an error latches the instance (only getters, fmi3Reset and fmi3FreeInstance go on)
+        assert plant.call("fmi3Reset", c_int, c_void_p(instance)) == OK
         assert (
             plant.call(
                 "fmi3EnterInitializationMode",
