@@ -257,9 +257,10 @@ class Instance(InstanceBase):
 
     def native(self) -> tuple[int, int] | None:
         """fmpy's library handle and the instance (FMI 1.0: None, its functions carry a prefix)."""
-        if self.fmi1 or not self.c.value:
+        c = self.c
+        if self.fmi1 or not isinstance(c, c_void_p) or not c.value:
             return None
-        return int(self.fmu.dll._handle), int(self.c.value)
+        return int(self.fmu.dll._handle), int(c.value)
 
     @classmethod
     def open(cls, name: str, fmu_path: str | os.PathLike, guid: str, model_identifier: str, workdir: str,

@@ -337,7 +337,7 @@ def make_plan(system: System, start: float, stop: float, step: float, master: st
     for comp in components:
         for i in comp.inputs:
             value = comp.start_values.get(i, comp.variables[i].start)
-            initial[slot[PortRef(comp.name, i)]] = float(value) if value is not None else 0.0  # type: ignore[arg-type]
+            initial[slot[PortRef(comp.name, i)]] = float(value) if value is not None else 0.0
 
     def batch(comp: ComponentModel, ports: Sequence[PortRef]) -> Batch:
         first = slot[ports[0]] if ports else 0

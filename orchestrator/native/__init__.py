@@ -159,8 +159,11 @@ class Stepper:
         self.failure = Failure()
         self.width = len(plan.columns)
         for i, inst in enumerate(instances):
-            library, instance = inst.native()
-            if self.lib.ftc_executor_bind(self.handle, i, library, instance, why, WHY) != 0:
+            native = inst.native()
+            if native is None:
+                self.close()
+                raise NativeError(f"{inst.name}: the instance offers no library for the compiled executor")
+            if self.lib.ftc_executor_bind(self.handle, i, *native, why, WHY) != 0:
                 self.close()
                 raise NativeError(f"{inst.name}: {why.value.decode(errors='replace')}")
 
