@@ -11,7 +11,6 @@ law evaluated for the outputs is the first RK4 stage.
 from __future__ import annotations
 
 import math
-import re
 from typing import cast
 
 from pythonfmu import Fmi2Causality, Fmi2Slave
@@ -19,7 +18,7 @@ from pythonfmu.enums import Fmi2Status
 
 from controller.order2 import Order2Controller, Stage
 from controller.params import DEFAULT_CENTERS, ControllerParameters, Discretization, Mode, ParameterError
-from fmu_src.fmu_support import declare, fmu_model, mark_stale, raise_problems, rename_indexed, report
+from fmu_src.fmu_support import declare, fmu_model, mark_stale, raise_problems, report
 
 PARAMETER = Fmi2Causality.parameter
 INPUT = Fmi2Causality.input
@@ -36,6 +35,18 @@ GAIN_DESCRIPTIONS = {
     "rho": "Leakage rho_{i} of eta_hat_{i}",
     "rho_bar": "Leakage rho_bar_{i} of eta_hat_{i}",
 }
+
+
+# The parameters of ControllerParameters this FMU names otherwise (its per-step gains are k1, k2 ...).
+RENAMED = {"width": "tau", "centers": "mu1..mu7"}
+
+
+def _fmu_name(parameter: str, index: int | None) -> str:
+    """This FMU's name of a parameter of ControllerParameters: ``k[1]`` is ``k1``, ``eta0[2]``
+    ``eta2_0``, ``width`` ``tau`` (the library's problems are rendered with it, no text parsed)."""
+    if index is None:
+        return RENAMED.get(parameter, parameter)
+    return f"eta{index}_0" if parameter == "eta0" else f"{parameter}{index}"
 
 
 @fmu_model
@@ -173,9 +184,7 @@ class FixedTimeController(Fmi2Slave):
                 b_max=self.b_max,
             )
         except ParameterError as error:
-            message = rename_indexed(str(error), {"eta0": "eta{}_0"})
-            message = re.sub(r"\bwidth\b", "tau", message).replace("centers", "mu1..mu7")
-            problems.extend(message.split("; "))
+            problems.extend(p.render(_fmu_name) for p in error.problems)
         raise_problems(self.modelName, problems)
         return params
 

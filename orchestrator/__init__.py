@@ -2,8 +2,10 @@
 ``orchestrate`` (also ``python -m orchestrator``).
 
 Data flows top to bottom through the modules: ssp (read the archive) -> system (validated
-components, connections, propagation order) -> master (FMI stepping) -> results (CSV + array);
-validate runs ssp and system as far as they go and reports everything (``orchestrate validate``).
+components, connections, propagation order) -> plan (the one schedule every executor steps) ->
+master (the Python master; native: the compiled executor) -> results and output (the recorder, the
+result file and its provenance); validate runs ssp and system as far as they go and reports
+everything (``orchestrate validate``).
 """
 
 from __future__ import annotations
@@ -16,12 +18,11 @@ import os
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import ExitStack, contextmanager
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from . import formats, native, provenance
+from . import native, provenance
 from .errors import (
     EngineNote,
     Interrupted,
@@ -36,6 +37,7 @@ from .errors import (
 )
 from .inputs import InputSeries, read_inputs
 from .master import MASTERS, Master, tracing
+from .output import RunOutput, system_columns
 from .result import RunOptions, RunResult
 from .ssp import DEFAULT_LIMITS, Limits
 from .system import PortRef, System
@@ -133,10 +135,8 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
     ``output_variables``, ``output_interval`` and ``no_inputs`` select what the file holds.
     """
     options = options if options is not None else RunOptions()
-    selection = formats.Selection(tuple(options.output_variables), options.output_interval)
-    output = options.output
-    if output is not None:
-        formats.check_output(output, selection=selection)
+    output = RunOutput(options.output, tuple(options.output_variables), options.output_interval,
+                       options.no_inputs)
     with open_system(scenario, parameter_sets=options.parameter_sets, overrides=options.overrides,
                      fmu_dirs=options.fmu_dirs, limits=options.limits, root=options.root,
                      strict_fmus=options.strict_fmus) as system:
@@ -150,35 +150,22 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
             record["input_file"] = {"path": str(Path(options.input_file).resolve()),
                                     "sha256": provenance.digest(options.input_file),
                                     "inputs": [str(p) for p in series.ports]}
-        stream = None
-        if output is not None:  # the master streams a CSV; other formats and selections come from it
-            formats.check_output(output, h, selection)
-            if options.no_inputs:
-                selection = replace(selection, drop=tuple(str(end) for end, link in system.links.items()
-                                                          if not link.transformed))
-            selection.columns(["time", *system_columns(system)])  # a pattern matching nothing: now
-            stream = formats.staging_path(output, selection)
-            record["output"] = {"format": Path(output).suffix.lower(), "variables": list(selection.variables),
-                                "interval": selection.interval, "left_out": list(selection.drop)}
-            provenance.write_provenance(output, record)
+        stream = output.start(system, h, record)  # the master streams a CSV; other formats come from it
         runner = MASTERS[options.master](system, start, stop, h, stream, progress,
-                                         keep=options.keep or output is None, timeout=options.timeout,
+                                         keep=options.keep or stream is None, timeout=options.timeout,
                                          inputs=series, instances=tracing(options.fmi_log),
-                                         binary_copy=stream is not None and stream != Path(output or ""),
-                                         loop_tolerance=options.loop_tolerance,
+                                         binary_copy=output.staged, loop_tolerance=options.loop_tolerance,
                                          loop_iterations=options.loop_iterations, compiled=compiled)
-        texts = descriptions(system)
         try:
             runner.run()
         except BaseException as exc:  # however the run ends early, the sidecar says so
             status = ("timeout" if isinstance(exc, TimeLimitError) else
                       "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed")
-            result = _finish(runner, record, status, str(exc) or type(exc).__name__, output, stream,
-                             selection, texts)
+            result = _result(runner, output, record, status, str(exc) or type(exc).__name__)
             if isinstance(exc, (SimulationError, Interrupted)):
                 exc.result = result
             raise
-        return _finish(runner, record, "complete", "", output, stream, selection, texts)
+        return _result(runner, output, record, "complete", "")
 
 
 def _before_the_run(system: System, options: RunOptions, start: float, stop: float) -> InputSeries | None:
@@ -221,47 +208,12 @@ def _compiled(system: System, options: RunOptions) -> bool:
     return False
 
 
-def system_columns(system: System) -> list[str]:
-    """Every connector of ``system`` as a result column names it (``component.connector``)."""
-    return [str(PortRef(name, c)) for name, comp in system.components.items()
-            for c in (*comp.inputs, *comp.outputs)]
-
-
-def descriptions(system: System) -> dict[str, str]:
-    """Each column's description and unit as Dymola writes them into a result file:
-    ``Plant output [rad]`` (the FMU's description; the unit in brackets when it declares one)."""
-    units = provenance.column_units(system)
-    texts = {}
-    for name, comp in system.components.items():
-        variables = comp.variables
-        for k in (*comp.inputs, *comp.outputs):
-            column = str(PortRef(name, k))
-            text, unit = variables[k].description or "", units.get(column)
-            texts[column] = f"{text} [{unit}]".strip() if unit else text
-    return texts
-
-
-def _finish(runner: Master, record: dict[str, object], status: str, message: str,
-            output: str | os.PathLike | None, stream: str | os.PathLike | None,
-            selection: formats.Selection, texts: Mapping[str, str]) -> RunResult:
-    """The result of a run that ended with ``status``; with an ``output``, its rows written in the
-    format asked for and the provenance finished."""
+def _result(runner: Master, output: RunOutput, record: dict[str, object], status: str,
+            message: str) -> RunResult:
+    """The result of a run that ended with ``status``; the output's files finished."""
     recorder = runner.recorder
     count = recorder.count if recorder is not None else 0
     rows = recorder.result() if recorder is not None else np.empty(0, [("time", np.float64)])
-    last = runner.time(count - 1) if count else None
-    outputs: dict[str, Path] = {}
-    if output is not None and stream is not None:
-        saved = recorder.saved if recorder is not None else 0  # what is on disk, never more
-        outputs["provenance"] = provenance.finish(output, record, status, saved,
-                                                  runner.time(saved - 1) if saved else None, message)
-        if saved and Path(stream).is_file():
-            formats.write_selected(stream, output, selection, texts)  # the rows kept, in the format asked for
-            outputs["result"] = Path(output)
-        formats.binary_copy_path(stream).unlink(missing_ok=True)
-    else:
-        record.update(status=status, rows=count, last_time=last)
-        if message:
-            record["message"] = message
-    return RunResult(status, message, rows, count, last, record, outputs,
+    outputs = output.finish(recorder, record, status, message, runner.time)
+    return RunResult(status, message, rows, count, runner.time(count - 1) if count else None, record, outputs,
                      preview=recorder is not None and not recorder.keep)

@@ -453,7 +453,7 @@ def _run(args: argparse.Namespace) -> int:
         _print_warnings(caught)
     except (SimulationError, Interrupted) as exc:
         result = exc.result
-        detail = f" ({messages.last})" if messages.last and "(" not in str(exc) else ""
+        detail = f" ({messages.last})" if messages.last and not getattr(exc, "explained", False) else ""
         prefix = "orchestrate: " if isinstance(exc, Interrupted) else "orchestrate: error: "
         stopped = f"{prefix}{exc}{detail}; {result.count} rows kept in {output}"
         if plot is None or result.count < 2:

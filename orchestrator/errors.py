@@ -55,6 +55,7 @@ class SimulationError(OrchestratorError, RuntimeError):
 
     rows: int = 0
     result: Any = None
+    detail: str = ""  # the FMU's own explanation (its last warning or error logged), '' when none
 
     STATUS_NAMES = ("fmi2OK", "fmi2Warning", "fmi2Discard", "fmi2Error", "fmi2Fatal", "fmi2Pending")
 
@@ -66,10 +67,17 @@ class SimulationError(OrchestratorError, RuntimeError):
             status = self.STATUS_NAMES[status] if 0 <= status < len(self.STATUS_NAMES) else f"status {status}"
         self.status = status
         self.time = time
+        self.detail = detail
         message = f"{component}: {function} returned {status} at t={time:.3f} s"
         if detail:
             message += f" ({detail})"
         super().__init__(message)
+
+    @property
+    def explained(self) -> bool:
+        """Whether the message says why already (the FMU's explanation, or the error's own): a
+        caller adds what else it knows (a message the FMU logged elsewhere) only when it does not."""
+        return bool(self.detail)
 
 
 class NonFiniteError(SimulationError):
@@ -81,6 +89,11 @@ class NonFiniteError(SimulationError):
                                     "(not finite; the run stops at the first such value)")
         self.component, self.function, self.status, self.time = component, "fmi2GetReal", repr(value), time
         self.variable = variable
+
+    @property
+    def explained(self) -> bool:
+        """The value and where it appeared are the explanation."""
+        return True
 
 
 class LoopError(SimulationError):
@@ -98,6 +111,11 @@ class LoopError(SimulationError):
         self.component, self.function, self.status, self.time = components[0], "fixed point", "diverged", time
         self.residual = residual
 
+    @property
+    def explained(self) -> bool:
+        """The residual and the limits are the explanation."""
+        return True
+
 
 class TimeLimitError(SimulationError):
     """The run reached its wall-clock limit (``--timeout``): stopped at the next communication point,
@@ -111,6 +129,11 @@ class TimeLimitError(SimulationError):
             message = f"wall-clock limit of {limit:g} s (--timeout) reached at t={time:.3f} s"
         RuntimeError.__init__(self, message)
         self.component, self.function, self.status, self.time = component, "fmi2DoStep", "timeout", time
+
+    @property
+    def explained(self) -> bool:
+        """The limit is the explanation."""
+        return True
 
 
 class Interrupted(KeyboardInterrupt):

@@ -23,7 +23,7 @@ from pathlib import Path
 
 from .errors import OrchestratorError, ScenarioError, UsageError
 from .fmucache import materialize
-from .master import NS_PER_S, grid
+from .plan import NS_PER_S, GridError, grid
 from .ssp import (
     DEFAULT_LIMITS,
     SSD_NAME,
@@ -177,8 +177,8 @@ def timing(structure: SystemStructure, stop_time: float | None = None,
     run_text = f"the run {start:g} .. {stop:g} s{source('start time', 'stop time')}"
     try:
         t0, hn, n = grid(start, stop, h)
-    except ValueError as exc:
-        at_fault = [name for name in origin if name in str(exc)] or list(origin)
+    except GridError as exc:
+        at_fault = list(exc.quantities)
         raise error(f"{exc}{source(*at_fault)}", *at_fault) from exc
     t1 = round(stop * NS_PER_S)
     if n < 1:
