@@ -1,4 +1,4 @@
-"""Build the project's five FMUs with pythonfmu, reproducibly and safe to load side by side.
+"""Build the project's FMUs with pythonfmu, reproducibly and safe to load side by side.
 
 All pythonfmu FMUs in one process share one interpreter and one module cache, and each FMU's
 ``resources`` folder goes to ``sys.path[0]``. So two FMUs that bundle modules of the same name
@@ -6,7 +6,8 @@ see whichever was imported first. To rule that out, every FMU bundles its script
 ``ftc_<model>_<hash>.py`` and the code it needs (modules of ``fmu_src`` and ``controller``) as a
 package ``_ftc_<model>_<hash>``, where ``<hash>`` is a digest of every bundled byte. Only the
 script's own ``from fmu_src... / from controller... import`` lines are rewritten (with ``ast``);
-bundled modules must import each other relatively.
+bundled modules must import their own package relatively, and the other local package with a
+module-level ``from ... import`` (rewritten likewise: ``fmu_src.controller_core`` uses ``controller``).
 
 Each FMU carries its own CPython runtime (``fmu_src/runtime.py``: libpython, the two libraries it
 links and the standard-library modules the FMU's code can import, from pinned Debian 12
@@ -49,6 +50,7 @@ from xml.etree import ElementTree
 import pythonfmu
 from pythonfmu import FmuBuilder
 
+from .controller_doc import controller_documentation
 from .licences import documentation, generation_tool
 from .runtime import Runtime, RuntimeBundleError, compile_bytecode, ensure_runtime, runtime_members
 
@@ -61,9 +63,13 @@ LOCAL_PACKAGES = ("fmu_src", "controller")
 FMU_SCRIPTS = {
     "Reference": "reference.py",
     "FixedTimeController": "fixed_time_controller.py",
+    "FixedTimeController1": "fixed_time_controller1.py",
+    "FixedTimeController3": "fixed_time_controller3.py",
+    "FixedTimeController4": "fixed_time_controller4.py",
     "Actuator": "actuator.py",
     "Example1Plant": "example1_plant.py",
     "PendulumPlant": "pendulum_plant.py",
+    "ManipulatorPlant": "manipulator_plant.py",
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
@@ -88,7 +94,8 @@ BUILD_CODE = ("build.py", "fmi3.py", "runtime.py", "runtime_pins.txt", "licences
 # the source root): built against the runtime's headers for the stable ABI, so that one binary
 # loads in the FMU's runtime and in a host's Python alike. -ffp-contract=off: no fused
 # multiply-add, so the compiled arithmetic rounds as Python's does (see fmu_src/models/_dopri.c).
-EXTENSIONS = {"fmu_src.models._dopri": Path("fmu_src", "models", "_dopri.c")}
+EXTENSIONS = {"fmu_src.models._dopri": Path("fmu_src", "models", "_dopri.c"),
+              "controller._law": Path("controller", "_law.c")}
 EXTENSION_SUFFIX = ".abi3.so"
 EXTENSION_FLAGS = (
     "-std=c11 -O2 -fPIC -shared -fvisibility=hidden -g0 -Wall -Wextra -ffp-contract=off "
@@ -194,11 +201,14 @@ def collect_bundle(model: str, root: Path = REPO_ROOT) -> Bundle:
             elif isinstance(node, ast.ImportFrom):
                 if node.level == 0:
                     assert node.module is not None  # an absolute "from X import" always names X
-                    if _is_local(node.module):
+                    if _is_local(node.module) and node.module.split(".")[0] == name.split(".")[0]:
                         raise BuildError(
                             f"{path}:{node.lineno}: bundled modules must import {node.module} relatively"
                         )
-                    third_party.add(node.module.split(".")[0])
+                    if _is_local(node.module):  # the other local package: rewritten by _stage
+                        pending.append(node.module)
+                    else:
+                        third_party.add(node.module.split(".")[0])
                 elif node.level == 1:
                     targets = [node.module] if node.module else [alias.name for alias in node.names]
                     pending.extend(f"{package}.{target}" for target in targets)
@@ -345,20 +355,24 @@ def _licence(distribution: str) -> bytes:
     raise BuildError(f"no licence file in the installed {distribution} distribution")
 
 
-def _rewrite_script(bundle: Bundle, package: str) -> str:
-    """The script text with only its local ``from X import ...`` lines pointed into ``package``."""
-    lines = bundle.script.read_text(encoding="utf-8").splitlines(keepends=True)
-    tree = _parse(bundle.script)
+def _rewrite_imports(path: Path, package: str) -> str:
+    """The text of ``path`` with its absolute local ``from X import ...`` lines pointed into ``package``."""
+    lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
+    tree = _parse(path)
     for node in sorted(tree.body, key=lambda n: n.lineno, reverse=True):
-        if isinstance(node, ast.ImportFrom) and _is_local(node.module):
+        if isinstance(node, ast.ImportFrom) and not node.level and _is_local(node.module):
             new = ast.ImportFrom(module=f"{package}.{node.module}", names=node.names, level=0)
             lines[node.lineno - 1 : node.end_lineno] = [ast.unparse(new) + "\n"]
     text = "".join(lines)
     for found in ast.walk(ast.parse(text)):
-        if isinstance(found, ast.ImportFrom) and _is_local(found.module):
-            raise BuildError(
-                f"{bundle.script}:{found.lineno}: local import of {found.module} outside module level"
-            )
+        if isinstance(found, ast.ImportFrom) and not found.level and _is_local(found.module):
+            raise BuildError(f"{path}:{found.lineno}: local import of {found.module} outside module level")
+    return text
+
+
+def _rewrite_script(bundle: Bundle, package: str) -> str:
+    """The script text with only its local ``from X import ...`` lines pointed into ``package``."""
+    text = _rewrite_imports(bundle.script, package)
     classes = CLASS_LINE.findall(text)
     if classes != [bundle.model]:
         raise BuildError(
@@ -382,7 +396,7 @@ def _stage(bundle: Bundle, digest: str, where: Path) -> tuple[Path, Path]:
                 (package_dir / parent).mkdir(exist_ok=True)
                 (package_dir / parent / "__init__.py").write_text(init, encoding="utf-8")
         if target.name != "__init__.py":
-            shutil.copyfile(source, target)
+            target.write_text(_rewrite_imports(source, package), encoding="utf-8")
     script = where / f"ftc_{bundle.model.lower()}_{digest[:12]}.py"
     script.write_text(_rewrite_script(bundle, package), encoding="utf-8")
     return script, package_dir
@@ -438,6 +452,10 @@ def _write_normalized(
     entries["modelDescription.xml"] = _normalized_description(
         entries["modelDescription.xml"], digest, bundle.model
     )
+    try:  # the controller FMUs' documentation/index.html, from their model description
+        entries.update(controller_documentation(bundle.model, entries["modelDescription.xml"]))
+    except ValueError as error:
+        raise BuildError(str(error)) from error
     # the shim's guard reads it beside the binary: hosts may unpack only binaries/ and resources/
     entries[f"binaries/linux64/{bundle.model}{DESCRIPTION_COPY}"] = entries["modelDescription.xml"]
     entries.update(_bytecode(entries))

@@ -22,7 +22,19 @@ __all__ = ["RunOutput", "descriptions", "system_columns"]
 
 
 def system_columns(system: System) -> list[str]:
-    """Every connector of ``system`` as a result column names it (``component.connector``)."""
+    """Every connector of a system as a result column names it.
+
+    Parameters
+    ----------
+    system : System
+        A validated system (:func:`orchestrator.open_system`).
+
+    Returns
+    -------
+    list of str
+        ``component.connector`` for each input and output, in the order of the result's columns
+        (after ``time``).
+    """
     return [str(PortRef(name, c)) for name, comp in system.components.items()
             for c in (*comp.inputs, *comp.outputs)]
 
@@ -62,16 +74,17 @@ class RunOutput:
         return self.stream is not None and self.stream != self.path
 
     def start(self, system: System, step: float, record: dict[str, object]) -> Path | None:
-        """The run of ``system`` on ``step`` begins: the selection checked against its columns and
-        the step, the provenance written (``record``); returns the CSV to stream to (None: none)."""
-        if self.path is None:
-            return None
-        if self.selection.interval is not None:
-            formats.check_interval(self.selection.interval, step)
+        """The run of ``system`` on ``step`` begins: the selection checked against its columns (file
+        or not) and the step, the provenance written (``record``); returns the CSV to stream to
+        (None: none)."""
         if self.no_inputs:
             self.selection = replace(self.selection, drop=tuple(str(end) for end, link in system.links.items()
                                                                 if not link.transformed))
         self.selection.columns(["time", *system_columns(system)])  # a pattern matching nothing: now
+        if self.path is None:
+            return None
+        if self.selection.interval is not None:
+            formats.check_interval(self.selection.interval, step)
         self.texts = descriptions(system)
         self.stream = formats.staging_path(self.path, self.selection)
         record["output"] = {"format": self.path.suffix.lower(), "variables": list(self.selection.variables),
@@ -80,10 +93,11 @@ class RunOutput:
         return self.stream
 
     def finish(self, recorder: Recorder | None, record: dict[str, object], status: str, message: str,
-               time: Callable[[int], float]) -> dict[str, Path]:
-        """The run ended with ``status``: the rows on disk written in the format asked for and the
-        provenance finished (without a file: ``record`` updated); returns the files written.
-        ``time(k)`` is t_k."""
+               time: Callable[[int], float], step: float) -> dict[str, Path]:
+        """The run on ``step`` ended with ``status``: the rows on disk written in the format asked
+        for and the provenance finished (``rows``: the rows the file holds, after the interval;
+        ``rows_computed``: every communication point computed; without a file: ``record``
+        updated); returns the files written. ``time(k)`` is t_k."""
         count = recorder.count if recorder is not None else 0
         if self.path is None or self.stream is None:
             record.update(status=status, rows=count, last_time=time(count - 1) if count else None)
@@ -91,11 +105,14 @@ class RunOutput:
                 record["message"] = message
             return {}
         saved = recorder.saved if recorder is not None else 0  # what is on disk, never more
-        outputs = {"provenance": provenance.finish(self.path, record, status, saved,
+        record["rows_computed"] = count
+        kept = self.selection.kept(saved, step)
+        outputs = {"provenance": provenance.finish(self.path, record, status, kept,
                                                    time(saved - 1) if saved else None, message)}
         if saved and self.stream.is_file():
-            formats.write_selected(self.stream, self.path, self.selection, self.texts)
+            units = record.get("units")  # the rows kept, in the format asked for, with their units
+            formats.write_selected(self.stream, self.path, self.selection, self.texts,
+                                   units if isinstance(units, dict) else None)
             outputs["result"] = self.path
         formats.binary_copy_path(self.stream).unlink(missing_ok=True)
         return outputs
-

@@ -21,6 +21,7 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
+from orch_helpers import loop_scenario
 
 import orchestrator
 from orchestrator import EngineNote, NonFiniteError, RunOptions, SimulationError, UsageError
@@ -28,8 +29,6 @@ from orchestrator.experiments.scenarios import FMI3_SUFFIX, SCENARIO_DIR, all_sc
 from orchestrator.export import export
 from orchestrator.master import MASTERS
 from orchestrator.ssp import Connection, Experiment, SystemStructure, component, pack_ssp, write_ssd
-
-from orch_helpers import loop_scenario
 
 SHORT = 0.5  # s: 500 steps of the 1 ms scenarios, 1000 of the pendulum's 0.5 ms
 ALL = os.environ.get("ORCHESTRATE_ALL_EXECUTORS") == "1"
@@ -52,7 +51,8 @@ def run(scenario: Path, executor: str, **options: object) -> np.ndarray:
 @pytest.mark.system
 @pytest.mark.xdist_group("export")
 @pytest.mark.parametrize("scenario, master", CASES, ids=[f"{s}-{m}" for s, m in CASES])
-def test_the_three_executors_agree_bit_for_bit(built: Path, tmp_path: Path, scenario: str, master: str) -> None:
+def test_the_three_executors_agree_bit_for_bit(built: Path, tmp_path: Path, scenario: str,
+                                               master: str) -> None:
     archive = built / "ssp" / f"{scenario}.ssp"
     python = run(archive, "python", stop_time=SHORT, master=master)
     compiled = run(archive, "compiled", stop_time=SHORT, master=master)
@@ -137,9 +137,10 @@ def test_the_python_master_serves_what_c_cannot_with_one_note(loop: Path, test_f
     notes, record = _notes(loop)
     assert notes == [] and record["executor"] == "compiled"
     notes, record = _notes(loop, fmi_log=["gain"])
-    assert notes == ["the Python master runs this scenario: --fmi-log traces the calls the Python master makes"]
+    # the Python API names fields (fmi_log), the command line its options (--fmi-log)
+    assert notes == ["the Python master ran this scenario: fmi_log traces the calls the Python master makes"]
     assert record["executor"] == "python"
-    with pytest.raises(UsageError, match="--executor compiled cannot run this scenario: --fmi-log"):
+    with pytest.raises(UsageError, match="executor compiled cannot run this scenario: fmi_log"):
         orchestrator.run(loop, RunOptions(fmi_log=["gain"], executor="compiled"))
     # two gains in a loop (0.5 * 0.25 < 1: it converges): gauss-seidel iterates it in Python
     folder = tmp_path / "alg"
@@ -150,7 +151,7 @@ def test_the_python_master_serves_what_c_cannot_with_one_note(loop: Path, test_f
                                       Experiment(0.0, 0.1, 0.01)))
     archive = pack_ssp(folder, {"Gain.fmu": test_fmus["Gain"]}, tmp_path / "alg.ssp")
     notes, record = _notes(archive)
-    assert notes == ["the Python master runs this scenario: an algebraic loop is iterated to a fixed point"]
+    assert notes == ["the Python master ran this scenario: an algebraic loop is iterated to a fixed point"]
     notes, record = _notes(archive, master="jacobi")  # jacobi delays the loop: C steps it
     assert notes == [] and record["executor"] == "compiled"
 
@@ -159,6 +160,7 @@ def test_fmi1_components_run_in_the_python_master_with_one_note() -> None:
     """libcosim's own FMI 1.0 test scenario (tests/ssp_conformance): the values of libcosim's unit
     test, stepped by the Python master, which binds FMI 1.0's prefixed functions."""
     libcosim = Path(__file__).parent / "ssp_conformance" / "libcosim"
-    notes, record = _notes(libcosim / "ssp" / "linear_transformation", root=libcosim, stop_time=0.1, step=0.01)
-    assert notes == ["the Python master runs this scenario: FMI 1.0 components identity1, identity2"]
+    notes, record = _notes(libcosim / "ssp" / "linear_transformation", root=libcosim, stop_time=0.1,
+                           step=0.01)
+    assert notes == ["the Python master ran this scenario: FMI 1.0 components identity1, identity2"]
     assert record["executor"] == "python"

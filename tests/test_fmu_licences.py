@@ -37,7 +37,8 @@ def _check(archive: Path, tmp: Path) -> None:
     with zipfile.ZipFile(archive) as z:
         names = set(z.namelist())
         licences = {n.rsplit("/", 1)[1] for n in names if n.startswith("documentation/licenses/")}
-        assert z.read("documentation/licenses/fixed-time-cosim-LICENSE.txt") == (REPO / "LICENSE").read_bytes()
+        project = z.read("documentation/licenses/fixed-time-cosim-LICENSE.txt")
+        assert project == (REPO / "LICENSE").read_bytes()
         entry = z.read("documentation/licenses/license.txt").decode()
         for name in licences - {"license.txt"}:
             assert name in entry, f"{archive.name}: license.txt does not name {name}"

@@ -75,7 +75,8 @@ def test_off_and_unusable_cache_unpack_into_the_runs_folder(tmp_path, monkeypatc
     blocker.write_text("not a folder")
     monkeypatch.setenv("ORCHESTRATE_CACHE", str(blocker))
     assert fmucache.cache_folder() is None
-    assert fmucache.unpack_fmu(test_fmus["Gain"], tmp_path / "sub" / "b") == str(tmp_path / "sub" / f"fmu-{digest}")
+    shared = str(tmp_path / "sub" / f"fmu-{digest}")
+    assert fmucache.unpack_fmu(test_fmus["Gain"], tmp_path / "sub" / "b") == shared
 
 
 def test_least_recently_used_entries_beyond_the_bound_go(cache, tmp_path, monkeypatch, test_fmus):
@@ -155,8 +156,8 @@ def test_components_of_one_fmu_share_its_folder_and_library(test_fmus, tmp_path,
     archive = pack_ssp(folder, {"Gain.fmu": test_fmus["Gain"]}, tmp_path / "chain.ssp")
     env = {**os.environ, "ORCHESTRATE_CACHE": str(tmp_path / "c") if setting == "cache" else "off"}
     for executor in ("compiled", "python"):
-        mapped = subprocess.run([sys.executable, "-c", SHARED_RUN, str(archive), executor], env=env, check=True,
-                                capture_output=True, text=True).stdout
+        mapped = subprocess.run([sys.executable, "-c", SHARED_RUN, str(archive), executor], env=env,
+                                check=True, capture_output=True, text=True).stdout
         assert mapped.strip() == "1", (executor, mapped)
 
 

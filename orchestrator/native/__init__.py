@@ -85,16 +85,27 @@ def _scratch() -> Path:
 @functools.cache
 def compile_library(kind: str) -> Path:
     """The compiled library ``kind`` (``executor`` or ``container``): from the cache folder, or
-    compiled now (written under a temporary name and renamed). NativeError when it cannot be built."""
+    compiled now (written under a temporary name and renamed; into a folder of this process when
+    the cache's disk cannot hold it). NativeError when it cannot be built."""
     compiler, version = _compiler()
     digest = hashlib.sha256("\0".join([*FLAGS, *LIBS, version]).encode())
     for source in sorted({*SOURCES[kind], *(p.name for p in HERE.glob("*.h"))}):
         digest.update(source.encode() + b"\0" + (HERE / source).read_bytes())
     for header in sorted(HEADERS.glob("*.h")):
         digest.update(header.name.encode() + b"\0" + header.read_bytes())
+    name = f"{kind}-{digest.hexdigest()[:24]}.so"
     cache = cache_folder()
-    folder = cache.parent / "native" if cache is not None else _scratch()
-    target = folder / f"{kind}-{digest.hexdigest()[:24]}.so"
+    if cache is not None:
+        try:
+            return _build(kind, compiler, cache.parent / "native", name)
+        except NativeError:  # a full or read-only cache disk: this process's own folder will do
+            pass
+    return _build(kind, compiler, _scratch(), name)
+
+
+def _build(kind: str, compiler: str, folder: Path, name: str) -> Path:
+    """``folder/name``, compiled now unless it is there. NativeError when it cannot be built."""
+    target = folder / name
     if target.is_file():
         return target
     try:
