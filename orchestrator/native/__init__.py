@@ -1,6 +1,7 @@
 """The engine's C code: the plan reader and core (``plan.c``, ``core.c``) built as the compiled
 executor (``executor.c``, which ``orchestrate run`` steps by default) and as the exported container's
-runtime (``container.c``, :func:`container_library`). Both are compiled with the system C compiler
+runtime (``container.c`` with its FMI 2.0 and 3.0 APIs ``container_fmi2.c`` and ``container_fmi3.c``,
+:func:`container_library`). Both are compiled with the system C compiler
 against the official FMI headers in ``fmi/`` on first use and kept in the cache folder
 (:func:`orchestrator.fmucache.cache_folder`'s parent, ``native/``) under a digest of their sources,
 flags and compiler, so a run compiles nothing once one has.
@@ -35,7 +36,8 @@ __all__ = ["FLAGS", "SOURCES", "Failure", "NativeError", "Stepper", "compile_lib
 
 HERE = Path(__file__).resolve().parent
 HEADERS = HERE / "fmi"
-SOURCES = {"executor": ("executor.c", "core.c", "plan.c"), "container": ("container.c", "core.c", "plan.c")}
+SOURCES = {"executor": ("executor.c", "core.c", "plan.c"),
+           "container": ("container.c", "container_fmi2.c", "container_fmi3.c", "core.c", "plan.c")}
 # No debug info, build id or symbols, so the bytes depend only on source, compiler and flags; no
 # contraction of a * b + c into a fused multiply-add, so a connection's factor * value + offset
 # rounds as Python's does in the engine's master; symbols bound inside the library, so an embedded
