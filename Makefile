@@ -15,7 +15,7 @@ BYTECODE := build/.bytecode
 SOURCES := $(shell find controller fmu_src ssp -type f -not -path '*/__pycache__/*' -not -name '*.pyc' \
                      -not -name '.*' 2>/dev/null)
 
-.PHONY: run test unit build lint docs docs-figure browser runtime-pins hostile crosscheck conformance table study study-fixed-time report baselines bench clean
+.PHONY: run test unit build lint docs docs-figure browser runtime-pins hostile executors crosscheck conformance table study study-fixed-time report baselines bench clean
 
 # pip's console script 'orchestrate' is then replaced by orchestrator/launcher.c, which holds SIGINT and
 # SIGTERM from its first instruction until the package's handlers are in (issue 20). Compiled to a
@@ -95,6 +95,12 @@ browser:
 ## FMI 3.0 containers, every leak figure (make test runs one real case of each kind)
 hostile: build
 	FTC_HOSTILE_ALL=1 $(PY) -m pytest -q -n 2 tests/test_fmu_hostile.py
+
+## executors: the three executors (Python master, compiled, exported container) bit for bit on
+## every shipped scenario, both masters, FMI 2.0 and 3.0, a container exported for every case
+## (make test exports one container of each kind)
+executors: build
+	ORCHESTRATE_ALL_EXECUTORS=1 $(PY) -m pytest -q -n 2 tests/test_executors.py
 
 ## runtime-pins: move the FMUs' runtime (fmu_src/toolchain/runtime_pins.txt) to the newest bookworm and
 ## bookworm-security packages, saying what changed; then 'make build' fetches them

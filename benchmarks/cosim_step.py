@@ -17,22 +17,29 @@ the last commit before issue 10; sources taken with ``git archive``, built by th
   (``FTC_FMU_DIRECT=0``): every FMI call goes through pythonfmu's binary, as before the shim made
   the step's calls itself;
 * ``now``: the current FMUs (Dormand-Prince 5(4) plants, n = 2 scalar controller, attribute get/set,
-  the shim's direct fmi2DoStep/GetReal/SetReal);
-* libcosim (``simulate_until``, numWorkerThreads="0") on the ``before`` and ``now`` archives.
+  the shim's direct fmi2DoStep/GetReal/SetReal), stepped by the Python master;
+* ``now, compiled``: the same, stepped by the compiled executor (blocks of steps in C, the rows
+  handed back to the recorder);
+* ``now, FMI 3.0`` and ``now, FMI 3.0, compiled``: the scenario's FMI 3.0 twin (the same SSD with
+  the FMUs' FMI 3.0 variants);
+* libcosim (``from_ssp_file``, the archive's serial algorithm, ``simulate_until``) on the ``before``
+  and ``now`` archives, with no observer: libcosim as it is usually run. (Before issue 34 it ran with
+  a last-value observer reading every variable at every step, which cost it 13-17 us per step.)
 
 Method. Times are CPU times of this process (``time.process_time``), so other processes on the
-shared machine do not distort them. The stepping loop of ``orchestrate``'s master runs with results
-in memory. A second run wraps every fmi2DoStep/GetReal/SetReal (ctypes) in a CPU timer, corrected
-for the timer's own cost inside the timed window (calibrated on a no-op call); it gives the FMU
-breakdown, and ``rest = loop - inside FMU calls`` estimates the master's own overhead (the two
-come from different runs: a few us of noise, it can come out negative). Every figure is the best
-of ``--repeat`` runs. The in-process cost of the controller's two paths is in
-``benchmarks/controller_step.py``.
+shared machine do not distort them. The stepping loop of ``orchestrate``'s executors runs with
+results in memory. For the Python master, a second run wraps every fmi2DoStep/GetReal/SetReal
+(ctypes) in a CPU timer, corrected for the timer's own cost inside the timed window (calibrated on
+a no-op call); it gives the FMU breakdown, and ``rest = loop - inside FMU calls`` estimates the
+master's own overhead (the two come from different runs: a few us of noise, it can come out
+negative). Every figure is the best of ``--repeat`` runs. The in-process cost of the controller's
+two paths is in ``benchmarks/controller_step.py``.
 """
 
 from __future__ import annotations
 
 import argparse
+import ctypes
 import os
 import subprocess
 import sys
@@ -45,9 +52,10 @@ from contextlib import ExitStack
 from pathlib import Path
 
 import orchestrator
-from orchestrator.crosscheck import run_libcosim
-from orchestrator.experiments.scenarios import SCENARIO_DIR, build_scenarios, component_sources
-from orchestrator.master import MASTERS
+from orchestrator.experiments.scenarios import FMI3_SUFFIX, SCENARIO_DIR, build_scenarios, component_sources
+from orchestrator.fmi import interpreter_guard
+from orchestrator.master import BLOCK, MASTERS
+from orchestrator.native import Stepper
 from orchestrator.ssp import pack_ssp
 
 REPO = Path(__file__).resolve().parent.parent
@@ -71,10 +79,27 @@ def timer_bias(calls: int = 20000) -> float:
     return total / calls
 
 
+def libcosim_cpu(archive: Path, stop: float) -> float:
+    """CPU ns of libcosim's ``simulate_until`` on ``archive`` (its own algorithm, no observer)."""
+    from libcosimpy import CosimLogging
+    from libcosimpy.CosimExecution import CosimExecution
+
+    CosimLogging.log_output_level(CosimLogging.CosimLogLevel.ERROR)
+    with interpreter_guard():
+        execution = CosimExecution.from_ssp_file(str(archive))
+        start = clock()
+        if not execution.simulate_until(round(stop * 1e9)):
+            raise SystemExit(f"libcosim failed on {archive}")
+        cpu = clock() - start
+        del execution
+    return cpu
+
+
 def loop(scenario: Path, stop: float, master: str, overrides: Mapping[str, object],
-         instrument: bool) -> dict[str, object]:
-    """Run the stepping loop once (results in memory). Returns its CPU ns, the number of steps, the
-    output columns and, for an instrumented run, CPU ns and calls per (component, FMI function)."""
+         instrument: bool, compiled: bool = False) -> dict[str, object]:
+    """Run the stepping loop once (results in memory; ``compiled``: the compiled executor's blocks).
+    Returns its CPU ns, the number of steps, the output columns and, for an instrumented run, CPU ns
+    and calls per (component, FMI function)."""
     inside: dict[tuple[str, str], list[int]] = defaultdict(lambda: [0, 0])
 
     def timed(key: tuple[str, str], fn: Callable[..., int]) -> Callable[..., int]:
@@ -106,10 +131,19 @@ def loop(scenario: Path, stop: float, master: str, overrides: Mapping[str, objec
         for cell in inside.values():
             cell[:] = [0, 0]
         n = len(m.times) - 1
-        start = clock()
-        for k in range(n):
-            m.step(k)
-        cpu = clock() - start
+        if compiled:
+            stepper = Stepper(m.plan, m.instances)
+            stack.callback(stepper.close)
+            stop_flag = ctypes.c_int(0)
+            start, k = clock(), 0
+            while k < n:
+                k += m._block(stepper, k, min(n - k, BLOCK), stop_flag)
+            cpu = clock() - start
+        else:
+            start = clock()
+            for k in range(n):
+                m.step(k)
+            cpu = clock() - start
         m.terminate()
         outputs = [f"{c.name}.{o}" for c in system.components.values() for o in c.outputs]
     return {"cpu": cpu, "steps": n, "outputs": outputs, "inside": {k: tuple(v) for k, v in inside.items()}}
@@ -138,11 +172,14 @@ def build_before(revision: str, names: list[str], dest: Path) -> dict[str, Path]
 def measure(scenario: str, archives: dict[str, Path], stop: float, master: str, repeat: int,
             bias: float) -> None:
     """Run every configuration of one scenario ``repeat`` times and print the best figures."""
-    configurations = {
-        "before": (archives["before"], {}),
-        "now, plant method 1 (RK4)": (archives["now"], {"plant.method": 1}),
-        "now, through pythonfmu": (archives["now"], {}),
-        "now": (archives["now"], {}),
+    configurations = {  # label -> archive, overrides, compiled executor
+        "before": (archives["before"], {}, False),
+        "now, plant method 1 (RK4)": (archives["now"], {"plant.method": 1}, False),
+        "now, through pythonfmu": (archives["now"], {}, False),
+        "now": (archives["now"], {}, False),
+        "now, compiled": (archives["now"], {}, True),
+        "now, FMI 3.0": (archives["now3"], {}, False),
+        "now, FMI 3.0, compiled": (archives["now3"], {}, True),
     }
     best: dict[str, float] = {}
     breakdown: dict[str, dict[tuple[str, str], float]] = {}
@@ -154,24 +191,31 @@ def measure(scenario: str, archives: dict[str, Path], stop: float, master: str, 
             best[key] = value
         return better
 
-    steps, outputs = 0, []
+    steps = 0
     for _ in range(repeat):
-        for label, (archive, overrides) in configurations.items():
+        for label, (archive, overrides, compiled) in configurations.items():
             # The shim reads FTC_FMU_DIRECT at fmi2Instantiate.
             os.environ["FTC_FMU_DIRECT"] = "0" if label == "now, through pythonfmu" else "1"
-            plain = loop(archive, stop, master, overrides, instrument=False)
-            steps, outputs = plain["steps"], plain["outputs"]
+            plain = loop(archive, stop, master, overrides, instrument=False, compiled=compiled)
+            steps = int(plain["steps"])
             keep(label, plain["cpu"])
+            if compiled:
+                continue  # the FMU calls are made in C: no Python wrapper can time them
             timed = loop(archive, stop, master, overrides, instrument=True)
             corrected = {k: ns - n * bias for k, (ns, n) in timed["inside"].items() if n}
             if keep(label + " inside", sum(corrected.values())):
                 breakdown[label] = corrected
                 calls[label] = sum(n for _, n in timed["inside"].values())
         os.environ["FTC_FMU_DIRECT"] = "1"
-        for which in ("before", "now"):
-            _, timing = run_libcosim(archives[which], stop, ["time"] + outputs)
-            keep(f"libcosim {which}", timing["cpu"] * 1e9)
+        for which in ("before", "now"):  # libcosim has no FMI 3.0
+            keep(f"libcosim {which}", libcosim_cpu(archives[which], stop))
+    report(scenario, stop, master, repeat, bias, steps, best, breakdown, calls, list(configurations))
 
+
+def report(scenario: str, stop: float, master: str, repeat: int, bias: float, steps: int,
+           best: dict[str, float], breakdown: dict[str, dict[tuple[str, str], float]],
+           calls: dict[str, float], configurations: list[str]) -> None:
+    """Print one scenario's figures (CPU us per communication step)."""
     def us(ns: float) -> str:
         return f"{ns / steps / 1e3:7.1f}"
 
@@ -180,24 +224,31 @@ def measure(scenario: str, archives: dict[str, Path], stop: float, master: str, 
           f"CPU us per communication step (timer bias {bias:.0f} ns/call corrected)")
     print(f"  {'configuration':34s} {'loop':>7s} {'in FMUs':>7s} {'rest':>7s} {'FMI calls/step':>15s}")
     for label in configurations:
-        total, inside = best[label], best[label + " inside"]
+        total, inside = best[label], best.get(label + " inside")
+        if inside is None:
+            print(f"  {label:34s} {us(total)} {'(in C)':>7s}")
+            continue
         print(f"  {label:34s} {us(total)} {us(inside)} {us(total - inside)} "
               f"{calls[label] / steps:15.0f}")
-    for which in ("before", "now"):
+    for which, ours in (("before", "before"), ("now", "now, compiled")):
         lc = best[f"libcosim {which}"]
-        ours = best["before" if which == "before" else "now"]
-        print(f"  {'libcosim, ' + which + ' archive':34s} {us(lc)}   ratio ours / libcosim {ours / lc:.3f}")
+        print(f"  {'libcosim (no observer), ' + which:34s} {us(lc)}   ratio {ours} / libcosim "
+              f"{best[ours] / lc:.3f}")
     print(f"  speed-up now vs before: {best['before'] / best['now']:.2f}x "
-          f"({us(best['before']).strip()} -> {us(best['now']).strip()} us/step)")
+          f"({us(best['before']).strip()} -> {us(best['now']).strip()} us/step); compiled: "
+          f"{best['before'] / best['now, compiled']:.2f}x")
+    print(f"  FMI 3.0 twin / FMI 2.0: Python master {best['now, FMI 3.0'] / best['now']:.3f}, compiled "
+          f"{best['now, FMI 3.0, compiled'] / best['now, compiled']:.3f}")
     through = best["now, through pythonfmu"]
     print(f"  the shim's direct calls: {through / best['now']:.2f}x "
           f"({us(through).strip()} -> {us(best['now']).strip()} us/step)")
     components = sorted({c for b in breakdown.values() for c, _ in b})
-    print(f"  FMU breakdown, CPU us per communication step: {' / '.join(configurations)}")
+    measured = [label for label in configurations if label in breakdown]
+    print(f"  FMU breakdown, CPU us per communication step: {' / '.join(measured)}")
     for component in components:
         cells = []
         for name in FUNCTIONS:
-            figures = [breakdown[label].get((component, name)) for label in configurations]
+            figures = [breakdown[label].get((component, name)) for label in measured]
             if any(f is not None for f in figures):
                 cells.append(f"{FMI_NAMES[name]} " + " / ".join(us(f).strip() if f is not None else "-"
                                                                for f in figures))
@@ -218,8 +269,8 @@ def main(argv: list[str] | None = None) -> int:
         now = build_scenarios(args.scenarios, Path(tmp) / "now")
         before = build_before(args.before, args.scenarios, Path(tmp) / "before")
         for name in args.scenarios:
-            measure(name, {"before": before[name], "now": now[name]}, args.stop_time, args.master,
-                    args.repeat, bias)
+            archives = {"before": before[name], "now": now[name], "now3": now[name + FMI3_SUFFIX]}
+            measure(name, archives, args.stop_time, args.master, args.repeat, bias)
     return 0
 
 

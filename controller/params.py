@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from enum import IntEnum
 from typing import Any, TypeVar
 
 __all__ = [
     "DEFAULT_CENTERS",
+    "Problem",
     "EXPLICIT",
     "FINITE_TIME",
     "FIXED_TIME",
@@ -79,8 +81,14 @@ def _parse_choice(cls: type[_Choice], name: str, value: object) -> _Choice:
                 return member
     elif isinstance(value, int) and not isinstance(value, bool) and value in tuple(cls):
         return cls(value)
+    raise ValueError(_choices(cls, value).render(lambda _, __: name))
+
+
+def _choices(cls: type[_Choice], value: object) -> Problem:
+    """The problem of a value that is none of ``cls``'s members."""
     choices = " or ".join(f"{m.value} ({m.label})" for m in cls)
-    raise ValueError(f"{name} must be {choices} (got {value!r})")
+    name = "mode" if cls is Mode else "discretization"
+    return Problem(name, None, f"{{name}} must be {choices} (got {value!r})")
 
 
 _Choice = TypeVar("_Choice", Mode, Discretization)
@@ -93,13 +101,39 @@ SEMI_IMPLICIT = Discretization.SEMI_IMPLICIT
 DEFAULT_CENTERS = (-1.5, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5)
 
 
+@dataclass(frozen=True)
+class Problem:
+    """One violated constraint: the parameter (a field of :class:`ControllerParameters`), the entry
+    of a per-step tuple (1-based; None: the whole value), and what is wrong, ``{name}`` standing for
+    the parameter's name. A caller with other names (the controller FMU's ``k1``, ``tau`` ...)
+    renders it with its own."""
+
+    parameter: str
+    index: int | None
+    text: str
+
+    def render(self, name: Callable[[str, int | None], str] | None = None) -> str:
+        """The message, the parameter named by ``name(parameter, index)`` (default ``k[1]``)."""
+        shown = (name or _library_name)(self.parameter, self.index)
+        return self.text.replace("{name}", shown)
+
+
+def _library_name(parameter: str, index: int | None) -> str:
+    return parameter if index is None else f"{parameter}[{index}]"
+
+
 class ParameterError(ValueError):
-    """A design parameter violates the constraints of SPEC section 1."""
+    """A design parameter violates the constraints of SPEC section 1; ``problems`` lists each
+    (:class:`Problem`), the message joins them."""
+
+    def __init__(self, problems: Sequence[Problem]) -> None:
+        super().__init__("; ".join(p.render() for p in problems))
+        self.problems = tuple(problems)
 
 
-def _positive(name: str, value: float) -> str | None:
+def _positive(name: str, value: float, index: int | None = None) -> Problem | None:
     if not (math.isfinite(value) and value > 0.0):
-        return f"{name} must satisfy {name} > 0 (got {value!r})"
+        return Problem(name, index, f"{{name}} must satisfy {{name}} > 0 (got {value!r})")
     return None
 
 
@@ -146,51 +180,46 @@ class ControllerParameters:
         for name in reals:
             object.__setattr__(self, name, float(getattr(self, name)))
 
-        problems: list[str] = []
+        problems: list[Problem] = []
         try:
             object.__setattr__(self, "mode", Mode.parse(self.mode))
-        except ValueError as error:
-            problems.append(str(error))
+        except ValueError:
+            problems.append(_choices(Mode, self.mode))
         try:
             object.__setattr__(self, "discretization", Discretization.parse(self.discretization))
-        except ValueError as error:
-            problems.append(str(error))
+        except ValueError:
+            problems.append(_choices(Discretization, self.discretization))
         n = len(self.q)
         if n < 1:
-            problems.append("q must have at least one entry (plant order n >= 1)")
+            problems.append(Problem("q", None, "{name} must have at least one entry (plant order n >= 1)"))
         for name in per_step + ("eta0",):
             if len(getattr(self, name)) != n:
-                problems.append(f"{name} must have n = {n} entries (got {len(getattr(self, name))})")
+                problems.append(Problem(name, None, f"{{name}} must have n = {n} entries "
+                                                    f"(got {len(getattr(self, name))})"))
         if not (self.alpha > 1.0 and math.isfinite(self.alpha)):
-            problems.append(f"alpha must satisfy alpha > 1 (got {self.alpha!r})")
+            problems.append(Problem("alpha", None,
+                                    f"{{name}} must satisfy {{name}} > 1 (got {self.alpha!r})"))
         if not 0.5 < self.beta < 1.0:
-            problems.append(f"beta must satisfy 0.5 < beta < 1 (got {self.beta!r})")
+            problems.append(Problem("beta", None,
+                                    f"{{name}} must satisfy 0.5 < {{name}} < 1 (got {self.beta!r})"))
         gains: tuple[str, ...] = ("q", "a", "kappa", "rho", "rho_bar")
         if self.mode == FIXED_TIME:
             gains = ("k",) + gains
-        for name in gains:
-            for i, value in enumerate(getattr(self, name), start=1):
-                problem = _positive(f"{name}[{i}]", value)
-                if problem:
-                    problems.append(problem)
+        found = [_positive(name, value, i) for name in gains
+                 for i, value in enumerate(getattr(self, name), start=1)]
         used = ("a_bar", "width") + (("sample_time", "b_max") if self.discretization == SEMI_IMPLICIT else ())
-        for name in used:
-            problem = _positive(name, getattr(self, name))
-            if problem:
-                problems.append(problem)
-        for name in ("gamma_gain", "d_r", "gamma_power"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0.0):
-                problems.append(f"{name} must satisfy {name} >= 0 (got {value!r})")
+        found += [_positive(name, getattr(self, name)) for name in used]
         assert self.eta0 is not None  # filled above
-        initial = [("r0", self.r0)] + [(f"eta0[{i}]", v) for i, v in enumerate(self.eta0, 1)]
-        for name, value in initial:
-            if not (math.isfinite(value) and value >= 0.0):
-                problems.append(f"{name} must satisfy {name} >= 0 (got {value!r})")
+        at_least_zero: list[tuple[str, int | None, float]] = [
+            (name, None, getattr(self, name)) for name in ("gamma_gain", "d_r", "gamma_power", "r0")]
+        at_least_zero += [("eta0", i, v) for i, v in enumerate(self.eta0, 1)]
+        found += [Problem(name, i, f"{{name}} must satisfy {{name}} >= 0 (got {value!r})")
+                  for name, i, value in at_least_zero if not (math.isfinite(value) and value >= 0.0)]
+        problems += [p for p in found if p is not None]
         if not self.centers or not all(math.isfinite(c) for c in self.centers):
-            problems.append("centers must be a non-empty list of finite numbers")
+            problems.append(Problem("centers", None, "{name} must be a non-empty list of finite numbers"))
         if problems:
-            raise ParameterError("; ".join(problems))
+            raise ParameterError(problems)
 
     @property
     def n(self) -> int:

@@ -19,7 +19,6 @@ d_r, r0, eta1_0..etan_0, mu1..mu7, tau, substeps, discretization, sample_time, b
 from __future__ import annotations
 
 import math
-import re
 from abc import update_abstractmethods
 from collections.abc import Callable
 from math import isfinite
@@ -32,7 +31,7 @@ from pythonfmu.enums import Fmi2Status
 from controller.native import MAX_ORDER, law_for
 from controller.params import DEFAULT_CENTERS, ControllerParameters, Discretization, Mode, ParameterError
 
-from .fmu_support import declare, mark_stale, raise_problems, rename_indexed, report
+from .fmu_support import declare, mark_stale, raise_problems, report
 
 __all__ = [
     "GAIN_DESCRIPTIONS",
@@ -224,6 +223,18 @@ def _declare_parameters(slave: Fmi2Slave, n: int) -> None:
             "Assumption 3), used by the semi-implicit law", minimum=0.0)
 
 
+# The parameters of ControllerParameters these FMUs name otherwise (their per-step gains are k1, k2 ...).
+RENAMED = {"width": "tau", "centers": "mu1..mu7"}
+
+
+def _fmu_name(parameter: str, index: int | None) -> str:
+    """The FMU's name of a parameter of ControllerParameters: ``k[1]`` is ``k1``, ``eta0[2]``
+    ``eta2_0``, ``width`` ``tau`` (the library's problems are rendered with it, no text parsed)."""
+    if index is None:
+        return RENAMED.get(parameter, parameter)
+    return f"eta{index}_0" if parameter == "eta0" else f"{parameter}{index}"
+
+
 def _parameters(slave: Fmi2Slave) -> ControllerParameters:
     """The library's validated parameters; raises naming the FMU parameters."""
     n = slave._order
@@ -250,9 +261,7 @@ def _parameters(slave: Fmi2Slave) -> ControllerParameters:
             b_max=slave.b_max,
         )
     except ParameterError as error:
-        message = rename_indexed(str(error), {"eta0": "eta{}_0"})
-        message = re.sub(r"\bwidth\b", "tau", message).replace("centers", "mu1..mu7")
-        problems.extend(message.split("; "))
+        problems.extend(p.render(_fmu_name) for p in error.problems)
     raise_problems(slave.modelName, problems)
     return params
 

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import copy
 import logging
-import re
 import sys
 import threading
 import weakref
@@ -42,7 +41,6 @@ __all__ = [
     "LOGGER_NAME",
     "mark_stale",
     "raise_problems",
-    "rename_indexed",
     "report",
 ]
 
@@ -435,13 +433,3 @@ def fmu_model(cls: SlaveClass) -> SlaveClass:
     cls.do_step = do_step
     cls._fmu_direct_binding = direct_binding
     return cls
-
-
-def rename_indexed(message: str, renames: dict[str, str]) -> str:
-    """Turn library names such as ``k[1]`` or ``eta0[2]`` into FMU parameter names."""
-
-    def replace(match: re.Match[str]) -> str:
-        base, i = match.group(1), match.group(2)
-        return renames.get(base, base + "{}").format(i)
-
-    return re.sub(r"\b(\w+)\[(\d+)\]", replace, message)

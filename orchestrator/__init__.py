@@ -6,8 +6,10 @@ A scenario is named as on the command line: a ``.ssp`` archive, a folder holding
 ``build/ssp/pendulum.ssp``).
 
 Data flows top to bottom through the modules: ssp (read the archive) -> system (validated
-components, connections, propagation order) -> master (FMI stepping) -> results (CSV + array);
-validate runs ssp and system as far as they go and reports everything (``orchestrate validate``).
+components, connections, propagation order) -> plan (the one schedule every executor steps) ->
+master (the Python master; native: the compiled executor) -> results and output (the recorder, the
+result file and its provenance); validate runs ssp and system as far as they go and reports
+everything (``orchestrate validate``).
 """
 
 from __future__ import annotations
@@ -20,13 +22,13 @@ import os
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import ExitStack, contextmanager
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from . import formats, provenance
+from . import native, provenance
 from .errors import (
+    EngineNote,
     Interrupted,
     LoopError,
     NonFiniteError,
@@ -42,12 +44,13 @@ from .inputs import InputSeries, read_inputs
 from .locate import fmu_dirs as _fmu_dirs
 from .locate import resolve_scenario
 from .master import MASTERS, Master, tracing
+from .output import RunOutput, system_columns
 from .result import RunOptions, RunResult
 from .ssp import DEFAULT_LIMITS, Limits
 from .system import PortRef, System
 from .validate import DEFAULT_STEP, check_scenario, no_step, timing
 
-__all__ = ["DEFAULT_STEP", "MASTERS", "Interrupted", "Limits", "LoopError", "NonFiniteError",
+__all__ = ["DEFAULT_STEP", "MASTERS", "EngineNote", "Interrupted", "Limits", "LoopError", "NonFiniteError",
            "OrchestratorError",
            "PortRef", "RunOptions", "RunResult", "ScenarioError", "ScenarioWarning", "SimulationError",
            "TimeLimitError", "UsageError", "open_system", "resolve_scenario", "run", "system_columns"]
@@ -170,50 +173,39 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
     if not isinstance(options, RunOptions):
         raise UsageError(f"options must be a RunOptions (got {type(options).__name__})")
     scenario = resolve_scenario(scenario)
-    selection = formats.Selection(tuple(options.output_variables), options.output_interval)
-    output = options.output
-    if output is not None:
-        formats.check_output(output, selection=selection)
+    output = RunOutput(options.output, tuple(options.output_variables), options.output_interval,
+                       options.no_inputs)
     with open_system(scenario, parameter_sets=options.parameter_sets, overrides=options.overrides,
                      fmu_dirs=options.fmu_dirs, limits=options.limits, root=options.root,
                      strict_fmus=options.strict_fmus) as system:
         start, stop, h = timing(system.structure, options.stop_time, options.step, options.start_time)
         series = _before_the_run(system, options, start, stop)
+        compiled, note = _compiled(system, options)
         record = provenance.describe(scenario, system, start=start, stop=stop, step=h, master=options.master,
                                      parameter_sets=options.parameter_sets, overrides=options.overrides)
+        record["executor"] = "compiled" if compiled else "python"
         if options.input_file is not None and series is not None:
             record["input_file"] = {"path": str(Path(options.input_file).resolve()),
                                     "sha256": provenance.digest(options.input_file),
                                     "inputs": [str(p) for p in series.ports]}
-        stream = None
-        if options.no_inputs:
-            selection = replace(selection, drop=tuple(str(end) for end, link in system.links.items()
-                                                      if not link.transformed))
-        selection.columns(["time", *system_columns(system)])  # a pattern matching nothing: now, file or not
-        if output is not None:  # the master streams a CSV; other formats and selections come from it
-            formats.check_output(output, h, selection)
-            stream = formats.staging_path(output, selection)
-            record["output"] = {"format": Path(output).suffix.lower(), "variables": list(selection.variables),
-                                "interval": selection.interval, "left_out": list(selection.drop)}
-            provenance.write_provenance(output, record)
+        stream = output.start(system, h, record)  # the master streams a CSV; other formats come from it
         runner = MASTERS[options.master](system, start, stop, h, stream, progress,
-                                         keep=options.keep or output is None, timeout=options.timeout,
+                                         keep=options.keep or stream is None, timeout=options.timeout,
                                          inputs=series, instances=tracing(options.fmi_log),
-                                         binary_copy=stream is not None and stream != Path(output or ""),
-                                         loop_tolerance=options.loop_tolerance,
-                                         loop_iterations=options.loop_iterations)
-        texts = descriptions(system)
+                                         binary_copy=output.staged, loop_tolerance=options.loop_tolerance,
+                                         loop_iterations=options.loop_iterations, compiled=compiled)
         try:
             runner.run()
         except BaseException as exc:  # however the run ends early, the sidecar says so
             status = ("timeout" if isinstance(exc, TimeLimitError) else
                       "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed")
-            result = _finish(runner, record, status, str(exc) or type(exc).__name__, output, stream,
-                             selection, texts, h)
+            result = _result(runner, output, record, status, str(exc) or type(exc).__name__, h)
             if isinstance(exc, (SimulationError, Interrupted)):
                 exc.result = result
             raise
-        return _finish(runner, record, "complete", "", output, stream, selection, texts, h)
+        if note:  # after a run that completed: a failed one says only what failed
+            warnings.warn(f"the Python master ran this scenario: {note}", EngineNote, stacklevel=2)
+        return _result(runner, output, record, "complete", "", h)
 
 
 def _before_the_run(system: System, options: RunOptions, start: float, stop: float) -> InputSeries | None:
@@ -237,6 +229,35 @@ def _before_the_run(system: System, options: RunOptions, start: float, stop: flo
     return series
 
 
+def _compiled(system: System, options: RunOptions) -> tuple[bool, str]:
+    """Whether the compiled executor runs the scenario (``options.executor``); where ``auto`` finds
+    that it cannot, the Python master does, and the second item says why (for the EngineNote of a
+    run that completes; ``compiled``: a UsageError)."""
+    if options.executor == "python":
+        return False, ""
+    old = [name for name, c in system.components.items() if c.model.fmiVersion.startswith("1.")]
+    loop = options.master == "gauss-seidel" and bool(system.iterated)
+    why = (f"{option('fmi_log')} traces the calls the Python master makes" if options.fmi_log else
+           f"FMI 1.0 component{'s' if len(old) > 1 else ''} {', '.join(old)}" if old else
+           "an algebraic loop is iterated to a fixed point" if loop else native.unavailable())
+    if not why:
+        return True, ""
+    if options.executor == "compiled":
+        raise UsageError(f"{option('executor')} compiled cannot run this scenario: {why}")
+    return False, why
+
+
+def _result(runner: Master, output: RunOutput, record: dict[str, object], status: str,
+            message: str, step: float) -> RunResult:
+    """The result of a run that ended with ``status``; the output's files finished."""
+    recorder = runner.recorder
+    count = recorder.count if recorder is not None else 0
+    rows = recorder.result() if recorder is not None else np.empty(0, [("time", np.float64)])
+    outputs = output.finish(recorder, record, status, message, runner.time, step)
+    return RunResult(status, message, rows, count, runner.time(count - 1) if count else None, record, outputs,
+                     preview=recorder is not None and not recorder.keep)
+
+
 SHOWN_INPUTS = 40  # inputs named in the one warning about unconnected inputs
 
 
@@ -254,65 +275,3 @@ def _unconnected_warning(system: System, unconnected: list[tuple[str, PortRef]])
     return [f"{system.ssd}: {len(unconnected)} inputs are not connected and keep the FMU's start value "
             f"(in brackets) for the whole run: {shown}{more} (give values with {option('overrides')} or "
             f"{option('input_file')}; 'orchestrate validate' lists each)"]
-
-
-def system_columns(system: System) -> list[str]:
-    """Every connector of a system as a result column names it.
-
-    Parameters
-    ----------
-    system : System
-        A validated system (:func:`open_system`).
-
-    Returns
-    -------
-    list of str
-        ``component.connector`` for each input and output, in the order of the result's columns
-        (after ``time``).
-    """
-    return [str(PortRef(name, c)) for name, comp in system.components.items()
-            for c in (*comp.inputs, *comp.outputs)]
-
-
-def descriptions(system: System) -> dict[str, str]:
-    """Each column's description and unit as Dymola writes them into a result file:
-    ``Plant output [rad]`` (the FMU's description; the unit in brackets when it declares one)."""
-    units = provenance.column_units(system)
-    texts = {}
-    for name, comp in system.components.items():
-        variables = comp.variables
-        for k in (*comp.inputs, *comp.outputs):
-            column = str(PortRef(name, k))
-            text, unit = variables[k].description or "", units.get(column)
-            texts[column] = f"{text} [{unit}]".strip() if unit else text
-    return texts
-
-
-def _finish(runner: Master, record: dict[str, object], status: str, message: str,
-            output: str | os.PathLike | None, stream: str | os.PathLike | None,
-            selection: formats.Selection, texts: Mapping[str, str], step: float) -> RunResult:
-    """The result of a run that ended with ``status``; with an ``output``, its rows written in the
-    format asked for and the provenance finished (``rows``: the rows the file holds, after
-    ``output_interval``; ``rows_computed``: every communication point computed)."""
-    recorder = runner.recorder
-    count = recorder.count if recorder is not None else 0
-    rows = recorder.result() if recorder is not None else np.empty(0, [("time", np.float64)])
-    last = runner.time(count - 1) if count else None
-    outputs: dict[str, Path] = {}
-    if output is not None and stream is not None:
-        saved = recorder.saved if recorder is not None else 0  # what is on disk, never more
-        record["rows_computed"] = count
-        outputs["provenance"] = provenance.finish(output, record, status, selection.kept(saved, step),
-                                                  runner.time(saved - 1) if saved else None, message)
-        if saved and Path(stream).is_file():
-            units = record.get("units")  # the rows kept, in the format asked for, with their units
-            formats.write_selected(stream, output, selection, texts,
-                                   units if isinstance(units, dict) else None)
-            outputs["result"] = Path(output)
-        formats.binary_copy_path(stream).unlink(missing_ok=True)
-    else:
-        record.update(status=status, rows=count, last_time=last)
-        if message:
-            record["message"] = message
-    return RunResult(status, message, rows, count, last, record, outputs,
-                     preview=recorder is not None and not recorder.keep)

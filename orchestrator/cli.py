@@ -25,6 +25,7 @@ from typing import NoReturn, TypedDict, Unpack
 
 from . import MASTERS, RunOptions, RunResult, run
 from .errors import (
+    EngineNote,
     Interrupted,
     OrchestratorError,
     OrchestratorWarning,
@@ -41,6 +42,7 @@ from .locate import BUILD_DIR, fmu_dirs, resolve_scenario
 from .master import LOOP_ITERATIONS, LOOP_TOLERANCE
 from .plots import check_plot, plot_run
 from .provenance import overrides_text, read_provenance
+from .result import EXECUTORS
 from .results import read_result
 from .ssp import DEFAULT_LIMITS, Limits
 from .validate import validate
@@ -234,6 +236,9 @@ def _parser(command: str | None = None) -> argparse.ArgumentParser:
     _plot_variables(p)
     p.add_argument("--no-plot", action="store_true", help="do not plot")
     p.add_argument("--master", choices=list(MASTERS), default="gauss-seidel", help="master algorithm")
+    p.add_argument("--executor", choices=EXECUTORS, default="auto",
+                   help="who steps the plan: the compiled executor (auto: where it can, else the Python "
+                        "master, with a note), or always the Python master; the same rows bit for bit")
     p.add_argument("--allow-stale", action="store_true",
                    help="run a scenario even when an application's check finds it stale (e.g. a build older "
                         "than its sources)")
@@ -439,6 +444,10 @@ def _show_warning(message: Warning | str, category: type[Warning], filename: str
     if text in _shown_warnings:
         return
     _shown_warnings.add(text)
+    if issubclass(category, EngineNote):
+        if not quiet():
+            print(f"orchestrate: note: {text}", file=sys.stderr)
+        return
     warn(text if issubclass(category, OrchestratorWarning) else f"{text} ({category.__name__})")
 
 
@@ -509,7 +518,7 @@ def _options(args: argparse.Namespace, scenario: Path, output: Path) -> RunOptio
                       strict=args.strict, timeout=args.timeout, fmu_dirs=fmu_dirs(scenario),
                       limits=archive_limits(args), input_file=args.input_file, fmi_log=args.fmi_log,
                       root=args.root, strict_fmus=args.strict_fmus, loop_tolerance=args.loop_tolerance,
-                      loop_iterations=args.loop_iterations)
+                      loop_iterations=args.loop_iterations, executor=args.executor)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -536,7 +545,7 @@ def _run(args: argparse.Namespace) -> int:
         result = run(scenario, options, progress=progress)  # warnings: one line each, as they come (main)
     except (SimulationError, Interrupted) as exc:
         result = exc.result
-        detail = f" ({messages.last})" if messages.last and "(" not in str(exc) else ""
+        detail = f" ({messages.last})" if messages.last and not getattr(exc, "explained", False) else ""
         prefix = "orchestrate: " if isinstance(exc, Interrupted) else "orchestrate: error: "
         stopped = f"{prefix}{exc}{detail}; {_rows_text(result)} kept in {output}"
         if plot is None or result.count < 2:

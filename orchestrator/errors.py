@@ -11,7 +11,8 @@ from contextlib import contextmanager
 from contextvars import ContextVar
 from typing import Any
 
-__all__ = ["FLAGS", "CacheWarning", "Interrupted", "LoopError", "NonFiniteError", "OrchestratorError",
+__all__ = ["FLAGS", "CacheWarning", "EngineNote", "Interrupted", "LoopError", "NonFiniteError",
+           "OrchestratorError",
            "OrchestratorWarning", "OutputError", "ScenarioError", "ScenarioWarning", "SimulationError",
            "Terminated", "TimeLimitError", "UnpackError", "UsageError", "command_line", "is_option", "option",
            "terminate"]
@@ -23,7 +24,8 @@ FLAGS = {"overrides": "--set", "parameter_sets": "--parameter-set", "start_time"
          "output_variables": "--output-variables", "output_interval": "--output-interval",
          "input_file": "--input-file", "fmi_log": "--fmi-log", "timeout": "--timeout", "master": "--master",
          "plot": "--plot", "variables": "--plot-variables", "no_inputs": "--no-inputs",
-         "scheduler": "--scheduler", "dashboard": "--dashboard", "out": "--output", "workers": "--workers"}
+         "executor": "--executor", "scheduler": "--scheduler", "dashboard": "--dashboard", "out": "--output",
+         "workers": "--workers"}
 _COMMAND_LINE: ContextVar[bool] = ContextVar("orchestrate_command_line", default=False)
 
 
@@ -95,6 +97,7 @@ class SimulationError(OrchestratorError, RuntimeError):
 
     rows: int = 0
     result: Any = None
+    detail: str = ""  # the FMU's own explanation (its last warning or error logged), '' when none
 
     STATUS_NAMES = ("fmi2OK", "fmi2Warning", "fmi2Discard", "fmi2Error", "fmi2Fatal", "fmi2Pending")
 
@@ -106,10 +109,17 @@ class SimulationError(OrchestratorError, RuntimeError):
             status = self.STATUS_NAMES[status] if 0 <= status < len(self.STATUS_NAMES) else f"status {status}"
         self.status = status
         self.time = time
+        self.detail = detail
         message = f"{component}: {function} returned {status} at t={time:.3f} s"
         if detail:
             message += f" ({detail})"
         super().__init__(message)
+
+    @property
+    def explained(self) -> bool:
+        """Whether the message says why already (the FMU's explanation, or the error's own): a
+        caller adds what else it knows (a message the FMU logged elsewhere) only when it does not."""
+        return bool(self.detail)
 
 
 class NonFiniteError(SimulationError):
@@ -121,6 +131,11 @@ class NonFiniteError(SimulationError):
                                     "(not finite; the run stops at the first such value)")
         self.component, self.function, self.status, self.time = component, "fmi2GetReal", repr(value), time
         self.variable = variable
+
+    @property
+    def explained(self) -> bool:
+        """The value and where it appeared are the explanation."""
+        return True
 
 
 class LoopError(SimulationError):
@@ -138,6 +153,11 @@ class LoopError(SimulationError):
         self.component, self.function, self.status, self.time = components[0], "fixed point", "diverged", time
         self.residual = residual
 
+    @property
+    def explained(self) -> bool:
+        """The residual and the limits are the explanation."""
+        return True
+
 
 class TimeLimitError(SimulationError):
     """The run reached its wall-clock limit (``--timeout``): stopped at the next communication point,
@@ -151,6 +171,11 @@ class TimeLimitError(SimulationError):
             message = f"wall-clock limit of {limit:g} s ({option('timeout')}) reached at t={time:.3f} s"
         RuntimeError.__init__(self, message)
         self.component, self.function, self.status, self.time = component, "fmi2DoStep", "timeout", time
+
+    @property
+    def explained(self) -> bool:
+        """The limit is the explanation."""
+        return True
 
 
 class Interrupted(KeyboardInterrupt):
@@ -195,3 +220,8 @@ class CacheWarning(OrchestratorWarning):
 class ScenarioWarning(OrchestratorWarning):
     """A scenario that runs but is probably not what was meant (e.g. an input no connection feeds);
     ``run(strict=True)`` (``orchestrate run --strict``) makes it a ScenarioError."""
+
+
+class EngineNote(UserWarning):
+    """How the engine runs a scenario when that is not the default (the Python master instead of the
+    compiled executor, and why); informative, never a problem of the scenario."""

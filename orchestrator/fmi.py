@@ -187,6 +187,11 @@ class InstanceBase:
             if status >= FAILED:
                 self.fail("fmi2SetReal", status, time)
 
+    def native(self) -> tuple[int, int] | None:
+        """The FMU's library handle (``dlopen``) and instance pointer, for the compiled executor to
+        call its FMI 2.0 or 3.0 functions itself; None when it cannot (a fake, FMI 1.0)."""
+        return None
+
     # -- the rare calls, provided by a subclass ------------------------------------------------
     def set_start_values(self, values: Mapping[str, tuple[str, int, object]], time: float) -> None:
         """Set parameters and start values ``name -> (type, value reference, value)``."""
@@ -250,14 +255,21 @@ class Instance(InstanceBase):
         self.set_real = lambda c, vr, n, values: set_(c, vr, n, values, n)
         self.do_step = lambda c, t, h, no_set: step(c, t, h, no_set, event, terminate, early, last)
 
+    def native(self) -> tuple[int, int] | None:
+        """fmpy's library handle and the instance (FMI 1.0: None, its functions carry a prefix)."""
+        c = self.c
+        if self.fmi1 or not isinstance(c, c_void_p) or not c.value:
+            return None
+        return int(self.fmu.dll._handle), int(c.value)
+
     @classmethod
     def open(cls, name: str, fmu_path: str | os.PathLike, guid: str, model_identifier: str, workdir: str,
-             messages: MessageLog, time: float) -> Instance:
-        """Unpack ``fmu_path`` (:func:`orchestrator.fmucache.unpack_fmu`: its cache entry, or
-        ``workdir/name``) and instantiate it (fmi2Instantiate, or fmi3InstantiateCoSimulation for an
-        FMI 3.0 FMU)."""
+             messages: MessageLog, time: float, shared: bool = True) -> Instance:
+        """Unpack ``fmu_path`` (:func:`orchestrator.fmucache.unpack_fmu`: its cache entry, shared by
+        every instance of the FMU unless ``shared`` is False, or a folder in ``workdir``) and
+        instantiate it (fmi2Instantiate, or fmi3InstantiateCoSimulation for an FMI 3.0 FMU)."""
         try:
-            unzipdir = unpack_fmu(fmu_path, os.path.join(workdir, name))
+            unzipdir = unpack_fmu(fmu_path, os.path.join(workdir, name), shared)
         except OSError:
             raise  # the temporary folder: full or unwritable (not the scenario's fault)
         except Exception as exc:  # fmpy raises bare Exceptions; zipfile, zlib their own

@@ -12,9 +12,13 @@ FMUs for the same reason. Here the folder of an FMU is ``<cache>/fmus/<sha256 of
   succeed (the second rename loses and its copy is dropped);
 * the cache is bounded: after adding an entry, the least recently used ones beyond
   ``MAX_ENTRIES`` are removed, except those used in the last ``IN_USE`` seconds;
-* an entry serves one instance per process at a time: a second instance of the same FMU (two
-  components, or two runs in one process) gets its own copy in the run's temporary folder, as
-  every instance had before, so no shared library is loaded twice from one file;
+* instances share an entry: every component using one FMU (and every run in one process) loads
+  the same folder and library, as FMI allows unless the FMU says
+  ``canBeInstantiatedOnlyOncePerProcess`` (then a second instance gets its own copy in the run's
+  temporary folder); with the cache off, instances of one run share one copy in the run's folder;
+* a scenario archive's FMU whose entry is complete is not even extracted (:func:`defer`): a run
+  reads its model description and loads it from the entry; :func:`materialize` extracts it when
+  something needs the file itself;
 * ``ORCHESTRATE_CACHE`` sets the folder (default ``$XDG_CACHE_HOME/orchestrate``, else
   ``~/.cache/orchestrate``); ``ORCHESTRATE_CACHE=off`` unpacks every FMU into the run's own
   temporary folder, as before; so does a cache folder that cannot be made or written;
@@ -41,6 +45,7 @@ import shutil
 import threading
 import time
 import warnings
+import zipfile
 from pathlib import Path
 
 import fmpy
@@ -48,7 +53,8 @@ import fmpy
 from . import files
 from .errors import CacheWarning, UnpackError
 
-__all__ = ["IN_USE", "MAX_ENTRIES", "cache_folder", "member_sha256", "release", "sha256", "unpack_fmu"]
+__all__ = ["IN_USE", "MAX_ENTRIES", "cache_folder", "defer", "deferred", "entry_of", "forget", "materialize",
+           "member_digest", "member_sha256", "release", "sha256", "unpack_fmu"]
 
 MAX_ENTRIES = 64  # unpacked FMUs kept (about 11 MB each for an FMU with its own Python)
 MAX_NOTES = 4096  # remembered digests (a small file each); the older half goes beyond that
@@ -56,9 +62,10 @@ IN_USE = 3600.0  # s: an entry used more recently than this is never removed
 COMPLETE = ".complete"
 
 _digests: dict[tuple[int, ...], str] = {}
+_in_use: dict[str, int] = {}  # folders instances of this process have loaded: how many instances
+_deferred: dict[str, tuple[str, str, str]] = {}  # FMU not extracted -> (archive, member, digest)
 _failed: list[str] = []  # why the cache failed in this process (then it is not used again)
-_in_use: set[str] = set()  # entries an instance of this process has loaded
-_lock = threading.Lock()
+_lock = threading.RLock()
 
 
 def _stat_key(path: str | os.PathLike) -> tuple[int, ...]:
@@ -72,6 +79,8 @@ def sha256(path: str | os.PathLike) -> str:
     """SHA-256 of a file's bytes, read once per file: remembered in this process and in the cache
     folder (``digests/``) for a file unchanged since (:func:`_stat_key`). Hashing example1's archive
     and FMUs (40 MB) took 27 ms of every run."""
+    if os.fspath(path) in _deferred:
+        return _deferred[os.fspath(path)][2]
     key = _stat_key(path)
     if key in _digests:
         return _digests[key]
@@ -152,28 +161,40 @@ def cache_folder() -> Path | None:
     return folder if os.access(folder, os.W_OK | os.X_OK) else None
 
 
-def unpack_fmu(fmu: str | os.PathLike, fallback: str | os.PathLike) -> str:
+def unpack_fmu(fmu: str | os.PathLike, fallback: str | os.PathLike, shared: bool = True) -> str:
     """The folder holding the unpacked ``fmu``: its cache entry (unpacked now if missing), or, with
-    no usable cache, ``fallback`` (a fresh folder the caller removes) with the FMU unpacked into it.
-    A cache entry is reserved for the caller until :func:`release`. Raises what fmpy and zipfile
-    raise for an FMU that cannot be unpacked, OSError for a full disk."""
+    no usable cache, a folder beside ``fallback`` (a fresh folder of the run, which the caller
+    removes) with the FMU unpacked into it. Instances share the folder; with ``shared`` False (the
+    FMU can be instantiated only once per process) a second instance gets its own copy in
+    ``fallback``. The folder is held for the caller until :func:`release`. A cache that fails
+    (a full disk, a quota) is left for the run's folder, with one CacheWarning. Raises what fmpy and
+    zipfile raise for an FMU that cannot be unpacked, UnpackError for a full disk."""
     folder = None if _failed else cache_folder()
-    entry = None if folder is None else folder / sha256(fmu)
+    digest = sha256(fmu)
+    own = Path(fallback).parent / f"fmu-{digest}"  # the run's shared copy when there is no cache
+    entry = folder / digest if folder is not None else own
     with _lock:
-        if folder is None or entry is None or str(entry) in _in_use:
-            return _extract(fmu, fallback)
-        _in_use.add(str(entry))
-    try:
-        return _entry(fmu, folder, entry)
-    except OSError as exc:  # the cache's disk is full, a quota, ...: the run's own folder will do
-        release(str(entry))
-        _failed.append(_reason(exc))
-        warnings.warn(f"FMU cache {folder}: cannot unpack {os.path.basename(fmu)} ({_reason(exc)}); FMUs are "
-                      "unpacked into the run's folder instead", CacheWarning, stacklevel=2)
-        return _extract(fmu, fallback)
-    except BaseException:
-        release(str(entry))
-        raise
+        if str(entry) in _in_use and not shared:
+            return _extract(materialize(fmu), fallback)
+        if str(entry) in _in_use:
+            _in_use[str(entry)] += 1
+            return str(entry)
+        _in_use[str(entry)] = 1
+        try:
+            if folder is None:
+                return _extract(materialize(fmu), entry)
+            return _entry(fmu, folder, entry)
+        except OSError as exc:  # the cache's disk is full, a quota, ...: the run's own folder will do
+            release(str(entry))
+            if folder is None:
+                raise
+            _failed.append(_reason(exc))
+            warnings.warn(f"FMU cache {folder}: cannot unpack {os.path.basename(fmu)} ({_reason(exc)}); "
+                          "FMUs are unpacked into the run's folder instead", CacheWarning, stacklevel=2)
+        except BaseException:
+            release(str(entry))
+            raise
+    return unpack_fmu(fmu, fallback, shared)
 
 
 def _reason(exc: OSError) -> str:
@@ -189,9 +210,68 @@ def _extract(fmu: str | os.PathLike, folder: str | os.PathLike) -> str:
 
 
 def release(folder: str) -> None:
-    """The instance that loaded ``folder`` (a result of :func:`unpack_fmu`) is freed."""
+    """An instance that loaded ``folder`` (a result of :func:`unpack_fmu`) is freed."""
     with _lock:
-        _in_use.discard(folder)
+        if _in_use.get(folder, 0) > 1:
+            _in_use[folder] -= 1
+        else:
+            _in_use.pop(folder, None)
+
+
+def member_digest(archive: str | os.PathLike, member: str) -> str | None:
+    """The digest of ``member`` of the zip ``archive`` when an earlier extraction remembered it."""
+    folder = cache_folder()
+    return None if folder is None else _read_note(_note(folder, f"{sha256(archive)}\0{member}"))
+
+
+def entry_of(fmu: str | os.PathLike) -> Path | None:
+    """The complete cache entry of ``fmu`` when it was deferred (not extracted), else None."""
+    found = _deferred.get(os.fspath(fmu))
+    folder = cache_folder()
+    if found is None or folder is None or not (folder / found[2] / COMPLETE).is_file():
+        return None
+    return folder / found[2]
+
+
+def defer(fmu: str | os.PathLike, archive: str | os.PathLike, member: str) -> bool:
+    """Leave ``member`` of ``archive`` unextracted at ``fmu`` when its digest is remembered and its
+    cache entry is complete (then True): reads go to the entry, :func:`materialize` extracts it."""
+    digest = member_digest(archive, member)
+    folder = cache_folder()
+    if digest is None or folder is None or not (folder / digest / COMPLETE).is_file():
+        return False
+    _deferred[os.fspath(fmu)] = (os.fspath(archive), member, digest)
+    return True
+
+
+def deferred(fmu: str | os.PathLike) -> bool:
+    """Whether ``fmu`` is an FMU of an archive left unextracted (:func:`defer`)."""
+    return os.fspath(fmu) in _deferred
+
+
+def materialize(fmu: str | os.PathLike) -> Path:
+    """``fmu`` as a file: a deferred member is extracted now (its bytes checked against the digest
+    remembered for it); any other path is returned as it is."""
+    with _lock:
+        found = _deferred.get(os.fspath(fmu))
+        if found is not None:
+            archive, member, digest = found
+            Path(fmu).parent.mkdir(parents=True, exist_ok=True)
+            with zipfile.ZipFile(archive) as zf, zf.open(member) as source, open(fmu, "wb") as target:
+                shutil.copyfileobj(source, target, 1 << 20)
+            if _hash(fmu, None) != digest:
+                raise OSError(f"{archive}: member '{member}' changed since it was first unpacked")
+            del _deferred[os.fspath(fmu)]
+            _digests[_stat_key(fmu)] = digest
+    return Path(fmu)
+
+
+def forget(folder: str | os.PathLike) -> None:
+    """Forget the deferred FMUs below ``folder`` (the scenario's temporary folder is removed)."""
+    prefix = os.path.join(os.fspath(folder), "")
+    with _lock:
+        for path in [p for p in _deferred if p.startswith(prefix)]:
+            del _deferred[path]
 
 
 def _manifest(folder: Path) -> dict[str, list[int]]:
@@ -240,7 +320,7 @@ def _entry(fmu: str | os.PathLike, folder: Path, entry: Path) -> str:
     files.remove_stale(folder, rf"\.(?:new|old)-{files.HOST}-(?P<pid>\d+)-[0-9a-f]+", files.QUIET)
     new = folder / f".new-{files.HOST}-{os.getpid()}-{secrets.token_hex(4)}"
     try:
-        fmpy.extract(str(fmu), unzipdir=str(new))
+        fmpy.extract(str(materialize(fmu)), unzipdir=str(new))
         marker = {"fmu": os.path.basename(fmu), "files": _manifest(new)}
         (new / COMPLETE).write_text(json.dumps(marker) + "\n", encoding="utf-8")
         try:

@@ -29,8 +29,8 @@ import orjson
 from . import files
 from .errors import OutputError, UsageError, option
 
-__all__ = ["FORMATS", "Selection", "binary_copy_path", "check_output", "csv_rows", "read_table",
-           "read_tool_csv", "staging_path", "write_selected"]
+__all__ = ["FORMATS", "Selection", "binary_copy_path", "check_interval", "check_output", "csv_rows",
+           "read_table", "read_tool_csv", "staging_path", "write_selected"]
 
 FORMATS = (".csv", ".parquet", ".mat")
 NS_PER_S = 1_000_000_000
@@ -99,9 +99,15 @@ def check_output(path: str | os.PathLike, step: float | None = None,
         if not (np.isfinite(interval) and interval > 0):
             raise UsageError(f"{option('output_interval')} must be positive and finite "
                              f"(got {interval!r})")
-        if step is not None and round(interval * NS_PER_S) % round(step * NS_PER_S):
-            raise UsageError(f"{option('output_interval')} {interval:g} s is not a multiple of the step "
-                             f"{step:g} s")
+        if step is not None:
+            check_interval(interval, step)
+
+
+def check_interval(interval: float, step: float) -> None:
+    """UsageError for an output interval that is not a multiple of the communication step."""
+    if round(interval * NS_PER_S) % round(step * NS_PER_S):
+        raise UsageError(f"{option('output_interval')} {interval:g} s is not a multiple of the step "
+                         f"{step:g} s")
 
 
 def staging_path(output: str | os.PathLike, selection: Selection = Selection()) -> Path:

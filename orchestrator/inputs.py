@@ -41,11 +41,16 @@ class InputSeries:
 
     def at(self, t: float) -> np.ndarray:
         """Every driven input's value at time ``t``."""
-        row = max(0, int(np.searchsorted(self.time, t, side="right")) - 1)
-        out = self.values[row].copy()
+        return self.table(np.array([t]))[0]
+
+    def table(self, times: np.ndarray) -> np.ndarray:
+        """Every driven input's value at each of ``times``: one row per time (what the compiled
+        executor is handed for a block of steps; :meth:`at` is its row of one time)."""
+        rows = np.maximum(0, np.searchsorted(self.time, times, side="right") - 1)
+        out = self.values[rows]
         for j, held in enumerate(self.discrete):
             if not held:
-                out[j] = np.interp(t, self.time, self.values[:, j])
+                out[:, j] = np.interp(times, self.time, self.values[:, j])
         return out
 
 

@@ -55,41 +55,20 @@ from . import files
 from .errors import Interrupted, LoopError, NonFiniteError, SimulationError, TimeLimitError, terminate
 from .fmi import CALLS, FAILED, Instance, InstanceBase, MessageLog, interpreter_guard, trace
 from .inputs import InputSeries
+from .native import FUNCTIONS, Stepper
+from .plan import MAX_TIME, NS_PER_S, Transfer, grid, make_plan, time_grid
 from .results import NonFiniteError as NonFiniteRow
 from .results import Recorder
-from .system import ComponentModel, PortRef, System
+from .system import ComponentModel, System
 
 __all__ = ["GRACE", "LOOP_ITERATIONS", "LOOP_TOLERANCE", "MASTERS", "MAX_TIME", "NS_PER_S", "GaussSeidel",
            "InstanceFactory", "Jacobi", "Master",
            "grid", "open_instance", "time_grid", "tracing"]
 
-NS_PER_S = 1_000_000_000
-MAX_TIME = (2**63 - 1) / NS_PER_S / 2  # s: t0 + n*h stays within int64 nanoseconds (292 years / 2)
 GRACE = 2.0  # s a step may still take after the wall-clock limit or a second Ctrl-C before it is aborted
 LOOP_TOLERANCE = 1e-10  # an algebraic loop has converged when no input on it moves by more (relative)
 LOOP_ITERATIONS = 100  # sweeps of an algebraic loop at one communication point before it is a LoopError
-
-
-def grid(start: float, stop: float, step: float) -> tuple[int, int, int]:
-    """The grid t_k = t0 + k*h, k = 0..n, up to the last point not after ``stop``: t0 and h in
-    integer nanoseconds (libcosim's time representation) and n. ValueError when a time is not
-    finite or beyond ``MAX_TIME``, the step is below 1 ns or the stop is before the start."""
-    for name, x in (("start time", start), ("stop time", stop), ("communication step", step)):
-        if not (math.isfinite(x) and abs(x) <= MAX_TIME):
-            raise ValueError(f"the {name} {x:g} s is not a finite time within +-{MAX_TIME:.3g} s")
-    t0, t1, h = (round(x * NS_PER_S) for x in (start, stop, step))
-    if h <= 0:
-        raise ValueError(f"the communication step must be positive and at least 1 ns (got {step!r} s)")
-    if t1 < t0:
-        raise ValueError(f"the stop time {stop!r} s is before the start time {start!r} s")
-    return t0, h, (t1 - t0) // h
-
-
-def time_grid(start: float, stop: float, step: float) -> np.ndarray:
-    """Communication points t_k = t0 + k*h, k = 0..n (:func:`grid`), in seconds, each computed in
-    integer nanoseconds and rounded once."""
-    t0, h, n = grid(start, stop, step)
-    return (t0 + h * np.arange(n + 1, dtype=np.int64)) / NS_PER_S
+BLOCK = 256  # steps the compiled executor makes between two looks at signals, the clock and progress
 
 
 class _Abort(BaseException):
@@ -107,6 +86,7 @@ class Stopper:
     def __init__(self, timeout: float | None) -> None:
         self.timeout = timeout
         self.reason: int | str | None = None  # a signal number or "timeout"
+        self.flag = ctypes.c_int(0)  # 1 once there is a reason: the compiled executor stops at the next point
         self.aborted = False
         self._previous: dict[int, Any] = {}
         self.deadline = math.inf
@@ -131,10 +111,12 @@ class Stopper:
             self.aborted = True
             raise _Abort
         self.reason = signum
+        self.flag.value = 1
 
     def _on_alarm(self, signum: int, frame: FrameType | None) -> None:
         if self.reason is None:
             self.reason = "timeout"
+            self.flag.value = 1
             signal.setitimer(signal.ITIMER_REAL, GRACE)  # the step under way gets GRACE s to return
         else:
             self.aborted = True
@@ -144,6 +126,7 @@ class Stopper:
         """Whether the run must stop at this communication point."""
         if self.reason is None and time.monotonic() > self.deadline:
             self.reason = "timeout"
+            self.flag.value = 1
         return self.reason is not None
 
     def disarm(self) -> None:
@@ -207,8 +190,9 @@ class Operation(NamedTuple):
 
 def open_instance(comp: ComponentModel, workdir: str, messages: MessageLog, time: float) -> InstanceBase:
     """The real instance of ``comp``: its FMU extracted into ``workdir`` and instantiated."""
-    return Instance.open(comp.name, comp.fmu, comp.model.guid, comp.model.coSimulation.modelIdentifier,
-                         workdir, messages, time)
+    cs = comp.model.coSimulation
+    return Instance.open(comp.name, comp.fmu, comp.model.guid, cs.modelIdentifier, workdir, messages, time,
+                         shared=not cs.canBeInstantiatedOnlyOncePerProcess)
 
 
 InstanceFactory = Callable[[ComponentModel, str, MessageLog, float], InstanceBase]
@@ -261,13 +245,18 @@ class Master:
                  progress: Callable[[int, int], None] | None = None, keep: bool = True,
                  timeout: float | None = None, instances: InstanceFactory = open_instance,
                  inputs: InputSeries | None = None, binary_copy: bool = False,
-                 loop_tolerance: float = LOOP_TOLERANCE, loop_iterations: int = LOOP_ITERATIONS) -> None:
+                 loop_tolerance: float = LOOP_TOLERANCE, loop_iterations: int = LOOP_ITERATIONS,
+                 compiled: bool = False) -> None:
         self.system = system
+        self.compiled = compiled
         self.loop_tolerance, self.loop_iterations = loop_tolerance, loop_iterations
         self.binary_copy = binary_copy  # the CSV is staged for another format: a float64 copy beside it
-        self._t0, self._h, self.n = grid(start_time, stop_time, step)
-        self.start_time = self._t0 / NS_PER_S
+        self.plan = make_plan(system, start_time, stop_time, step, self.name,
+                              inputs.ports if inputs is not None else ())
+        self._t0, self._h, self.n = self.plan.t0, self.plan.h, self.plan.n
+        self.start_time = self.plan.start_time
         self.stop_time = stop_time
+        self.columns = list(self.plan.columns)
         self.output = output
         self.progress = progress
         self.keep = keep
@@ -304,16 +293,7 @@ class Master:
             stack.callback(recorder.close)
             try:
                 self.initialize()
-                n = self.n
-                stride = max(1, n // 100)
-                poll = stopper.deadline != math.inf  # no timer: compare the clock at each point
-                for k in range(n):
-                    self.step(k)
-                    if stopper.reason is not None or (poll and stopper.requested()):
-                        stopper.disarm()
-                        raise stopper.error(self.time(k + 1))
-                    if self.progress is not None and (k + 1) % stride == 0:
-                        self.progress(k + 1, n)
+                self._step_all(stopper, stack)
                 recorder.check()
                 self.terminate()
             except NonFiniteRow as exc:
@@ -325,6 +305,46 @@ class Master:
             except (Interrupted, TimeLimitError) as exc:
                 raise self._kept(exc) from None
         return recorder.result()
+
+    def _step_all(self, stopper: Stopper, stack: ExitStack) -> None:
+        """Every step of the run: one at a time in Python, or blocks of up to ``BLOCK`` in C (the
+        compiled executor); after each, a stop request ends the run and progress is reported at
+        every 1 % of the steps."""
+        n, k = self.n, 0
+        stride = max(1, n // 100)
+        poll = stopper.deadline != math.inf  # no timer: compare the clock at each point
+        stepper = None
+        if self.compiled:
+            stepper = Stepper(self.plan, self.instances)
+            stack.callback(stepper.close)
+        while k < n:
+            if stepper is None:
+                self.step(k)
+                k += 1
+            else:
+                k += self._block(stepper, k, min(n - k, BLOCK, stride - k % stride), stopper.flag)
+            if stopper.reason is not None or (poll and stopper.requested()):
+                stopper.disarm()
+                raise stopper.error(self.time(k))
+            if self.progress is not None and k % stride == 0:
+                self.progress(k, n)
+
+    def _block(self, stepper: Stepper, k: int, most: int, stop: ctypes.c_int) -> int:
+        """At most ``most`` steps from t_k in C, their rows recorded; a failed call raises its
+        SimulationError after the rows before it are recorded."""
+        assert self.recorder is not None  # setup() creates it
+        rows = self.recorder.space(most)
+        driven = None
+        if self._driven:
+            assert self.inputs is not None  # _driven is laid out from it
+            times = (self._t0 + self._h * np.arange(k + 1, k + 1 + len(rows), dtype=np.int64)) / NS_PER_S
+            driven = np.ascontiguousarray(self.inputs.table(times)[:, self._driven_columns])
+        made = stepper.run(self.values, k, rows, driven, stop)
+        self.recorder.commit(made)
+        failure = stepper.failure
+        if failure.status:
+            self.instances[failure.component].fail(FUNCTIONS[failure.function], failure.status, failure.time)
+        return made
 
     def _kept(self, exc: SimulationError | Interrupted) -> SimulationError | Interrupted:
         """``exc`` with the rows kept: ``rows`` (their number) and ``result`` (as ``run`` returns)."""
@@ -358,9 +378,9 @@ class Master:
         have passed it on through a direct feedthrough), else the column the recorder found."""
         assert self.recorder is not None
         row = self.recorder.data[exc.row - self.recorder._base]
-        column = next((c for c in self._output_order if not math.isfinite(row[c])), exc.column)
+        column = next((c for c in self.plan.output_order if not math.isfinite(row[c])), exc.column)
         port = self.system.port(self.columns[column])
-        kind = "output" if column >= self._first_output else "input"
+        kind = "output" if column >= self.plan.first_output else "input"
         value = float(row[column])
         return NonFiniteError(port.component, port.connector, kind, value, self.time(exc.row))
 
@@ -380,9 +400,9 @@ class Master:
     def initialize(self) -> None:
         """FMI initialization; afterwards every FMU is in step mode and row t0 is recorded."""
         t0 = self.start_time
-        stop = self.time(self.n) if self.stop_time is None else float(self.stop_time)
-        for inst in self.instances:
-            start_values = self._start_values(self.system.components[inst.name])
+        stop = self.plan.stop
+        for inst, part in zip(self.instances, self.plan.components, strict=True):
+            start_values = part.starts
             inst.set_start_values(start_values, t0)
             inst.setup(t0, stop)
             inst.set_start_values(start_values, t0)
@@ -413,129 +433,41 @@ class Master:
 
     # -- shared machinery ---------------------------------------------------------------------
     def _layout(self) -> None:
-        """Place time, inputs and outputs in ``values`` and prepare the batched call arrays."""
-        system = self.system
-        columns = ["time"]
-        input_order, n_connected = self._input_order()
-        columns += [str(p) for p in input_order]
-        slot = {p: 1 + j for j, p in enumerate(input_order)}
-        out_slice: dict[str, slice] = {}
-        self._first_output = len(columns)
-        for comp in system.components.values():
-            first = len(columns)
-            columns += [str(PortRef(comp.name, o)) for o in comp.outputs]
-            out_slice[comp.name] = slice(first, len(columns))
-            for o in comp.outputs:
-                slot[PortRef(comp.name, o)] = len(slot) + 1
-        self.columns = columns
-        index = {name: j for j, name in enumerate(columns)}
-        read = [op.component for op in system.schedule if op.kind == "get"]
-        read += [name for name in system.components if name not in read]
-        self._output_order = [index[str(PortRef(name, o))] for name in read
-                              for o in system.components[name].outputs]
-        self.values = np.zeros(len(columns))
-        for comp in system.components.values():
-            variables = comp.variables
-            for i in comp.inputs:
-                start = comp.start_values.get(i, variables[i].start)
-                self.values[slot[PortRef(comp.name, i)]] = float(start) if start is not None else 0.0
-        self.values[0] = self.start_time
-        self._cvalues = self._view(slice(0, len(columns)))
-        # transfer of all connections at once (jacobi) and per set operation (gauss-seidel)
-        self._all_copy, self._all_scaled = self._transfers(input_order[:n_connected], slot)
-        for inst in self.instances:
-            comp = system.components[inst.name]
-            inst.out_vr = self._vrs(comp, comp.outputs)
-            inst.out_ptr = self._view(out_slice[inst.name])
-            mine = [j for j, p in enumerate(input_order[:n_connected]) if p.component == inst.name]
-            if mine:
-                inst.in_vr = self._vrs(comp, [input_order[j].connector for j in mine])
-                inst.in_ptr = self._view(slice(1 + mine[0], 2 + mine[-1]))
-        self._layout_driven(input_order[n_connected:], slot)
-        self._layout_ops(slot)
-
-    def _input_order(self) -> tuple[list[PortRef], int]:
-        """The inputs' places in ``values`` and how many are connected: connected inputs in schedule
-        order (each set operation a contiguous slice), then per component the unconnected ones,
-        those an input file drives first (each instance's a contiguous slice)."""
-        system = self.system
-        order: list[PortRef] = []
-        for comp in system.components.values():
-            for op in system.schedule:
-                if op.kind == "set" and op.component == comp.name:
-                    order += [PortRef(op.component, i) for i in op.inputs]
-        n_connected = len(order)
-        driven = set(self.inputs.ports) if self.inputs is not None else set()
-        for comp in system.components.values():
-            free = [p for p in (PortRef(comp.name, i) for i in comp.inputs) if p not in system.links]
-            order += [p for p in free if p in driven] + [p for p in free if p not in driven]
-        return order, n_connected
-
-    def _layout_driven(self, unconnected: list[PortRef], slot: dict[PortRef, int]) -> None:
-        """The batched fmi2SetReal of the inputs an input file drives, per instance."""
-        if self.inputs is None:
-            return
-        driven = list(self.inputs.ports)
-        for inst in self.instances:
-            fed = [p for p in unconnected if p.component == inst.name and p in driven]
-            if fed:
-                comp = self.system.components[inst.name]
-                where = slice(slot[fed[0]], slot[fed[0]] + len(fed))
-                self._driven.append(Driven(inst, self._vrs(comp, [p.connector for p in fed]), len(fed),
-                                           self._view(where), where, [driven.index(p) for p in fed]))
-
-    def _layout_ops(self, slot: dict[PortRef, int]) -> None:
-        """The propagation at a communication point (gauss-seidel) as batched calls, cut into
-        segments: run once, or (an algebraic loop, ``System.iterated``) repeated until it converges."""
-        system = self.system
-        by_name = {inst.name: inst for inst in self.instances}
-        self._ops: list[Operation] = []
-        self._segments: list[tuple[list[Operation], np.ndarray | None, list[str]]] = []
-        for op in system.schedule:
-            inst = by_name[op.component]
-            if op.kind == "get":
-                self._ops.append(Operation(False, inst, inst.get_real, inst.out_vr, len(inst.out_vr),
-                                           inst.out_ptr, (), ()))
-            else:
-                ports = [PortRef(op.component, i) for i in op.inputs]
-                dst = slice(slot[ports[0]], slot[ports[-1]] + 1)
-                vrs = self._vrs(system.components[op.component], op.inputs)
-                copies, scaled = self._transfers(ports, slot)
-                self._ops.append(Operation(True, inst, inst.set_real, vrs, len(ports), self._view(dst),
-                                           copies, scaled))
-        cut = 0
-        for first, end in system.iterated:
-            if first > cut:
-                self._segments.append((self._ops[cut:first], None, []))
-            loop = self._ops[first:end]
-            inputs = np.array([c[0] for op in loop for c in (*op.copies, *op.scaled)], dtype=np.intp)
-            names = list(dict.fromkeys(op.instance.name for op in loop))
-            self._segments.append((loop, inputs, names))
-            cut = end
-        if cut < len(self._ops) or not self._segments:
-            self._segments.append((self._ops[cut:], None, []))
-
-    def _transfers(self, ports: list[PortRef],
-                   slot: dict[PortRef, int]) -> tuple[tuple[Copy, ...], tuple[Scaled, ...]]:
-        """The connections into ``ports``: plain copies, and those with a linear transformation."""
-        links = [self.system.links[p] for p in ports]
-        plain = [lk.factor == 1.0 and lk.offset == 0.0 for lk in links]
-        copies = tuple(Copy(slot[lk.end], slot[lk.start]) for lk, p in zip(links, plain, strict=True) if p)
-        scaled = tuple(Scaled(slot[lk.end], slot[lk.start], lk.factor, lk.offset)
-                       for lk, p in zip(links, plain, strict=True) if not p)
-        return copies, scaled
+        """The value buffer as the plan lays it out, and the batched calls on views of it."""
+        plan = self.plan
+        self.values = np.array(plan.initial)
+        self._cvalues = self._view(slice(0, len(plan.columns)))
+        self._all_copy, self._all_scaled = self._transfers(plan.transfers)
+        self._driven = []
+        self._driven_columns = [j for part in plan.components for j in part.columns]
+        for inst, part in zip(self.instances, plan.components, strict=True):
+            inst.out_vr, inst.out_ptr = self._vrs(part.outputs.vrs), self._view(part.outputs.slice)
+            if part.inputs.vrs:
+                inst.in_vr, inst.in_ptr = self._vrs(part.inputs.vrs), self._view(part.inputs.slice)
+            if part.driven.vrs:
+                d = part.driven
+                self._driven.append(Driven(inst, self._vrs(d.vrs), len(d.vrs), self._view(d.slice), d.slice,
+                                           list(part.columns)))
+        ops = []
+        for call in plan.propagation:
+            inst, b = self.instances[call.batch.component], call.batch
+            function = inst.set_real if call.is_set else inst.get_real
+            copies, scaled = self._transfers(call.transfers)
+            ops.append(Operation(call.is_set, inst, function, self._vrs(b.vrs), len(b.vrs),
+                                 self._view(b.slice), copies, scaled))
+        self._ops = ops
+        self._segments = [(ops[s.first:s.end], np.array(s.inputs, dtype=np.intp) if s.loop else None,
+                           list(s.components)) for s in plan.spans]
 
     @staticmethod
-    def _vrs(comp: ComponentModel, names: Sequence[str]) -> ctypes.Array:
-        variables = comp.variables
-        return (c_uint * len(names))(*[variables[n].valueReference for n in names])
+    def _transfers(transfers: Sequence[Transfer]) -> tuple[tuple[Copy, ...], tuple[Scaled, ...]]:
+        """Connections as the loops apply them: plain copies, and those with a linear transformation."""
+        return (tuple(Copy(t.dst, t.src) for t in transfers if t.plain),
+                tuple(Scaled(t.dst, t.src, t.factor, t.offset) for t in transfers if not t.plain))
 
     @staticmethod
-    def _start_values(comp: ComponentModel) -> dict[str, tuple[str, int, object]]:
-        """Parameters and start values from the SSD, .ssv files and overrides: name -> (type, vr, value)."""
-        variables = comp.variables
-        return {name: (variables[name].type, variables[name].valueReference, value)
-                for name, value in comp.start_values.items()}
+    def _vrs(vrs: Sequence[int]) -> ctypes.Array:
+        return (c_uint * len(vrs))(*vrs)
 
     def _view(self, part: slice) -> ctypes.Array:
         n = part.stop - part.start

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from . import files
 from .errors import OutputError
-from .fmucache import sha256
+from .fmucache import deferred, sha256
 from .results import FLUSH_ROWS, FLUSH_SECONDS
 from .system import System
 
@@ -45,7 +45,7 @@ def sidecar(result: str | os.PathLike) -> Path:
 def digest(path: str | os.PathLike) -> str:
     """SHA-256 of a file, or of a folder's files (relative names and contents, in sorted order)."""
     path = Path(path)
-    if path.is_file():
+    if deferred(path) or path.is_file():
         return sha256(path)  # computed once per process (the FMU cache needs it too)
     h = hashlib.sha256()
     files = sorted(f for f in path.rglob("*") if f.is_file())

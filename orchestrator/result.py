@@ -27,9 +27,10 @@ if TYPE_CHECKING:
     import matplotlib.figure
     import pandas
 
-__all__ = ["STATUSES", "RunOptions", "RunResult"]
+__all__ = ["EXECUTORS", "STATUSES", "RunOptions", "RunResult"]
 
 STATUSES = ("complete", "failed", "timeout", "interrupted")
+EXECUTORS = ("auto", "compiled", "python")
 HTML_ROWS = 40  # signals listed by RunResult._repr_html_
 
 
@@ -82,6 +83,11 @@ class RunOptions:
         Convergence of an algebraic loop under gauss-seidel: no input on it moving by more than
         ``loop_tolerance`` (relative to 1 + its size) between two sweeps, within ``loop_iterations``
         sweeps at each communication point (else a :class:`~orchestrator.errors.LoopError`).
+    executor : str
+        ``auto`` (default): the compiled executor, else the Python master with an
+        :class:`~orchestrator.errors.EngineNote` saying why (FMI 1.0, a loop iterated to a fixed
+        point, ``fmi_log``, no C compiler); ``compiled``: the compiled executor or a UsageError;
+        ``python``: the Python master. Every executor gives the same rows, bit for bit.
 
     Raises
     ------
@@ -110,6 +116,7 @@ class RunOptions:
     strict_fmus: bool = False
     loop_tolerance: float = LOOP_TOLERANCE
     loop_iterations: int = LOOP_ITERATIONS
+    executor: str = "auto"
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -126,6 +133,9 @@ class RunOptions:
         if self.master not in MASTERS:
             raise UsageError(f"{option('master')}: unknown master {self.master!r} (choose from "
                              f"{', '.join(MASTERS)})")
+        if self.executor not in EXECUTORS:
+            raise UsageError(f"{option('executor')}: unknown executor {self.executor!r} (choose from "
+                             f"{', '.join(EXECUTORS)})")
         if not isinstance(self.limits, Limits):
             raise UsageError(f"limits must be a Limits (got {type(self.limits).__name__})")
         if not (isinstance(self.loop_iterations, int) and self.loop_iterations >= 1):

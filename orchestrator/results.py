@@ -226,6 +226,21 @@ class Recorder:
                                                  time.monotonic() - self._flushed_at >= FLUSH_SECONDS):
                 self.flush()
 
+    def space(self, most: int) -> np.ndarray:
+        """The buffer rows the next rows go into (at most ``most``, up to the next write of the CSV
+        or the end of the buffer), for an executor that fills them in place; then :meth:`commit`."""
+        end = min(self.count + most, self._base + len(self.data), max(self._next_flush, self.count + 1))
+        return self.data[self.count - self._base:end - self._base]
+
+    def commit(self, rows: int) -> None:
+        """Record the first ``rows`` rows of the last :meth:`space`: checked and, when due, written
+        (raises as :meth:`append` does)."""
+        self.count += rows
+        self.check()
+        if self.count >= self._next_flush or (self._fd is not None and
+                                              time.monotonic() - self._flushed_at >= FLUSH_SECONDS):
+            self.flush()
+
     def check(self) -> None:
         """Check the rows not yet checked; at a non-finite value drop it and the rows after it and
         raise NonFiniteError."""

@@ -39,9 +39,8 @@ from typing import overload
 from fmpy.ssp import ssd as fmpy_ssd
 from lxml import etree
 
-from . import files
+from . import files, fmucache
 from .errors import ScenarioError
-from .fmucache import member_sha256
 from .units import UnitDef, read_units
 
 __all__ = [
@@ -287,7 +286,8 @@ def unpack_scenario(scenario: str | os.PathLike, stack: ExitStack,
     except OSError as exc:
         return None, [f"{path}: cannot unpack: no temporary folder ({_one_line(exc)})"]
     stack.callback(shutil.rmtree, folder, ignore_errors=True)
-    problems, refused = _unpack(path, folder, limits)
+    stack.callback(fmucache.forget, folder)
+    problems, refused = _unpack(path, folder, limits, defer=True)
     return (None if refused else folder), problems
 
 
@@ -298,10 +298,11 @@ def extract_scenario(archive: Path, dest: Path, limits: Limits = DEFAULT_LIMITS)
     return _unpack(archive, dest, limits)[0]
 
 
-def _unpack(path: Path, folder: Path, limits: Limits) -> tuple[list[str], bool]:
-    """Unpack archive ``path`` into ``folder``: the problems, and whether they refuse it whole."""
+def _unpack(path: Path, folder: Path, limits: Limits, defer: bool = False) -> tuple[list[str], bool]:
+    """Unpack archive ``path`` into ``folder``: the problems, and whether they refuse it whole
+    (``defer``: FMUs the cache holds unpacked are left in the archive, :func:`fmucache.defer`)."""
     try:
-        problems, refused = _safe_extract(path, folder, limits)
+        problems, refused = _safe_extract(path, folder, limits, defer)
     except OSError as exc:  # a full or unwritable temporary folder, an unreadable archive
         return [f"{path}: cannot unpack into {folder}: {_one_line(exc)}"], True
     except Exception as exc:  # noqa: BLE001 - zipfile, zlib and friends: not an archive we can read
@@ -323,7 +324,7 @@ def _check_fmus(folder: Path, label: str, limits: Limits, root: Path | None = No
         fmu = folder / reference
         if root is not None and not fmu.resolve().is_relative_to(root.resolve()):
             continue  # refused by the reading
-        if fmu.is_file() and zipfile.is_zipfile(fmu):
+        if fmu.is_file() and zipfile.is_zipfile(fmu):  # not a deferred one: its entry is unpacked already
             problems = check_zip(fmu, f"{label}: {reference}", limits)
             if problems:
                 return problems
@@ -410,12 +411,15 @@ def _unsafe(info: zipfile.ZipInfo, dest: Path, label: str) -> str:
     return ""
 
 
-def _safe_extract(archive: Path, dest: Path, limits: Limits) -> tuple[list[str], bool]:
+def _safe_extract(archive: Path, dest: Path, limits: Limits,
+                  defer: bool = False) -> tuple[list[str], bool]:
     """Extract the SSD and the members it references (parameter files, FMUs), nothing else, within
     ``limits``; members with an absolute path, '..' or a symbolic link are reported and left out
-    (nothing is ever written outside ``dest``). Returns the problems and whether the archive is
-    refused as a whole (a limit broken: nothing more is read). Raises BadZipFile when the file is
-    not a zip archive."""
+    (nothing is ever written outside ``dest``). With ``defer``, an FMU whose digest an earlier
+    extraction remembered and whose cache entry is complete stays in the archive
+    (:func:`fmucache.defer`): a run reads it from the entry. Returns the problems and whether the
+    archive is refused as a whole (a limit broken: nothing more is read). Raises BadZipFile when
+    the file is not a zip archive."""
     problems = []
     label = archive.name
     with zipfile.ZipFile(archive) as zf:
@@ -443,11 +447,19 @@ def _safe_extract(archive: Path, dest: Path, limits: Limits) -> tuple[list[str],
         if limit_problems:
             return problems + limit_problems, True
         for info in wanted[1:]:
-            zf.extract(info, dest)
+            name = info.filename
+            if not (defer and name in fmus and fmucache.defer(dest / name, archive, name)):
+                zf.extract(info, dest)
     for name in dict.fromkeys(fmus):
         if (dest / name).is_file():
-            member_sha256(dest / name, archive, name)  # remembered: not hashed again by every run
+            fmucache.member_sha256(dest / name, archive, name)  # remembered: not hashed again
     return problems, False
+
+
+def _fmu_file(path: Path) -> bool:
+    """Whether an FMU is there: a file, or an archive's member left unextracted (its cache entry
+    holds it unpacked, :func:`fmucache.defer`)."""
+    return fmucache.deferred(path) or path.is_file()
 
 
 def _parser() -> etree.XMLParser:
@@ -803,14 +815,14 @@ class _SystemReader:
         else:
             inside = _inside(self.folder, reference, f"{where}: source", self.problems, self.root)
         source = self.folder / reference if inside is None else inside
-        if inside is not None and not source.is_file():
+        if inside is not None and not _fmu_file(source):
             source = next((d / source.name for d in self.fmu_dirs if (d / source.name).is_file()), source)
         has_fmu = False
         if inside is None:
             pass  # refused above
         elif element.get("type", "application/x-fmu-sharedlibrary") != "application/x-fmu-sharedlibrary":
             self.problems.append(f"{where}: only FMU components are supported (type {element.get('type')!r})")
-        elif not source.is_file():
+        elif not _fmu_file(source):
             looked = [str(p) for p in (source.resolve(),
                                        *(d.resolve() / source.name for d in self.fmu_dirs))]
             places = "not in the archive" if self.label.endswith(f":{SSD_NAME}") else \

@@ -22,6 +22,7 @@ from fmpy.model_description import ModelDescription, ModelVariable
 from fmpy.validation import validate_fmu, validate_model_description
 from lxml import etree
 
+from . import fmucache
 from .errors import ScenarioError, option
 from .ssp import Component, Connection, Parameter, ParameterSet, PortRef, SystemStructure
 from .units import BASE, UnitDef, UnitError, conversion, convert, resolve, split_value
@@ -142,7 +143,7 @@ class System:
         problems recorded); with ``fmu_warnings`` also fmpy's full validation, as warnings."""
         where = f"{self.ssd}: component '{c.name}': FMU '{os.path.basename(c.source)}'"
         try:
-            md = md or read_model_description(str(c.source), validate=False)
+            md = md or read_model_description(str(fmucache.entry_of(c.source) or c.source), validate=False)
         except Exception as exc:  # fmpy raises plain Exception for unreadable FMUs
             self.problems.append(f"{where}: cannot read modelDescription.xml: {exc}")
             return None
@@ -151,7 +152,7 @@ class System:
         found = validate_model_description(md)
         invalid = [p for p in found if not _is_input_start(p, md)]
         if fmu_warnings:
-            self.warnings.extend(f"{where}: {p}" for p in validate_fmu(str(c.source))
+            self.warnings.extend(f"{where}: {p}" for p in validate_fmu(str(fmucache.materialize(c.source)))
                                  if p not in found and not _is_input_start(p, md))
         (self.problems if self.strict_fmus else self.warnings).extend(f"{where}: {p}" for p in invalid)
         bad_starts = [f"variable '{v.name}': start=\"{v.start}\" is no {v.type} value"
@@ -685,9 +686,13 @@ def _no_binary(fmu: Path, md: ModelDescription) -> str:
     folders = ((fmpy.platform_tuple,) if md.fmiVersion.startswith("3.") else
                (fmpy.platform, fmpy.platform_tuple))
     wanted = {f"binaries/{folder}/{identifier}{fmpy.sharedLibraryExtension}" for folder in folders}
+    entry = fmucache.entry_of(fmu)
     try:
-        with zipfile.ZipFile(fmu) as zf:
-            names = zf.namelist()
+        if entry is not None:  # unpacked in the cache (an archive's FMU left unextracted)
+            names = [p.relative_to(entry).as_posix() for p in entry.glob("binaries/*/*")]
+        else:
+            with zipfile.ZipFile(fmu) as zf:
+                names = zf.namelist()
     except (OSError, zipfile.BadZipFile):
         return ""  # an extracted or broken FMU: the instantiation reports it
     if wanted & set(names):
@@ -708,7 +713,7 @@ def _dependencies(fmu: Path, md: ModelDescription, inputs: set[str]) -> dict[str
         return {u.variable.name: inputs if u.dependencies is None else {d.name for d in u.dependencies}
                 for u in md.outputs}
     try:
-        with zipfile.ZipFile(fmu) as zf, zf.open("modelDescription.xml") as xml:
+        with zipfile.ZipFile(fmucache.materialize(fmu)) as zf, zf.open("modelDescription.xml") as xml:
             root = etree.parse(xml, etree.XMLParser(resolve_entities=False, no_network=True)).getroot()
     except (OSError, KeyError, zipfile.BadZipFile, etree.XMLSyntaxError):
         return {v.name: inputs for v in md.modelVariables if v.causality == "output"}

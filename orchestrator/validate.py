@@ -22,7 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import OrchestratorError, ScenarioError, UsageError, is_option, option
-from .master import NS_PER_S, grid
+from .fmucache import materialize
+from .plan import NS_PER_S, GridError, grid
 from .ssp import (
     DEFAULT_LIMITS,
     SSD_NAME,
@@ -131,7 +132,8 @@ def check_scenario(scenario: str | os.PathLike, stack: ExitStack, *,
         label = path.name if path.is_file() else str(folder)
         for c in structure.components:
             if c.name not in reading.no_fmu:
-                errors += test_zip(c.source, f"{label}: component '{c.name}': FMU '{c.source.name}'")
+                where = f"{label}: component '{c.name}': FMU '{c.source.name}'"
+                errors += test_zip(materialize(c.source), where)
     # a value lost from a --parameter-set may have been meant for any input of any component
     partial = {c.name for c in structure.components} if unreadable else reading.partial
     system = System(structure, sets, overrides, strict=False, no_fmu=reading.no_fmu, partial=partial,
@@ -176,8 +178,8 @@ def timing(structure: SystemStructure, stop_time: float | None = None,
     run_text = f"the run {start:g} .. {stop:g} s{source('start time', 'stop time')}"
     try:
         t0, hn, n = grid(start, stop, h)
-    except ValueError as exc:
-        at_fault = [name for name in origin if name in str(exc)] or list(origin)
+    except GridError as exc:
+        at_fault = list(exc.quantities)
         raise error(f"{exc}{source(*at_fault)}", *at_fault) from exc
     t1 = round(stop * NS_PER_S)
     if n < 1:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import hashlib
 import os
 import subprocess
+import sys
 import time
 import zipfile
 from pathlib import Path
@@ -36,14 +37,18 @@ def test_an_fmu_is_unpacked_once_and_served_from_its_digest(cache, tmp_path, tes
         members = {n for n in archive.namelist() if not n.endswith("/")}
     assert members <= {p.relative_to(first).as_posix() for p in first.rglob("*") if p.is_file()}
     inode = (first / "modelDescription.xml").stat().st_ino
-    # a second instance while the first is loaded: its own copy, as every instance had before
-    second = Path(fmucache.unpack_fmu(fmu, tmp_path / "fallback"))
-    assert second == tmp_path / "fallback" and (second / "modelDescription.xml").is_file()
+    # a second instance while the first is loaded shares the folder (issue 34: FMI allows it) ...
+    assert Path(fmucache.unpack_fmu(fmu, tmp_path / "fallback")) == first
+    # ... unless the FMU can be instantiated only once per process: its own copy
+    alone = Path(fmucache.unpack_fmu(fmu, tmp_path / "fallback", shared=False))
+    assert alone == tmp_path / "fallback" and (alone / "modelDescription.xml").is_file()
+    fmucache.release(str(first))
     fmucache.release(str(first))
     again = Path(fmucache.unpack_fmu(fmu, tmp_path / "other"))
     fmucache.release(str(again))
     assert again == first and (first / "modelDescription.xml").stat().st_ino == inode  # not unpacked again
     assert not list((cache / "fmus").glob(".new-*"))
+    assert str(first) not in fmucache._in_use
 
 
 def test_an_entry_without_its_marker_is_replaced(cache, tmp_path, test_fmus):
@@ -59,12 +64,19 @@ def test_an_entry_without_its_marker_is_replaced(cache, tmp_path, test_fmus):
 
 def test_off_and_unusable_cache_unpack_into_the_runs_folder(tmp_path, monkeypatch, test_fmus):
     monkeypatch.setenv("ORCHESTRATE_CACHE", "off")
-    assert fmucache.unpack_fmu(test_fmus["Gain"], tmp_path / "a") == str(tmp_path / "a")
+    digest = hashlib.sha256(test_fmus["Gain"].read_bytes()).hexdigest()
+    shared = tmp_path / f"fmu-{digest}"  # one copy in the run's folder for every instance of the run
+    assert fmucache.unpack_fmu(test_fmus["Gain"], tmp_path / "a") == str(shared)
+    assert fmucache.unpack_fmu(test_fmus["Gain"], tmp_path / "b") == str(shared)
+    assert (shared / "modelDescription.xml").is_file() and not (tmp_path / "a").exists()
+    fmucache.release(str(shared))
+    fmucache.release(str(shared))
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     monkeypatch.setenv("ORCHESTRATE_CACHE", str(blocker))
     assert fmucache.cache_folder() is None
-    assert fmucache.unpack_fmu(test_fmus["Gain"], tmp_path / "b") == str(tmp_path / "b")
+    shared = str(tmp_path / "sub" / f"fmu-{digest}")
+    assert fmucache.unpack_fmu(test_fmus["Gain"], tmp_path / "sub" / "b") == shared
 
 
 def test_least_recently_used_entries_beyond_the_bound_go(cache, tmp_path, monkeypatch, test_fmus):
@@ -114,3 +126,62 @@ def test_a_run_from_the_cache_writes_the_csv_a_run_without_it_writes(built, tmp_
     assert outputs["cold"] == outputs["warm"] == outputs["off"]
     assert len(entries) == 4  # reference, controller, actuator, plant
     assert [(e / "modelDescription.xml").stat().st_mtime_ns for e in entries] == stamps
+
+
+SHARED_RUN = """
+import sys
+from pathlib import Path
+import orchestrator
+from orchestrator import RunOptions
+orchestrator.run(sys.argv[1], RunOptions(executor=sys.argv[2]))
+maps = Path("/proc/self/maps").read_text().splitlines()
+print(len({line.split(None, 5)[5] for line in maps if line.endswith("binaries/linux64/Gain.so")
+           or "binaries/linux64/Gain.so (deleted)" in line}))
+"""
+
+
+@pytest.mark.parametrize("setting", ["cache", "off"])
+def test_components_of_one_fmu_share_its_folder_and_library(test_fmus, tmp_path, setting):
+    """Three gains in series, one Gain.fmu: the process maps one copy of its library (pythonfmu's
+    binary stays mapped after the run), where each instance after the first unpacked and loaded
+    its own copy before issue 34 (three files mapped)."""
+    from orchestrator.ssp import Connection, Experiment, SystemStructure, component, pack_ssp, write_ssd
+
+    folder = tmp_path / "chain"
+    gains = [component(f"g{i}", "Gain.fmu", [("u", "input", "Real"), ("y", "output", "Real")], {"k": 2.0})
+             for i in range(3)]
+    write_ssd(folder, SystemStructure("chain", tuple(gains), (Connection.between("g0.y", "g1.u"),
+                                                               Connection.between("g1.y", "g2.u")),
+                                      Experiment(0.0, 0.1, 0.01)))
+    archive = pack_ssp(folder, {"Gain.fmu": test_fmus["Gain"]}, tmp_path / "chain.ssp")
+    env = {**os.environ, "ORCHESTRATE_CACHE": str(tmp_path / "c") if setting == "cache" else "off"}
+    for executor in ("compiled", "python"):
+        mapped = subprocess.run([sys.executable, "-c", SHARED_RUN, str(archive), executor], env=env,
+                                check=True, capture_output=True, text=True).stdout
+        assert mapped.strip() == "1", (executor, mapped)
+
+
+@pytest.mark.system
+def test_a_run_extracts_no_fmu_the_cache_holds(built, cache, tmp_path):
+    """The second opening of an archive leaves its FMUs in it (the cache holds them unpacked): the
+    same System and the same rows, bit for bit; an FMU needed as a file is extracted on demand,
+    the member's own bytes."""
+    import orchestrator
+    from orchestrator import RunOptions
+
+    scenario = built / "ssp" / "pendulum.ssp"
+    first = orchestrator.run(scenario, RunOptions(stop_time=0.1))
+    with orchestrator.open_system(scenario) as system:
+        fmus = [c.fmu for c in system.components.values()]
+        assert fmus and not any(f.exists() for f in fmus)  # left in the archive
+        assert all(fmucache.deferred(f) for f in fmus)
+        schedule = [(op.kind, op.component, op.inputs) for op in system.schedule]
+        plant = system.components["plant"].fmu
+        with zipfile.ZipFile(scenario) as archive:
+            member = archive.read(f"resources/{plant.name}")
+        assert fmucache.materialize(plant).read_bytes() == member and not fmucache.deferred(plant)
+    second = orchestrator.run(scenario, RunOptions(stop_time=0.1))
+    assert second.rows.tobytes() == first.rows.tobytes()
+    assert second.provenance["fmus"] == first.provenance["fmus"]
+    with orchestrator.open_system(scenario) as again:
+        assert [(op.kind, op.component, op.inputs) for op in again.schedule] == schedule

@@ -37,7 +37,8 @@ def test_wheel_and_sdist_carry_what_a_build_needs(dist: Path) -> None:
     names = set(zipfile.ZipFile(wheel).namelist())
     needed = {"fmu_src/toolchain/shim/fmi2_shim.c", "fmu_src/toolchain/shim/fmi3_shim.c",
               "fmu_src/toolchain/shim/start_python.c",
-              "fmu_src/toolchain/container/container.c", "fmu_src/models/_dopri.c", "orchestrator/launcher.c",
+              "orchestrator/native/container.c", "orchestrator/native/container_fmi3.c",
+              "orchestrator/native/container.h", "fmu_src/models/_dopri.c", "orchestrator/launcher.c",
               "orchestrator/experiments/ssp/pendulum/SystemStructure.ssd",
               "orchestrator/experiments/ssp/campaigns/fault_tolerance.toml"}
     assert needed <= names, sorted(needed - names)

@@ -55,7 +55,8 @@ from .controller_doc import controller_documentation
 from .licences import documentation, generation_tool
 from .runtime import Runtime, RuntimeBundleError, compile_bytecode, ensure_runtime, runtime_members
 
-__all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "c_compiler", "compile_extension", "main"]
+__all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "build_inputs", "c_compiler",
+           "compile_extension", "inputs_key", "main", "record_inputs", "up_to_date"]
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 LOCAL_PACKAGES = ("fmu_src", "controller")
@@ -88,6 +89,8 @@ DESCRIPTION_COPY = "_modelDescription.xml"  # guard.h's DESCRIPTION_SUFFIX
 # The bundled runtime as a command (for the build's bytecode and standard-library closure).
 LAUNCHER_SOURCE = "bundled_python.c"
 LAUNCHER_FLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra")
+# The build's own code (fmu_src/): a change to it rebuilds every FMU.
+BUILD_CODE = ("build.py", "fmi3.py", "runtime.py", "runtime_pins.txt", "licences.py")
 # C extension modules bundled with the FMUs that import them (dotted name -> C source, relative to
 # the source root): built against the runtime's headers for the stable ABI, so that one binary
 # loads in the FMU's runtime and in a host's Python alike. -ffp-contract=off: no fused
@@ -311,13 +314,39 @@ def _runtime(bundle: Bundle) -> dict[str, bytes]:
             f"{bundle.model} imports {', '.join(sorted(bundle.third_party))}: an FMU carries no third-party "
             "package (it must run where nothing is installed); use the standard library"
         )
+    # the closure follows import lines only: the same imports give the same members (kept per key)
+    key = inputs_key("runtime members", *build_inputs(), repr(sorted(_imports(bundle))))
+    kept = runtime.root.parent / "members" / f"{key}.zip"
+    if kept.is_file():
+        with zipfile.ZipFile(kept) as archive:
+            return {name: archive.read(name) for name in archive.namelist()}
     with tempfile.TemporaryDirectory(prefix="ftc_closure_") as tmp:
         shutil.copytree(Path(pythonfmu.__file__).parent, Path(tmp) / "pythonfmu")
         try:
             path = [bundle.script.parent.parent, Path(tmp)]
-            return runtime_members(runtime, launcher, [bundle.script], path)
+            members = runtime_members(runtime, launcher, [bundle.script], path)
         except RuntimeBundleError as error:
             raise BuildError(f"{bundle.model}: {error}") from error
+    kept.parent.mkdir(parents=True, exist_ok=True)
+    partial = kept.with_name(f".{kept.name}.{os.getpid()}")
+    with zipfile.ZipFile(partial, "w", zipfile.ZIP_STORED) as archive:
+        for name in sorted(members):
+            archive.writestr(name, members[name])
+    partial.replace(kept)
+    return members
+
+
+def _imports(bundle: Bundle) -> set[tuple[object, ...]]:
+    """Every import line of the FMU's script and bundled modules (what its standard-library closure
+    follows), without line numbers."""
+    found: set[tuple[object, ...]] = set()
+    for path in (bundle.script, *bundle.modules.values()):
+        for node in ast.walk(_parse(path)):
+            if isinstance(node, ast.Import):
+                found |= {("import", alias.name) for alias in node.names}
+            elif isinstance(node, ast.ImportFrom):
+                found.add(("from", node.level, node.module or "", tuple(alias.name for alias in node.names)))
+    return found
 
 
 def _licence(distribution: str) -> bytes:
@@ -459,11 +488,63 @@ def write_archive(target: Path, entries: dict[str, bytes]) -> None:
             archive.writestr(info, entries[name])
 
 
+def inputs_key(*parts: str | bytes | Path) -> str:
+    """A digest of what a build step reads: texts, bytes, and files (name and bytes)."""
+    h = hashlib.sha256()
+    for part in parts:
+        data = (part.name.encode() + b"\0" + part.read_bytes()) if isinstance(part, Path) else \
+            part if isinstance(part, bytes) else part.encode()
+        h.update(hashlib.sha256(data).digest())
+    return h.hexdigest()
+
+
+def _stamp(target: Path) -> Path:
+    """Where the inputs ``target`` was built from are recorded (a hidden file beside it)."""
+    return target.with_name(f".{target.name}.inputs")
+
+
+def up_to_date(target: Path, key: str) -> bool:
+    """Whether ``target`` exists and was built from the inputs ``key`` (:func:`record_inputs`)."""
+    try:
+        return target.is_file() and _stamp(target).read_text(encoding="ascii").strip() == key
+    except (OSError, ValueError):
+        return False
+
+
+def record_inputs(target: Path, key: str) -> None:
+    """Record that ``target`` (just written) was built from the inputs ``key``."""
+    _stamp(target).write_text(key + "\n", encoding="ascii")
+
+
+def build_inputs(root: Path = REPO_ROOT) -> tuple[str | bytes | Path, ...]:
+    """What every FMU of the build is made from besides its own sources: the build's code, the
+    runtime's pins, the shim's sources and flags, the compiler and pythonfmu."""
+    here = Path(__file__).resolve().parent
+    shim = [root / SHIM_DIR / n for n in sorted({*SHIM_SOURCES, *SHIM_HEADERS, LAUNCHER_SOURCE})]
+    return (BUILD_FORMAT, pythonfmu.__version__, repr(sorted(BUILD_OPTIONS.items())), repr(SHIM_FLAGS),
+            repr(SHIM_LIBS), repr(EXTENSION_FLAGS), c_compiler()[1], *(here / n for n in BUILD_CODE), *shim)
+
+
+def fmu_inputs(bundle: Bundle, root: Path = REPO_ROOT) -> str:
+    """The digest of everything ``bundle``'s FMU is built from: a build whose inputs have not
+    changed is reused (``make build`` after editing one model rebuilds the FMUs that bundle it)."""
+    sources = [bundle.script, *(bundle.modules[n] for n in sorted(bundle.modules)),
+               *(bundle.extensions[n] for n in sorted(bundle.extensions))]
+    names = " ".join([*sorted(bundle.modules), *sorted(bundle.extensions)])
+    return inputs_key(bundle.model, names, *build_inputs(root), *sources)
+
+
 def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT) -> Path:
-    """Build one FMU into ``dest/<model>.fmu`` from the sources under ``root``."""
+    """Build one FMU into ``dest/<model>.fmu`` from the sources under ``root`` (reused when it
+    was built from the same inputs, :func:`fmu_inputs`)."""
     bundle = collect_bundle(model, root)
     dest = Path(dest)
     dest.mkdir(parents=True, exist_ok=True)
+    target = dest / f"{model}.fmu"
+    key = fmu_inputs(bundle, root)
+    if up_to_date(target, key):
+        return target
+    _stamp(target).unlink(missing_ok=True)
     with tempfile.TemporaryDirectory(prefix=f"ftc_build_{model}_") as tmp:
         shim = compile_shim(root, _ensure_runtime(), Path(tmp))
         native = _runtime(bundle) | {f"binaries/linux64/{model}.so": shim}
@@ -488,8 +569,8 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT) -> Path:
                 raise BuildError(
                     f"pythonfmu could not build {model} from {bundle.script}: {error}"
                 ) from error
-        target = dest / f"{model}.fmu"
         _write_normalized(Path(raw), target, bundle, digest, native)
+    record_inputs(target, key)
     return target
 
 

@@ -36,10 +36,16 @@ from .build import (
     DESCRIPTION_COPY,
     GUID_NAMESPACE,
     REPO_ROOT,
+    SHIM_DIR,
+    SHIM_HEADERS,
     SHIM_SOURCES,
     BuildError,
     _ensure_runtime,
+    build_inputs,
     compile_shim,
+    inputs_key,
+    record_inputs,
+    up_to_date,
     write_archive,
 )
 from .licences import generation_tool
@@ -184,7 +190,14 @@ def _type_definitions(types: ElementTree.Element, model: str) -> ElementTree.Ele
 
 
 def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT) -> Path:
-    """Write ``dest/<model>.fmu``, the FMI 3.0 variant of the built FMI 2.0 FMU ``fmu2``."""
+    """Write ``dest/<model>.fmu``, the FMI 3.0 variant of the built FMI 2.0 FMU ``fmu2`` (reused when
+    it was made from the same FMU by the same build)."""
+    dest = Path(dest)
+    target = dest / fmu2.name
+    sources = [root / SHIM_DIR / n for n in sorted(set(FMI3_SHIM_SOURCES) | set(SHIM_HEADERS))]
+    key = inputs_key("fmi3", Path(fmu2), *build_inputs(root), *sources)
+    if up_to_date(target, key):
+        return target
     with zipfile.ZipFile(fmu2) as archive:
         entries = {name: archive.read(name) for name in archive.namelist() if not name.endswith("/")}
     xml = entries.pop("modelDescription.xml", None)
@@ -206,8 +219,7 @@ def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT) -> Path:
     token = "{" + str(uuid.uuid5(GUID_NAMESPACE, f"{model}:fmi3:{digest}")) + "}"
     moved["modelDescription.xml"] = fmi3_model_description(xml, token)[0]
     moved[f"{FMI3_PLATFORM}{model}{DESCRIPTION_COPY}"] = moved["modelDescription.xml"]  # not the FMI 2.0 one
-    dest = Path(dest)
     dest.mkdir(parents=True, exist_ok=True)
-    target = dest / fmu2.name
     write_archive(target, moved)
+    record_inputs(target, key)
     return target

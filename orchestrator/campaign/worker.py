@@ -107,7 +107,7 @@ def run_variant(spec: RunSpec, metrics: Metrics | None = None) -> RunOutcome:
     except TimeLimitError as exc:
         return _kept(spec, TIMEOUT, str(exc), exc.result, started)
     except SimulationError as exc:
-        reason = str(exc) if "(" in str(exc) or not messages.last else f"{exc} ({messages.last})"
+        reason = str(exc) if exc.explained or not messages.last else f"{exc} ({messages.last})"
         return _kept(spec, FAILED, reason, exc.result, started, metrics)
     except OrchestratorError as exc:
         return RunOutcome(spec.index, FAILED, _one_line(str(exc)), time.perf_counter() - started)

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 from lxml import etree
 
+from ..fmucache import materialize
 from ..results import structured
 from ..ssp import NS, SSD_NAME, open_scenario, read_scenario
 from ..validate import STEP_ANNOTATIONS
@@ -153,9 +154,10 @@ class Tool(ABC):
 
 
 def fmi_version(fmu: Path) -> str:
-    """The ``fmiVersion`` of an FMU archive's model description ('?' when it cannot be read)."""
+    """The ``fmiVersion`` of an FMU archive's model description ('?' when it cannot be read); an
+    FMU a scenario's archive still holds (its cache entry is unpacked) is extracted first."""
     try:
-        with zipfile.ZipFile(fmu) as archive, archive.open("modelDescription.xml") as xml:
+        with zipfile.ZipFile(materialize(fmu)) as archive, archive.open("modelDescription.xml") as xml:
             root = next(etree.iterparse(xml, events=("start",), resolve_entities=False, no_network=True))[1]
             return str(root.get("fmiVersion", "?"))
     except (OSError, KeyError, StopIteration, zipfile.BadZipFile, etree.XMLSyntaxError):

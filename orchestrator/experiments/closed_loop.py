@@ -31,7 +31,7 @@ from fmu_src.models.actuator import actuator_output
 from fmu_src.models.examples import EXAMPLES, Example
 from fmu_src.models.reference import reference_derivatives
 
-__all__ = ["ReferenceRun", "simulate"]
+__all__ = ["ReferenceRun", "SolverError", "simulate"]
 
 RTOL = 1e-10
 ATOL = 1e-12
@@ -129,6 +129,14 @@ def simulate(
     return ReferenceRun(example=example, controller=params, sample_time=sample_time, data=data)
 
 
+class SolverError(RuntimeError):
+    """SciPy's solver gave up on a span of the monolithic reference: ``reason`` is its message."""
+
+    def __init__(self, example: str, start: float, end: float, reason: str) -> None:
+        super().__init__(f"{example}: solve_ivp failed on [{start}, {end}]: {reason}")
+        self.example, self.span, self.reason = example, (start, end), reason
+
+
 def _simulate_continuous(ex: Example, params: ControllerParameters, times: list[float], y0) -> list[tuple]:
     """Integrate piecewise so the fault switch at t_fault is a segment boundary, not a kink inside."""
     t_end = times[-1]
@@ -142,7 +150,7 @@ def _simulate_continuous(ex: Example, params: ControllerParameters, times: list[
             rtol=RTOL, atol=ATOL, args=(ex, params),
         )
         if not sol.success:
-            raise RuntimeError(f"{ex.name}: solve_ivp failed on [{start}, {end}]: {sol.message}")
+            raise SolverError(ex.name, start, end, sol.message)
         rows.extend(_record(t, sol.y[:, j], ex, params) for j, t in enumerate(sol.t))
         y = sol.y[:, -1]
     return rows
@@ -162,7 +170,7 @@ def _simulate_sampled(ex: Example, params: ControllerParameters, times: list[flo
             args=(ex, params, x, yd, uf),
         )
         if not sol.success:
-            raise RuntimeError(f"{ex.name}: solve_ivp failed on [{t}, {times[k + 1]}]: {sol.message}")
+            raise SolverError(ex.name, t, times[k + 1], sol.message)
         y = sol.y[:, -1]
     return rows
 

@@ -37,7 +37,7 @@ from numpy.typing import ArrayLike
 from controller.params import EXPLICIT, FINITE_TIME, FIXED_TIME, SEMI_IMPLICIT, Mode
 from fmu_src.models.examples import EXAMPLES
 
-from .closed_loop import simulate
+from .closed_loop import SolverError, simulate
 from .metrics import TrackingMetrics, tracking_metrics
 
 __all__ = ["Case", "Chattering", "Outcome", "chattering", "main", "run_case"]
@@ -113,8 +113,8 @@ def run_case(case: Case) -> Outcome:
                                         sample_time=case.h or 1e-3)
     try:
         run = simulate(ex, params, sample_time=case.h, grid=case.h or 1e-3)
-    except RuntimeError as error:
-        return Outcome(case, None, None, str(error).split(":")[-1].strip()[:60])
+    except SolverError as error:
+        return Outcome(case, None, None, error.reason.strip()[:60])
     d = run.data
     return Outcome(case, tracking_metrics(d["time"], d["y"], d["yd"], d["v"], d["uf"]),
                    chattering(d["time"], d["v"]))

@@ -9,8 +9,9 @@ from pathlib import Path
 
 from lxml import etree
 
-from .. import open_system
+from .. import open_system, ssp
 from ..errors import ScenarioError
+from ..fmucache import sha256
 from ..ssp import NS, SSD_NAME, pack_ssp
 
 __all__ = ["FMI3_SUFFIX", "SCENARIO_DIR", "all_scenarios", "build_scenarios", "component_sources"]
@@ -70,7 +71,22 @@ def _pack(name: str, sources: Path, fmus: dict[str, Path], target: Path) -> Path
             raise ScenarioError(f"{folder / SSD_NAME}: FMU '{component}' is not built by "
                                 f"fmu_src.toolchain.build (built: {', '.join(sorted(fmus))})")
         needed[component] = fmus[component]
+    from fmu_src.toolchain.build import inputs_key, record_inputs, up_to_date
+
+    key = inputs_key(*_files(folder), *(f"{n}\0{sha256(p)}" for n, p in sorted(needed.items())),
+                     Path(ssp.__file__))
+    if up_to_date(target, key):  # packed from the same files already (and validated then)
+        return target
     target = pack_ssp(folder, needed, target)
     with open_system(target):  # validate the packed archive against the FMUs
         pass
+    record_inputs(target, key)
     return target
+
+
+def _files(folder: Path) -> list[str | Path]:
+    """A scenario source folder's files, each named relative to it, in order (what a pack reads)."""
+    found: list[str | Path] = []
+    for path in sorted(p for p in folder.rglob("*") if p.is_file() and not p.name.startswith(".")):
+        found += [path.relative_to(folder).as_posix(), path]
+    return found

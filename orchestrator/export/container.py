@@ -1,9 +1,10 @@
-"""``orchestrate export``: a scenario as one FMI 2.0 Co-Simulation FMU.
+"""``orchestrate export``: a scenario as one FMI 2.0 (or 3.0) Co-Simulation FMU.
 
 The archive holds ``modelDescription.xml`` (the exposed variables ``<component>.<variable>``, the
-scenario's DefaultExperiment and step), ``binaries/linux64/<id>.so`` (the container runtime of
-``fmu_src/toolchain/container``), ``resources/container.plan`` (:mod:`.plan`) and each distinct FMU of the
-scenario unpacked under ``resources/fmus/<name>/``. Rebuilding from the same scenario and options
+scenario's DefaultExperiment and step), ``binaries/linux64/<id>.so`` (the container runtime,
+``orchestrator/native/container.c`` on the engine's C core), ``resources/container.plan`` (the
+engine's plan, :mod:`.plan`) and each distinct FMU of the scenario (FMI 2.0 or 3.0 Co-Simulation)
+unpacked under ``resources/fmus/<name>/``. Rebuilding from the same scenario and options
 gives the same bytes; the GUID is a digest of them.
 """
 
@@ -20,18 +21,19 @@ from xml.etree import ElementTree
 
 from fmpy.model_description import ModelVariable
 
-from fmu_src.toolchain.build import BuildError
-from fmu_src.toolchain.container import compile_container
 from fmu_src.toolchain.licences import CONTAINER_DEPENDENCIES, documentation, generation_tool
 
 from .. import open_system
 from ..errors import ScenarioError, UsageError
 from ..files import replacing
+from ..fmucache import materialize
 from ..master import MASTERS
+from ..native import NativeError, container_library
+from ..plan import Plan
 from ..ssp import DEFAULT_LIMITS, Limits
 from ..system import ComponentModel, System
 from ..validate import timing
-from .plan import Exposed, Plan, make_plan, select
+from .plan import Exposed, container_plan, select
 
 __all__ = ["FMI_VERSIONS", "export"]
 
@@ -52,7 +54,7 @@ def _folders(system: System) -> dict[str, str]:
     by_digest: dict[str, str] = {}
     folders: dict[str, str] = {}
     for comp in system.components.values():
-        digest = hashlib.sha256(Path(comp.fmu).read_bytes()).hexdigest()
+        digest = hashlib.sha256(materialize(comp.fmu).read_bytes()).hexdigest()
         if digest not in by_digest:
             stem = re.sub(r"[^\w.-]", "_", Path(comp.fmu).stem, flags=re.ASCII) or "fmu"
             name, n = stem, 1
@@ -67,7 +69,7 @@ def _folders(system: System) -> dict[str, str]:
 def _members(comp: ComponentModel, folder: str) -> dict[str, bytes]:
     """The FMU's files under ``resources/fmus/<folder>/`` (names checked to stay inside it)."""
     members: dict[str, bytes] = {}
-    with zipfile.ZipFile(comp.fmu) as archive:
+    with zipfile.ZipFile(materialize(comp.fmu)) as archive:
         for info in archive.infolist():
             name = info.filename
             parts = PurePosixPath(name).parts
@@ -91,10 +93,10 @@ def _unit(var: ModelVariable) -> str | None:
     return var.unit or (var.declaredType.unit if var.declaredType is not None else None)
 
 
-def _unit_definitions(system: System, plan: Plan) -> ElementTree.Element | None:
+def _unit_definitions(system: System, exposed: Sequence[Exposed]) -> ElementTree.Element | None:
     """UnitDefinitions of the exposed variables' units, copied from their FMUs (None: no unit)."""
     units: dict[str, ElementTree.Element] = {}
-    for e in plan.exposed:
+    for e in exposed:
         comp = system.components[e.port.component]
         unit = _unit(comp.variables[e.port.connector])
         if not unit or unit in units:
@@ -122,8 +124,8 @@ def _unit_definitions(system: System, plan: Plan) -> ElementTree.Element | None:
 FMI3_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
 
 
-def model_description(system: System, plan: Plan, identifier: str, guid: str, start: float, stop: float,
-                      step: float, master: str, fmi: str = "2") -> bytes:
+def model_description(system: System, exposed: Sequence[Exposed], identifier: str, guid: str, start: float,
+                      stop: float, step: float, master: str, fmi: str = "2") -> bytes:
     """The container's modelDescription.xml: FMI 2.0 Co-Simulation, or FMI 3.0 (``fmi`` "3", where
     value references, not indices, name dependencies and time is the independent variable)."""
     three = fmi == "3"
@@ -147,13 +149,13 @@ def model_description(system: System, plan: Plan, identifier: str, guid: str, st
             "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "true",
             "canGetAndSetFMUstate": "false", "canSerializeFMUstate": "false",
             "providesDirectionalDerivative": "false"})
-    units = _unit_definitions(system, plan)
+    units = _unit_definitions(system, exposed)
     if units is not None:
         root.append(units)
     ElementTree.SubElement(root, "DefaultExperiment", {
         "startTime": repr(start), "stopTime": repr(stop), "stepSize": repr(step)})
     variables = ElementTree.SubElement(root, "ModelVariables")
-    for vr, e in enumerate(plan.exposed):
+    for vr, e in enumerate(exposed):
         var = system.components[e.port.component].variables[e.port.connector]
         attributes = {"name": str(e.port), "valueReference": str(vr)}
         if var.description:
@@ -178,12 +180,12 @@ def model_description(system: System, plan: Plan, identifier: str, guid: str, st
             ElementTree.SubElement(node, e.type, typed)
     if three:  # the plan's last value reference: the time of the last communication point
         ElementTree.SubElement(variables, "Float64", {
-            "name": "time", "valueReference": str(len(plan.exposed)), "causality": "independent",
+            "name": "time", "valueReference": str(len(exposed)), "causality": "independent",
             "variability": "continuous", "description": "Simulation time"})
     structure = ElementTree.SubElement(root, "ModelStructure")
-    key = {str(e.port): str(vr if three else vr + 1) for vr, e in enumerate(plan.exposed)}
+    key = {str(e.port): str(vr if three else vr + 1) for vr, e in enumerate(exposed)}
     attribute = "valueReference" if three else "index"
-    outputs = [e for e in plan.exposed if e.kind == "output"]
+    outputs = [e for e in exposed if e.kind == "output"]
     if outputs:
         section = structure if three else ElementTree.SubElement(structure, "Outputs")
         for e in outputs:
@@ -235,31 +237,36 @@ def export(scenario: str | os.PathLike, output: str | os.PathLike, *, fmi: str =
                      limits=limits) as system:
         start, stop, step = timing(system.structure, stop_time, step, start_time)
         other = [f"{system.ssd}: component '{c.name}': FMU '{Path(c.fmu).name}' is FMI {c.model.fmiVersion}; "
-                 "the container embeds FMI 2.0 Co-Simulation FMUs only"
-                 for c in system.components.values() if c.model.fmiVersion != "2.0"]
+                 "the container embeds FMI 2.0 and 3.0 Co-Simulation FMUs only"
+                 for c in system.components.values() if c.model.fmiVersion.split(".")[0] not in ("2", "3")]
         if other:
             raise ScenarioError(other)
-        exposed = select(system, expose)
         folders = _folders(system)
-        plan = make_plan(system, start, step, master, exposed, folders, time_variable=fmi == "3")
+        plan, exposed, records = container_plan(system, start, stop, step, master, select(system, expose),
+                                                time_variable=fmi == "3")
         entries: dict[str, bytes] = {}
         for comp in system.components.values():
             entries |= _members(comp, folders[comp.name])
         try:
             platform = "x86_64-linux" if fmi == "3" else "linux64"  # FMI 3.0's platform tuple
-            entries[f"binaries/{platform}/{identifier}.so"] = compile_container()
-        except BuildError as exc:
+            entries[f"binaries/{platform}/{identifier}.so"] = container_library()
+        except NativeError as exc:
             raise ScenarioError(f"cannot build the container runtime: {exc}") from exc
         entries |= documentation((), external=CONTAINER_DEPENDENCIES,
                                  note="The FMUs under resources/fmus/<name>/ keep their own licences in "
                                  "resources/fmus/<name>/documentation/licenses/.")
-        digest = hashlib.sha256(plan.text("").encode())
+        digest = hashlib.sha256(_plan_text(plan, "", folders, records).encode())
         for name in sorted(entries):
             digest.update(name.encode() + b"\0" + hashlib.sha256(entries[name]).digest())
         digest.update(f"{identifier}\0{start!r}\0{stop!r}\0{step!r}\0{fmi}".encode())
         guid = "{" + str(uuid.uuid5(GUID_NAMESPACE, digest.hexdigest())) + "}"
-        entries["resources/container.plan"] = plan.text(guid).encode()
-        entries["modelDescription.xml"] = model_description(system, plan, identifier, guid, start, stop, step,
-                                                            master, fmi)
+        entries["resources/container.plan"] = _plan_text(plan, guid, folders, records).encode()
+        entries["modelDescription.xml"] = model_description(system, exposed, identifier, guid, start, stop,
+                                                            step, master, fmi)
     _write(target, entries)
-    return target, plan.exposed
+    return target, exposed
+
+
+def _plan_text(plan: Plan, guid: str, folders: Mapping[str, str], records: Sequence[str]) -> str:
+    """The plan file: the engine's plan, each FMU in its folder, the container's variables."""
+    return plan.text(guid, folders, records)

@@ -1,0 +1,198 @@
+"""The engine's C code: the plan reader and core (``plan.c``, ``core.c``) built as the compiled
+executor (``executor.c``, which ``orchestrate run`` steps by default) and as the exported container's
+runtime (``container.c`` with its FMI 2.0 and 3.0 APIs ``container_fmi2.c`` and ``container_fmi3.c``,
+:func:`container_library`). Both are compiled with the system C compiler
+against the official FMI headers in ``fmi/`` on first use and kept in the cache folder
+(:func:`orchestrator.fmucache.cache_folder`'s parent, ``native/``) under a digest of their sources,
+flags and compiler, so a run compiles nothing once one has.
+
+:class:`Stepper` is the executor's Python side: it binds the instances the engine made (fmpy's
+library handle and instance) and runs blocks of steps in C, each row copied into the recorder's
+buffer (see ``executor.c``).
+"""
+
+from __future__ import annotations
+
+import atexit
+import ctypes
+import functools
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+from collections.abc import Sequence
+from ctypes import POINTER, c_char_p, c_double, c_int, c_int64, c_long, c_size_t, c_void_p
+from pathlib import Path
+
+import numpy as np
+
+from ..fmi import InstanceBase
+from ..fmucache import cache_folder
+from ..plan import Plan
+
+__all__ = ["FLAGS", "SOURCES", "Failure", "NativeError", "Stepper", "compile_library", "container_library",
+           "executor_library", "unavailable"]
+
+HERE = Path(__file__).resolve().parent
+HEADERS = HERE / "fmi"
+SOURCES = {"executor": ("executor.c", "core.c", "plan.c"),
+           "container": ("container.c", "container_fmi2.c", "container_fmi3.c", "core.c", "plan.c")}
+# No debug info, build id or symbols, so the bytes depend only on source, compiler and flags; no
+# contraction of a * b + c into a fused multiply-add, so a connection's factor * value + offset
+# rounds as Python's does in the engine's master; symbols bound inside the library, so an embedded
+# FMU's fmi2* functions never resolve to the container's.
+FLAGS = tuple(
+    "-std=c11 -O2 -fPIC -shared -fvisibility=hidden -ffp-contract=off -g0 -Wall -Wextra "
+    "-Wno-format-truncation -Wl,--build-id=none -s -Wl,-Bsymbolic".split()
+)
+LIBS = ("-ldl", "-lm")
+FUNCTIONS = ("fmi2DoStep", "fmi2GetReal", "fmi2SetReal")  # what a step of the executor calls, by code
+WHY = 4096
+
+
+class NativeError(RuntimeError):
+    """The C code cannot be built or loaded here (no C compiler, a compiler error); the message
+    says why."""
+
+
+class Failure(ctypes.Structure):
+    """A failed call in C (``struct failure``): component index, function code, status, time."""
+
+    _fields_ = [("component", c_int), ("function", c_int), ("status", c_int), ("time", c_double)]
+
+
+def _compiler() -> tuple[str, str]:
+    """The system C compiler (``$CC``, else ``cc``, else ``gcc``) and its version line."""
+    for name in (os.environ.get("CC"), "cc", "gcc"):
+        path = shutil.which(name) if name else None
+        if path:
+            try:
+                version = subprocess.run([path, "--version"], capture_output=True, text=True, check=True)
+            except (OSError, subprocess.CalledProcessError) as exc:
+                raise NativeError(f"the C compiler {path} does not run: {exc}") from exc
+            return path, version.stdout.partition("\n")[0]
+    raise NativeError("no C compiler (CC, cc or gcc on PATH) to build the engine's C executor; install one, "
+                      "e.g. apt-get install gcc")
+
+
+@functools.cache
+def _scratch() -> Path:
+    """A folder of this process for libraries when there is no cache folder (removed at exit)."""
+    folder = Path(tempfile.mkdtemp(prefix="orchestrate-native-"))
+    atexit.register(shutil.rmtree, folder, True)
+    return folder
+
+
+@functools.cache
+def compile_library(kind: str) -> Path:
+    """The compiled library ``kind`` (``executor`` or ``container``): from the cache folder, or
+    compiled now (written under a temporary name and renamed; into a folder of this process when
+    the cache's disk cannot hold it). NativeError when it cannot be built."""
+    compiler, version = _compiler()
+    digest = hashlib.sha256("\0".join([*FLAGS, *LIBS, version]).encode())
+    for source in sorted({*SOURCES[kind], *(p.name for p in HERE.glob("*.h"))}):
+        digest.update(source.encode() + b"\0" + (HERE / source).read_bytes())
+    for header in sorted(HEADERS.glob("*.h")):
+        digest.update(header.name.encode() + b"\0" + header.read_bytes())
+    name = f"{kind}-{digest.hexdigest()[:24]}.so"
+    cache = cache_folder()
+    if cache is not None:
+        try:
+            return _build(kind, compiler, cache.parent / "native", name)
+        except NativeError:  # a full or read-only cache disk: this process's own folder will do
+            pass
+    return _build(kind, compiler, _scratch(), name)
+
+
+def _build(kind: str, compiler: str, folder: Path, name: str) -> Path:
+    """``folder/name``, compiled now unless it is there. NativeError when it cannot be built."""
+    target = folder / name
+    if target.is_file():
+        return target
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=folder, prefix=".build-") as tmp:
+            built = Path(tmp) / target.name
+            command = [compiler, *FLAGS, f"-I{HERE}", f"-I{HEADERS}", "-o", str(built),
+                       *(str(HERE / s) for s in SOURCES[kind]), *LIBS]
+            result = subprocess.run(command, capture_output=True, text=True)
+            if result.returncode != 0:
+                raise NativeError(f"{HERE}: {compiler} failed:\n{result.stderr.strip()}")
+            os.replace(built, target)
+    except OSError as exc:
+        raise NativeError(f"cannot write the compiled {kind} into {folder}: {exc}") from exc
+    return target
+
+
+def container_library() -> bytes:
+    """The exported container's runtime (``binaries/<platform>/<id>.so``: FMI 2.0 and 3.0 APIs)."""
+    return compile_library("container").read_bytes()
+
+
+@functools.cache
+def executor_library() -> ctypes.PyDLL:
+    """The compiled executor, loaded once per process. ``PyDLL``: the GIL stays held while it steps,
+    which a Python-based FMU would otherwise take back at every call."""
+    lib = ctypes.PyDLL(str(compile_library("executor")))
+    lib.ftc_executor_open.argtypes, lib.ftc_executor_open.restype = [c_char_p, c_char_p, c_size_t], c_void_p
+    lib.ftc_executor_bind.argtypes = [c_void_p, c_int, c_void_p, c_void_p, c_char_p, c_size_t]
+    lib.ftc_executor_bind.restype = c_int
+    lib.ftc_executor_run.argtypes = [c_void_p, POINTER(c_double), c_int64, c_long, POINTER(c_double),
+                                     POINTER(c_double), POINTER(c_int), POINTER(Failure)]
+    lib.ftc_executor_run.restype = c_long
+    lib.ftc_executor_close.argtypes, lib.ftc_executor_close.restype = [c_void_p], None
+    return lib
+
+
+@functools.cache
+def unavailable() -> str:
+    """Why the compiled executor cannot run in this process ('' when it can)."""
+    try:
+        executor_library()
+    except (NativeError, OSError) as exc:
+        return str(exc).partition("\n")[0]
+    return ""
+
+
+def _pointer(array: np.ndarray | None) -> ctypes._Pointer | None:
+    return None if array is None else array.ctypes.data_as(POINTER(c_double))
+
+
+class Stepper:
+    """The compiled executor on one run: ``plan`` and its ``instances`` (initialized by the engine,
+    in plan order), bound once; :meth:`run` steps blocks of the run on the engine's value buffer."""
+
+    def __init__(self, plan: Plan, instances: Sequence[InstanceBase]) -> None:
+        self.lib = executor_library()
+        why = ctypes.create_string_buffer(WHY)
+        self.handle = self.lib.ftc_executor_open(plan.text().encode(), why, WHY)
+        if not self.handle:
+            raise NativeError(why.value.decode(errors="replace"))
+        self.failure = Failure()
+        self.width = len(plan.columns)
+        for i, inst in enumerate(instances):
+            native = inst.native()
+            if native is None:
+                self.close()
+                raise NativeError(f"{inst.name}: the instance offers no library for the compiled executor")
+            if self.lib.ftc_executor_bind(self.handle, i, *native, why, WHY) != 0:
+                self.close()
+                raise NativeError(f"{inst.name}: {why.value.decode(errors='replace')}")
+
+    def run(self, values: np.ndarray, k: int, rows: np.ndarray, driven: np.ndarray | None,
+            stop: ctypes.c_int) -> int:
+        """Steps ``k``, ``k + 1`` ... (at most ``len(rows)``) on ``values``, each row copied into
+        ``rows``, the driven inputs of row j from ``driven[j]``; returns the rows made. It stops early
+        at a row that is not finite, when ``stop`` is set, or at a failed call (then ``failure``
+        holds its component, function code (index into :data:`FUNCTIONS`), status and time)."""
+        assert rows.flags.c_contiguous and rows.shape[1] == self.width and values.flags.c_contiguous
+        made = self.lib.ftc_executor_run(self.handle, _pointer(values), k, len(rows), _pointer(rows),
+                                         _pointer(driven), ctypes.byref(stop), ctypes.byref(self.failure))
+        return int(made)
+
+    def close(self) -> None:
+        """Free the executor (not the instances: the engine frees them)."""
+        if self.handle:
+            self.lib.ftc_executor_close(self.handle)
+            self.handle = None

@@ -1,0 +1,105 @@
+/* The core of the C executors: an embedded FMU's functions (FMI 2.0 or 3.0 Co-Simulation) and the
+   plan's steps on them, making the same calls with the same arguments in the same order as the
+   engine's Python master (orchestrator/master.py). Failures are data (struct failure), which the
+   container turns into a message and the compiled executor hands to Python. */
+
+#ifndef FTC_CORE_H
+#define FTC_CORE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "fmi2FunctionTypes.h"
+#include "fmi3FunctionTypes.h"
+#include "plan.h"
+
+/* The FMI functions a failure names, as the engine's Python master names them (FMI 2.0) and as
+   fmu_function names them for the FMU's own version. */
+enum function {
+    DO_STEP, GET_REAL, SET_REAL, SET_INTEGER, SET_BOOLEAN, SET_STRING, SETUP_EXPERIMENT, ENTER_INITIALIZATION,
+    EXIT_INITIALIZATION, TERMINATE, RESET, INSTANTIATE, FUNCTIONS
+};
+
+/* A failed call: which component, which function, the status it returned (or -1: NULL from an
+   instantiation) and the time it was called at. */
+struct failure {
+    int component;
+    int function;
+    int status;
+    double time;
+};
+
+/* One embedded FMU instance: its version and the functions the executors call. */
+struct fmu {
+    int version; /* 2 or 3 */
+    void *instance;
+    int broken; /* returned fmi2Fatal: no further call */
+    fmi2DoStepTYPE *do_step2;
+    fmi2GetRealTYPE *get_real2;
+    fmi2SetRealTYPE *set_real2;
+    fmi2SetIntegerTYPE *set_integer2;
+    fmi2SetBooleanTYPE *set_boolean2;
+    fmi2SetStringTYPE *set_string2;
+    fmi2SetupExperimentTYPE *setup2;
+    fmi2EnterInitializationModeTYPE *enter2;
+    fmi2ExitInitializationModeTYPE *exit2;
+    fmi2TerminateTYPE *terminate2;
+    fmi2ResetTYPE *reset2;
+    fmi2InstantiateTYPE *instantiate2;
+    fmi2FreeInstanceTYPE *free2;
+    fmi2SetDebugLoggingTYPE *debug2;
+    fmi3DoStepTYPE *do_step3;
+    fmi3GetFloat64TYPE *get_real3;
+    fmi3SetFloat64TYPE *set_real3;
+    fmi3SetInt32TYPE *set_integer3;
+    fmi3SetBooleanTYPE *set_boolean3;
+    fmi3SetStringTYPE *set_string3;
+    fmi3EnterInitializationModeTYPE *enter3;
+    fmi3ExitInitializationModeTYPE *exit3;
+    fmi3TerminateTYPE *terminate3;
+    fmi3ResetTYPE *reset3;
+    fmi3InstantiateCoSimulationTYPE *instantiate3;
+    fmi3FreeInstanceTYPE *free3;
+    fmi3SetDebugLoggingTYPE *debug3;
+};
+
+/* Looks up the functions of `library` (a dlopen handle); `lifecycle` also those the container
+   needs to instantiate, initialize, terminate and free. 0, or -1 with `why` naming a missing one. */
+int fmu_bind(struct fmu *f, void *library, int version, int lifecycle, char *why, size_t size);
+
+const char *fmu_function(int version, int function); /* "fmi2DoStep", "fmi3DoStep" ... */
+const char *fmu_status(int version, int status);     /* "fmi2Error", "fmi3Error" ... */
+
+int fmu_set_debug_logging(struct fmu *f, int on, size_t n, const char *const categories[]);
+int fmu_reset(struct fmu *f);
+void fmu_free(struct fmu *f);
+
+/* The plan on its FMUs and value buffer. */
+struct core {
+    const struct plan *plan;
+    struct fmu *fmus; /* one per component, in plan order */
+    double *values;   /* [time, inputs..., outputs...] */
+    struct failure failure;
+};
+
+/* One communication step from t_k to t_k+1 (values[0] = t_k+1 after it), the driven inputs at
+   t_k+1 taken from `driven` (the plan's driven batches in order; NULL: none): 0, or the status
+   of the failed call (>= fmi2Discard), recorded in x->failure. */
+int core_step(struct core *x, int64_t k, const double *driven);
+
+/* gauss-seidel at a communication point: the propagation's reads and writes in dependency order. */
+int core_propagate(struct core *x, double t);
+
+/* Start values, setup and initialization mode of every FMU (start values again inside it). */
+int core_enter_initialization(struct core *x, double t0, int stop_defined, double stop);
+
+/* The master's initialization in initialization mode, then every FMU leaves it. */
+int core_exit_initialization(struct core *x, double t0);
+
+/* fmi2Terminate of every FMU; the first failure is recorded, the others still terminated. */
+int core_terminate(struct core *x, double t);
+
+/* fmi2SetReal of one input of component i. */
+int core_set_input(struct core *x, int i, unsigned int vr, const double *value, double t);
+
+#endif
