@@ -2,10 +2,31 @@
    of exactly that runtime (fmu_src/runtime.py pins both), so the PyPreConfig/PyConfig layouts match.
 
    The functions are looked up with dlsym in the libpython the shim loaded: the shim does not link
-   libpython, so that a host which already runs Python keeps its own. */
+   libpython, so that a host which already runs Python keeps its own.
 
+   Windows: the same start, of python.org's embeddable CPython 3.11 (python311.dll). Debian's
+   pyconfig.h describes Linux, so only the configuration types are taken from the headers
+   (cpython/initconfig.h, the same in every 3.11 release), with the little of Python.h they need
+   for 64-bit Windows: mingw-w64 and python.org's MSVC build share that ABI (LLP64, 16-bit
+   wchar_t), so the layouts match. */
+
+#ifdef _WIN32
+#include <stdint.h>
+#include <wchar.h>
+#define MS_WINDOWS
+typedef int64_t Py_ssize_t;
+typedef struct _ts PyThreadState;
+#define PyAPI_FUNC(RTYPE) RTYPE
+#define PyAPI_DATA(RTYPE) extern RTYPE
+#include "cpython/initconfig.h"
+#define PY_MAJOR_VERSION 3
+#define PY_MINOR_VERSION 11
+#define FTC_EXTENSIONS NULL /* the .pyd files sit beside python311.dll */
+#else
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#define FTC_EXTENSIONS "lib-dynload"
+#endif
 #include "platform.h"
 #include <stdio.h>
 #include <string.h>
@@ -44,10 +65,10 @@ static int find_api(void *python, struct api *a) {
     return ok;
 }
 
-/* Appends home/leaf to the module search path; 0 on success. */
+/* Appends home/leaf (leaf NULL: home) to the module search path; 0 on success. */
 static int add_path(const struct api *a, PyConfig *config, const char *home, const char *leaf) {
     char path[4096];
-    snprintf(path, sizeof path, "%s/%s", home, leaf);
+    snprintf(path, sizeof path, "%s%s%s", home, leaf ? "/" : "", leaf ? leaf : "");
     wchar_t *wide = a->decode(path, NULL);
     if (!wide) return -1;
     PyStatus status = a->append(&config->module_search_paths, wide);
@@ -82,11 +103,12 @@ int ftc_start_python(void *python, const char *home, char *failure, size_t size)
     config.module_search_paths_set = 1;
     status = a.set_bytes(&config, &config.home, home);
     if (a.is_exception(status) || add_path(&a, &config, home, "python" FTC_TAG ".zip") != 0 ||
-        add_path(&a, &config, home, "lib-dynload") != 0) {
+        add_path(&a, &config, home, FTC_EXTENSIONS) != 0) {
         a.clear(&config);
         snprintf(failure, size, "cannot set the runtime's home and path to %s (out of memory?)", home);
         return -1;
     }
+    ftc_standard_streams(python);
     status = a.initialize(&config);
     a.clear(&config);
     if (a.is_exception(status)) {
