@@ -66,7 +66,12 @@ int ftc_ascii_path(const char *path, char *out, size_t size) {
     return (size_t)snprintf(out, size, "%s", path) < size ? 0 : -1;
 }
 
-void ftc_standard_streams(void *python) { (void)python; }
+void ftc_standard_streams(void *python, int saved[3]) {
+    (void)python;
+    saved[0] = saved[1] = saved[2] = -1;
+}
+
+void ftc_standard_streams_done(int saved[3]) { (void)saved; }
 
 #else /* ---------------------------------------------------------------------- Windows */
 
@@ -207,30 +212,67 @@ typedef void (*ftc_iph)(const wchar_t *, const wchar_t *, const wchar_t *, unsig
 static void ignore_parameter(const wchar_t *a, const wchar_t *b, const wchar_t *c, unsigned d, uintptr_t e) {
     (void)a, (void)b, (void)c, (void)d, (void)e;
 }
+static struct {
+    intptr_t (*get_handle)(int);
+    int (*open_w)(const wchar_t *, int, ...);
+    int (*dup)(int);
+    int (*dup2)(int, int);
+    int (*close)(int);
+    ftc_iph (*set_handler)(ftc_iph);
+} crt;
 
-void ftc_standard_streams(void *python) {
+static int find_crt(void) {
+    HMODULE m = GetModuleHandleW(L"ucrtbase.dll");
+    if (!m) return 0;
+#define CRT(field, name) *(void **)&crt.field = (void *)GetProcAddress(m, name)
+    CRT(get_handle, "_get_osfhandle");
+    CRT(open_w, "_wopen");
+    CRT(dup, "_dup");
+    CRT(dup2, "_dup2");
+    CRT(close, "_close");
+    CRT(set_handler, "_set_thread_local_invalid_parameter_handler");
+#undef CRT
+    return crt.get_handle && crt.open_w && crt.dup && crt.dup2 && crt.close && crt.set_handler;
+}
+
+/* What CPython's start asks of a standard descriptor (_Py_fstat: GetFileType, and for a file
+   GetFileInformationByHandle): 0 absent (a GUI process), 1 unusable at start (a console
+   process's file under wine, opened without the right to read its attributes), 2 usable. */
+static int usable(intptr_t h) {
+    if (h == -1 || h == -2 || h == 0) return 0;
+    SetLastError(0);
+    DWORD type = GetFileType((HANDLE)h);
+    if (type == FILE_TYPE_UNKNOWN && GetLastError() != 0) return 0;
+    BY_HANDLE_FILE_INFORMATION info;
+    if (type == FILE_TYPE_DISK && !GetFileInformationByHandle((HANDLE)h, &info)) return 1;
+    return 2;
+}
+
+void ftc_standard_streams(void *python, int saved[3]) {
     (void)python;
-    HMODULE crt = GetModuleHandleW(L"ucrtbase.dll");
-    if (!crt) return;
-    intptr_t (*get_handle)(int) = (intptr_t(*)(int))(void *)GetProcAddress(crt, "_get_osfhandle");
-    int (*open_w)(const wchar_t *, int, ...) = (int (*)(const wchar_t *, int, ...))(void *)GetProcAddress(crt, "_wopen");
-    int (*dup2)(int, int) = (int (*)(int, int))(void *)GetProcAddress(crt, "_dup2");
-    int (*close_fd)(int) = (int (*)(int))(void *)GetProcAddress(crt, "_close");
-    ftc_iph (*set_handler)(ftc_iph) =
-        (ftc_iph(*)(ftc_iph))(void *)GetProcAddress(crt, "_set_thread_local_invalid_parameter_handler");
-    if (!get_handle || !open_w || !dup2 || !close_fd || !set_handler) return;
-    ftc_iph previous = set_handler(ignore_parameter); /* a closed descriptor must not end the process */
+    saved[0] = saved[1] = saved[2] = -1;
+    if (!find_crt()) return;
+    ftc_iph previous = crt.set_handler(ignore_parameter); /* a closed descriptor must not end the process */
     for (int fd = 0; fd < 3; fd++) {
-        intptr_t h = get_handle(fd);
-        if (h != -1 && h != -2 && h != 0 && GetFileType((HANDLE)h) != FILE_TYPE_UNKNOWN) continue;
-        int null = open_w(L"NUL", fd == 0 ? 0 /* _O_RDONLY */ : 1 /* _O_WRONLY */);
+        int state = usable(crt.get_handle(fd));
+        if (state == 2) continue;
+        if (state == 1) saved[fd] = crt.dup(fd); /* given back after the start */
+        int null = crt.open_w(L"NUL", fd == 0 ? 0 /* _O_RDONLY */ : 1 /* _O_WRONLY */);
         if (null < 0) continue;
         if (null != fd) {
-            dup2(null, fd);
-            close_fd(null);
+            crt.dup2(null, fd);
+            crt.close(null);
         }
     }
-    set_handler(previous);
+    crt.set_handler(previous);
+}
+
+void ftc_standard_streams_done(int saved[3]) {
+    for (int fd = 0; fd < 3; fd++)
+        if (saved[fd] >= 0) {
+            crt.dup2(saved[fd], fd); /* Python's sys.stdout writes to descriptor 1: the host's again */
+            crt.close(saved[fd]);
+        }
 }
 
 #endif

@@ -49,11 +49,14 @@ void ftc_file_unlock(int lock);
    0 on success, -1 when the path has no ASCII form. POSIX: the path unchanged. */
 int ftc_ascii_path(const char *path, char *out, size_t size);
 
-/* Windows only: a process without a console (GUI subsystem) has no valid standard handles, and
-   CPython's start stops at them ("init_sys_streams: Invalid handle"): point the C runtime's
-   descriptors 0, 1, 2 that have none at the null device. `python` is the interpreter library
-   (its C runtime is the one to fix). POSIX: nothing. */
-void ftc_standard_streams(void *python);
+/* Windows only: CPython's start stops at a standard descriptor it cannot examine
+   ("init_sys_streams: can't initialize sys standard streams", WinError 6): a GUI process has
+   none, and under wine a console process's redirected file lacks the right to read its
+   attributes. Before the start, such descriptors of the C runtime the interpreter `python` uses
+   are pointed at the null device; after it, ftc_standard_streams_done gives the host back those
+   that it had (`saved`), so its output and Python's go where they went. POSIX: nothing. */
+void ftc_standard_streams(void *python, int saved[3]);
+void ftc_standard_streams_done(int saved[3]);
 
 /* A mutex usable from any thread, statically initialized. */
 #ifdef _WIN32 /* a slim reader/writer lock (SRWLOCK), without windows.h's macros in the FMI code */

@@ -4,27 +4,16 @@
    The functions are looked up with dlsym in the libpython the shim loaded: the shim does not link
    libpython, so that a host which already runs Python keeps its own.
 
-   Windows: the same start, of python.org's embeddable CPython 3.11 (python311.dll). Debian's
-   pyconfig.h describes Linux, so only the configuration types are taken from the headers
-   (cpython/initconfig.h, the same in every 3.11 release), with the little of Python.h they need
-   for 64-bit Windows: mingw-w64 and python.org's MSVC build share that ABI (LLP64, 16-bit
-   wchar_t), so the layouts match. */
+   Windows: the same start, of python.org's embeddable CPython 3.11 (python311.dll), compiled
+   against the same 3.11 headers with the Windows pyconfig.h of fmu_src/shim/win64/ (mingw-w64
+   and python.org's MSVC build share the ABI: LLP64, 16-bit wchar_t, so the layouts match; the
+   configuration structures are the same in every 3.11 release). */
 
-#ifdef _WIN32
-#include <stdint.h>
-#include <wchar.h>
-#define MS_WINDOWS
-typedef int64_t Py_ssize_t;
-typedef struct _ts PyThreadState;
-#define PyAPI_FUNC(RTYPE) RTYPE
-#define PyAPI_DATA(RTYPE) extern RTYPE
-#include "cpython/initconfig.h"
-#define PY_MAJOR_VERSION 3
-#define PY_MINOR_VERSION 11
-#define FTC_EXTENSIONS NULL /* the .pyd files sit beside python311.dll */
-#else
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#ifdef _WIN32
+#define FTC_EXTENSIONS NULL /* the .pyd files sit beside python311.dll */
+#else
 #define FTC_EXTENSIONS "lib-dynload"
 #endif
 #include "platform.h"
@@ -108,8 +97,10 @@ int ftc_start_python(void *python, const char *home, char *failure, size_t size)
         snprintf(failure, size, "cannot set the runtime's home and path to %s (out of memory?)", home);
         return -1;
     }
-    ftc_standard_streams(python);
+    int saved[3];
+    ftc_standard_streams(python, saved);
     status = a.initialize(&config);
+    ftc_standard_streams_done(saved);
     a.clear(&config);
     if (a.is_exception(status)) {
         snprintf(failure, size, "Py_InitializeFromConfig failed: %s%s%s",
