@@ -32,7 +32,7 @@
    (exact), strings percent-encoded. See orchestrator/export/plan.py, which writes it. */
 
 #define _GNU_SOURCE
-#include <dlfcn.h>
+#include "platform.h" /* the shim's portability layer (fmu_src/shim): POSIX and Windows */
 #include <math.h>
 #include <stdarg.h>
 #include <stdint.h>
@@ -40,7 +40,14 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define EXPORT __attribute__((visibility("default")))
+#define EXPORT FTC_EXPORT
+#ifdef _WIN32 /* binaries/win64/<id>.dll, cross-compiled with mingw-w64 */
+#define BINARIES "win64"
+#define BINARY_SUFFIX ".dll"
+#else
+#define BINARIES "linux64"
+#define BINARY_SUFFIX ".so"
+#endif
 #define TEXT 4096
 #define PLAN_VERSION "1"
 
@@ -320,9 +327,28 @@ static void read_batch(struct reader *r, struct plan *p, struct batch *b) {
     }
 }
 
+#ifdef _WIN32 /* POSIX getline, which Windows' C runtime lacks: one line, of any length */
+static long getline(char **line, size_t *capacity, FILE *file) {
+    size_t n = 0;
+    for (int c; (c = fgetc(file)) != EOF;) {
+        if (n + 2 > *capacity) {
+            size_t grown = *capacity ? 2 * *capacity : 256;
+            char *more = realloc(*line, grown);
+            if (!more) return -1;
+            *line = more, *capacity = grown;
+        }
+        (*line)[n++] = (char)c;
+        if (c == '\n') break;
+    }
+    if (!n) return -1;
+    (*line)[n] = '\0';
+    return (long)n;
+}
+#endif
+
 /* Reads the plan; returns 0, or -1 with `why` filled. */
 static int read_plan(const char *path, struct plan *p, char *why, size_t size) {
-    FILE *file = fopen(path, "r");
+    FILE *file = ftc_fopen(path, "r");
     if (!file) {
         snprintf(why, size, "cannot open the container's plan %s", path);
         return -1;
@@ -470,11 +496,9 @@ static void free_plan(struct plan *p) {
 
 /* ---- loading the embedded FMUs ------------------------------------------------------------- */
 
-/* The container's resources folder: ../../resources from this library (binaries/linux64/X.so). */
+/* The container's resources folder: ../../resources from this library (binaries/<platform>/X.so). */
 static int own_resources(char *out, size_t size) {
-    Dl_info self;
-    if (!dladdr((void *)&own_resources, &self) || !self.dli_fname) return -1;
-    snprintf(out, size, "%s", self.dli_fname);
+    if (ftc_library_file((void *)&own_resources, out, size) != 0) return -1;
     for (int up = 0; up < 3; up++) {
         char *slash = strrchr(out, '/');
         if (!slash) return -1;
@@ -486,12 +510,12 @@ static int own_resources(char *out, size_t size) {
     return 0;
 }
 
-/* file:// URI of a path, percent-encoding what is not unreserved or '/'. */
+/* file:// URI of a path, percent-encoding what is not unreserved or '/' (Windows: file:///C:/...). */
 static void file_uri(const char *path, char *out, size_t size) {
-    size_t j = (size_t)snprintf(out, size, "file://");
+    size_t j = (size_t)snprintf(out, size, "file://%s", path[0] == '/' ? "" : "/");
     for (const unsigned char *p = (const unsigned char *)path; *p && j + 4 < size; p++) {
         if ((*p >= 'a' && *p <= 'z') || (*p >= 'A' && *p <= 'Z') || (*p >= '0' && *p <= '9') ||
-            strchr("/-._~", *p))
+            strchr("/-._~", *p) || (*p == ':' && p == (const unsigned char *)path + 1))
             out[j++] = (char)*p;
         else
             j += (size_t)snprintf(out + j, size - j, "%%%02X", *p);
@@ -501,14 +525,15 @@ static void file_uri(const char *path, char *out, size_t size) {
 
 static int load_component(struct container *x, struct component *c, char *why, size_t size) {
     char path[2 * TEXT];
-    snprintf(path, sizeof path, "%s/fmus/%s/binaries/linux64/%s.so", x->resources, c->folder, c->identifier);
-    c->library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    snprintf(path, sizeof path, "%s/fmus/%s/binaries/" BINARIES "/%s" BINARY_SUFFIX, x->resources, c->folder,
+             c->identifier);
+    c->library = ftc_library_open(path, 0);
     if (!c->library) {
-        snprintf(why, size, "%s: cannot load %s: %s", c->name, path, dlerror());
+        snprintf(why, size, "%s: cannot load %s: %s", c->name, path, ftc_library_error(path));
         return -1;
     }
     int ok = 1;
-#define FIND(field, symbol) ok &= (*(void **)(&c->f.field) = dlsym(c->library, symbol)) != NULL
+#define FIND(field, symbol) ok &= (*(void **)(&c->f.field) = ftc_library_symbol(c->library, symbol)) != NULL
     FIND(instantiate, "fmi2Instantiate");
     FIND(free_instance, "fmi2FreeInstance");
     FIND(set_debug_logging, "fmi2SetDebugLogging");
@@ -666,7 +691,7 @@ static struct container *create(struct container *x, const char *function, const
     x->inner.componentEnvironment = x;
     char why[2 * TEXT], path[TEXT + 32];
     if (own_resources(x->resources, sizeof x->resources) != 0) {
-        say(x, fmi2Error, "%s: cannot find the container's own file (dladdr failed)", function);
+        say(x, fmi2Error, "%s: cannot find the container's own file", function);
         free(x);
         return NULL;
     }

@@ -1,8 +1,8 @@
 """``orchestrate export``: a scenario as one FMI 2.0 Co-Simulation FMU.
 
 The archive holds ``modelDescription.xml`` (the exposed variables ``<component>.<variable>``, the
-scenario's DefaultExperiment and step), ``binaries/linux64/<id>.so`` (the container runtime of
-``fmu_src/container``), ``resources/container.plan`` (:mod:`.plan`) and each distinct FMU of the
+scenario's DefaultExperiment and step), ``binaries/linux64/<id>.so`` and ``binaries/win64/<id>.dll``
+(the container runtime of ``fmu_src/container``), ``resources/container.plan`` (:mod:`.plan`) and each distinct FMU of the
 scenario unpacked under ``resources/fmus/<name>/``. Rebuilding from the same scenario and options
 gives the same bytes; the GUID is a digest of them.
 """
@@ -247,6 +247,8 @@ def export(scenario: str | os.PathLike, output: str | os.PathLike, *, fmi: str =
         try:
             platform = "x86_64-linux" if fmi == "3" else "linux64"  # FMI 3.0's platform tuple
             entries[f"binaries/{platform}/{identifier}.so"] = compile_container()
+            platform = "x86_64-windows" if fmi == "3" else "win64"
+            entries[f"binaries/{platform}/{identifier}.dll"] = compile_container(windows=True)
         except BuildError as exc:
             raise ScenarioError(f"cannot build the container runtime: {exc}") from exc
         digest = hashlib.sha256(plan.text("").encode())
