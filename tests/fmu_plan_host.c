@@ -7,7 +7,9 @@
    PLAN (UTF-8, one item a line, fields separated by tabs):
      python <path of a python3XY library>   the host embeds its own Python first (loads it, starts
                                              it with Py_InitializeEx(0), releases the GIL), as an
-                                             application with a Python console does
+                                             application with a Python console does; at the end it
+                                             writes the names of the FMU modules (ftc_*) that
+                                             Python imported to OUTPUT.python
      fmu <label> <2|3> <unpacked FMU folder> <model identifier> <guid or token> <steps> <step size>
          <VR=VALUE ...> <VR ...>            every FMU of the plan is loaded and instantiated in
                                              this one process (one label, one instance; the same
@@ -168,8 +170,11 @@ static int fields(char *line, char **field, int n) {
     return k;
 }
 
+static library python;          /* the host's own Python, if the plan asks for one */
+static const char *report = ""; /* OUTPUT */
+
 static void embed_python(const char *path) {
-    library python = open_library(path);
+    python = open_library(path);
     if (!python) {
         fprintf(out, "# cannot load %s\n", path);
         exit(2);
@@ -178,7 +183,9 @@ static void embed_python(const char *path) {
     int (*run)(const char *) = (int (*)(const char *))need(python, "PyRun_SimpleString");
     void *(*save)(void) = (void *(*)(void))need(python, "PyEval_SaveThread");
     initialize(0);
-    run("import sys; sys.host_marker = 'the host embeds this Python'");
+    char code[8192]; /* where the modules the FMUs imported into this Python are listed at the end */
+    snprintf(code, sizeof code, "import sys; sys.host_report = r\"\"\"%s.python\"\"\"", report);
+    run(code);
     save();
     fprintf(out, "# host python %s\n", path);
 }
@@ -246,6 +253,7 @@ static int run(int argc, char **argv) {
         return 4;
     }
     out = open_file(argv[2], "w");
+    report = argv[2];
     FILE *plan = open_file(argv[1], "r");
     if (!out || !plan) return 4;
 #if defined _WIN32 && defined GUI_HOST
@@ -313,6 +321,15 @@ static int run(int argc, char **argv) {
             status(f->terminate2(f->instance));
             f->free2(f->instance);
         }
+    }
+    if (python) { /* which FMU modules this Python imported: the FMUs ran on the host's interpreter */
+        int (*ensure)(void) = (int (*)(void))need(python, "PyGILState_Ensure");
+        void (*release)(int) = (void (*)(int))need(python, "PyGILState_Release");
+        int (*run_code)(const char *) = (int (*)(const char *))need(python, "PyRun_SimpleString");
+        int gil = ensure();
+        run_code("import sys\nwith open(sys.host_report, 'w', encoding='utf-8') as f:\n"
+                 "    f.write(' '.join(sorted(m for m in sys.modules if m.startswith('ftc_'))))");
+        release(gil);
     }
     fprintf(out, "done\n");
     fclose(out);

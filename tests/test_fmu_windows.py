@@ -1,0 +1,276 @@
+"""The FMUs on Windows: every FMU's binaries/win64 (FMI 3.0: x86_64-windows) run under wine64 in a
+fresh prefix with no Python, as a Windows colleague receives them, unpacked in a folder with spaces
+and non-ASCII characters, and compared with the Linux binaries of the same FMU driven by the same
+calls (the same C host source built for Linux; fmpy on Linux for FMPy on Windows): equal to the
+bit, or within 1e-12 relative where the two C runtimes' libm differ.
+
+Hosts: the C plan host (tests/fmu_plan_host.c) cross-compiled as a console program and as a GUI
+program (no console, no standard handles), with every FMU in one process (and a second instance
+of one), and with a Python of its own already embedded; FMPy 0.3.32 on python.org's embeddable
+CPython 3.11.9 under wine (tests/windows/fmpy-requirements.txt); an exported scenario in both.
+
+``make test`` runs one real case of each kind; ``make windows-matrix`` (FTC_WINDOWS_ALL=1) every
+FMU x host and every scenario, and writes docs/fmus/windows-matrix.md. One wine prefix per test
+session (one xdist group), made by wineboot."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import fmpy
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent / "windows"))
+from wine import (  # noqa: E402
+    TOLERANCE,
+    USER_FOLDER,
+    Difference,
+    Item,
+    Wine,
+    compare,
+    difference,
+    item,
+    make_prefix,
+    missing,
+    run_linux,
+    run_windows,
+    stop,
+    unpack,
+)
+
+from orchestrator.export import export  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+ALL = os.environ.get("FTC_WINDOWS_ALL") == "1"
+MATRIX = REPO / "docs" / "fmus" / "windows-matrix.md"
+FMPY_REQUIREMENTS = REPO / "tests" / "windows" / "fmpy-requirements.txt"
+FMPY_TARGET = REPO / "build" / "windows" / "fmpy"  # pip install --target of the Windows wheels
+STEPS, H = 200, 1e-3
+MODELS = ("Reference", "FixedTimeController", "Actuator", "Example1Plant", "PendulumPlant")
+pytestmark = [pytest.mark.system, pytest.mark.xdist_group("wine"),
+              pytest.mark.skipif(missing() is not None, reason=missing() or "")]
+
+results: dict[tuple[str, str], str] = {}  # (row, column) of the matrix -> cell
+scenario_results: dict[str, str] = {}
+
+
+@pytest.fixture(scope="module")
+def wine(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Wine]:
+    """The session's wine prefix: a Windows machine with no Python installed."""
+    made = make_prefix(tmp_path_factory.mktemp("wine"))
+    assert not [p for p in made.drive_c.rglob("python*") if p.suffix.lower() in (".exe", ".dll")]
+    yield made
+    stop(made)
+    if ALL:
+        write_matrix()
+
+
+def place(wine: Wine, fmu: Path, name: str, linux_root: Path) -> Path:
+    """``fmu`` unpacked for Windows under the user's folder (spaces, non-ASCII) and for Linux under
+    ``linux_root``, both as ``name``; the Windows folder."""
+    unpack(fmu, linux_root / name)
+    return unpack(fmu, wine.drive_c / USER_FOLDER / name)
+
+
+def plan(wine: Wine, fmus: dict[str, Path], models: tuple[str, ...], linux_root: Path, suffix: str = "") -> list[Item]:
+    return [item(model, place(wine, fmus[model], model + suffix, linux_root), STEPS, H) for model in models]
+
+
+def check(found: Difference) -> None:
+    print(found.text())
+    assert found.values > 0
+    assert found.largest <= TOLERANCE, found.text()
+
+
+def c_host_case(wine: Wine, items: list[Item], linux_root: Path, gui: bool, python: str | None = None,
+                files: bool = False) -> Difference:
+    windows = run_windows(wine, items, gui=gui, python=python, files=files)
+    assert windows.status == 0 and windows.done, windows.problem()
+    linux = run_linux(wine, items, linux_root)
+    assert linux.status == 0 and linux.done, linux.problem()
+    return compare(windows, linux)
+
+
+def test_console_host_every_fmi2_fmu_in_one_process(wine: Wine, fmus: dict[str, Path], tmp_path: Path) -> None:
+    """The five FMI 2.0 FMUs and a second FixedTimeController instance in one console process,
+    resources given as file:///C:/users/J%C3%BCrgen%20M%C3%BCller/... URIs, the host's output
+    redirected to files (where python.exe itself stops at start under wine)."""
+    items = plan(wine, fmus, MODELS, tmp_path)
+    items.append(dataclasses.replace(items[1], label="FixedTimeController2"))  # same folder: a second instance
+    difference = c_host_case(wine, items, tmp_path, gui=False, files=True)
+    check(difference)
+    results[("every FMU in one process", "C host console, FMI 2.0")] = difference.text()
+
+
+def test_gui_host_every_fmi3_fmu(wine: Wine, built: Path, tmp_path: Path) -> None:
+    """The five FMI 3.0 FMUs in one GUI-subsystem process without standard handles (resource
+    paths native: C:\\users\\Jürgen Müller\\...)."""
+    fmus3 = {p.stem: p for p in (built / "fmus3").glob("*.fmu")}
+    items = plan(wine, fmus3, MODELS, tmp_path, suffix="3")
+    windows = run_windows(wine, items, gui=True)
+    assert any("GUI host: console window none" in m for m in windows.messages), windows.messages
+    assert windows.status == 0 and windows.done, windows.problem()
+    difference = compare(windows, run_linux(wine, items, tmp_path))
+    check(difference)
+    results[("every FMU in one process", "C host GUI, FMI 3.0")] = difference.text()
+
+
+def test_host_with_its_own_python(wine: Wine, fmus: dict[str, Path], tmp_path: Path) -> None:
+    """A host that embeds python.org's CPython 3.11 (started before any FMU is loaded): the FMUs
+    run on that interpreter (their modules are in its sys.modules), with the same results."""
+    embed = REPO / "build" / "runtime" / "win64" / "root" / "embed"
+    own = wine.drive_c / "Program Files" / "Host App" / "python"
+    shutil.rmtree(own, ignore_errors=True)
+    shutil.copytree(embed, own)
+    items = plan(wine, fmus, ("Actuator", "PendulumPlant"), tmp_path)
+    difference = c_host_case(wine, items, tmp_path, gui=False, python=wine.windows_path(own / "python311.dll"))
+    check(difference)
+    imported = (wine.drive_c / "plan.out.python").read_text(encoding="utf-8").split()
+    assert any(m.startswith("ftc_actuator_") for m in imported), imported
+    assert any(m.startswith("ftc_pendulumplant_") for m in imported), imported
+    results[("Actuator, PendulumPlant in a host with its own Python", "C host console, FMI 2.0")] = difference.text()
+
+
+@pytest.fixture(scope="module")
+def windows_python(wine: Wine) -> Path:
+    """python.org's embeddable CPython 3.11.9 in the prefix (C:/python), with FMPy and its
+    dependencies' Windows wheels (tests/windows/fmpy-requirements.txt) on its path."""
+    if not (FMPY_TARGET / "fmpy").is_dir():
+        command = [sys.executable, "-m", "pip", "install", "--quiet", "--target", str(FMPY_TARGET), "--platform",
+                   "win_amd64", "--python-version", "3.11", "--implementation", "cp", "--only-binary=:all:",
+                   "--no-deps", "-r", str(FMPY_REQUIREMENTS)]
+        result = subprocess.run(command, capture_output=True, text=True, timeout=900)
+        assert result.returncode == 0, result.stderr[-2000:]
+    python = wine.drive_c / "python"
+    shutil.rmtree(python, ignore_errors=True)
+    shutil.copytree(REPO / "build" / "runtime" / "win64" / "root" / "embed", python)
+    target = "Z:" + str(FMPY_TARGET).replace("/", "\\")
+    (python / "python311._pth").write_text(f"python311.zip\n.\n{target}\n", encoding="utf-8")
+    return python
+
+
+FMPY_SCRIPT = """
+import json, sys
+import fmpy
+jobs, out = json.load(open(sys.argv[1], encoding="utf-8")), {}
+for name, path, stop, step in jobs:
+    result = fmpy.simulate_fmu(path, stop_time=stop, output_interval=step, step_size=step)
+    out[name] = [list(result.dtype.names)] + [[float(v) for v in row] for row in result]
+json.dump(out, open(sys.argv[2], "w", encoding="utf-8"))
+"""
+
+
+def fmpy_case(wine: Wine, python: Path, jobs: list[tuple[str, Path, float, float]]) -> dict[str, Difference]:
+    """FMPy under wine on each (name, FMU, stop time, step) against fmpy on Linux: the difference
+    per job."""
+    folder = wine.drive_c / USER_FOLDER / "fmpy"
+    folder.mkdir(parents=True, exist_ok=True)
+    listing = []
+    for name, fmu, stop_time, step in jobs:
+        copy = folder / fmu.name
+        shutil.copyfile(fmu, copy)
+        listing.append((name, wine.windows_path(copy), stop_time, step))
+    (wine.drive_c / "fmpy_jobs.json").write_text(json.dumps(listing), encoding="utf-8")
+    (wine.drive_c / "fmpy_run.py").write_text(FMPY_SCRIPT, encoding="utf-8")
+    out = wine.drive_c / "fmpy_out.json"
+    out.unlink(missing_ok=True)
+    result = wine.run(wine.windows_path(python / "python.exe"), "C:/fmpy_run.py", "C:/fmpy_jobs.json",
+                      "C:/fmpy_out.json")
+    assert result.returncode == 0 and out.is_file(), (result.stdout + result.stderr)[-3000:]
+    windows = json.loads(out.read_text(encoding="utf-8"))
+    differences = {}
+    for name, fmu, stop_time, step in jobs:
+        linux = fmpy.simulate_fmu(str(fmu), stop_time=stop_time, output_interval=step, step_size=step)
+        assert windows[name][0] == list(linux.dtype.names), name
+        w = np.array(windows[name][1:], dtype=float)
+        lin = np.array([[float(v) for v in row] for row in linux], dtype=float)
+        assert w.shape == lin.shape and (w[:, 0] == lin[:, 0]).all(), name
+        differences[name] = difference(windows[name][0][1:], w[:, 0], w[:, 1:], lin[:, 1:])
+    return differences
+
+
+def test_fmpy_on_windows(wine: Wine, windows_python: Path, fmus: dict[str, Path], built: Path,
+                         tmp_path: Path) -> None:
+    """FMPy on python.org's Python under wine (a Python host: the FMUs run on its interpreter)
+    simulates each FMI 2.0 FMU and an exported scenario, as fmpy on Linux does."""
+    scenario, _ = export(built / "ssp" / "example1.ssp", tmp_path / "Example1Scenario.fmu")
+    jobs = [(m, fmus[m], STEPS * H, H) for m in MODELS] + [("example1 (exported)", scenario, 0.5, 1e-3)]
+    for name, difference in fmpy_case(wine, windows_python, jobs).items():
+        check(difference)
+        results[(name, "FMPy 0.3.32 on Windows, FMI 2.0")] = difference.text()
+
+
+def test_exported_scenario_in_the_c_host(wine: Wine, built: Path, tmp_path: Path) -> None:
+    """An exported scenario (FMI 3.0 container, its FMUs FMI 2.0 inside) in the console host: the
+    container loads its FMUs' win64 binaries from its resources, under the user's folder."""
+    scenario, _ = export(built / "ssp" / "example1.ssp", tmp_path / "Example1Scenario.fmu", fmi="3")
+    folder = place(wine, scenario, "Example1Scenario", tmp_path)
+    items = [item("example1", folder, 500, 1e-3, set_inputs=False)]
+    difference = c_host_case(wine, items, tmp_path, gui=False)
+    check(difference)
+    results[("example1 (exported)", "C host console, FMI 3.0")] = difference.text()
+
+
+@pytest.mark.skipif(not ALL, reason="the whole matrix: make windows-matrix")
+def test_every_fmu_host_and_scenario(wine: Wine, windows_python: Path, fmus: dict[str, Path], built: Path,
+                                     tmp_path: Path) -> None:
+    """Every FMU alone in each C host (console, GUI) for FMI 2.0 and 3.0, every FMU in FMPy for
+    both, and every scenario exported and run over its whole experiment under wine against Linux."""
+    fmus3 = {p.stem: p for p in (built / "fmus3").glob("*.fmu")}
+    for model in MODELS:
+        for version, source in (("2.0", fmus), ("3.0", fmus3)):
+            for gui in (False, True):
+                items = [item(model, place(wine, source[model], f"{model}{version}", tmp_path), STEPS, H)]
+                difference = c_host_case(wine, items, tmp_path, gui=gui)
+                check(difference)
+                results[(model, f"C host {'GUI' if gui else 'console'}, FMI {version}")] = difference.text()
+    for version, source in (("2.0", fmus), ("3.0", fmus3)):
+        jobs = [(m, source[m], STEPS * H, H) for m in MODELS]
+        for name, difference in fmpy_case(wine, windows_python, jobs).items():
+            check(difference)
+            results[(name, f"FMPy 0.3.32 on Windows, FMI {version}")] = difference.text()
+    for ssp in sorted((built / "ssp").glob("*.ssp")):
+        if ssp.stem.endswith("_fmi3"):
+            continue  # the same scenario on the FMI 3.0 FMUs: the container embeds FMI 2.0 FMUs
+        scenario, _ = export(ssp, tmp_path / f"{ssp.stem}.fmu")
+        folder = place(wine, scenario, ssp.stem, tmp_path)
+        from xml.etree import ElementTree
+
+        experiment = ElementTree.parse(folder / "modelDescription.xml").getroot().find("DefaultExperiment")
+        assert experiment is not None
+        step = float(experiment.get("stepSize", "0.001"))
+        steps = round((float(experiment.get("stopTime", "1")) - float(experiment.get("startTime", "0"))) / step)
+        items = [item(ssp.stem, folder, steps, step, set_inputs=False)]
+        difference = c_host_case(wine, items, tmp_path, gui=False)
+        check(difference)
+        scenario_results[ssp.stem] = f"{steps} steps of {step:g} s: " + difference.text()
+
+
+def write_matrix() -> None:
+    """docs/fmus/windows-matrix.md from this session's results (make windows-matrix)."""
+    columns = sorted({c for _, c in results})
+    rows = list(dict.fromkeys(r for r, _ in sorted(results, key=lambda k: (k[0] not in MODELS, k[0]))))
+    lines = ["# Windows: every FMU in every host, every scenario (generated)", "",
+             "Written by `make windows-matrix` (tests/test_fmu_windows.py with FTC_WINDOWS_ALL=1): each FMU's",
+             "Windows binaries under wine64 in a fresh prefix with no Python, unpacked under",
+             f"`C:/{USER_FOLDER}/`, against its Linux binaries driven by the same calls (the same C host",
+             "built for Linux; fmpy on Linux for FMPy on Windows). A cell says how many output values were",
+             "compared and whether they are equal to the bit, else the largest relative difference and",
+             f"where (the tests require at most {TOLERANCE:g}). See [Windows](windows.md).", "",
+             "| FMU | " + " | ".join(columns) + " |", "|---|" + "---|" * len(columns)]
+    for row in rows:
+        lines.append(f"| {row} | " + " | ".join(results.get((row, c), "") for c in columns) + " |")
+    lines += ["", "## Every scenario, exported, Windows against Linux", "",
+              "Each scenario of ssp/ exported (`orchestrate export`, FMI 2.0), run over its whole",
+              "DefaultExperiment by the console C host under wine and by the same host on Linux; every",
+              "exposed output at every step compared.", "", "| scenario | Windows against Linux |", "|---|---|"]
+    lines += [f"| {name} | {text} |" for name, text in sorted(scenario_results.items())]
+    MATRIX.write_text("\n".join(lines) + "\n", encoding="utf-8")
