@@ -52,7 +52,14 @@ import pythonfmu
 from pythonfmu import FmuBuilder
 
 from . import runtime_win64
-from .runtime import Runtime, RuntimeBundleError, compile_bytecode, ensure_runtime, runtime_members, stdlib_closure
+from .runtime import (
+    Runtime,
+    RuntimeBundleError,
+    compile_bytecode,
+    ensure_runtime,
+    runtime_members,
+    stdlib_closure,
+)
 
 __all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "c_compiler", "compile_extension", "main"]
 

@@ -49,7 +49,8 @@ __all__ = ["FMI3_PLATFORM", "FMI3_SHIM_SOURCES", "build_fmu3", "fmi3_model_descr
 FMI2_PLATFORM = "binaries/linux64/"
 FMI3_PLATFORM = "binaries/x86_64-linux/"
 # FMI 2.0 platform folder -> FMI 3.0 platform tuple, and the binaries' suffix
-PLATFORM_TUPLES = {FMI2_PLATFORM: (FMI3_PLATFORM, ".so"), "binaries/win64/": ("binaries/x86_64-windows/", ".dll")}
+PLATFORM_TUPLES = {FMI2_PLATFORM: (FMI3_PLATFORM, ".so"),
+                   "binaries/win64/": ("binaries/x86_64-windows/", ".dll")}
 FMI3_SHIM_SOURCES = (*SHIM_SOURCES, "fmi3_shim.c")
 TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
 # FMI 2.0 type attributes that FMI 3.0 keeps on the variable element (String's start is a child).
@@ -205,7 +206,8 @@ def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT) -> Path:
             if f"{fmi2}{model}{suffix}" not in entries:
                 continue
             windows = f"{model}.dll" if suffix == ".dll" else ""
-            shims[fmi3] = compile_shim(root, _ensure_runtime(), Path(tmp), FMI3_SHIM_SOURCES, defines, windows)
+            shims[fmi3] = compile_shim(root, _ensure_runtime(), Path(tmp), FMI3_SHIM_SOURCES, defines,
+                                       windows)
             moved = {(fmi3 + name[len(fmi2):] if name.startswith(fmi2) else name): data
                      for name, data in moved.items()}
             moved[f"{fmi3}{model}{suffix}"] = shims[fmi3]

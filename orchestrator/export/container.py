@@ -2,9 +2,9 @@
 
 The archive holds ``modelDescription.xml`` (the exposed variables ``<component>.<variable>``, the
 scenario's DefaultExperiment and step), ``binaries/linux64/<id>.so`` and ``binaries/win64/<id>.dll``
-(the container runtime of ``fmu_src/container``), ``resources/container.plan`` (:mod:`.plan`) and each distinct FMU of the
-scenario unpacked under ``resources/fmus/<name>/``. Rebuilding from the same scenario and options
-gives the same bytes; the GUID is a digest of them.
+(the container runtime of ``fmu_src/container``), ``resources/container.plan`` (:mod:`.plan`) and
+each distinct FMU of the scenario unpacked under ``resources/fmus/<name>/``. Rebuilding from the
+same scenario and options gives the same bytes; the GUID is a digest of them.
 """
 
 from __future__ import annotations

@@ -65,7 +65,8 @@ class Wine:
                               capture_output=True, text=True, errors="replace", timeout=timeout)
 
 
-def run_wine(env: dict[str, str], root: Path, args: list[str], timeout: float) -> subprocess.CompletedProcess[str]:
+def run_wine(env: dict[str, str], root: Path, args: list[str],
+             timeout: float) -> subprocess.CompletedProcess[str]:
     """``wine64 args`` with its standard output and error in files under ``root`` (so for wineboot:
     the services it starts would hold pipes open for the whole session)."""
     out, err = root / "wine.stdout", root / "wine.stderr"
@@ -80,8 +81,8 @@ def make_prefix(root: Path) -> Wine:
     """A new wine prefix under ``root`` (wineboot, no Mono or Gecko), with the plan host
     cross-compiled into C:/hosts/ (console.exe, gui.exe) and built for Linux."""
     prefix = root / "prefix"
-    env = {**os.environ, "WINEPREFIX": str(prefix), "WINEDEBUG": "-all", "WINEDLLOVERRIDES": "mscoree,mshtml=",
-           "WINEARCH": "win64"}
+    env = {**os.environ, "WINEPREFIX": str(prefix), "WINEDEBUG": "-all",
+           "WINEDLLOVERRIDES": "mscoree,mshtml=", "WINEARCH": "win64"}
     env.pop("DISPLAY", None)
     prefix.mkdir(parents=True)
     # the server first, kept for the session: every wine process then connects to it instead of
@@ -99,8 +100,8 @@ def make_prefix(root: Path) -> Wine:
                    capture_output=True)
     cc = shutil.which("cc") or shutil.which("gcc") or "cc"
     linux_host = root / "linux_host"
-    subprocess.run([cc, "-std=c11", "-O2", "-Wall", "-o", str(linux_host), str(HOST_SOURCE), "-ldl"], check=True,
-                   capture_output=True)
+    subprocess.run([cc, "-std=c11", "-O2", "-Wall", "-o", str(linux_host), str(HOST_SOURCE), "-ldl"],
+                   check=True, capture_output=True)
     return Wine(prefix, linux_host, env)
 
 
@@ -142,20 +143,23 @@ def item(label: str, folder: Path, steps: int, step: float, set_inputs: bool = T
     root = ElementTree.parse(folder / "modelDescription.xml").getroot()
     fmi = "3" if root.get("fmiVersion", "").startswith("3") else "2"
     if fmi == "3":
-        variables = [(v.get("causality"), int(v.get("valueReference", "0"))) for v in root.find("ModelVariables")
-                     if v.tag == "Float64"]
+        listed = root.find("ModelVariables")
+        assert listed is not None
+        variables = [(v.get("causality"), int(v.get("valueReference", "0")))
+                     for v in listed if v.tag == "Float64"]
         cosim = root.find("CoSimulation")
         token = root.get("instantiationToken", "")
     else:
-        variables = [(v.get("causality"), int(v.get("valueReference", "0"))) for v in root.iter("ScalarVariable")
-                     if v.find("Real") is not None]
+        variables = [(v.get("causality"), int(v.get("valueReference", "0")))
+                     for v in root.iter("ScalarVariable") if v.find("Real") is not None]
         cosim = root.find("CoSimulation")
         token = root.get("guid", "")
     assert cosim is not None
     inputs = [vr for causality, vr in variables if causality == "input"] if set_inputs else []
     outputs = [vr for causality, vr in variables if causality == "output"]
     sets = tuple((vr, round(0.1 * (k + 1), 1)) for k, vr in enumerate(inputs))
-    return Item(label, fmi, folder, cosim.get("modelIdentifier", ""), token, steps, step, sets, tuple(outputs))
+    model = cosim.get("modelIdentifier", "")
+    return Item(label, fmi, folder, model, token, steps, step, sets, tuple(outputs))
 
 
 def plan_text(items: list[Item], path_of: object, python: str | None = None) -> str:
@@ -205,7 +209,8 @@ def run_windows(wine: Wine, items: list[Item], gui: bool = False, python: str | 
     out.unlink(missing_ok=True)
     host = "C:/hosts/gui.exe" if gui else "C:/hosts/console.exe"
     result = wine.run(host, wine.windows_path(plan), wine.windows_path(out), files=files)
-    text = out.read_text(encoding="utf-8", errors="replace") if out.is_file() else result.stdout + result.stderr
+    text = (out.read_text(encoding="utf-8", errors="replace") if out.is_file()
+            else result.stdout + result.stderr)
     return parse(result.returncode, text)
 
 
