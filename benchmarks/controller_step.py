@@ -3,8 +3,9 @@
 ``python benchmarks/controller_step.py`` prints, for n = 2 and Example 1 gains, the median over
 batches of the time per call in microseconds, for the whole step and for its parts, on the
 general-n library path (:class:`controller.stepping.AdaptiveController`) and on the n = 2 scalar
-path the FMU runs (:class:`controller.order2.Order2Controller`), in the same run. Figures only:
-timings are never asserted.
+path the FMU ran before issue 35 (:class:`controller.order2.Order2Controller`), in the same run.
+The FMUs now run the compiled law (``controller/_law.c``); ``benchmarks/fmu_step.py`` measures them.
+Figures only: timings are never asserted.
 """
 
 from __future__ import annotations

@@ -1,16 +1,30 @@
-"""Cost of one fmi2DoStep of each FMU called from fmpy, in microseconds (median of many).
+"""Cost of one communication step of each FMU, in microseconds: in a C host and from fmpy.
 
-Also the cost of reading the outputs after new inputs (the direct-feedthrough getters). The
-plants are measured with their default integrator (Dormand-Prince 5(4), ``method`` 0) and with
-the fixed-step RK4 (``method`` 1, 40 sub-steps per 1 ms).
-Usage: ``python benchmarks/fmu_step.py [--steps N] [--fmus DIR]`` (builds into a temp dir by default).
+* **C host** (``benchmarks/fmu_step_host.c``, compiled here with ``cc``): per step fmi2SetReal of the
+  inputs, fmi2GetReal of the outputs, fmi2DoStep, as a C/C++ master (libcosim, OMSimulator) makes
+  them, with nothing of the host in the loop: the FMU's own share of a closed-loop step. CPU time of
+  the host process per step (other processes on the machine do not change it) and the median over
+  batches of 100 steps of the wall clock. The inputs are waves of the size a closed loop produces
+  (the controller's: yd = 0.5 sin t with its derivatives, states near it).
+* **fmpy** (Python ctypes, as before issue 35): the median doStep, and get outputs / set inputs /
+  get outputs (the direct-feedthrough getters), each with fmpy's own per-call cost inside.
+
+The controller's share of a closed-loop step (issue 35: at most 3 us) is the C host's figure of the
+controller FMU. ``--before DIR`` measures the FMUs of an earlier build (e.g. the last commit's
+``build/fmus``) in the same run, beside the current ones. The plants are measured with their
+default integrator (Dormand-Prince 5(4)); ``--rk4`` adds the fixed-step RK4 (``method`` 1).
+
+Usage: ``python benchmarks/fmu_step.py [--steps N] [--fmus DIR] [--before DIR] [--rk4]`` (builds
+into a temporary folder without ``--fmus``). Figures only: timings are never asserted.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import shutil
 import statistics
+import subprocess
 import tempfile
 import time
 from pathlib import Path
@@ -21,35 +35,43 @@ from fmpy.fmi2 import FMU2Slave
 from fmu_src.build import FMU_SCRIPTS, build_all
 
 H = 1e-3
+HOST = Path(__file__).with_name("fmu_step_host.c")
+GOAL_US = 3.0  # issue 35: the controller's share of a closed-loop step
+HALF_PI = math.pi / 2
 
 
-def inputs_at(model: str, k: int, out: dict[str, float]) -> dict[str, float]:
-    """Inputs of the size a closed loop produces, changing every step (plants under a PD law:
-    open loop the pendulum diverges)."""
+def waves(model: str, names: list[str]) -> dict[str, tuple[float, float, float]]:
+    """Input name -> (amplitude, omega, phase) of a closed loop's size: the controller's reference
+    yd = 0.5 sin t with its derivatives (consistent with it), states near them; a plant's or the
+    actuator's input a bounded wave."""
+    out = {}
+    for name in names:
+        if name.startswith("yd"):
+            order = 0 if name == "yd" else name.count("d") - 1  # yd_dot: 1, yd_ddot: 2, ...
+            out[name] = (0.5, 1.0, order * HALF_PI)
+        elif name.startswith("x") and "Controller" in model:
+            i = int(name[1:])
+            out[name] = (0.5 + 0.1 * i, 1.0, (i - 1) * HALF_PI + 0.3)
+        else:
+            out[name] = (2.0 if name in ("v", "uf") else 0.3, 3.0, 0.1)
+    return out
+
+
+def fmpy_inputs(model: str, names: list[str], k: int) -> dict[str, float]:
+    """The waves of :func:`waves` at step k (fmpy loop)."""
     t = k * H
-    return {
-        "Reference": {},
-        "FixedTimeController": {
-            "x1": 0.5 * math.cos(t),
-            "x2": 0.3 * math.sin(t),
-            "yd": 0.5 * math.sin(t),
-            "yd_dot": 0.5 * math.cos(t),
-            "yd_ddot": -0.5 * math.sin(t),
-        },
-        "Actuator": {"v": 2.0 * math.sin(t), "x1": 0.1, "x2": 0.2},
-        "Example1Plant": {"uf": math.sin(t) - 20.0 * out.get("x1", 0.0) - 10.0 * out.get("x2", 0.0)},
-        "PendulumPlant": {"uf": math.sin(t) - 20.0 * out.get("x1", 0.0) - 10.0 * out.get("x2", 0.0)},
-    }[model]
+    return {n: a * math.sin(w * t + p) for n, (a, w, p) in waves(model, names).items()}
 
 
-def measure(path: Path, steps: int, method: int | None = None) -> tuple[float, float]:
-    """(median doStep, median get-outputs/set-inputs/get-outputs) in microseconds; ``method`` sets
-    a plant's integrator."""
+def measure_fmpy(path: Path, steps: int, method: int | None = None) -> tuple[float, float]:
+    """(median doStep, median get-outputs/set-inputs/get-outputs) in microseconds, from fmpy."""
     md = read_model_description(str(path))
     vr = {v.name: v.valueReference for v in md.modelVariables}
     outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+    inputs = [v.name for v in md.modelVariables if v.causality == "input"]
     fmu = FMU2Slave(
-        guid=md.guid, unzipDirectory=extract(str(path)), modelIdentifier=md.modelName, instanceName="bench"
+        guid=md.guid, unzipDirectory=extract(str(path)), modelIdentifier=md.coSimulation.modelIdentifier,
+        instanceName="bench",
     )
     fmu.instantiate()
     try:
@@ -62,7 +84,9 @@ def measure(path: Path, steps: int, method: int | None = None) -> tuple[float, f
         for k in range(steps):
             start = time.perf_counter_ns()
             out = dict(zip(outputs, fmu.getReal([vr[n] for n in outputs]), strict=True))
-            values = inputs_at(md.modelName, k, out)
+            values = fmpy_inputs(md.modelName, inputs, k)
+            if "Plant" in md.modelName:  # under a PD law, as in the C host
+                values["uf"] += -20.0 * out["x1"] - 10.0 * out["x2"]
             if values:
                 fmu.setReal([vr[n] for n in values], list(values.values()))
                 fmu.getReal([vr[n] for n in outputs])  # direct-feedthrough outputs for the new inputs
@@ -77,24 +101,72 @@ def measure(path: Path, steps: int, method: int | None = None) -> tuple[float, f
     return statistics.median(step_times) / 1e3, statistics.median(io_times) / 1e3
 
 
+def compile_host(where: Path) -> Path:
+    """benchmarks/fmu_step_host.c compiled into ``where``."""
+    target = where / "fmu_step_host"
+    compiler = shutil.which("cc") or shutil.which("gcc") or "cc"
+    subprocess.run([compiler, "-std=c11", "-O2", "-o", str(target), str(HOST), "-ldl", "-lm"], check=True)
+    return target
+
+
+def measure_c(host: Path, path: Path, steps: int) -> tuple[float, float]:
+    """(CPU us per step, median wall us per step) of the FMU in the C host."""
+    md = read_model_description(str(path))
+    folder = Path(extract(str(path)))
+    binary = folder / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"
+    variables = {v.name: v for v in md.modelVariables}
+    inputs = [n for n, v in variables.items() if v.causality == "input"]
+    args = [f"i:{variables[n].valueReference}={a!r},{w!r},{p!r}" for n, (a, w, p) in waves(md.modelName,
+                                                                                             inputs).items()]
+    outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+    args += [f"o:{variables[n].valueReference}" for n in outputs]
+    if "Plant" in md.modelName:  # under a PD law, as in a loop: open loop a plant leaves its range
+        args += [f"f:{outputs.index('x1')},0=-20.0", f"f:{outputs.index('x2')},0=-10.0"]
+    resources = folder.joinpath("resources").as_uri()
+    command = [str(host), str(binary), resources, md.guid, str(steps), repr(H), "100"]
+    result = subprocess.run([*command, *args], capture_output=True, text=True, timeout=600)
+    shutil.rmtree(folder, ignore_errors=True)
+    if result.returncode != 0:
+        raise RuntimeError(f"{path.name}: the C host failed ({result.returncode}): {result.stderr.strip()}")
+    figures = dict(line.split() for line in result.stdout.splitlines())
+    return float(figures["cpu_ns_per_step"]) / 1e3, float(figures["median_ns_per_step"]) / 1e3
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Print one line per FMU."""
+    """Print one line per FMU (and per earlier FMU with ``--before``), then the controller's share."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--steps", type=int, default=3000, help="doSteps per FMU (default 3000)")
+    parser.add_argument("--steps", type=int, default=3000, help="communication steps per FMU (default 3000)")
     parser.add_argument("--fmus", type=Path, help="folder with the built FMUs (default: build now)")
+    parser.add_argument("--before", type=Path, help="folder with FMUs of an earlier build, measured beside")
+    parser.add_argument("--rk4", action="store_true", help="also the plants with RK4 (fmpy only)")
     options = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         folder = options.fmus or Path(tmp)
         if options.fmus is None:
             build_all(folder)
-        print(
-            f"{'FMU':<22}{'doStep [us]':>14}{'get+set+get [us]':>19}   (median of {options.steps}, h = 1 ms)"
-        )
-        for model in FMU_SCRIPTS:
-            for method in (None, 1) if "Plant" in model else (None,):
-                step, io = measure(folder / f"{model}.fmu", options.steps, method)
-                label = model if method is None else f"{model} RK4"
-                print(f"{label:<22}{step:>14.1f}{io:>19.1f}")
+        host = compile_host(Path(tmp))
+        sets = [("", folder)] + ([("before: ", options.before)] if options.before else [])
+        print(f"{'FMU':<32}{'C host: CPU':>12}{'median':>9}{'fmpy doStep':>13}{'get+set+get':>13}"
+              f"   (us per step, {options.steps} steps, h = 1 ms)")
+        share: dict[str, float] = {}
+        for label, where in sets:
+            for model in FMU_SCRIPTS:
+                path = where / f"{model}.fmu"
+                if not path.is_file():
+                    continue
+                cpu, wall = measure_c(host, path, options.steps)
+                step, io = measure_fmpy(path, options.steps)
+                name = label + model
+                share[name] = cpu
+                print(f"{name:<32}{cpu:>12.2f}{wall:>9.2f}{step:>13.1f}{io:>13.1f}")
+                if options.rk4 and "Plant" in model:
+                    step, io = measure_fmpy(path, options.steps, method=1)
+                    print(f"{name + ' RK4':<32}{'-':>12}{'-':>9}{step:>13.1f}{io:>13.1f}")
+        controllers = {n: v for n, v in share.items() if "FixedTimeController" in n}
+        for name, cpu in controllers.items():
+            verdict = "within" if cpu <= GOAL_US else "above"
+            print(f"controller's share, {name}: {cpu:.2f} us per communication step, {verdict} the "
+                  f"{GOAL_US:g} us goal")
     return 0
 
 

@@ -14,7 +14,9 @@ from dataclasses import dataclass
 from .params import SEMI_IMPLICIT, ControllerParameters
 from .rbf import rbf_energy
 
-__all__ = ["ControlTerms", "evaluate", "semi_implicit_feedback", "sig"]
+__all__ = [
+    "ControlTerms", "InputError", "check_inputs", "derivative", "evaluate", "semi_implicit_feedback", "sig",
+]
 
 
 def sig(z: float, p: float) -> float:
@@ -30,6 +32,20 @@ def semi_implicit_feedback(z: float, phi: float, bh: float) -> float:
     (magnitude at the sample, sign set-valued at the next one: Acary and Brogliato's implicit sign).
     """
     return -math.copysign(min(phi, abs(z) / bh), z) if z != 0.0 else 0.0
+
+
+class InputError(ValueError):
+    """Plant states or reference derivatives that do not fit the controller's plant order n."""
+
+
+def check_inputs(x: Sequence[float], yd: Sequence[float], n: int) -> None:
+    """Raise :class:`InputError` (one line) unless ``x`` has n entries and ``yd`` has n + 1."""
+    if len(x) != n:
+        raise InputError(f"x must have n = {n} entries x1..x{n} (got {len(x)}): the controller is for a "
+                         f"plant of order {n}")
+    if len(yd) != n + 1:
+        raise InputError(f"yd must have n + 1 = {n + 1} entries, yd and its derivatives up to order {n} "
+                         f"(got {len(yd)})")
 
 
 @dataclass(frozen=True)
@@ -53,7 +69,31 @@ def evaluate(
 
     ``derivative`` is ``[r', eta_hat_1', ..., eta_hat_n']`` (eq. 20, 38, 55, 69). With
     ``p.discretization`` semi-implicit each zeta_i is :func:`semi_implicit_feedback` of its terms.
+    ``x`` must have n entries and ``yd`` n + 1 (:class:`InputError` otherwise).
     """
+    check_inputs(x, yd, p.n)
+    z, zeta, ptp, rates = _law(state, x, yd, p, True)
+    return ControlTerms(v=zeta[-1], z=tuple(z), zeta=tuple(zeta), ptp=tuple(ptp), derivative=tuple(rates))
+
+
+def derivative(
+    state: Sequence[float],
+    x: Sequence[float],
+    yd: Sequence[float],
+    p: ControllerParameters,
+) -> tuple[float, ...]:
+    """``[r', eta_hat_1', ..., eta_hat_n']`` alone: :func:`evaluate` without the actual control
+    v = zeta_n, which no state derivative needs (the stages of a step skip it: the same values,
+    and no error from evaluating v)."""
+    check_inputs(x, yd, p.n)
+    return tuple(_law(state, x, yd, p, False)[3])
+
+
+def _law(
+    state: Sequence[float], x: Sequence[float], yd: Sequence[float], p: ControllerParameters, with_v: bool
+) -> tuple[list[float], list[float], list[float], list[float]]:
+    """(z, zeta, P^T P, state derivative), each per step; ``with_v`` False leaves zeta_n out. The
+    order of every operation is a contract: ``controller/_law.c`` repeats it for the same bits."""
     n = p.n
     r = state[0]
     eta = state[1:]
@@ -69,7 +109,7 @@ def evaluate(
     z_list: list[float] = []
     zeta_list: list[float] = []
     ptp_list: list[float] = []
-    derivative = [-p.a_bar * r + p.gamma_gain * abs(x[0]) ** p.gamma_power + p.d_r]  # eq. 20
+    rates = [-p.a_bar * r + p.gamma_gain * abs(x[0]) ** p.gamma_power + p.d_r]  # eq. 20
     previous = yd[0]
     for i in range(n):
         if i > 0:
@@ -79,20 +119,20 @@ def evaluate(
         z = x[i] - previous  # eq. 26
         ptp = rbf_energy(s1, s2, dim, p.centers, p.width)
         weight = ptp / (2.0 * p.a[i] * p.a[i])
-        if semi:
+        if i == n - 1 and not with_v:
+            zeta = 0.0
+        elif semi:
             a = abs(z)
             zeta = semi_implicit_feedback(z, k[i] * a**p_alpha + p.q[i] * a**p_beta + eta[i] * a * weight, bh)
+        elif z != 0.0:  # eq. 37/54/68; zeta = 0 at z = 0 (sig(0) = 0), as a positive zero
+            zeta = -k[i] * sig(z, p_alpha) - p.q[i] * sig(z, p_beta) - eta[i] * z * weight
         else:
-            zeta = -k[i] * sig(z, p_alpha) - p.q[i] * sig(z, p_beta) - eta[i] * z * weight  # eq. 37/54/68
-        derivative.append(p.kappa[i] * z * z * weight - (p.rho[i] + p.rho_bar[i]) * eta[i])  # eq. 38
+            zeta = 0.0
+        rates.append(p.kappa[i] * z * z * weight - (p.rho[i] + p.rho_bar[i]) * eta[i])  # eq. 38
         z_list.append(z)
         zeta_list.append(zeta)
         ptp_list.append(ptp)
         previous = zeta
-    return ControlTerms(
-        v=zeta_list[-1],
-        z=tuple(z_list),
-        zeta=tuple(zeta_list),
-        ptp=tuple(ptp_list),
-        derivative=tuple(derivative),
-    )
+    if not with_v:
+        zeta_list.pop()
+    return z_list, zeta_list, ptp_list, rates

@@ -9,8 +9,12 @@ tuple. What depends on the inputs alone (z1 and its powers, the gamma term of r'
 share of the RBF sums) is computed once per step and shared by the output and the three further
 RK4 stages, which also skip v (the derivatives do not need it): each partial result is the value
 the whole law computes, so this changes no bit. The operations are those of the general path in
-the same order, so the two agree to round-off (``tests/test_controller_order2.py`` checks 1e-12
-over many random states and steps).
+the same order, so the two give the same bits (``tests/test_controller_order2.py``).
+
+The n = 2 controller FMU ran this path until issue 35 compiled the law (:mod:`controller.native`);
+it stays the library's pure-Python path for n = 2 (about 3 times faster than the general one) and
+the record of the FMU's former arithmetic (``tests/test_controller_n2_identity.py`` replays every
+shipped scenario through it).
 """
 
 from __future__ import annotations

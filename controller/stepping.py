@@ -14,10 +14,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from .law import ControlTerms, evaluate
+from .law import ControlTerms, check_inputs, derivative, evaluate
 from .params import ControllerParameters
 
-__all__ = ["AdaptiveController"]
+__all__ = ["AdaptiveController", "rk4_step"]
 
 
 class AdaptiveController:
@@ -59,19 +59,33 @@ class AdaptiveController:
 
     def advance(self, x: Sequence[float], yd: Sequence[float], h: float) -> None:
         """Integrate r and eta_hat over a step of length h with x and yd held (RK4)."""
-        p = self.params
-        dt = h / self.substeps
-        y = self.state
-        m = len(y)
         # The law at this state and these inputs, if output() has just evaluated it.
-        first = self.last if self._last_arguments == (tuple(y), tuple(x), tuple(yd)) else None
-        for _ in range(self.substeps):
-            k1 = first.derivative if first is not None else evaluate(y, x, yd, p).derivative
-            first = None
-            k2 = evaluate([y[j] + 0.5 * dt * k1[j] for j in range(m)], x, yd, p).derivative
-            k3 = evaluate([y[j] + 0.5 * dt * k2[j] for j in range(m)], x, yd, p).derivative
-            k4 = evaluate([y[j] + dt * k3[j] for j in range(m)], x, yd, p).derivative
-            y = [
-                y[j] + dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]) for j in range(m)
-            ]
-        self.state = y
+        y = self.state
+        terms = self.last if self._last_arguments == (tuple(y), tuple(x), tuple(yd)) else None
+        first = None if terms is None else terms.derivative
+        self.state = rk4_step(y, x, yd, self.params, h, self.substeps, first)
+
+
+def rk4_step(
+    state: Sequence[float],
+    x: Sequence[float],
+    yd: Sequence[float],
+    p: ControllerParameters,
+    h: float,
+    substeps: int = 1,
+    first: Sequence[float] | None = None,
+) -> list[float]:
+    """``[r, eta_hat_1..eta_hat_n]`` after a step of length h with x and yd held: ``substeps`` classical
+    RK4 steps; ``first``, if given, is the state derivative at ``state`` (the first stage)."""
+    check_inputs(x, yd, p.n)
+    dt = h / substeps
+    y = list(state)
+    m = len(y)
+    for _ in range(substeps):
+        k1 = first if first is not None else derivative(y, x, yd, p)
+        first = None
+        k2 = derivative([y[j] + 0.5 * dt * k1[j] for j in range(m)], x, yd, p)
+        k3 = derivative([y[j] + 0.5 * dt * k2[j] for j in range(m)], x, yd, p)
+        k4 = derivative([y[j] + dt * k3[j] for j in range(m)], x, yd, p)
+        y = [y[j] + dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]) for j in range(m)]
+    return y

@@ -1,4 +1,4 @@
-"""Build the project's five FMUs with pythonfmu, reproducibly and safe to load side by side.
+"""Build the project's FMUs with pythonfmu, reproducibly and safe to load side by side.
 
 All pythonfmu FMUs in one process share one interpreter and one module cache, and each FMU's
 ``resources`` folder goes to ``sys.path[0]``. So two FMUs that bundle modules of the same name
@@ -6,7 +6,8 @@ see whichever was imported first. To rule that out, every FMU bundles its script
 ``ftc_<model>_<hash>.py`` and the code it needs (modules of ``fmu_src`` and ``controller``) as a
 package ``_ftc_<model>_<hash>``, where ``<hash>`` is a digest of every bundled byte. Only the
 script's own ``from fmu_src... / from controller... import`` lines are rewritten (with ``ast``);
-bundled modules must import each other relatively.
+bundled modules must import their own package relatively, and the other local package with a
+module-level ``from ... import`` (rewritten likewise: ``fmu_src.controller_core`` uses ``controller``).
 
 Each FMU carries its own CPython runtime for each platform, and no third-party package (a bundled
 module that imports one is refused): ``binaries/linux64`` Debian 12's (``fmu_src/runtime.py``:
@@ -52,6 +53,8 @@ import pythonfmu
 from pythonfmu import FmuBuilder
 
 from . import runtime_win64
+from .controller_doc import controller_documentation
+from .licences import documentation, generation_tool
 from .runtime import (
     Runtime,
     RuntimeBundleError,
@@ -69,9 +72,13 @@ LOCAL_PACKAGES = ("fmu_src", "controller")
 FMU_SCRIPTS = {
     "Reference": "reference.py",
     "FixedTimeController": "fixed_time_controller.py",
+    "FixedTimeController1": "fixed_time_controller1.py",
+    "FixedTimeController3": "fixed_time_controller3.py",
+    "FixedTimeController4": "fixed_time_controller4.py",
     "Actuator": "actuator.py",
     "Example1Plant": "example1_plant.py",
     "PendulumPlant": "pendulum_plant.py",
+    "ManipulatorPlant": "manipulator_plant.py",
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
@@ -94,15 +101,22 @@ MINGW_FLAGS = tuple(
     "-Wl,--no-insert-timestamp".split()
 )
 WIN_PYCONFIG = Path("fmu_src", "shim", "win64", "pyconfig.h")  # relative to the source root
-# Windows extension modules: no C runtime of their own, python3.dll (stable ABI) and the math of
-# the Universal C Runtime (api-ms-win-crt-math, what python311.dll's math module calls) imported.
+# Windows extension modules: no C runtime of their own, python3.dll (stable ABI) and the Universal
+# C Runtime imported as python311.dll imports it: its math (what the math module calls) and errno
+# (where that math reports ERANGE/EDOM, read by controller/_law.c as float_pow reads it), and
+# memcpy from VCRUNTIME140.dll (shipped; python311.dll has loaded it before any extension).
 WIN_EXTENSION_FLAGS = tuple(
     "-std=c11 -O2 -shared -g0 -Wall -Wextra -ffp-contract=off -fno-builtin-sin -fno-builtin-cos "
     "-DPy_LIMITED_API=0x03080000 -s -Wl,--no-insert-timestamp -Wl,--disable-auto-import "
     "-Wl,--disable-runtime-pseudo-reloc -nostdlib -Wl,-e,0".split()
 )
 WIN_EXTENSION_SUFFIX = ".pyd"
-WIN_MATH = ("sin", "cos", "pow", "sqrt", "exp", "log", "atan2", "hypot", "fabs", "floor", "fmod")
+WIN_IMPORTS = {
+    "api-ms-win-crt-math-l1-1-0.dll": ("sin", "cos", "pow", "sqrt", "exp", "log", "atan2", "hypot", "fabs",
+                                       "floor", "fmod"),
+    "api-ms-win-crt-runtime-l1-1-0.dll": ("_errno",),
+    "VCRUNTIME140.dll": ("memcpy", "memmove", "memset"),
+}
 DESCRIPTION_COPY = "_modelDescription.xml"  # guard.h's DESCRIPTION_SUFFIX
 PLATFORMS = (("linux64", ".so"), ("win64", ".dll"))  # FMI 2.0 platform folders, binary suffix
 # The bundled runtime as a command (for the build's bytecode and standard-library closure).
@@ -112,7 +126,8 @@ LAUNCHER_FLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra")
 # the source root): built against the runtime's headers for the stable ABI, so that one binary
 # loads in the FMU's runtime and in a host's Python alike. -ffp-contract=off: no fused
 # multiply-add, so the compiled arithmetic rounds as Python's does (see fmu_src/models/_dopri.c).
-EXTENSIONS = {"fmu_src.models._dopri": Path("fmu_src", "models", "_dopri.c")}
+EXTENSIONS = {"fmu_src.models._dopri": Path("fmu_src", "models", "_dopri.c"),
+              "controller._law": Path("controller", "_law.c")}
 EXTENSION_SUFFIX = ".abi3.so"
 EXTENSION_FLAGS = (
     "-std=c11 -O2 -fPIC -shared -fvisibility=hidden -g0 -Wall -Wextra -ffp-contract=off "
@@ -218,11 +233,14 @@ def collect_bundle(model: str, root: Path = REPO_ROOT) -> Bundle:
             elif isinstance(node, ast.ImportFrom):
                 if node.level == 0:
                     assert node.module is not None  # an absolute "from X import" always names X
-                    if _is_local(node.module):
+                    if _is_local(node.module) and node.module.split(".")[0] == name.split(".")[0]:
                         raise BuildError(
                             f"{path}:{node.lineno}: bundled modules must import {node.module} relatively"
                         )
-                    third_party.add(node.module.split(".")[0])
+                    if _is_local(node.module):  # the other local package: rewritten by _stage
+                        pending.append(node.module)
+                    else:
+                        third_party.add(node.module.split(".")[0])
                 elif node.level == 1:
                     targets = [node.module] if node.module else [alias.name for alias in node.names]
                     pending.extend(f"{package}.{target}" for target in targets)
@@ -320,14 +338,17 @@ def compile_extension_win64(source: Path, runtime: Runtime, windows: runtime_win
     work = where / f"ext_win64_{source.stem}"
     work.mkdir(parents=True)
     shutil.copyfile(source, work / source.name)
-    definition = work / "crtmath.def"
-    definition.write_text("LIBRARY api-ms-win-crt-math-l1-1-0.dll\nEXPORTS\n" + "\n".join(WIN_MATH) + "\n")
     tool = Path(mingw()).with_name(Path(mingw()).name.replace("gcc", "dlltool"))
-    result = subprocess.run([str(tool), "-d", str(definition), "-l", str(work / "libcrtmath.a")],
-                            capture_output=True, text=True)
-    if result.returncode != 0:
-        raise BuildError(f"{tool} failed:\n{result.stderr.strip()}")
-    libraries = [str(windows.embed / "python3.dll"), "-L.", "-lcrtmath", "-lkernel32"]
+    libraries = [str(windows.embed / "python3.dll"), "-L."]
+    for number, (dll, symbols) in enumerate(WIN_IMPORTS.items()):  # an import library per DLL
+        definition = work / f"imports{number}.def"
+        definition.write_text(f"LIBRARY {dll}\nEXPORTS\n" + "\n".join(symbols) + "\n")
+        result = subprocess.run([str(tool), "-d", str(definition), "-l", str(work / f"libimports{number}.a")],
+                                capture_output=True, text=True)
+        if result.returncode != 0:
+            raise BuildError(f"{tool} failed:\n{result.stderr.strip()}")
+        libraries.append(f"-limports{number}")
+    libraries.append("-lkernel32")
     return _compile(work, runtime, WIN_EXTENSION_FLAGS, [source.name], libraries, source,
                     f"{source.stem}{WIN_EXTENSION_SUFFIX}")
 
@@ -398,20 +419,24 @@ def _licence(distribution: str) -> bytes:
     raise BuildError(f"no licence file in the installed {distribution} distribution")
 
 
-def _rewrite_script(bundle: Bundle, package: str) -> str:
-    """The script text with only its local ``from X import ...`` lines pointed into ``package``."""
-    lines = bundle.script.read_text(encoding="utf-8").splitlines(keepends=True)
-    tree = _parse(bundle.script)
+def _rewrite_imports(path: Path, package: str) -> str:
+    """The text of ``path`` with its absolute local ``from X import ...`` lines pointed into ``package``."""
+    lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
+    tree = _parse(path)
     for node in sorted(tree.body, key=lambda n: n.lineno, reverse=True):
-        if isinstance(node, ast.ImportFrom) and _is_local(node.module):
+        if isinstance(node, ast.ImportFrom) and not node.level and _is_local(node.module):
             new = ast.ImportFrom(module=f"{package}.{node.module}", names=node.names, level=0)
             lines[node.lineno - 1 : node.end_lineno] = [ast.unparse(new) + "\n"]
     text = "".join(lines)
     for found in ast.walk(ast.parse(text)):
-        if isinstance(found, ast.ImportFrom) and _is_local(found.module):
-            raise BuildError(
-                f"{bundle.script}:{found.lineno}: local import of {found.module} outside module level"
-            )
+        if isinstance(found, ast.ImportFrom) and not found.level and _is_local(found.module):
+            raise BuildError(f"{path}:{found.lineno}: local import of {found.module} outside module level")
+    return text
+
+
+def _rewrite_script(bundle: Bundle, package: str) -> str:
+    """The script text with only its local ``from X import ...`` lines pointed into ``package``."""
+    text = _rewrite_imports(bundle.script, package)
     classes = CLASS_LINE.findall(text)
     if classes != [bundle.model]:
         raise BuildError(
@@ -435,7 +460,7 @@ def _stage(bundle: Bundle, digest: str, where: Path) -> tuple[Path, Path]:
                 (package_dir / parent).mkdir(exist_ok=True)
                 (package_dir / parent / "__init__.py").write_text(init, encoding="utf-8")
         if target.name != "__init__.py":
-            shutil.copyfile(source, target)
+            target.write_text(_rewrite_imports(source, package), encoding="utf-8")
     script = where / f"ftc_{bundle.model.lower()}_{digest[:12]}.py"
     script.write_text(_rewrite_script(bundle, package), encoding="utf-8")
     return script, package_dir
@@ -460,6 +485,8 @@ def _normalized_description(xml: bytes, digest: str, model: str) -> bytes:
     root = ElementTree.fromstring(xml)
     root.set("guid", "{" + str(uuid.uuid5(GUID_NAMESPACE, f"{model}:{digest}")) + "}")
     root.attrib.pop("generationDateAndTime", None)
+    root.set("generationTool", generation_tool("PythonFMU 0.7.0, the shim and its own CPython"))
+    root.set("license", "BSD-2-Clause; bundled third-party licences: documentation/licenses/license.txt")
     cosimulation = root.find("CoSimulation")
     if cosimulation is None:
         raise BuildError(f"pythonfmu's model description of {model} has no CoSimulation element")
@@ -482,9 +509,14 @@ def _write_normalized(
             raise BuildError(f"pythonfmu's archive for {bundle.model} has no {binary}")
         entries[f"binaries/{platform}/{bundle.model}_pythonfmu{suffix}"] = entries[binary]
     entries.update(native)
+    entries.update(documentation(entries))
     entries["modelDescription.xml"] = _normalized_description(
         entries["modelDescription.xml"], digest, bundle.model
     )
+    try:  # the controller FMUs' documentation/index.html, from their model description
+        entries.update(controller_documentation(bundle.model, entries["modelDescription.xml"]))
+    except ValueError as error:
+        raise BuildError(str(error)) from error
     # the shim's guard reads it beside the binary: hosts may unpack only binaries/ and resources/
     for platform, _ in PLATFORMS:
         entries[f"binaries/{platform}/{bundle.model}{DESCRIPTION_COPY}"] = entries["modelDescription.xml"]

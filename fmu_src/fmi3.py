@@ -43,6 +43,7 @@ from .build import (
     compile_shim,
     write_archive,
 )
+from .licences import generation_tool
 
 __all__ = ["FMI3_PLATFORM", "FMI3_SHIM_SOURCES", "build_fmu3", "fmi3_model_description"]
 
@@ -103,6 +104,7 @@ def fmi3_model_description(xml: bytes, token: str) -> tuple[bytes, int]:
                  "variableNamingConvention"):
         if old.get(name) is not None:
             root.set(name, old.get(name, ""))
+    root.set("generationTool", generation_tool("FMI 3.0 layer on PythonFMU 0.7.0, the shim, its own CPython"))
     root.set("instantiationToken", token)
     cs = ElementTree.SubElement(root, "CoSimulation")
     for name2, name3 in COSIMULATION.items():

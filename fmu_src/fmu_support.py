@@ -58,6 +58,15 @@ UNITS: dict[str, dict[str, int]] = {
     "m/s2": {"m": 1, "s": -2},
     "kg/s2": {"kg": 1, "s": -2},
     "N": {"kg": 1, "m": 1, "s": -2},
+    # the manipulator's link and motor (issue 35)
+    "A": {"A": 1},
+    "V": {"kg": 1, "m": 2, "s": -3, "A": -1},
+    "H": {"kg": 1, "m": 2, "s": -2, "A": -2},
+    "Ohm": {"kg": 1, "m": 2, "s": -3, "A": -2},
+    "kg.m2": {"kg": 1, "m": 2},
+    "N.m/A": {"kg": 1, "m": 2, "s": -2, "A": -1},
+    "V.s/rad": {"kg": 1, "m": 2, "s": -2, "A": -1, "rad": -1},
+    "N.m.s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1},
 }
 
 DEFAULT_EXPERIMENT = DefaultExperiment(start_time=0.0, stop_time=30.0, step_size=0.001)

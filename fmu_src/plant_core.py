@@ -1,4 +1,5 @@
-"""What every plant FMU shares: states (x1, x2, z) in ``slave.state``, advanced over a
+"""What every plant FMU shares: three states (x1, x2 and z, or the plant's own third) in
+``slave.state``, advanced over a
 communication step with the input held, by the integrator the parameter ``method`` selects
 (:data:`~fmu_src.models.plants.DOPRI`: Dormand-Prince 5(4) with ``rtol``/``atol``, the default;
 :data:`~fmu_src.models.plants.RK4`: fixed sub-steps of at most ``max_step``). Functions, not a
@@ -53,13 +54,24 @@ DEFAULT_RTOL = 1e-10
 DEFAULT_ATOL = 1e-12
 
 
-def declare_plant_outputs(slave: Fmi2Slave, x1_unit: str | None, x2_unit: str | None) -> None:
-    """Register x1, x2, z and y = x1; none depends directly on the input uf."""
+def declare_plant_outputs(
+    slave: Fmi2Slave,
+    x1_unit: str | None,
+    x2_unit: str | None,
+    third: tuple[str, str, str | None] = ("z", "Unmodeled dynamics z", None),
+    labels: tuple[str, str] = ("Plant state x1", "Plant state x2"),
+) -> None:
+    """Register x1, x2, the third state (``third``: name, description, unit; the examples' z) and
+    y = x1; none depends directly on the input uf. Their initial values are the parameters
+    ``<name>_0``."""
     out = Fmi2Causality.output
-    slave.x1 = slave.x2 = slave.z = slave.y = 0.0  # written by refresh_plant_outputs
-    declare(slave, "x1", out, "Plant state x1", unit=x1_unit, depends_on=())
-    declare(slave, "x2", out, "Plant state x2", unit=x2_unit, depends_on=())
-    declare(slave, "z", out, "Unmodeled dynamics z", depends_on=())
+    name, description, unit = third
+    slave._states = ("x1", "x2", name)
+    for state in (*slave._states, "y"):
+        setattr(slave, state, 0.0)  # written by refresh_plant_outputs
+    declare(slave, "x1", out, labels[0], unit=x1_unit, depends_on=())
+    declare(slave, "x2", out, labels[1], unit=x2_unit, depends_on=())
+    declare(slave, name, out, description, unit=unit, depends_on=())
     declare(slave, "y", out, "Plant output y = x1", unit=x1_unit, depends_on=())
 
 
@@ -148,7 +160,7 @@ def resolved_method(slave: Fmi2Slave) -> int:
 
 def plant_problems(slave: Fmi2Slave) -> list[str]:
     """Violated constraints of the initial states and integrator parameters (empty if valid)."""
-    initial = {"x1_0": slave.x1_0, "x2_0": slave.x2_0, "z_0": slave.z_0}
+    initial = {f"{name}_0": getattr(slave, f"{name}_0") for name in slave._states}
     problems = integration_problems(initial, slave.max_step)
     if slave.method not in (DOPRI, RK4):
         problems.append(f"method must be {DOPRI} (Dormand-Prince) or {RK4} (RK4) (got {slave.method!r})")
@@ -171,17 +183,25 @@ def plant_problems(slave: Fmi2Slave) -> list[str]:
 
 def start_plant(slave: Fmi2Slave) -> None:
     """Leave initialization: the initial states, the integrator chosen, no step size carried yet."""
-    slave.state = (slave.x1_0, slave.x2_0, slave.z_0)
+    slave.state = _initial(slave)
     slave._method = resolved_method(slave)
     slave._next_step = 0.0
     mark_stale(slave)
 
 
+def _initial(slave: Fmi2Slave) -> State:
+    x1, x2, x3 = (getattr(slave, f"{name}_0") for name in slave._states)
+    return x1, x2, x3
+
+
 def refresh_plant_outputs(slave: Fmi2Slave) -> None:
     """The outputs: the states now (the initial-value parameters until initialization has finished)."""
-    state = slave.state if slave.state is not None else (slave.x1_0, slave.x2_0, slave.z_0)
-    slave.x1, slave.x2, slave.z = state
-    slave.y = state[0]
+    d = slave.__dict__
+    state = d["state"] if d["state"] is not None else _initial(slave)
+    first, second, third = d["_states"]
+    d[first] = d["y"] = state[0]
+    d[second] = state[1]
+    d[third] = state[2]
 
 
 def step_plant(
@@ -207,12 +227,12 @@ def step_plant(
         elif slave._method == DOPRI:
             new, slave._next_step, _, _ = dopri_hold_step(
                 rhs, current_time, slave.state, slave.uf, step_size, slave.rtol, slave.atol, slave._next_step,
-                limit, slave.max_steps, slave.y_limit, slave.rate_horizon,
+                limit, slave.max_steps, slave.y_limit, slave.rate_horizon, native.names,
             )
         else:
             new = hold_step(
                 rhs, current_time, slave.state, slave.uf, step_size, slave.max_step,
-                limit, slave.y_limit, slave.rate_horizon,
+                limit, slave.y_limit, slave.rate_horizon, native.names,
             )
     except (ValueError, OverflowError) as error:  # overflow, state limit, step budget
         report(

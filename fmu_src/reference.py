@@ -1,4 +1,5 @@
-"""FMU ``Reference``: yd = amplitude sin(omega t + phase) + offset with its first two derivatives.
+"""FMU ``Reference``: yd = amplitude sin(omega t + phase) + offset with its first four derivatives
+(a controller for a plant of order n takes yd and n of them).
 
 The outputs are the values at the current communication point t (no state besides time).
 """
@@ -8,7 +9,7 @@ from __future__ import annotations
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from fmu_src.fmu_support import declare, fmu_model, mark_stale, raise_problems
-from fmu_src.models.reference import ReferenceParameters, reference_problems, reference_signal
+from fmu_src.models.reference import ReferenceParameters, reference_derivatives, reference_problems
 
 PARAMETER = Fmi2Causality.parameter
 OUTPUT = Fmi2Causality.output
@@ -16,7 +17,7 @@ OUTPUT = Fmi2Causality.output
 
 @fmu_model
 class Reference(Fmi2Slave):
-    """Sinusoidal reference signal yd and its derivatives yd', yd''."""
+    """Sinusoidal reference signal yd and its derivatives up to the fourth."""
 
     description = "Reference signal yd = amplitude*sin(omega*t + phase) + offset and derivatives"
 
@@ -27,7 +28,7 @@ class Reference(Fmi2Slave):
         self.phase = 0.0
         self.offset = 0.0
         self.time = 0.0
-        self.yd = self.yd_dot = self.yd_ddot = 0.0  # written by refresh_outputs
+        self.yd = self.yd_dot = self.yd_ddot = self.yd_dddot = self.yd_ddddot = 0.0  # by refresh_outputs
         self._params: ReferenceParameters | None = None  # frozen at exit_initialization_mode
         declare(self, "yd", OUTPUT, "Reference yd(t)", depends_on=())
         declare(self, "yd_dot", OUTPUT, "First derivative yd'(t)", depends_on=())
@@ -36,13 +37,17 @@ class Reference(Fmi2Slave):
         declare(self, "omega", PARAMETER, "Angular frequency", unit="rad/s")
         declare(self, "phase", PARAMETER, "Phase at t = 0", unit="rad")
         declare(self, "offset", PARAMETER, "Constant offset added to the sine")
+        # Added last (issue 35: plants of order 3 and 4), so the value references above stay where they were.
+        declare(self, "yd_dddot", OUTPUT, "Third derivative yd'''(t)", depends_on=())
+        declare(self, "yd_ddddot", OUTPUT, "Fourth derivative yd''''(t)", depends_on=())
 
     def _parameters(self) -> ReferenceParameters:
         return ReferenceParameters(self.amplitude, self.omega, self.phase, self.offset)
 
     def refresh_outputs(self) -> None:
-        """yd, yd', yd'' at the current communication point."""
-        self.yd, self.yd_dot, self.yd_ddot = reference_signal(self.time, self._params or self._parameters())
+        """yd and its four derivatives at the current communication point."""
+        (self.yd, self.yd_dot, self.yd_ddot, self.yd_dddot,
+         self.yd_ddddot) = reference_derivatives(self.time, self._params or self._parameters())
 
     def setup_experiment(
         self, start_time: float, stop_time: float | None = None, tolerance: float | None = None

@@ -12,23 +12,39 @@ from dataclasses import asdict
 from pathlib import Path
 
 from controller.params import Discretization, Mode
-from fmu_src.models.examples import EXAMPLE1, EXAMPLE2, Example
+from fmu_src.controller_core import DERIVATIVES, controller_model, input_names, output_names
+from fmu_src.models.examples import EXAMPLE1, EXAMPLE2, MANIPULATOR, Example
 from orchestrator.ssp import Connection, Experiment, SystemStructure, component, write_ssd
 
 HERE = Path(__file__).resolve().parent
 
-REFERENCE = [("yd", "output", "Real"), ("yd_dot", "output", "Real"), ("yd_ddot", "output", "Real")]
-CONTROLLER = [(n, "input", "Real") for n in ("x1", "x2", "yd", "yd_dot", "yd_ddot")] + [
-    (n, "output", "Real") for n in ("v", "z1", "z2", "zeta1", "eta1_hat", "eta2_hat", "r")]
 ACTUATOR = [("v", "input", "Real"), ("x1", "input", "Real"), ("x2", "input", "Real"),
             ("uf", "output", "Real"), ("u_dz", "output", "Real")]
-PLANT = [("uf", "input", "Real")] + [(n, "output", "Real") for n in ("x1", "x2", "z", "y")]
-
-CONNECTIONS = tuple(Connection.between(start, end) for start, end in [
-    *((f"reference.{s}", f"controller.{s}") for s in ("yd", "yd_dot", "yd_ddot")),
-    ("plant.x1", "controller.x1"), ("plant.x2", "controller.x2"), ("plant.x1", "actuator.x1"),
-    ("plant.x2", "actuator.x2"), ("controller.v", "actuator.v"), ("actuator.uf", "plant.uf")])
 GAINS = ("k", "q", "a", "kappa", "rho", "rho_bar")  # per backstepping step: FMU parameters k1, k2, ...
+
+
+def connectors(example: Example) -> dict[str, list[tuple[str, str, str]]]:
+    """The connectors of every component for the example's plant order n: the reference's yd and n
+    derivatives, the controller's inputs and outputs of order n, the plant's states and y."""
+    n = example.controller.n
+    return {
+        "reference": [(name, "output", "Real") for name in DERIVATIVES[: n + 1]],
+        "controller": [(name, "input", "Real") for name in input_names(n)]
+        + [(name, "output", "Real") for name in output_names(n)],
+        "actuator": ACTUATOR,
+        "plant": [("uf", "input", "Real")] + [(name, "output", "Real") for name in (*example.states, "y")],
+    }
+
+
+def connections(example: Example) -> tuple[Connection, ...]:
+    """reference -> controller (yd and its n derivatives), plant states -> controller, x1 and x2 ->
+    actuator (its bias fault L(t)), controller -> actuator -> plant."""
+    n = example.controller.n
+    return tuple(Connection.between(start, end) for start, end in [
+        *((f"reference.{s}", f"controller.{s}") for s in DERIVATIVES[: n + 1]),
+        *((f"plant.{s}", f"controller.x{i}") for i, s in enumerate(example.states[:n], start=1)),
+        ("plant.x1", "actuator.x1"), ("plant.x2", "actuator.x2"), ("controller.v", "actuator.v"),
+        ("actuator.uf", "plant.uf")])
 
 
 def parameters(example: Example, mode: Mode, t_fault: float | None,
@@ -44,7 +60,7 @@ def parameters(example: Example, mode: Mode, t_fault: float | None,
     actuator = asdict(example.actuator) | ({} if t_fault is None else {"t_fault": t_fault})
     actuator.pop("u_max")  # the saturation stays off (the FMU's default): the paper's scenarios
     physical = asdict(example.plant) if example.plant else {}
-    initial = dict(zip(("x1_0", "x2_0", "z_0"), example.x0, strict=True))
+    initial = dict(zip((f"{s}_0" for s in example.states), example.x0, strict=True))
     return {"reference": asdict(example.reference), "controller": controller, "actuator": actuator,
             "plant": physical | initial}
 
@@ -54,14 +70,12 @@ def scenario(dest: Path, name: str, example: Example, mode: Mode, description: s
     """Write the scenario folder ``dest/name`` (communication step ``step`` in seconds; ``smooth``:
     the controller's semi-implicit discretization at that step)."""
     values = parameters(example, mode, t_fault, step if smooth else None)
-    components = (
-        component("reference", "Reference.fmu", REFERENCE, values["reference"]),
-        component("controller", "FixedTimeController.fmu", CONTROLLER, values["controller"]),
-        component("actuator", "Actuator.fmu", ACTUATOR, values["actuator"]),
-        component("plant", f"{example.plant_fmu}.fmu", PLANT, values["plant"]),
-    )
+    ports = connectors(example)
+    fmus = {"reference": "Reference", "controller": controller_model(example.controller.n),
+            "actuator": "Actuator", "plant": example.plant_fmu}
+    components = tuple(component(name, f"{fmu}.fmu", ports[name], values[name]) for name, fmu in fmus.items())
     experiment = Experiment(0.0, example.stop_time, step)
-    write_ssd(dest / name, SystemStructure(name, components, CONNECTIONS, experiment, description))
+    write_ssd(dest / name, SystemStructure(name, components, connections(example), experiment, description))
 
 
 def main(dest: Path = HERE) -> None:
@@ -88,6 +102,11 @@ def main(dest: Path = HERE) -> None:
     scenario(dest, "pendulum_smooth", EXAMPLE2, Mode.FIXED_TIME,
              "Example 2 pendulum, fixed-time controller with the semi-implicit discretization, fault from "
              "t = 5 s", step=5e-4, smooth=True)  # 0.5 ms as pendulum: at 1 ms jacobi diverges at 0.064 s
+    # Issue 35: a third-order plant from the literature under the same actuator, the order-3 controller
+    # with the semi-implicit discretization at 1 ms (its explicit law diverges in the first step).
+    scenario(dest, "manipulator", MANIPULATOR, Mode.FIXED_TIME,
+             "Single-link manipulator driven by a DC motor (Dawson et al. 1994), order-3 fixed-time "
+             "controller with the semi-implicit discretization, actuator fault from t = 10 s", smooth=True)
 
 
 if __name__ == "__main__":

@@ -3,10 +3,12 @@ values and step times, state get/set). The FMUs come from the session fixture ``
 
 from __future__ import annotations
 
+import importlib.util
 import math
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -14,10 +16,24 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from scipy.integrate import solve_ivp
 
-from fmu_src.build import FMU_SCRIPTS
+from fmu_src.build import EXTENSIONS, FMU_SCRIPTS, REPO_ROOT, compile_extension
+from fmu_src.runtime import ensure_runtime
 
 MODELS = tuple(FMU_SCRIPTS)
 _extracted: dict[Path, str] = {}
+
+
+def compiled_extension(name: str, where: Path) -> ModuleType:
+    """The C extension module ``name`` (a key of fmu_src.build.EXTENSIONS) compiled into ``where`` as
+    the FMU build compiles it, and loaded into this process (not into sys.modules)."""
+    source = REPO_ROOT / EXTENSIONS[name]
+    path = where / f"{source.stem}.abi3.so"
+    path.write_bytes(compile_extension(source, ensure_runtime(), where))
+    spec = importlib.util.spec_from_file_location(source.stem, path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 

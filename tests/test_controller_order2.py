@@ -1,14 +1,16 @@
-"""The n = 2 scalar path (controller.order2, what the controller FMU runs) against the general-n
-library path (controller.law.evaluate, controller.stepping.AdaptiveController), its independent
-oracle: same law at random states, inputs and gains, and the same states over many steps."""
+"""The n = 2 scalar path (controller.order2, what the controller FMU ran before issue 35) against the
+general-n library path (controller.law.evaluate, controller.stepping.AdaptiveController), its
+independent oracle: the same law at random states, inputs and gains, and the same states over many
+steps, to round-off and (since the general law gives +0.0 at z = 0, issue 35) bit for bit."""
 
 from __future__ import annotations
 
 import math
+import struct
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from controller.law import evaluate
@@ -55,12 +57,15 @@ def assert_close(fast: float, general: float) -> None:
 @settings(max_examples=300, deadline=None)
 @given(params=parameters(), state=st.tuples(positive, positive, positive),
        x=st.tuples(values, values), yd=st.tuples(values, values, values))
+@example(params=EXAMPLE1.controller, state=(0.0, 0.0, 0.0), x=(0.5, 0.2), yd=(0.5, 0.1, 0.0))  # z1 = 0
 def test_law_equals_the_general_law(params: ControllerParameters, state: tuple, x: tuple, yd: tuple) -> None:
+    """The same bits (at z = 0 both give zeta = +0.0; the general law gave -0.0 before issue 35)."""
     general = evaluate(list(state), x, yd, params)
     fast = Order2Controller(params).law(*state, *x, *yd)
     expected = (general.v, *general.z, general.zeta[0], *general.ptp, *general.derivative)
     for a, b in zip(fast, expected, strict=True):
         assert_close(a, b)
+        assert struct.pack("<d", a) == struct.pack("<d", b), (a, b)
 
 
 @settings(max_examples=40, deadline=None)

@@ -12,8 +12,51 @@ from fmu_helpers import MODELS
 
 pytestmark = pytest.mark.system
 
+# SPEC 11: the controller for plant order n; yd's derivatives named yd_dot, yd_ddot, yd_dddot, yd_ddddot
+ORDERS = {"FixedTimeController1": 1, "FixedTimeController": 2, "FixedTimeController3": 3,
+          "FixedTimeController4": 4}
+DERIVATIVES = ("yd", "yd_dot", "yd_ddot", "yd_dddot", "yd_ddddot")
+
+
+def controller_interface(n: int) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(inputs, outputs) of the controller FMU of order n, written out from SPEC 11."""
+    inputs = tuple(f"x{i}" for i in range(1, n + 1)) + DERIVATIVES[: n + 1]
+    outputs = ("v", *(f"z{i}" for i in range(1, n + 1)), *(f"zeta{i}" for i in range(1, n)),
+               *(f"eta{i}_hat" for i in range(1, n + 1)), "r")
+    return inputs, outputs
+
+
+def controller_parameters(n: int) -> dict[str, tuple[float, str | None]]:
+    """Parameter -> (default, unit) of the controller FMU of order n: Example 1's gains, steps beyond 2
+    repeating step 2's (SPEC 11)."""
+    gains = {"k": (10, 10), "q": (8, 8), "a": (5, 2), "kappa": (2, 2), "rho": (2, 2), "rho_bar": (1, 1)}
+    out: dict[str, tuple[float, str | None]] = {
+        f"{g}{i}": (d[min(i, 2) - 1], None) for g, d in gains.items() for i in range(1, n + 1)}
+    out |= {"alpha": (1.5, None), "beta": (0.75, None), "mode": (0, None), "a_bar": (1.0, "1/s"),
+            "gamma_gain": (2.5, None), "gamma_power": (4.0, None), "d_r": (0.625, None), "r0": (0.0, None),
+            "tau": (2.0, None), "substeps": (1, None), "discretization": (0, None),
+            "sample_time": (1e-3, "s"), "b_max": (1.0, None)}
+    out |= {f"eta{i}_0": (0.0, None) for i in range(1, n + 1)}
+    out |= {f"mu{j}": (c, None) for j, c in enumerate((-1.5, -1, -0.5, 0, 0.5, 1, 1.5), start=1)}
+    return out
+
+
+def controller_dependencies(n: int) -> dict[str, tuple[str, ...]]:
+    """Output -> the inputs it depends on directly: z_i = x_i - zeta_(i-1) and zeta_i on x_1..x_i,
+    yd..yd^(i) (X_i of SPEC 1); z_n and v on every input; the states on none."""
+    inputs, _ = controller_interface(n)
+    out = {"v": inputs, "z1": ("x1", "yd")}
+    for i in range(2, n + 1):
+        out[f"z{i}"] = inputs if i == n else (*inputs[:i], *DERIVATIVES[:i])
+    for i in range(1, n):
+        out[f"zeta{i}"] = (*inputs[:i], *DERIVATIVES[: i + 1])
+    return out | {f"eta{i}_hat": () for i in range(1, n + 1)} | {"r": ()}
+
+
 INTERFACE = {  # model -> (inputs, outputs)
-    "Reference": ((), ("yd", "yd_dot", "yd_ddot")),
+    "Reference": ((), ("yd", "yd_dot", "yd_ddot", "yd_dddot", "yd_ddddot")),
+    **{model: controller_interface(n) for model, n in ORDERS.items() if n != 2},
+    "ManipulatorPlant": (("uf",), ("x1", "x2", "x3", "y")),
     "FixedTimeController": (
         ("x1", "x2", "yd", "yd_dot", "yd_ddot"),
         ("v", "z1", "z2", "zeta1", "eta1_hat", "eta2_hat", "r"),
@@ -79,6 +122,13 @@ PARAMETERS = {  # model -> parameter -> (default, unit)
         "u_max": (1e300, None),
     },
     "Example1Plant": {"x1_0": (0.5, None), "x2_0": (0.5, None), "z_0": (0.0, None)},
+    **{model: controller_parameters(n) for model, n in ORDERS.items() if n != 2},
+    "ManipulatorPlant": {  # Dawson, Carroll and Schneider (1994)
+        "J": (1.625e-3, "kg.m2"), "m": (0.506, "kg"), "L0": (0.305, "m"), "M0": (0.434, "kg"),
+        "R0": (0.023, "m"), "B0": (16.25e-3, "N.m.s/rad"), "L": (25.0e-3, "H"), "R": (5.0, "Ohm"),
+        "K_tau": (0.90, "N.m/A"), "K_B": (0.90, "V.s/rad"), "G": (9.81, "m/s2"), "x1_0": (0.5, "rad"),
+        "x2_0": (0.0, "rad/s"), "x3_0": (0.0, "A"),
+    },
     "PendulumPlant": {
         "M": (0.25, "kg"),
         "L": (4.0, "m"),
@@ -96,7 +146,9 @@ PARAMETERS = {  # model -> parameter -> (default, unit)
 INTEGRATOR = ("max_step", "method", "rtol", "atol", "state_limit", "max_steps", "y_limit", "rate_horizon")
 # output -> the inputs it depends on directly (SPEC section 5; z1 and zeta1 use fewer inputs)
 DEPENDENCIES = {
-    "Reference": {"yd": (), "yd_dot": (), "yd_ddot": ()},
+    "Reference": {"yd": (), "yd_dot": (), "yd_ddot": (), "yd_dddot": (), "yd_ddddot": ()},
+    **{model: controller_dependencies(n) for model, n in ORDERS.items() if n != 2},
+    "ManipulatorPlant": {"x1": (), "x2": (), "x3": (), "y": ()},
     "FixedTimeController": {
         "v": ("x1", "x2", "yd", "yd_dot", "yd_ddot"),
         "z1": ("x1", "yd"),
@@ -121,6 +173,14 @@ SI = {
     "m/s2": {"m": 1, "s": -2},
     "kg/s2": {"kg": 1, "s": -2},
     "N": {"kg": 1, "m": 1, "s": -2},
+    "A": {"A": 1},
+    "V": {"kg": 1, "m": 2, "s": -3, "A": -1},
+    "H": {"kg": 1, "m": 2, "s": -2, "A": -2},
+    "Ohm": {"kg": 1, "m": 2, "s": -3, "A": -2},
+    "kg.m2": {"kg": 1, "m": 2},
+    "N.m/A": {"kg": 1, "m": 2, "s": -2, "A": -1},
+    "V.s/rad": {"kg": 1, "m": 2, "s": -2, "A": -1, "rad": -1},
+    "N.m.s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1},
 }
 
 
@@ -145,6 +205,9 @@ def test_interface_descriptions_and_experiment(fmus: dict, model: str) -> None:
     assert sorted(parameters) == sorted(expected)
     if model == "FixedTimeController":
         assert sorted(parameters) == sorted(CONTROLLER_PARAMETERS)
+        assert PARAMETERS[model] == controller_parameters(2)  # the order-n rule gives today's n = 2
+        assert INTERFACE[model] == controller_interface(2)
+        assert DEPENDENCIES[model] == controller_dependencies(2)
     assert all(v.description for v in md.modelVariables)
     assert md.description
     experiment = md.defaultExperiment
@@ -179,7 +242,11 @@ def test_parameter_defaults_and_units(fmus: dict, model: str) -> None:
     if model == "PendulumPlant":
         assert (variables["x1"].unit, variables["x2"].unit, variables["y"].unit) == ("rad", "rad/s", "rad")
         assert variables["uf"].unit == "N"
-    if model == "FixedTimeController":
+    if model == "Reference":  # the third and fourth derivatives came last (issue 35)
+        assert [v.name for v in md.modelVariables][-2:] == ["yd_dddot", "yd_ddddot"]
+    if model == "ManipulatorPlant":
+        assert (variables["x1"].unit, variables["x3"].unit, variables["uf"].unit) == ("rad", "A", "V")
+    if model in ORDERS:
         assert {variables[n].type for n in ("mode", "substeps", "discretization")} == {"Integer"}
         # issue 11's parameters were added last: the value references of the others do not move
         assert [v.name for v in md.modelVariables][-3:] == ["discretization", "sample_time", "b_max"]

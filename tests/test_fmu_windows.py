@@ -46,6 +46,7 @@ from wine import (  # noqa: E402
     unpack,
 )
 
+from fmu_src.build import FMU_SCRIPTS
 from orchestrator.export import export  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
@@ -54,7 +55,7 @@ MATRIX = REPO / "docs" / "fmus" / "windows-matrix.md"
 FMPY_REQUIREMENTS = REPO / "tests" / "windows" / "fmpy-requirements.txt"
 FMPY_TARGET = REPO / "build" / "windows" / "fmpy"  # pip install --target of the Windows wheels
 STEPS, H = 200, 1e-3
-MODELS = ("Reference", "FixedTimeController", "Actuator", "Example1Plant", "PendulumPlant")
+MODELS = tuple(FMU_SCRIPTS)  # the nine FMUs
 pytestmark = [pytest.mark.system, pytest.mark.xdist_group("wine"),
               pytest.mark.skipif(missing() is not None, reason=missing() or "")]
 
@@ -102,18 +103,19 @@ def c_host_case(wine: Wine, items: list[Item], linux_root: Path, gui: bool, pyth
 
 def test_console_host_every_fmi2_fmu_in_one_process(wine: Wine, fmus: dict[str, Path],
                                                     tmp_path: Path) -> None:
-    """The five FMI 2.0 FMUs and a second FixedTimeController instance in one console process,
+    """The nine FMI 2.0 FMUs and a second FixedTimeController instance in one console process,
     resources given as file:///C:/users/J%C3%BCrgen%20M%C3%BCller/... URIs, the host's output
     redirected to files (where python.exe itself stops at start under wine)."""
     items = plan(wine, fmus, MODELS, tmp_path)
-    items.append(dataclasses.replace(items[1], label="FixedTimeController2"))  # a second instance
+    first = next(i for i in items if i.label == "FixedTimeController")
+    items.append(dataclasses.replace(first, label="FixedTimeController2"))  # a second instance
     found = c_host_case(wine, items, tmp_path, gui=False, files=True)
     check(found)
     results[("every FMU in one process", "C host console, FMI 2.0")] = found.text()
 
 
 def test_gui_host_every_fmi3_fmu(wine: Wine, built: Path, tmp_path: Path) -> None:
-    """The five FMI 3.0 FMUs in one GUI-subsystem process without standard handles (resource
+    """The nine FMI 3.0 FMUs in one GUI-subsystem process without standard handles (resource
     paths native: C:\\users\\Jürgen Müller\\...)."""
     fmus3 = {p.stem: p for p in (built / "fmus3").glob("*.fmu")}
     items = plan(wine, fmus3, MODELS, tmp_path, suffix="3")

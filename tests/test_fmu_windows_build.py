@@ -18,12 +18,13 @@ from pathlib import Path
 import pytest
 
 from fmu_src import runtime_win64
+from fmu_src.build import FMU_SCRIPTS
 from fmu_src.runtime import RuntimeBundleError
 from orchestrator.export import export
 
 REPO = Path(__file__).resolve().parent.parent
 OBJDUMP = shutil.which("x86_64-w64-mingw32-objdump")
-MODELS = ("Reference", "FixedTimeController", "Actuator", "Example1Plant", "PendulumPlant")
+MODELS = tuple(FMU_SCRIPTS)  # the nine FMUs
 LIMIT = 11_000_000  # bytes: the 11 MB per FMU with both platforms
 # What Windows 10 has of itself: the loader resolves these from the system (the API sets of the
 # Universal C Runtime included)

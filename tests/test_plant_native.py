@@ -6,7 +6,6 @@ FMUs step with it, giving the reference's bits."""
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import subprocess
 import sys
@@ -16,32 +15,27 @@ from pathlib import Path
 from types import ModuleType
 
 import pytest
-from fmu_helpers import open_slave
+from fmu_helpers import compiled_extension, open_slave
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fmu_src.build import EXTENSIONS, REPO_ROOT, collect_bundle, compile_extension
+from fmu_src.build import collect_bundle
 from fmu_src.models import native
+from fmu_src.models.manipulator import ManipulatorParameters, manipulator_rhs_for
 from fmu_src.models.plants import PendulumParameters, dopri_hold_step, example1_rhs, pendulum_rhs_for
-from fmu_src.runtime import ensure_runtime
 
 PENDULUM = PendulumParameters()
+MANIPULATOR = ManipulatorParameters()
 PLANTS = {"example1": (native.EXAMPLE1, example1_rhs),
-          "pendulum": (native.pendulum_native(PENDULUM), pendulum_rhs_for(PENDULUM))}
+          "pendulum": (native.pendulum_native(PENDULUM), pendulum_rhs_for(PENDULUM)),
+          "manipulator": (native.manipulator_native(MANIPULATOR), manipulator_rhs_for(MANIPULATOR))}
 
 
 @pytest.fixture(scope="module")
 def compiled(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ModuleType]:
     """_dopri.c compiled as the FMU build compiles it, loaded into this process as the one
     fmu_src.models.native steps with (as in a built FMU)."""
-    where = tmp_path_factory.mktemp("dopri")
-    binary = compile_extension(REPO_ROOT / EXTENSIONS["fmu_src.models._dopri"], ensure_runtime(), where)
-    path = where / "_dopri.abi3.so"
-    path.write_bytes(binary)
-    spec = importlib.util.spec_from_file_location("_dopri", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = compiled_extension("fmu_src.models._dopri", tmp_path_factory.mktemp("dopri"))
     saved, native._dopri = native._dopri, module
     yield module
     native._dopri = saved
@@ -58,7 +52,8 @@ def outcome(step, *args):
 def both(plant: str, *args):
     """The Python reference's and the compiled step's outcomes for the same arguments."""
     native_plant, rhs = PLANTS[plant]
-    return outcome(dopri_hold_step, rhs, *args), outcome(native.native_hold_step, native_plant, *args)
+    return (outcome(dopri_hold_step, rhs, *args, native_plant.names),
+            outcome(native.native_hold_step, native_plant, *args))
 
 
 magnitudes = st.one_of(st.floats(-1.0, 1.0), st.floats(-20.0, 20.0), st.floats(-1e4, 1e4),
@@ -90,7 +85,7 @@ def test_compiled_step_gives_the_references_bits_and_errors(compiled, plant, t, 
 def test_overflowing_states_are_the_references_domain_errors_and_rejections(compiled, plant):
     """math.sin(inf) raises where C's sin gives nan: at the first evaluation a math domain error;
     inside a trial step a rejected step, then smaller ones."""
-    huge = (1e200, 1e200, 0.0)
+    huge = (math.inf, 0.0, 0.0) if plant == "manipulator" else (1e200, 1e200, 0.0)  # sin(inf) in the rhs
     reference, fast = both(plant, 0.0, huge, 0.0, 1e-3, 1e-10, 1e-12, 0.0, math.inf,
                            50_000, math.inf, 0.0)
     assert fast == reference
@@ -121,28 +116,33 @@ def test_finite_escape_trajectory_is_the_references(compiled):
 
 
 def test_only_the_plants_bundle_the_extension():
-    for model in ("Example1Plant", "PendulumPlant"):
+    for model in ("Example1Plant", "PendulumPlant", "ManipulatorPlant"):
         assert set(collect_bundle(model).extensions) == {"fmu_src.models._dopri"}
-    for model in ("Reference", "FixedTimeController", "Actuator"):
+    for model in ("Reference", "Actuator"):
         assert collect_bundle(model).extensions == {}
+    for model in ("FixedTimeController", "FixedTimeController1", "FixedTimeController3",
+                  "FixedTimeController4"):
+        assert set(collect_bundle(model).extensions) == {"controller._law"}
 
 
 @pytest.mark.system
-@pytest.mark.parametrize("model", ["Example1Plant", "PendulumPlant"])
+@pytest.mark.parametrize("model", ["Example1Plant", "PendulumPlant", "ManipulatorPlant"])
 def test_built_plant_fmus_step_with_the_compiled_integrator(fmus, model):
     """The FMU loads its own _dopri (from its unpacked resources) into the host's Python and steps
     the reference's bits: 200 steps under a varying input, against dopri_hold_step in Python."""
-    plant = {"Example1Plant": example1_rhs, "PendulumPlant": pendulum_rhs_for(PENDULUM)}[model]
+    plant = {"Example1Plant": example1_rhs, "PendulumPlant": pendulum_rhs_for(PENDULUM),
+             "ManipulatorPlant": manipulator_rhs_for(MANIPULATOR)}[model]
+    states = ("x1", "x2", "x3") if model == "ManipulatorPlant" else ("x1", "x2", "z")
     with open_slave(fmus[model]) as slave:
         slave.initialize()
-        state, guess, h = tuple(slave.get("x1", "x2", "z")), 0.0, 1e-3
+        state, guess, h = tuple(slave.get(*states)), 0.0, 1e-3
         for k in range(200):
             uf = 300.0 * math.cos(7.0 * k * h)
             slave.set(uf=uf)
             slave.step(k * h, h)
             state, guess, _, _ = dopri_hold_step(plant, k * h, state, uf, h, 1e-10, 1e-12, guess, 1e4, 50_000,
                                                  20.0, 1.0)
-            assert tuple(slave.get("x1", "x2", "z")) == state, k
+            assert tuple(slave.get(*states)) == state, k
     loaded = [module for name, module in list(sys.modules.items())
               if name.startswith(f"_ftc_{model.lower()}_") and name.endswith(".models._dopri")]
     assert loaded and all(Path(str(module.__file__)).name == "_dopri.abi3.so" for module in loaded)

@@ -16,10 +16,12 @@
    initial states) need hundreds to thousands of integrator steps per communication step while
    the state is still inside its range of validity; compiled, such a run costs milliseconds.
 
-   hold_step(kind, c1, c2, c3, c4, t, y1, y2, y3, uf, h, rtol, atol, first_step, limit,
+   hold_step(kind, c1, c2, c3, c4, c5, c6, t, y1, y2, y3, uf, h, rtol, atol, first_step, limit,
              max_steps, y_limit, rate_horizon)
-   kind 0: Example 1 (eq. 85; c1..c4 unused); kind 1: the pendulum (eq. 99) with c1 = d1,
-   c2 = d2, c3 = M L, c4 = g / L + B / M, as plants.pendulum_rhs_for binds them.
+   kind 0: Example 1 (eq. 85; c1..c6 unused); kind 1: the pendulum (eq. 99) with c1 = d1,
+   c2 = d2, c3 = M L, c4 = g / L + B / M, as plants.pendulum_rhs_for binds them (c5, c6 unused);
+   kind 2: the manipulator (models/manipulator.py) with c1 = M, c2 = N, c3 = B, c4 = L, c5 = R,
+   c6 = K_B, as manipulator.manipulator_rhs_for binds them.
    Returns (status, t, a, b, c, next_step, accepted, rejected); plants.native_hold_step turns
    a status other than OK into the Python code's exception and message. Built against the
    stable ABI (Py_LIMITED_API) so that one binary loads in any CPython 3.8 or later: the FMU's
@@ -30,7 +32,7 @@
 #include <math.h>
 
 enum { OK = 0, RATE = 1, BEYOND = 2, BUDGET = 3, NO_STEP = 4, DOMAIN = 5 };
-enum { EXAMPLE1 = 0, PENDULUM = 1 };
+enum { EXAMPLE1 = 0, PENDULUM = 1, MANIPULATOR = 2 };
 
 static const double C2 = 1.0 / 5, C3 = 3.0 / 10, C4 = 4.0 / 5, C5 = 8.0 / 9;
 static const double A21 = 1.0 / 5;
@@ -46,7 +48,7 @@ static const double SAFETY = 0.9, FAC_MIN = 0.2, FAC_MAX = 10.0;
 
 struct plant {
     int kind;
-    double c1, c2, c3, c4;
+    double c1, c2, c3, c4, c5, c6;
     double uf;
     int domain; /* a sin/cos argument was infinite (Python: ValueError) */
 };
@@ -61,17 +63,21 @@ static double cos_(struct plant *p, double x) {
     return cos(x);
 }
 
-/* plants.example1_rhs and plants.pendulum_rhs_for, term by term. */
+/* plants.example1_rhs, plants.pendulum_rhs_for and manipulator.manipulator_rhs_for, term by term. */
 static void rhs(struct plant *p, double t, double x1, double x2, double z, double *k) {
     double uf = p->uf;
     if (p->kind == EXAMPLE1) {
         k[0] = (2.0 + sin_(p, x1)) * x2 + 0.1 * sin_(p, x1 * x2) + z * sin_(p, x1 * x1);
         k[1] = (2.0 + cos_(p, x1 * x2)) * uf + 0.5 * sin_(p, x1 * x1 * x2 * x2) + x1 * x1 * z;
         k[2] = -z - x1 * x1 + 0.5;
-    } else {
+    } else if (p->kind == PENDULUM) {
         k[0] = x2 + z * x1 + p->c1 * sin_(p, t);
         k[1] = uf / p->c3 - p->c4 * sin_(p, x1 * x2) + z * x2 * sin_(p, x1) + p->c2 * cos_(p, t);
         k[2] = -2.0 * z + 0.25 * x1 * x1;
+    } else { /* z is the motor current x3 */
+        k[0] = x2;
+        k[1] = (z - p->c3 * x2 - p->c2 * sin_(p, x1)) / p->c1;
+        k[2] = (uf - p->c5 * z - p->c6 * x2) / p->c4;
     }
 }
 
@@ -94,10 +100,11 @@ static PyObject *hold_step(PyObject *self, PyObject *args) {
     struct plant p = {0};
     double t, y1, y2, y3, h, rtol, atol, first_step, limit, y_limit, rate_horizon;
     long long max_steps;
-    if (!PyArg_ParseTuple(args, "iddddddddddddddLdd", &p.kind, &p.c1, &p.c2, &p.c3, &p.c4, &t, &y1, &y2, &y3,
-                          &p.uf, &h, &rtol, &atol, &first_step, &limit, &max_steps, &y_limit, &rate_horizon))
+    if (!PyArg_ParseTuple(args, "iddddddddddddddddLdd", &p.kind, &p.c1, &p.c2, &p.c3, &p.c4, &p.c5, &p.c6, &t,
+                          &y1, &y2, &y3, &p.uf, &h, &rtol, &atol, &first_step, &limit, &max_steps, &y_limit,
+                          &rate_horizon))
         return NULL;
-    if (p.kind != EXAMPLE1 && p.kind != PENDULUM) {
+    if (p.kind != EXAMPLE1 && p.kind != PENDULUM && p.kind != MANIPULATOR) {
         PyErr_SetString(PyExc_ValueError, "unknown plant kind");
         return NULL;
     }

@@ -1,5 +1,6 @@
 """The paper's two examples in one place (SPEC section 3): plant, initial state, reference,
-actuator and controller gains. The scenario sources (``ssp/generate.py``), the monolithic
+actuator and controller gains; and :data:`MANIPULATOR`, a third-order plant from the literature
+under the same actuator (issue 35). The scenario sources (``ssp/generate.py``), the monolithic
 reference simulation and the tests read them from here.
 
 Not bundled into the FMUs (their defaults are the model dataclasses' and Example 1's gains), so
@@ -12,18 +13,22 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import partial
 
-from controller.params import ControllerParameters
+from controller.params import SEMI_IMPLICIT, ControllerParameters
 
 from .actuator import ActuatorParameters
-from .plants import PendulumParameters, State, example1_rhs, pendulum_rhs
+from .manipulator import STATE_NAMES as MANIPULATOR_STATES
+from .manipulator import ManipulatorParameters, input_gains, manipulator_rhs
+from .plants import STATE_NAMES, PendulumParameters, State, example1_rhs, pendulum_rhs
 from .reference import ReferenceParameters
 
-__all__ = ["EXAMPLE1", "EXAMPLE2", "EXAMPLES", "Example"]
+__all__ = ["EXAMPLE1", "EXAMPLE2", "EXAMPLES", "MANIPULATOR", "Example"]
 
 
 @dataclass(frozen=True)
 class Example:
-    """One of the paper's examples, with the FMU that models its plant."""
+    """One of the paper's examples (or :data:`MANIPULATOR`), with the FMU that models its plant. The
+    plant has three states (``states``: their names); the controller takes the first n = its order
+    of them (the examples' third state z is unmeasured unmodeled dynamics)."""
 
     number: int
     name: str
@@ -33,8 +38,9 @@ class Example:
     reference: ReferenceParameters
     actuator: ActuatorParameters
     controller: ControllerParameters
-    plant: PendulumParameters | None = None  # physical parameters, where the plant has any
+    plant: PendulumParameters | ManipulatorParameters | None = None  # physical parameters, if any
     stop_time: float = 30.0
+    states: tuple[str, str, str] = STATE_NAMES
 
 
 EXAMPLE1 = Example(
@@ -67,3 +73,29 @@ EXAMPLE2 = Example(
 )
 
 EXAMPLES: dict[int, Example] = {1: EXAMPLE1, 2: EXAMPLE2}
+
+# Issue 35: the single-link manipulator driven by a DC motor (Dawson, Carroll and Schneider 1994), the
+# order-3 controller with the gains of Example 1 for every step (steps beyond 2 repeat step 2's,
+# SPEC 11), sampled semi-implicitly at 1 ms (its explicit law at 1 ms diverges in the first step:
+# |v(0)| = 4.7e6 V), the reference and fault of Example 1. b_max = 2 / L = 80, twice the largest input
+# gain g3 = 1 / L (a bound b_M of Assumption 3 need not be the least one): the semi-implicit law's
+# one-sample correction |z| / (b_max h) then removes half of z_3 per step, not all of it, and the loop
+# stays stable under the one-step delay of the masters that delay every connection (libcosim, Ecos,
+# jacobi: z_(k+1) = z_k - (g3 / b_max) z_(k-1) is stable for g3 / b_max < 1; at b_max = 1 / L = 40
+# they diverge within 20 ms, at any step).
+MANIPULATOR = Example(
+    number=3,
+    name="Manipulator (Dawson et al. 1994)",
+    plant_fmu="ManipulatorPlant",
+    plant_rhs=partial(manipulator_rhs, p=ManipulatorParameters()),
+    x0=(0.5, 0.0, 0.0),
+    reference=ReferenceParameters(amplitude=0.5, omega=1.0),
+    actuator=ActuatorParameters(t_fault=10.0),
+    controller=ControllerParameters(
+        k=(10, 10, 10), q=(8, 8, 8), a=(5, 2, 2), kappa=(2, 2, 2), rho=(2, 2, 2), rho_bar=(1, 1, 1),
+        alpha=1.5, beta=0.75, discretization=SEMI_IMPLICIT, sample_time=1e-3,
+        b_max=2.0 * max(input_gains(ManipulatorParameters())),
+    ),
+    plant=ManipulatorParameters(),
+    states=MANIPULATOR_STATES,
+)

@@ -15,7 +15,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import NamedTuple
 
+from .manipulator import STATE_NAMES as MANIPULATOR_STATES
+from .manipulator import ManipulatorParameters, manipulator_constants
 from .plants import (
+    STATE_NAMES,
     AdaptiveStep,
     PendulumParameters,
     StateLimitError,
@@ -32,7 +35,7 @@ except ImportError:
         raise  # a built plant FMU carries it: without it the build is broken, not slower
     _dopri = None  # the source tree: the Python reference steps
 
-__all__ = ["COMPILED", "EXAMPLE1", "NativePlant", "native_hold_step", "pendulum_native"]
+__all__ = ["COMPILED", "EXAMPLE1", "NativePlant", "manipulator_native", "native_hold_step", "pendulum_native"]
 
 COMPILED = _dopri is not None
 # Status codes of _dopri.hold_step (see _dopri.c).
@@ -40,20 +43,29 @@ _OK, _RATE, _BEYOND, _BUDGET, _NO_STEP, _DOMAIN = range(6)
 
 
 class NativePlant(NamedTuple):
-    """A plant as the compiled step knows it: ``kind`` (0: Example 1, 1: the pendulum) and four
-    constants (the pendulum's d1, d2, M L and g / L + B / M; unused for Example 1)."""
+    """A plant as the compiled step knows it: ``kind`` (0: Example 1, 1: the pendulum, 2: the
+    manipulator) and six constants (the pendulum's d1, d2, M L and g / L + B / M; the manipulator's
+    M, N, B, L, R, K_B; unused ones zero), and the names of its three states (for the messages)."""
 
     kind: int
-    constants: tuple[float, float, float, float]
+    constants: tuple[float, float, float, float, float, float]
+    names: tuple[str, str, str] = STATE_NAMES
 
 
-EXAMPLE1 = NativePlant(0, (0.0, 0.0, 0.0, 0.0))
+EXAMPLE1 = NativePlant(0, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
 
 
 def pendulum_native(p: PendulumParameters) -> NativePlant:
     """The pendulum with the constants bound as :func:`~fmu_src.models.plants.pendulum_rhs_for`
     computes them (the same operations, so the same values)."""
-    return NativePlant(1, (p.d1, p.d2, p.M * p.L, p.g / p.L + p.B / p.M))
+    return NativePlant(1, (p.d1, p.d2, p.M * p.L, p.g / p.L + p.B / p.M, 0.0, 0.0))
+
+
+def manipulator_native(p: ManipulatorParameters) -> NativePlant:
+    """The manipulator with the constants bound as
+    :func:`~fmu_src.models.manipulator.manipulator_rhs_for` computes them."""
+    inertia, gravity, friction = manipulator_constants(p)
+    return NativePlant(2, (inertia, gravity, friction, p.L, p.R, p.K_B), MANIPULATOR_STATES)
 
 
 def native_hold_step(
@@ -81,7 +93,7 @@ def native_hold_step(
     if status == _OK:
         return AdaptiveStep((a, b, c), next_step, accepted, rejected)
     if status == _RATE:
-        raise StateLimitError(escape_rate((a, b, c), at, rate_horizon * h, limit, y_limit))
+        raise StateLimitError(escape_rate((a, b, c), at, rate_horizon * h, limit, y_limit, plant.names))
     if status == _BEYOND:
         raise beyond_limit((a, b, c), at, limit, y_limit)
     if status == _BUDGET:

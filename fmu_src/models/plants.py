@@ -26,6 +26,7 @@ __all__ = [
     "RATE_HORIZON",
     "RK4",
     "STATE_LIMIT",
+    "STATE_NAMES",
     "Y_LIMIT",
     "AdaptiveStep",
     "PendulumParameters",
@@ -46,6 +47,7 @@ __all__ = [
 ]
 
 State = tuple[float, float, float]
+STATE_NAMES = ("x1", "x2", "z")  # the examples' states (the messages' names unless a plant gives its own)
 RightHandSide = Callable[[float, Sequence[float], float], State]
 
 
@@ -111,6 +113,7 @@ def hold_step(
     limit: float = math.inf,
     y_limit: float = math.inf,
     rate_horizon: float = 0.0,
+    names: Sequence[str] = STATE_NAMES,
 ) -> State:
     """Advance a plant over [t, t + h] with uf held, by classical RK4.
 
@@ -128,7 +131,7 @@ def hold_step(
         ti = t + i * dt
         a1, a2, a3 = rhs(ti, (x1, x2, z), uf)
         if reach > 0.0 and (abs(a1) * reach > x1_limit or abs(a2) * reach > limit or abs(a3) * reach > limit):
-            raise StateLimitError(escape_rate((a1, a2, a3), ti, reach, limit, y_limit))
+            raise StateLimitError(escape_rate((a1, a2, a3), ti, reach, limit, y_limit, names))
         b1, b2, b3 = rhs(ti + 0.5 * dt, (x1 + 0.5 * dt * a1, x2 + 0.5 * dt * a2, z + 0.5 * dt * a3), uf)
         c1, c2, c3 = rhs(ti + 0.5 * dt, (x1 + 0.5 * dt * b1, x2 + 0.5 * dt * b2, z + 0.5 * dt * b3), uf)
         d1, d2, d3 = rhs(ti + dt, (x1 + dt * c1, x2 + dt * c2, z + dt * c3), uf)
@@ -190,14 +193,14 @@ class StateLimitError(ValueError):
     """The plant's state left its range of validity (|x1|, |x2| or |z| above the limit)."""
 
 
-def escape_rate(rate: State, t: float, reach: float, limit: float, y_limit: float) -> str:
+def escape_rate(rate: State, t: float, reach: float, limit: float, y_limit: float,
+                names: Sequence[str] = STATE_NAMES) -> str:
     """Why a step ends on the rate bound: the first component of ``rate`` (dx/dt) that, held over
     ``reach`` seconds, moves its state further than its bound (x1: ``y_limit`` or ``limit``, the
-    smaller; x2, z: ``limit``)."""
+    smaller; x2, z: ``limit``); ``names``: the plant's names of the three states."""
     x1_bound = ("y_limit", y_limit) if y_limit <= limit else ("state_limit", limit)
     bounds = (x1_bound, ("state_limit", limit), ("state_limit", limit))
     i = next((i for i in range(3) if abs(rate[i]) * reach > bounds[i][1]), 0)
-    names = ("x1", "x2", "z")
     name, bound = bounds[i]
     return (
         f"d{names[i]}/dt = {rate[i]:.6g} at t = {t!r} would carry {names[i]} beyond the plant's "
@@ -255,6 +258,7 @@ def dopri_hold_step(
     max_steps: int = MAX_STEPS,
     y_limit: float = math.inf,
     rate_horizon: float = 0.0,
+    names: Sequence[str] = STATE_NAMES,
 ) -> AdaptiveStep:
     """Advance a plant over [t, t + h] with uf held, by Dormand-Prince 5(4) with step-size control.
 
@@ -275,6 +279,7 @@ def dopri_hold_step(
     and the right-hand side at t or at an accepted point inside the step would carry a state
     beyond its bound within ``rate_horizon * h`` (see :func:`escape_rate`): a held input that
     drives the state out of range is told at once, before the integrator crawls after it.
+    ``names`` names the three states in the messages.
     """
     t_end = t + h
     y1, y2, y3 = state
@@ -282,7 +287,7 @@ def dopri_hold_step(
     reach = rate_horizon * h
     x1_limit = min(limit, y_limit)
     if reach > 0.0 and (abs(k11) * reach > x1_limit or abs(k12) * reach > limit or abs(k13) * reach > limit):
-        raise StateLimitError(escape_rate((k11, k12, k13), t, reach, limit, y_limit))
+        raise StateLimitError(escape_rate((k11, k12, k13), t, reach, limit, y_limit, names))
     dt = min(first_step, h) if first_step > 0.0 else h
     accepted = rejected = 0
     grow = _FAC_MAX
@@ -340,7 +345,7 @@ def dopri_hold_step(
             if reach > 0.0 and (
                 abs(k11) * reach > x1_limit or abs(k12) * reach > limit or abs(k13) * reach > limit
             ):
-                raise StateLimitError(escape_rate((k11, k12, k13), t, reach, limit, y_limit))
+                raise StateLimitError(escape_rate((k11, k12, k13), t, reach, limit, y_limit, names))
             dt = proposal
             grow = _FAC_MAX
         else:

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from .checks import finite_problems
 
-__all__ = ["ReferenceParameters", "reference_problems", "reference_signal"]
+__all__ = ["ReferenceParameters", "reference_derivatives", "reference_problems", "reference_signal"]
 
 
 @dataclass(frozen=True)
@@ -29,6 +29,16 @@ def reference_signal(t: float, p: ReferenceParameters) -> tuple[float, float, fl
         p.amplitude * p.omega * c,
         -p.amplitude * p.omega * p.omega * s,
     )
+
+
+def reference_derivatives(t: float, p: ReferenceParameters) -> tuple[float, float, float, float, float]:
+    """yd and its derivatives up to the fourth at time t, as a plant of order n <= 4 needs them
+    (yd^(j) = amplitude omega^j sin(omega t + phase + j pi / 2)); the first three as
+    :func:`reference_signal` computes them (the same values)."""
+    angle = p.omega * t + p.phase
+    s, c = math.sin(angle), math.cos(angle)
+    a, w = p.amplitude, p.omega
+    return (a * s + p.offset, a * w * c, -a * w * w * s, -a * w * w * w * c, a * w * w * w * w * s)
 
 
 def reference_problems(p: ReferenceParameters) -> list[str]:

@@ -1,4 +1,5 @@
-"""Monolithic closed-loop reference simulation of the paper's examples.
+"""Monolithic closed-loop reference simulation of the paper's examples (and of the manipulator,
+:data:`~fmu_src.models.examples.MANIPULATOR`, the order-3 loop of issue 35).
 
 Plant + unmodeled dynamics + actuator fault + dead-zone + controller in one ODE, solved with
 ``solve_ivp`` at tight tolerances. It is the oracle the co-simulation is compared with. The plant,
@@ -28,14 +29,21 @@ from controller.law import evaluate
 from controller.params import FINITE_TIME, FIXED_TIME, ControllerParameters, Mode
 from fmu_src.models.actuator import actuator_output
 from fmu_src.models.examples import EXAMPLES, Example
-from fmu_src.models.reference import reference_signal
+from fmu_src.models.reference import reference_derivatives
 
 __all__ = ["ReferenceRun", "simulate"]
 
 RTOL = 1e-10
 ATOL = 1e-12
-# The fields of a run, in the order of the result columns.
+# The fields of a run of the examples (n = 2), in the order of the result columns.
 FIELDS = ("time", "x1", "x2", "z", "y", "yd", "v", "uf", "u_dz", "r", "eta1_hat", "eta2_hat", "z1", "z2")
+
+
+def fields_of(ex: Example, n: int) -> tuple[str, ...]:
+    """The result columns of a run of ``ex`` with a controller of order n (:data:`FIELDS` for the
+    examples): time, the plant's three states, y, yd, v, uf, u_dz, r, eta_hat_i and z_i."""
+    return ("time", *ex.states, "y", "yd", "v", "uf", "u_dz", "r", *(f"eta{i}_hat" for i in range(1, n + 1)),
+            *(f"z{i}" for i in range(1, n + 1)))
 
 
 @dataclass
@@ -48,8 +56,10 @@ class ReferenceRun:
     data: np.ndarray = field(repr=False)
 
 
-def _controller_inputs(t: float, y: np.ndarray | list[float], ex: Example) -> tuple[list[float], tuple]:
-    return [y[0], y[1]], reference_signal(t, ex.reference)
+def _controller_inputs(t: float, y: np.ndarray | list[float], ex: Example, n: int
+                       ) -> tuple[list[float], tuple[float, ...]]:
+    """The controller's inputs: the first n plant states, yd and its n derivatives."""
+    return [y[i] for i in range(n)], reference_derivatives(t, ex.reference)[: n + 1]
 
 
 def _seq(values: np.ndarray | list[float]) -> Sequence[float]:
@@ -59,8 +69,8 @@ def _seq(values: np.ndarray | list[float]) -> Sequence[float]:
 
 
 def _outputs(t: float, y: np.ndarray | list[float], ex: Example, params: ControllerParameters) -> tuple:
-    """(v, uf, u_dz, terms) for the full state y = [x1, x2, z, r, eta_1..eta_n] at time t."""
-    x, yd = _controller_inputs(t, y, ex)
+    """(v, uf, u_dz, terms) for the full state y = [x1, x2, x3 or z, r, eta_1..eta_n] at time t."""
+    x, yd = _controller_inputs(t, y, ex, params.n)
     terms = evaluate(_seq(y[3:]), x, yd, params)
     uf, u_dz = actuator_output(t, terms.v, y[0], y[1], ex.actuator)
     return terms.v, uf, u_dz, terms
@@ -81,8 +91,8 @@ def _held_rhs(t: float, y: np.ndarray, ex: Example, params: ControllerParameters
 
 def _record(t: float, y: np.ndarray, ex: Example, params: ControllerParameters) -> tuple:
     v, uf, u_dz, terms = _outputs(t, y, ex, params)
-    yd = reference_signal(t, ex.reference)[0]
-    return (t, y[0], y[1], y[2], y[0], yd, v, uf, u_dz, y[3], y[4], y[5], terms.z[0], terms.z[1])
+    yd = reference_derivatives(t, ex.reference)[0]
+    return (t, y[0], y[1], y[2], y[0], yd, v, uf, u_dz, *(y[3 + i] for i in range(params.n + 1)), *terms.z)
 
 
 def simulate(
@@ -98,8 +108,9 @@ def simulate(
     co-simulation's semantics); ``grid`` must then equal ``sample_time``.
     """
     params = controller or example.controller
-    if params.n != 2:
-        raise ValueError(f"the examples are second-order plants; controller has n = {params.n}")
+    if params.n != example.controller.n:
+        raise ValueError(f"{example.name} is a plant of order {example.controller.n}; controller has "
+                         f"n = {params.n}")
     stop = example.stop_time if stop_time is None else stop_time
     steps = round(stop / grid)
     if not math.isclose(steps * grid, stop, rel_tol=1e-12):
@@ -114,7 +125,7 @@ def simulate(
         if not math.isclose(sample_time, grid, rel_tol=1e-12):
             raise ValueError(f"sampled runs are recorded at the sample time ({sample_time}), not {grid}")
         rows = _simulate_sampled(example, params, times, y0)
-    data = np.array(rows, dtype=[(name, float) for name in FIELDS])
+    data = np.array(rows, dtype=[(name, float) for name in fields_of(example, params.n)])
     return ReferenceRun(example=example, controller=params, sample_time=sample_time, data=data)
 
 
@@ -144,7 +155,7 @@ def _simulate_sampled(ex: Example, params: ControllerParameters, times: list[flo
         rows.append(_record(t, y, ex, params))
         if k == len(times) - 1:
             break
-        x, yd = _controller_inputs(t, y, ex)
+        x, yd = _controller_inputs(t, y, ex, params.n)
         _, uf, _, _ = _outputs(t, y, ex, params)
         sol = solve_ivp(
             _held_rhs, (t, times[k + 1]), y, method="DOP853", rtol=RTOL, atol=ATOL,

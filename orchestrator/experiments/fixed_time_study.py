@@ -14,6 +14,10 @@ and writes the study table (diverged, never settled, settling median / max, peak
 configuration, T_m of eq. (83) beside the worst settling time) and the figures: settling and
 peak |v| maps with one colour scale per figure, settling-time distributions, the saturation maps
 and the region where the semi-implicit cap binds at t = 0. It prints its wall time.
+
+``--map NAME`` draws the same map for another shipped scenario instead (:data:`MAPS`: the
+manipulator of issue 35, a plant of order 3), from its own campaign design: both laws, explicit and
+semi-implicit sampling, T_m of eq. (83) for its order beside the worst settling time.
 """
 
 from __future__ import annotations
@@ -32,7 +36,7 @@ import numpy as np
 
 from controller.law import evaluate
 from controller.params import FINITE_TIME, FIXED_TIME, SEMI_IMPLICIT, ControllerParameters
-from fmu_src.models.examples import EXAMPLES, Example
+from fmu_src.models.examples import EXAMPLES, MANIPULATOR, Example
 from fmu_src.models.plants import STATE_LIMIT, Y_LIMIT
 from fmu_src.models.reference import reference_signal
 
@@ -43,7 +47,9 @@ from .fixed_time_bound import FixedTimeBound, fixed_time_bound
 from .metrics import settling_time
 
 __all__ = [
+    "MAPS",
     "Cell",
+    "MapSpec",
     "cap_binds",
     "cells_from_rows",
     "continuous_cell",
@@ -543,6 +549,76 @@ def run_study(
     return text
 
 
+@dataclass(frozen=True)
+class MapSpec:
+    """A scenario whose map :func:`run_map` draws: its campaign design, its example (gains, number)
+    and the bounds of eq. (83) for its plant (b_m: the least input gain; m_bar: K m without fault)."""
+
+    design: Path
+    example: Example
+    b_m: float
+    m_bar: float = 1.0
+
+
+# Scenario -> its map (issue 35: the manipulator; its input gains 1, 1/M = 15.6, 1/L = 40: b_m = 1).
+MAPS = {"manipulator": MapSpec(CAMPAIGNS / "manipulator_map.toml", MANIPULATOR, b_m=1.0)}
+
+
+def run_map(name: str, out: Path, docs: Path | None, build: Path, workers: int, states: int = 21,
+            report_only: bool = False) -> str:
+    """The map of scenario ``name`` (:data:`MAPS`): its campaign over the ``states`` x ``states`` grid
+    (``report_only``: the table an earlier run left in ``out/<name>/``), the table with T_m of eq.
+    (83) beside the worst settling time, the settling and peak |v| maps (``out/<name>_settling.png``,
+    ``<name>_peak_v.png``); ``out/<name>.md`` and, with ``docs``, a copy of the table and the settling
+    map there. Returns the Markdown."""
+    started = time.perf_counter()
+    spec = MAPS[name]
+    out.mkdir(parents=True, exist_ok=True)
+    timing_path = out / name / TIMING_NAME
+    if report_only:
+        rows = read_table(out / name / "runs.parquet")[0]
+    else:
+        design = on_grid(read_design(spec.design), states)
+        summary = sweep([build / "ssp" / f"{name}.ssp"], design, out / name, metrics=TRACKING,
+                        workers=workers, force=True)
+        rows = read_table(summary.parquet)[0]
+        timing_path.write_text(json.dumps({"wall": time.perf_counter() - started, "workers": workers}),
+                               encoding="utf-8")
+    timing = json.loads(timing_path.read_text(encoding="utf-8"))
+    number, example = spec.example.number, spec.example
+    configurations: dict[tuple[int, str, str], list[Cell]] = {
+        (number, law, sampling): [] for law in LAWS.values() for sampling in SAMPLINGS[:2]}
+    for r in rows:
+        law = LAWS[FINITE_TIME if int(r["controller.mode"]) else FIXED_TIME]
+        configurations[(number, law, SAMPLINGS[int(r["controller.discretization"])])] += cells_from_rows([r])
+    bound = fixed_time_bound(example.controller, b_m=spec.b_m, m_bar=spec.m_bar, phi=0.5)
+    panels = [(f"{law}, {sampling}", cells) for (_, law, sampling), cells in configurations.items()]
+    figures = [f"{name}_settling.png", f"{name}_peak_v.png"]
+    draw_maps(panels, "settling", "settling time (s), band 0.05", out / figures[0],
+              title=f"{example.name}: settling time from x(0) (x3(0) = 0), {states} x {states} grid; "
+                    f"T_m of eq. (83) = {bound.t_m:.3g} s (Phi = 0.5)")
+    draw_maps(panels, "peak_v", "peak abs(v)", out / figures[1], log=True,
+              title=f"{example.name}: peak abs(v)")
+    text = "\n\n".join([
+        f"# The fixed-time claim, measured: {example.name}",
+        f"Wall time {timing['wall']:.0f} s for {len(rows)} co-simulation runs, {timing['workers']} worker "
+        f"processes. Horizon "
+        f"{HORIZON:g} s, band {BAND:g}; initial states on a {states} x {states} grid over [-10, 10]^2, "
+        f"sampled at {example.controller.sample_time * 1e3:g} ms as the scenario ships; T_m with b_m = "
+        f"{spec.b_m:g}, m_bar = {spec.m_bar:g} (no fault within the horizon).",
+        study_table(configurations, {number: bound}),
+        f"T_m of eq. (83) for n = {example.controller.n}:",
+        bound_table(bound),
+    ]) + "\n\n"
+    links = "\n".join(f"![{f}]({f})" for f in figures)
+    (out / f"{name}.md").write_text(text + links + "\n", encoding="utf-8")
+    if docs is not None:
+        docs.mkdir(parents=True, exist_ok=True)
+        (docs / f"{name}.md").write_text(text + f"![{figures[0]}]({figures[0]})\n", encoding="utf-8")
+        (docs / figures[0]).write_bytes((out / figures[0]).read_bytes())
+    return text
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the study and print its table and wall time."""
     parser = argparse.ArgumentParser(prog="python -m orchestrator.experiments.fixed_time_study",
@@ -558,8 +634,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                              "of it (default 21)")
     parser.add_argument("--report-only", action="store_true",
                         help="redraw the table and figures from the tables of an earlier run in --out")
+    parser.add_argument("--map", choices=sorted(MAPS), default=None,
+                        help="instead, the map of this scenario (its own campaign design and T_m)")
     args = parser.parse_args(argv)
     started = time.perf_counter()
+    if args.map is not None:
+        print(run_map(args.map, args.out, args.docs, args.build, args.workers, args.states, args.report_only))
+        print(f"study-fixed-time --map {args.map}: wall time {time.perf_counter() - started:.0f} s")
+        return 0
     text = run_study(args.out, args.docs, args.build, args.workers, args.continuous_states, args.report_only,
                      args.states)
     print(text)

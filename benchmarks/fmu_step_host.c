@@ -1,0 +1,152 @@
+/* A timing host for benchmarks/fmu_step.py: one FMI 2.0 Co-Simulation FMU stepped as a C/C++ master
+   steps it (libcosim, OMSimulator), with nothing of the host's own in the timed loop: per
+   communication step fmi2SetReal of the inputs, fmi2GetReal of the outputs, fmi2DoStep. So the time
+   is the FMU's share of a closed-loop step in any C host.
+
+   usage: fmu_step_host BINARY RESOURCE_URI GUID STEPS STEP_SIZE BATCH [p:VR=VALUE]... [i:VR=A,W,P]...
+          [o:VR]... [f:I,O=GAIN]...
+   p: a Real parameter set before initialization; i: an input fed A sin(W t + P) (precomputed for every
+   step before the clock starts); o: an output read every step; f: GAIN times the I-th output read in
+   the previous step added to the O-th input (0-based: a feedback, so that a plant that diverges open
+   loop stays in range). Prints "cpu_ns_per_step X" (the
+   process's CPU time over the loop, divided by the steps: what other processes on the machine do
+   not change) and "median_ns_per_step Y" (the median over batches of BATCH steps of the monotonic
+   clock: preemptions fall out). Exit status 1 on a status other than fmi2OK, 2 on a load error. */
+#define _POSIX_C_SOURCE 199309L
+#include <dlfcn.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+typedef void *fmi2Component;
+typedef struct {
+    void (*logger)(void *, const char *, int, const char *, const char *, ...);
+    void *(*allocateMemory)(size_t, size_t);
+    void (*freeMemory)(void *);
+    void *stepFinished;
+    void *componentEnvironment;
+} fmi2CallbackFunctions;
+
+enum { MAX_VARIABLES = 64 };
+
+static void logger(void *env, const char *name, int status, const char *category, const char *message, ...) {
+    (void)env;
+    va_list args;
+    va_start(args, message);
+    fprintf(stderr, "[%s status %d %s] ", name, status, category ? category : "");
+    vfprintf(stderr, message, args);
+    fprintf(stderr, "\n");
+    va_end(args);
+}
+
+static void *symbol(void *lib, const char *name) {
+    void *f = dlsym(lib, name);
+    if (!f) {
+        fprintf(stderr, "dlsym %s failed: %s\n", name, dlerror());
+        exit(2);
+    }
+    return f;
+}
+
+static double seconds(clockid_t clock) {
+    struct timespec now;
+    clock_gettime(clock, &now);
+    return (double)now.tv_sec + 1e-9 * (double)now.tv_nsec;
+}
+
+static int by_value(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+int main(int argc, char **argv) {
+    if (argc < 7) {
+        fprintf(stderr, "usage: %s BINARY RESOURCE_URI GUID STEPS STEP_SIZE BATCH [p:VR=V]... [i:VR=A,W,P]... "
+                "[o:VR]...\n", argv[0]);
+        return 2;
+    }
+    void *lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
+    if (!lib) {
+        fprintf(stderr, "dlopen failed: %s\n", dlerror());
+        return 2;
+    }
+    fmi2Component (*instantiate)(const char *, int, const char *, const char *, const fmi2CallbackFunctions *,
+                                 int, int) = symbol(lib, "fmi2Instantiate");
+    int (*setup)(fmi2Component, int, double, double, int, double) = symbol(lib, "fmi2SetupExperiment");
+    int (*enter)(fmi2Component) = symbol(lib, "fmi2EnterInitializationMode");
+    int (*exit_)(fmi2Component) = symbol(lib, "fmi2ExitInitializationMode");
+    int (*step)(fmi2Component, double, double, int) = symbol(lib, "fmi2DoStep");
+    int (*set)(fmi2Component, const unsigned *, size_t, const double *) = symbol(lib, "fmi2SetReal");
+    int (*get)(fmi2Component, const unsigned *, size_t, double *) = symbol(lib, "fmi2GetReal");
+    int (*terminate)(fmi2Component) = symbol(lib, "fmi2Terminate");
+    void (*free_instance)(fmi2Component) = symbol(lib, "fmi2FreeInstance");
+    fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
+    fmi2Component c = instantiate("timing", 1, argv[3], argv[2], &callbacks, 0, 0);
+    if (!c) return 2;
+    long steps = atol(argv[4]), batch = atol(argv[6]);
+    double h = atof(argv[5]);
+    unsigned inputs[MAX_VARIABLES], outputs[MAX_VARIABLES];
+    double wave[MAX_VARIABLES][3], read[MAX_VARIABLES] = {0.0}, gain[MAX_VARIABLES][1], fed[MAX_VARIABLES];
+    int loop[MAX_VARIABLES][2];
+    size_t n_in = 0, n_out = 0, n_loop = 0;
+    int status = setup(c, 0, 0.0, 0.0, 0, 0.0) | enter(c);
+    for (int a = 7; a < argc; a++) {
+        char kind = argv[a][0];
+        unsigned vr = (unsigned)strtoul(argv[a] + 2, NULL, 10);
+        char *equals = strchr(argv[a], '=');
+        if (kind == 'p' && equals) {
+            double value = atof(equals + 1);
+            status |= set(c, &vr, 1, &value);
+        } else if (kind == 'i' && equals && n_in < MAX_VARIABLES) {
+            inputs[n_in] = vr;
+            if (sscanf(equals + 1, "%lf,%lf,%lf", &wave[n_in][0], &wave[n_in][1], &wave[n_in][2]) != 3) return 2;
+            n_in++;
+        } else if (kind == 'o' && n_out < MAX_VARIABLES) {
+            outputs[n_out++] = vr;
+        } else if (kind == 'f' && equals && n_loop < MAX_VARIABLES) {
+            if (sscanf(argv[a] + 2, "%d,%d=%lf", &loop[n_loop][0], &loop[n_loop][1], &gain[n_loop][0]) != 3)
+                return 2;
+            n_loop++;
+        }
+    }
+    status |= exit_(c);
+    double *values = malloc(sizeof(double) * (size_t)steps * (n_in ? n_in : 1));
+    long batches = steps / batch;
+    double *times = malloc(sizeof(double) * (size_t)(batches ? batches : 1));
+    if (!values || !times) return 2;
+    for (long k = 0; k < steps; k++)
+        for (size_t i = 0; i < n_in; i++)
+            values[k * (long)n_in + (long)i] = wave[i][0] * sin(wave[i][1] * (double)k * h + wave[i][2]);
+    double cpu = seconds(CLOCK_PROCESS_CPUTIME_ID);
+    for (long b = 0; b < batches && status == 0; b++) {
+        double start = seconds(CLOCK_MONOTONIC);
+        for (long k = b * batch; k < (b + 1) * batch && status == 0; k++) {
+            const double *in = values + k * (long)n_in;
+            if (n_loop) {
+                for (size_t i = 0; i < n_in; i++) fed[i] = in[i];
+                for (size_t f = 0; f < n_loop; f++) fed[loop[f][1]] += gain[f][0] * read[loop[f][0]];
+                in = fed;
+            }
+            if (n_in) status |= set(c, inputs, n_in, in);
+            if (n_out) status |= get(c, outputs, n_out, read);
+            status |= step(c, (double)k * h, h, 1);
+        }
+        times[b] = seconds(CLOCK_MONOTONIC) - start;
+    }
+    cpu = seconds(CLOCK_PROCESS_CPUTIME_ID) - cpu;
+    qsort(times, (size_t)batches, sizeof(double), by_value);
+    if (status) {
+        fprintf(stderr, "an FMI call returned status %d\n", status);
+        return 1;
+    }
+    printf("cpu_ns_per_step %.1f\n", 1e9 * cpu / (double)(batches * batch));
+    printf("median_ns_per_step %.1f\n", batches ? 1e9 * times[batches / 2] / (double)batch : 0.0);
+    status |= terminate(c);
+    free_instance(c);
+    free(values);
+    free(times);
+    return status ? 1 : 0;
+}

@@ -1,0 +1,403 @@
+/* _law: the controller's law and its RK4 step over one communication step, compiled.
+
+   Owns: the arithmetic of controller/law.py (_law: evaluate and derivative) and of
+   controller/stepping.py (rk4_step), operation for operation, so that it gives the same bits.
+   Called by controller/native.py (CompiledLaw), which packs the constants; the FMUs call it through
+   that module. May not: keep state between calls (every call is a pure function of its
+   arguments), or differ from the Python reference in a value, an exception or its message.
+
+   Same bits: every expression is evaluated in the order Python evaluates it (left to right, no
+   reassociation: built without -ffast-math and with -ffp-contract=off, so no fused multiply-add);
+   exp and pow are the C library's, which Python's math.exp and float ** call too; min follows
+   Python's builtin (the first argument unless the second is strictly smaller), which matters for
+   nan. Python's float ** and math.exp raise where C returns inf: py_pow and py_exp below repeat
+   CPython's special cases and errno rules (Objects/floatobject.c float_pow, Modules/mathmodule.c
+   math_1), and an evaluation raises the first error at the point where the Python code would.
+
+   Why compiled: the law costs about 1.5 us per RK4 stage in Python, four stages per communication
+   step; a controller FMU spends its step there. What depends on the held inputs alone (|x1|^gamma,
+   z1 and its powers, X_1's input sums) is computed once per call and shared by the stages, as
+   controller/order2.py does in Python; a power computed early keeps its error until the point where
+   the reference computes it.
+
+   Functions (constants: bytes packed by controller.native.law_constants, n = 1..4; state: the tuple
+   (r, eta_1..eta_n); inputs: the tuple (x_1..x_n, yd, yd', ..., yd^(n))):
+   evaluate(constants, state, inputs) -> (v, z_1..z_n, zeta_1..zeta_n, ptp_1..ptp_n, r', eta_1'..eta_n')
+   advance(constants, substeps, h, first, state, inputs) -> (r, eta_1..eta_n) after h; first: None or
+       evaluate's result at this state and inputs (its derivative is the first RK4 stage).
+   Built against the stable ABI (Py_LIMITED_API) so that one binary loads in any CPython 3.8 or
+   later: the FMU's own runtime, or the host's Python when the host runs one. */
+
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <errno.h>
+#include <math.h>
+#include <stdint.h>
+
+#define MAX_ORDER 4
+#define HEADER 11 /* doubles before the per-step gains, see law_constants in native.py */
+
+/* A parameter set, pointing into the packed constants. */
+typedef struct {
+    int n, semi, m; /* plant order, semi-implicit law, RBF neurons */
+    double p_alpha, p_beta, a_bar, gamma_gain, gamma_power, d_r, scale, bh;
+    const double *k, *q, *two_a2, *kappa, *leak; /* n each: k_eff, q, 2 a^2, kappa, rho + rho_bar */
+    const double *two_mu;                         /* m: 2 mu_j */
+    const double *dim_mu2;                        /* n x m: (dim_i mu_j) mu_j, dim_i = 4 + 3 (i - 1) */
+} Law;
+
+/* A power computed ahead of its use: its value, and the error Python raises when it computes it
+   (0: none; an errno value; NEGATIVE_ZERO_POWER: 0 raised to a negative power). */
+typedef struct {
+    double value;
+    int error;
+} Power;
+
+enum { NEGATIVE_ZERO_POWER = -1 };
+
+static int raise_power(int error) {
+    if (error == NEGATIVE_ZERO_POWER) {
+        PyErr_SetString(PyExc_ZeroDivisionError, "0.0 cannot be raised to a negative power");
+    } else {
+        errno = error;
+        PyErr_SetFromErrno(error == ERANGE ? PyExc_OverflowError : PyExc_ValueError);
+    }
+    return -1;
+}
+
+static int is_odd_integer(double x) { return fmod(fabs(x), 2.0) == 1.0; }
+
+/* iv ** iw as CPython's float_pow computes it, for iv >= 0 or nan (the law raises |z| and |x1|). */
+static Power py_pow(double iv, double iw) {
+    Power out = {0.0, 0};
+    if (iw == 0.0) {
+        out.value = 1.0;
+    } else if (isnan(iv)) {
+        out.value = iv;
+    } else if (isnan(iw)) {
+        out.value = iv == 1.0 ? 1.0 : iw;
+    } else if (isinf(iw)) {
+        iv = fabs(iv);
+        out.value = iv == 1.0 ? 1.0 : ((iw > 0.0) == (iv > 1.0) ? fabs(iw) : 0.0);
+    } else if (isinf(iv)) {
+        int odd = is_odd_integer(iw);
+        out.value = iw > 0.0 ? (odd ? iv : fabs(iv)) : (odd ? copysign(0.0, iv) : 0.0);
+    } else if (iv == 0.0) {
+        if (iw < 0.0)
+            out.error = NEGATIVE_ZERO_POWER;
+        else
+            out.value = is_odd_integer(iw) ? iv : 0.0;
+    } else if (iv == 1.0) {
+        out.value = 1.0;
+    } else {
+        errno = 0;
+        out.value = pow(iv, iw);
+        if (errno == 0) { /* Py_ADJUST_ERANGE1 */
+            if (isinf(out.value)) errno = ERANGE;
+        } else if (errno == ERANGE && out.value == 0.0) {
+            errno = 0;
+        }
+        out.error = errno;
+    }
+    return out;
+}
+
+/* math.exp(x) into *out; -1 with Python's exception where math.exp raises. */
+static int py_exp(double x, double *out) {
+    errno = 0;
+    double r = exp(x);
+    if (isnan(r) && !isnan(x)) {
+        PyErr_SetString(PyExc_ValueError, "math domain error");
+        return -1;
+    }
+    if (isinf(r) && isfinite(x)) {
+        PyErr_SetString(PyExc_OverflowError, "math range error");
+        return -1;
+    }
+    if (isfinite(r) && errno == EDOM) {
+        PyErr_SetString(PyExc_ValueError, "math domain error");
+        return -1;
+    }
+    if (isfinite(r) && errno == ERANGE && fabs(r) >= 1.5) {
+        PyErr_SetString(PyExc_OverflowError, "math range error");
+        return -1;
+    }
+    *out = r;
+    return 0;
+}
+
+/* a / b into *out; -1 with Python's exception where float division raises (b == 0: 2 a^2 or
+   b_max sample_time underflowed to zero). */
+static int divide(double a, double b, double *out) {
+    if (b == 0.0) {
+        PyErr_SetString(PyExc_ZeroDivisionError, "float division by zero");
+        return -1;
+    }
+    *out = a / b;
+    return 0;
+}
+
+/* What the law takes from the held inputs alone, computed once per call. */
+typedef struct {
+    const double *x, *yd; /* n and n + 1 */
+    double s1, s2;        /* x1 + yd + yd' and x1^2 + yd^2 + yd'^2: X_1's sums before r */
+    double z1;
+    Power gamma, z1_alpha, z1_beta; /* |x1|^gamma_power, |z1|^(2 alpha - 1), |z1|^(2 beta - 1) */
+} Held;
+
+static void hold(const Law *law, const double *x, const double *yd, Held *held) {
+    held->x = x;
+    held->yd = yd;
+    held->s1 = x[0] + yd[0] + yd[1];
+    held->s2 = x[0] * x[0] + yd[0] * yd[0] + yd[1] * yd[1];
+    held->z1 = x[0] - yd[0];
+    held->gamma = py_pow(fabs(x[0]), law->gamma_power);
+    held->z1_alpha = py_pow(fabs(held->z1), law->p_alpha);
+    held->z1_beta = py_pow(fabs(held->z1), law->p_beta);
+}
+
+/* P^T P of step i (controller.rbf.rbf_energy with dim = 4 + 3 i). */
+static int energy(const Law *law, int i, double s1, double s2, double *ptp) {
+    const double *dim_mu2 = law->dim_mu2 + (size_t)i * (size_t)law->m;
+    double total = 0.0;
+    for (int j = 0; j < law->m; j++) {
+        double e;
+        if (py_exp(law->scale * (s2 - law->two_mu[j] * s1 + dim_mu2[j]), &e)) return -1;
+        total += e;
+    }
+    *ptp = total;
+    return 0;
+}
+
+/* zeta_i from its error z, weight and estimate (eq. 37/54/68, or the semi-implicit value);
+   alpha_power, beta_power: |z|^(2 alpha - 1), |z|^(2 beta - 1), raised here if they failed. */
+static int virtual_control(const Law *law, int i, double z, double weight, double eta, Power alpha_power,
+                           Power beta_power, double *zeta) {
+    if (law->semi) {
+        double a = fabs(z);
+        if (alpha_power.error) return raise_power(alpha_power.error);
+        if (beta_power.error) return raise_power(beta_power.error);
+        double phi = law->k[i] * alpha_power.value + law->q[i] * beta_power.value + eta * a * weight;
+        if (z == 0.0) {
+            *zeta = 0.0;
+        } else {
+            double layer;
+            if (divide(a, law->bh, &layer)) return -1;
+            *zeta = -copysign(layer < phi ? layer : phi, z);
+        }
+    } else if (z != 0.0) {
+        if (alpha_power.error) return raise_power(alpha_power.error);
+        double sig_alpha = copysign(alpha_power.value, z);
+        if (beta_power.error) return raise_power(beta_power.error);
+        double sig_beta = copysign(beta_power.value, z);
+        *zeta = -law->k[i] * sig_alpha - law->q[i] * sig_beta - eta * z * weight;
+    } else {
+        *zeta = 0.0;
+    }
+    return 0;
+}
+
+/* One evaluation of the law at state (r, eta) (controller.law._law): z, zeta, ptp (n each) and the
+   state derivative rates (n + 1); with_v 0 leaves zeta_n out. 0, or -1 with the exception set. */
+static int law_at(const Law *law, const Held *held, double r, const double *eta, int with_v, double *z,
+                  double *zeta, double *ptp, double *rates) {
+    int n = law->n;
+    if (held->gamma.error) return raise_power(held->gamma.error);
+    rates[0] = -law->a_bar * r + law->gamma_gain * held->gamma.value + law->d_r; /* eq. 20 */
+    double s1 = held->s1 + r;
+    double s2 = held->s2 + r * r;
+    double previous = held->yd[0];
+    for (int i = 0; i < n; i++) {
+        const double *x = held->x, *yd = held->yd;
+        if (i > 0) {
+            s1 += x[i] + eta[i - 1] + yd[i + 1];
+            s2 += x[i] * x[i] + eta[i - 1] * eta[i - 1] + yd[i + 1] * yd[i + 1];
+        }
+        double zi = i == 0 ? held->z1 : x[i] - previous; /* eq. 26 */
+        double weight;
+        if (energy(law, i, s1, s2, &ptp[i]) || divide(ptp[i], law->two_a2[i], &weight)) return -1;
+        zeta[i] = 0.0;
+        if (i < n - 1 || with_v) {
+            Power alpha_power = i == 0 ? held->z1_alpha : py_pow(fabs(zi), law->p_alpha);
+            Power beta_power = i == 0 ? held->z1_beta : py_pow(fabs(zi), law->p_beta);
+            if (virtual_control(law, i, zi, weight, eta[i], alpha_power, beta_power, &zeta[i])) return -1;
+        }
+        rates[i + 1] = law->kappa[i] * zi * zi * weight - law->leak[i] * eta[i]; /* eq. 38 */
+        z[i] = zi;
+        previous = zeta[i];
+    }
+    return 0;
+}
+
+/* The packed constants (bytes, see controller.native.law_constants) as a Law; -1 if malformed. */
+static int unpack(PyObject *constants, Law *law) {
+    char *buffer;
+    Py_ssize_t size;
+    if (PyBytes_AsStringAndSize(constants, &buffer, &size)) return -1;
+    const double *c = (const double *)(void *)buffer;
+    if ((uintptr_t)buffer % sizeof(double) || size < (Py_ssize_t)(HEADER * sizeof(double))) {
+        PyErr_SetString(PyExc_ValueError, "constants: not packed by controller.native.law_constants");
+        return -1;
+    }
+    law->n = (int)c[0];
+    law->semi = c[1] != 0.0;
+    law->m = (int)c[2];
+    Py_ssize_t n = law->n, m = law->m;
+    if (n < 1 || n > MAX_ORDER || m < 0 || size != (Py_ssize_t)sizeof(double) * (HEADER + 5 * n + m + n * m)) {
+        PyErr_Format(PyExc_ValueError, "constants: not packed by controller.native.law_constants for a plant "
+                     "order n = 1..%d", MAX_ORDER);
+        return -1;
+    }
+    law->p_alpha = c[3];
+    law->p_beta = c[4];
+    law->a_bar = c[5];
+    law->gamma_gain = c[6];
+    law->gamma_power = c[7];
+    law->d_r = c[8];
+    law->scale = c[9];
+    law->bh = c[10];
+    const double *at = c + HEADER;
+    law->k = at;
+    law->q = at + n;
+    law->two_a2 = at + 2 * n;
+    law->kappa = at + 3 * n;
+    law->leak = at + 4 * n;
+    law->two_mu = at + 5 * n;
+    law->dim_mu2 = at + 5 * n + m;
+    return 0;
+}
+
+/* The tuple t of count doubles into out (what names them, for the message); -1 if it is not one. */
+static int doubles_of(PyObject *t, Py_ssize_t count, const char *what, int n, double *out) {
+    if (!PyTuple_Check(t)) {
+        PyErr_Format(PyExc_TypeError, "the law of order n = %d takes %s as a tuple", n, what);
+        return -1;
+    }
+    if (PyTuple_Size(t) != count) {
+        PyErr_Format(PyExc_TypeError, "the law of order n = %d takes %s: %zd values (got %zd)", n, what, count,
+                     PyTuple_Size(t));
+        return -1;
+    }
+    for (Py_ssize_t i = 0; i < count; i++) {
+        out[i] = PyFloat_AsDouble(PyTuple_GetItem(t, i));
+        if (out[i] == -1.0 && PyErr_Occurred()) return -1;
+    }
+    return 0;
+}
+
+/* state (r, eta_1..eta_n) and inputs (x_1..x_n, yd..yd^(n)) into in[0..n] and in[n + 1..3n + 1]. */
+static int arguments(PyObject *state, PyObject *inputs, int n, double *in) {
+    if (doubles_of(state, n + 1, "state (r, eta_hat_1..eta_hat_n)", n, in)) return -1;
+    return doubles_of(inputs, 2 * n + 1, "inputs (x1..xn, yd..yd^(n))", n, in + n + 1);
+}
+
+static PyObject *doubles(const double *v, Py_ssize_t count) {
+    PyObject *tuple = PyTuple_New(count);
+    if (tuple == NULL) return NULL;
+    for (Py_ssize_t i = 0; i < count; i++) {
+        PyObject *item = PyFloat_FromDouble(v[i]);
+        if (item == NULL) {
+            Py_DECREF(tuple);
+            return NULL;
+        }
+        PyTuple_SetItem(tuple, i, item);
+    }
+    return tuple;
+}
+
+static PyObject *evaluate(PyObject *self, PyObject *args) {
+    (void)self;
+    Law law;
+    double in[3 * MAX_ORDER + 2], out[4 * MAX_ORDER + 2];
+    PyObject *constants, *state, *inputs;
+    if (!PyArg_UnpackTuple(args, "evaluate", 3, 3, &constants, &state, &inputs) || unpack(constants, &law))
+        return NULL;
+    int n = law.n;
+    if (arguments(state, inputs, n, in)) return NULL;
+    Held held;
+    hold(&law, in + n + 1, in + 2 * n + 1, &held);
+    double *z = out + 1, *zeta = out + 1 + n, *ptp = out + 1 + 2 * n, *rates = out + 1 + 3 * n;
+    if (law_at(&law, &held, in[0], in + 1, 1, z, zeta, ptp, rates)) return NULL;
+    out[0] = zeta[n - 1];
+    return doubles(out, 4 * (Py_ssize_t)n + 2);
+}
+
+/* The state derivative at state y (n + 1 values), into rates; -1 with the exception set. */
+static int derivative(const Law *law, const Held *held, const double *y, double *rates) {
+    double z[MAX_ORDER], zeta[MAX_ORDER], ptp[MAX_ORDER];
+    return law_at(law, held, y[0], y + 1, 0, z, zeta, ptp, rates);
+}
+
+/* controller.stepping.rk4_step: substeps classical RK4 steps of h / substeps, inputs held; first
+   (n + 1 values or NULL) is the derivative at y, the first stage. */
+static int rk4(const Law *law, const Held *held, long substeps, double h, const double *first, double *y) {
+    int m = law->n + 1;
+    double k1[MAX_ORDER + 1], k2[MAX_ORDER + 1], k3[MAX_ORDER + 1], k4[MAX_ORDER + 1], stage[MAX_ORDER + 1];
+    double dt = h / (double)substeps;
+    for (long s = 0; s < substeps; s++) {
+        if (first != NULL && s == 0) {
+            for (int j = 0; j < m; j++) k1[j] = first[j];
+        } else if (derivative(law, held, y, k1)) {
+            return -1;
+        }
+        for (int j = 0; j < m; j++) stage[j] = y[j] + 0.5 * dt * k1[j];
+        if (derivative(law, held, stage, k2)) return -1;
+        for (int j = 0; j < m; j++) stage[j] = y[j] + 0.5 * dt * k2[j];
+        if (derivative(law, held, stage, k3)) return -1;
+        for (int j = 0; j < m; j++) stage[j] = y[j] + dt * k3[j];
+        if (derivative(law, held, stage, k4)) return -1;
+        for (int j = 0; j < m; j++) y[j] = y[j] + dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+    }
+    return 0;
+}
+
+static PyObject *advance(PyObject *self, PyObject *args) {
+    (void)self;
+    Law law;
+    double in[3 * MAX_ORDER + 2], first[MAX_ORDER + 1];
+    PyObject *constants, *count, *step, *stage, *state, *inputs;
+    if (!PyArg_UnpackTuple(args, "advance", 6, 6, &constants, &count, &step, &stage, &state, &inputs) ||
+        unpack(constants, &law))
+        return NULL;
+    int n = law.n;
+    long substeps = PyLong_AsLong(count);
+    if (substeps == -1 && PyErr_Occurred()) return NULL;
+    if (substeps < 1) {
+        PyErr_Format(PyExc_ValueError, "substeps must be >= 1 (got %ld)", substeps);
+        return NULL;
+    }
+    double h = PyFloat_AsDouble(step);
+    if (h == -1.0 && PyErr_Occurred()) return NULL;
+    const double *start = NULL;
+    if (stage != Py_None) {
+        if (!PyTuple_Check(stage) || PyTuple_Size(stage) != 4 * n + 2) {
+            PyErr_Format(PyExc_TypeError, "first must be None or evaluate's result for order n = %d", n);
+            return NULL;
+        }
+        for (int j = 0; j <= n; j++) {
+            first[j] = PyFloat_AsDouble(PyTuple_GetItem(stage, 3 * n + 1 + j));
+            if (first[j] == -1.0 && PyErr_Occurred()) return NULL;
+        }
+        start = first;
+    }
+    if (arguments(state, inputs, n, in)) return NULL;
+    Held held;
+    hold(&law, in + n + 1, in + 2 * n + 1, &held);
+    if (rk4(&law, &held, substeps, h, start, in)) return NULL;
+    return doubles(in, n + 1);
+}
+
+static PyMethodDef methods[] = {
+    {"evaluate", evaluate, METH_VARARGS,
+     "The law at one state and input: (v, z, zeta, ptp, derivative), flat (see controller/native.py)."},
+    {"advance", advance, METH_VARARGS,
+     "The state after one communication step of RK4 with the inputs held (see controller/native.py)."},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "_law", "The controller's law and its RK4 step, compiled.", -1, methods,
+    NULL, NULL, NULL, NULL,
+};
+
+PyMODINIT_FUNC PyInit__law(void) { return PyModule_Create(&module); }
