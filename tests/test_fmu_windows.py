@@ -29,9 +29,12 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "windows"))
+import hostile  # noqa: E402
 from wine import (  # noqa: E402
+    MINGW,
     TOLERANCE,
     USER_FOLDER,
+    WINE,
     Difference,
     Item,
     Wine,
@@ -225,6 +228,81 @@ def test_exported_scenario_in_the_c_host(wine: Wine, built: Path, tmp_path: Path
     results[("example1 (exported)", "C host console, FMI 3.0")] = found.text()
 
 
+# (folder of built/ or "export", model or FMI version of the exported example1)
+HOSTILE_CASES = ([(v, m) for v in ("fmus", "fmus3") for m in MODELS] + [("export", "2"), ("export", "3")]
+                 if ALL else [("fmus3", "FixedTimeController")])
+
+
+@pytest.fixture(scope="module")
+def linux_hostile(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The hostile host built for Linux: the oracle of the Windows run."""
+    return hostile.compile_host(tmp_path_factory.mktemp("hostile"))
+
+
+def hostile_pair(wine: Wine, linux_host: Path, fmu: Path, linux_root: Path,
+                 ) -> tuple[dict[str, hostile.Outcome], dict[str, hostile.Outcome]]:
+    """Every hostile scenario on ``fmu``: by the Windows host under wine (each scenario a process
+    of its own) and by the Linux host on the Linux binaries; messages with the folder as <FMU>."""
+    windows_folder, arguments = hostile.unpack(fmu, wine.drive_c / "hostile")
+    linux_folder, linux_arguments = hostile.unpack(fmu, linux_root)
+    arguments[0] = wine.windows_path(windows_folder)
+    windows, process = hostile.run("C:/hosts/hostile.exe", arguments, hostile.SCENARIOS, wrapper=(str(WINE),),
+                                   env=wine.env, timeout=1200)
+    assert windows, process.stdout[-3000:]
+    linux = hostile.run(linux_host, linux_arguments, hostile.SCENARIOS)[0]
+
+    def plain(outcomes: dict[str, hostile.Outcome], folder: str, uri: str) -> dict[str, hostile.Outcome]:
+        return {name: dataclasses.replace(o, message=o.message.replace(uri, "<FMU>").replace(folder, "<FMU>"))
+                for name, o in outcomes.items()}
+
+    return (plain(windows, arguments[0], "file:///" + arguments[0]),
+            plain(linux, str(linux_folder), "file://" + str(linux_folder)))
+
+
+@pytest.mark.parametrize(("version", "model"), HOSTILE_CASES)
+def test_hostile_calls_never_crash_a_windows_host(wine: Wine, built: Path, linux_hostile: Path,
+                                                  tmp_path: Path, version: str, model: str) -> None:
+    """tests/fmu_hostile_host.c cross-compiled, every scenario of issue 30 (NULL and foreign
+    resource locations, wrong and NULL GUIDs, no logger, no callbacks, NaN/0/-h/inf steps, calls
+    out of state, after an error, a failing model, 50 instances, two threads) on the FMU's win64
+    binaries, each scenario a Windows process of its own: none ends by an exception, and each call
+    answers as the Linux binaries answer it (status, instance, messages and their text, figure)."""
+    if version == "export":
+        target = tmp_path / "export" / f"example1_{model}.fmu"
+        fmu, _ = export(built / "ssp" / "example1.ssp", target, fmi=model)
+        row, column = "example1 (exported)", f"hostile calls, FMI {model}.0"
+    else:
+        fmu = built / version / f"{model}.fmu"
+        row, column = model, f"hostile calls, FMI {'2.0' if version == 'fmus' else '3.0'}"
+    windows, linux = hostile_pair(wine, linux_hostile, fmu, tmp_path)
+    for name in hostile.SCENARIOS:
+        assert windows[name].exit == "0", (version, model, name, windows[name])
+        assert windows[name].null_categories == 0, (name, windows[name])
+        assert windows[name] == linux[name], (version, model, name, windows[name], linux[name])
+    assert windows["fifty"].extra == 50 and windows["two-threads"].extra == 1
+    answered = sum(o.status != -2 for o in windows.values())  # -2: the FMU lacks the variable
+    results[(row, column)] = f"{answered} scenarios: no exception, answers as on Linux"
+
+
+def test_the_windows_hostile_host_sees_a_crash(wine: Wine) -> None:
+    """The Windows host itself: a child whose fmi2Instantiate dereferences NULL (a DLL compiled
+    here) is reported with its exception code, the next scenario runs in a fresh process."""
+    fmu = wine.drive_c / "crash"
+    (fmu / "binaries" / "win64").mkdir(parents=True, exist_ok=True)
+    source = fmu / "crash.c"
+    source.write_text("__declspec(dllexport) void *fmi2Instantiate(const char *n, int t,\n"
+                      "                                              const char *guid) {\n"
+                      "    return guid[1] == '0' ? *(void *volatile *)0 : (void *)1;\n}\n"
+                      "__declspec(dllexport) void fmi2FreeInstance(void *c) { (void)c; }\n")
+    subprocess.run([str(MINGW), "-shared", "-O0", "-o", str(fmu / "binaries" / "win64" / "crash.dll"),
+                    str(source)], check=True)
+    arguments = [wine.windows_path(fmu), "2", "crash", "{x}", "-1", "-1", "-1"]
+    outcomes = hostile.run("C:/hosts/hostile.exe", arguments, ["guid-wrong", "no-callbacks"],
+                           wrapper=(str(WINE),), env=wine.env)[0]
+    assert outcomes["guid-wrong"].crashed and outcomes["guid-wrong"].exit == "exception 0xc0000005"
+    assert outcomes["no-callbacks"].exit == "0" and outcomes["no-callbacks"].status == 0
+
+
 @pytest.mark.skipif(not ALL, reason="the whole matrix: make windows-matrix")
 def test_every_fmu_host_and_scenario(wine: Wine, windows_python: Path, fmus: dict[str, Path], built: Path,
                                      tmp_path: Path) -> None:
@@ -271,7 +349,10 @@ def write_matrix() -> None:
              f"`C:/{USER_FOLDER}/`, against its Linux binaries driven by the same calls (the same C host",
              "built for Linux; fmpy on Linux for FMPy on Windows). A cell says how many output values were",
              "compared and whether they are equal to the bit, else the largest relative difference and",
-             f"where (the tests require at most {TOLERANCE:g}). See [Windows](windows.md).", "",
+             f"where (the tests require at most {TOLERANCE:g}). \"hostile calls\": every scenario of",
+             "tests/fmu_hostile_host.c, each in a Windows process of its own, against the same host on the",
+             "Linux binaries (a scenario needing a variable the FMU lacks is not counted). See",
+             "[Windows](windows.md).", "",
              "| FMU | " + " | ".join(columns) + " |", "|---|" + "---|" * len(columns)]
     for row in rows:
         lines.append(f"| {row} | " + " | ".join(results.get((row, c), "") for c in columns) + " |")

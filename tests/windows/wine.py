@@ -20,6 +20,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 HOST_SOURCE = HERE.parent / "fmu_plan_host.c"
+HOSTILE_SOURCE = HERE.parent / "fmu_hostile_host.c"
 MINGW = shutil.which("x86_64-w64-mingw32-gcc")
 WINE = shutil.which("wine64") or next((p for p in ("/usr/lib/wine/wine64",) if os.access(p, os.X_OK)), None)
 WINESERVER = shutil.which("wineserver") or next(
@@ -79,10 +80,13 @@ def run_wine(env: dict[str, str], root: Path, args: list[str],
 
 def make_prefix(root: Path) -> Wine:
     """A new wine prefix under ``root`` (wineboot, no Mono or Gecko), with the plan host
-    cross-compiled into C:/hosts/ (console.exe, gui.exe) and built for Linux."""
+    cross-compiled into C:/hosts/ (console.exe, gui.exe) and built for Linux, and the hostile host
+    (tests/fmu_hostile_host.c) into C:/hosts/hostile.exe."""
     prefix = root / "prefix"
+    # winedbg disabled: a crashing process then ends at once with its exception code (as on Windows
+    # without a debugger) instead of waiting 15 s for wine's debugger to dump it
     env = {**os.environ, "WINEPREFIX": str(prefix), "WINEDEBUG": "-all",
-           "WINEDLLOVERRIDES": "mscoree,mshtml=", "WINEARCH": "win64"}
+           "WINEDLLOVERRIDES": "mscoree,mshtml=;winedbg.exe=d", "WINEARCH": "win64"}
     env.pop("DISPLAY", None)
     prefix.mkdir(parents=True)
     # the server first, kept for the session: every wine process then connects to it instead of
@@ -98,6 +102,8 @@ def make_prefix(root: Path) -> Wine:
     subprocess.run([str(MINGW), *common, "-o", str(hosts / "console.exe")], check=True, capture_output=True)
     subprocess.run([str(MINGW), *common, "-mwindows", "-DGUI_HOST", "-o", str(hosts / "gui.exe")], check=True,
                    capture_output=True)
+    subprocess.run([str(MINGW), "-std=c11", "-O1", "-Wall", "-Wextra", "-municode", str(HOSTILE_SOURCE),
+                    "-o", str(hosts / "hostile.exe"), "-lpsapi"], check=True, capture_output=True)
     cc = shutil.which("cc") or shutil.which("gcc") or "cc"
     linux_host = root / "linux_host"
     subprocess.run([cc, "-std=c11", "-O2", "-Wall", "-o", str(linux_host), str(HOST_SOURCE), "-ldl"],
