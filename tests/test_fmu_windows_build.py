@@ -60,6 +60,13 @@ def test_every_fmu_carries_win64_beside_linux64(fmus: dict[str, Path], built: Pa
             assert {"Python-embeddable-LICENSE.txt", "MSVC-runtime-redistribution.txt"} <= licences
             terms = archive.read("documentation/licenses/MSVC-runtime-redistribution.txt").decode()
             assert "vcruntime" in terms.lower() or "Visual C++ Runtime Files" in terms
+            # the FMI entry point says what each covers; externalDependencies names Windows' floor
+            entry = archive.read("documentation/licenses/license.txt").decode()
+            assert re.search(r"Python-embeddable-LICENSE.txt\n.*python311.dll.*\n\s+licence: PSF-2.0", entry)
+            msvc = r"MSVC-runtime-redistribution.txt\n.*vcruntime140.dll.*\n\s+licence: LicenseRef-"
+            assert re.search(msvc, entry)
+            external = archive.read("documentation/externalDependencies.txt").decode()
+            assert "binaries/win64" in external and "Windows 10 or newer" in external
 
 
 @pytest.mark.skipif(OBJDUMP is None, reason="needs mingw-w64's objdump (binutils-mingw-w64-x86-64)")
