@@ -74,7 +74,7 @@ run: build
 ## conformance matrix of every scenario in every installed SSP tool to results/crosscheck/, and the
 ## sample project's regression (terminal, JUnit XML, report screenshots) to results/regress-sample/.
 test: build $(ALT_STAMP) browser windows-tools
-	@$(PY) -m fmu_src.runtime check || true
+	@$(PY) -m fmu_src.toolchain.runtime check || true
 	CROSSCHECK_OUTPUT=results/crosscheck REGRESS_SAMPLE_OUTPUT=results/regress-sample $(PY) -m pytest -q -n 2 --dist loadgroup
 
 # The HTML regression report's test opens it in a real browser: Debian's chromium, installed here
@@ -121,10 +121,10 @@ windows-matrix: build windows-tools
 hostile: build
 	FTC_HOSTILE_ALL=1 $(PY) -m pytest -q -n 2 tests/test_fmu_hostile.py
 
-## runtime-pins: move the FMUs' runtime (fmu_src/runtime_pins.txt) to the newest bookworm and
+## runtime-pins: move the FMUs' runtime (fmu_src/toolchain/runtime_pins.txt) to the newest bookworm and
 ## bookworm-security packages, saying what changed; then 'make build' fetches them
 runtime-pins: $(STAMP)
-	$(PY) -m fmu_src.runtime update
+	$(PY) -m fmu_src.toolchain.runtime update
 
 ## crosscheck: every built scenario in every installed SSP tool -> results/crosscheck/matrix.md
 crosscheck: build

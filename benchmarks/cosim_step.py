@@ -6,7 +6,7 @@ split per FMU call, and the same archives run by libcosim, all in one run.
 
 Builds, into a temporary folder, the current FMUs and the FMUs of revision ``--before`` (default:
 the last commit before issue 10; sources taken with ``git archive``, built by that revision's own
-``fmu_src.build``), and packs each scenario of ``ssp/`` with either set. Then, per scenario:
+``fmu_src.toolchain.build``), and packs each scenario of ``ssp/`` with either set. Then, per scenario:
 
 * ``before``: the old FMUs (plants: RK4 with 40 sub-steps per 1 ms; controller: the general-n
   law, four evaluations per step; pythonfmu's per-variable getter/setter lambdas);
@@ -117,7 +117,7 @@ def loop(scenario: Path, stop: float, master: str, overrides: Mapping[str, objec
 
 def build_before(revision: str, names: list[str], dest: Path) -> dict[str, Path]:
     """The FMUs of ``revision`` (its fmu_src/ and controller/, built by that revision's own
-    ``fmu_src.build``, as it shipped them) packed with today's scenario sources; returns
+    ``fmu_src.toolchain.build``, as it shipped them) packed with today's scenario sources; returns
     scenario -> archive."""
     source = dest / "src"
     source.mkdir(parents=True)
@@ -127,8 +127,8 @@ def build_before(revision: str, names: list[str], dest: Path) -> dict[str, Path]
                        check=True)
     with tarfile.open(archive) as tar:
         tar.extractall(source, filter="data")
-    subprocess.run([sys.executable, "-m", "fmu_src.build", str(dest / "fmus")], cwd=source, check=True,
-                   stdout=subprocess.DEVNULL, env=os.environ | {"PYTHONPATH": str(source)})
+    subprocess.run([sys.executable, "-m", "fmu_src.toolchain.build", str(dest / "fmus")], cwd=source,
+                   check=True, stdout=subprocess.DEVNULL, env=os.environ | {"PYTHONPATH": str(source)})
     fmus = {p.name: p for p in sorted((dest / "fmus").glob("*.fmu"))}
     return {name: pack_ssp(SCENARIO_DIR / name, {c: fmus[c] for c in component_sources(SCENARIO_DIR / name)},
                            dest / "ssp" / f"{name}.ssp")

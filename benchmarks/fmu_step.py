@@ -32,7 +32,7 @@ from pathlib import Path
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-from fmu_src.build import FMU_SCRIPTS, build_all
+from fmu_src.toolchain.build import FMU_SCRIPTS, build_all
 
 H = 1e-3
 HOST = Path(__file__).with_name("fmu_step_host.c")

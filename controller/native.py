@@ -12,7 +12,7 @@ step, with no object built per call but the result tuple):
   inputs (its derivative is the first RK4 stage).
 
 :func:`law_for` gives the compiled one (:class:`CompiledLaw`) where it is built and the plant order
-is 1..4, else the Python reference (:class:`ReferenceLaw`). The FMU build (:mod:`fmu_src.build`)
+is 1..4, else the Python reference (:class:`ReferenceLaw`). The FMU build (:mod:`fmu_src.toolchain.build`)
 compiles ``_law.c`` into every controller FMU, so an FMU always steps with it (an FMU that cannot
 load it fails to instantiate rather than step slower); in the source tree, where nothing is
 compiled, :data:`COMPILED` is False. ``tests/test_controller_native.py`` compares the two.
@@ -32,7 +32,7 @@ from .stepping import rk4_step
 try:
     from . import _law  # type: ignore[attr-defined]  # compiled by the FMU build
 except ImportError:
-    if __name__.startswith("_ftc_"):  # bundled in an FMU (fmu_src/build.py names the package so)
+    if __name__.startswith("_ftc_"):  # bundled in an FMU (fmu_src/toolchain/build.py names the package so)
         raise  # a built controller FMU carries it: without it the build is broken, not slower
     _law = None  # the source tree: the Python reference steps
 

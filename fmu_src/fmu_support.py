@@ -12,7 +12,7 @@ name, value references map straight to those names, and outputs computed from in
 are refreshed once, by the slave's ``refresh_outputs()``, when one is read after anything changed
 (see :func:`declare`).
 
-The FMU's C shim (``fmu_src/shim/fmi2_shim.c``) makes the calls of every communication step
+The FMU's C shim (``fmu_src/toolchain/shim/fmi2_shim.c``) makes the calls of every communication step
 (``fmi2DoStep``, ``fmi2GetReal``/``fmi2SetReal`` of inputs and outputs) on these same attributes
 itself, past pythonfmu's per-call machinery: :func:`fmu_model` offers it the slave's binding
 (see :func:`_direct_binding`).

@@ -16,16 +16,16 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from scipy.integrate import solve_ivp
 
-from fmu_src.build import EXTENSIONS, FMU_SCRIPTS, REPO_ROOT, compile_extension
-from fmu_src.runtime import ensure_runtime
+from fmu_src.toolchain.build import EXTENSIONS, FMU_SCRIPTS, REPO_ROOT, compile_extension
+from fmu_src.toolchain.runtime import ensure_runtime
 
 MODELS = tuple(FMU_SCRIPTS)
 _extracted: dict[Path, str] = {}
 
 
 def compiled_extension(name: str, where: Path) -> ModuleType:
-    """The C extension module ``name`` (a key of fmu_src.build.EXTENSIONS) compiled into ``where`` as
-    the FMU build compiles it, and loaded into this process (not into sys.modules)."""
+    """The C extension module ``name`` (a key of fmu_src.toolchain.build.EXTENSIONS) compiled into
+    ``where`` as the FMU build compiles it, and loaded into this process (not into sys.modules)."""
     source = REPO_ROOT / EXTENSIONS[name]
     path = where / f"{source.stem}.abi3.so"
     path.write_bytes(compile_extension(source, ensure_runtime(), where))

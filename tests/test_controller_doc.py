@@ -14,7 +14,7 @@ from pathlib import Path
 import fmpy
 import pytest
 
-from fmu_src.controller_doc import controller_documentation
+from fmu_src.toolchain.controller_doc import controller_documentation
 
 CONTROLLERS = {"FixedTimeController1": 1, "FixedTimeController": 2, "FixedTimeController3": 3,
                "FixedTimeController4": 4}

@@ -1,8 +1,8 @@
 """``orchestrate export``: shipped scenarios as one FMU, run by hosts nobody here wrote (fmusim and
 the FMU Compliance Checker on a colleague's machine with no Python, FMPy's ``simulate_fmu``) and
 checked against ``orchestrate run`` of the same scenario (the oracle: the engine's master),
-against the README's table of metrics (written by ``make report``), and inside a bigger SSP.
-Here: the four scenarios of the README's metrics table; every shipped scenario in the three hosts,
+against the metrics table of docs/results.md (written by ``make report``), and inside a bigger SSP.
+Here: the four scenarios of that table; every shipped scenario in the three hosts,
 30 s each, is a row of the crosscheck matrix (tests/test_crosscheck_system.py, tolerance 1e-12).
 
 Bounds: fmpy and fmuCheck give plant.y bit for bit (fmuCheck prints 17 significant digits);
@@ -46,7 +46,7 @@ REPO = Path(__file__).resolve().parent.parent
 TOOLS = REPO.parent / "shared" / "tools"
 FMUSIM = TOOLS / "fmusim" / "bin" / "fmusim"
 FMUCHECK = TOOLS / "fmucheck" / "bin" / "fmuCheck"
-SHORT = 1.0  # s: stop time of the checks the README's table is not involved in
+SHORT = 1.0  # s: stop time of the checks the metrics table is not involved in
 FMUSIM_PRINT = 1e-15  # relative: a value printed with 16 significant digits (%.16g) and read back
 NO_NAMESPACE = refusal()
 needs_namespace = pytest.mark.skipif(NO_NAMESPACE is not None, reason=str(NO_NAMESPACE))
@@ -58,10 +58,10 @@ def run(scenario: Path, **options: object) -> np.ndarray:
 
 
 def table_rows() -> dict[str, list[str]]:
-    """The README's co-simulation rows of the metrics table: scenario -> RAE, MSE, RMSE, MAE,
-    settling, peak |v| cells, as printed."""
+    """The co-simulation rows of the metrics table beside the paper's (docs/results.md): scenario ->
+    RAE, MSE, RMSE, MAE, settling, peak |v| cells, as printed."""
     rows = {}
-    for line in (REPO / "README.md").read_text(encoding="utf-8").splitlines():
+    for line in (REPO / "docs" / "results.md").read_text(encoding="utf-8").splitlines():
         match = re.match(r"\| \d \| [\w-]+ \| co-simulation \(`(?:orchestrate run )?(\w+)`[^|]*\|(.*)\|$",
                          line)
         if match:
@@ -71,6 +71,7 @@ def table_rows() -> dict[str, list[str]]:
 
 TABLE = table_rows()
 SCENARIOS = sorted(TABLE)
+assert SCENARIOS, "docs/results.md: no co-simulation rows in the metrics table"  # never an empty set
 
 
 @pytest.fixture(scope="module")
@@ -111,7 +112,7 @@ def test_fmusim_on_a_colleague_machine(exported: dict[str, Path], built: Path, s
                                        tmp_path: Path) -> None:
     """fmusim with no Python on the machine runs the exported scenario for its full 30 s with its
     own DefaultExperiment; plant.y equals `run` within fmusim's printing, and `orchestrate metrics`
-    on fmusim's CSV gives the README table's row."""
+    on fmusim's CSV gives the table's row."""
     got = fmusim(exported[scenario], 30.0, tmp_path / "fmusim.csv")
     same(scenario, got, run(built / "ssp" / f"{scenario}.ssp"), rtol=FMUSIM_PRINT)
     assert main(["metrics", str(tmp_path / "fmusim.csv")]) == 0

@@ -1,4 +1,4 @@
-"""fmu_src.build: reproducible archives, deterministic GUIDs, requirements, bundling checks."""
+"""fmu_src.toolchain.build: reproducible archives, deterministic GUIDs, requirements, bundling checks."""
 
 from __future__ import annotations
 
@@ -19,8 +19,8 @@ import pytest
 import pythonfmu
 from fmu_helpers import MODELS
 
-from fmu_src import runtime
-from fmu_src.build import CLASS_LINE, REPO_ROOT, BuildError, build_all, build_fmu, main
+from fmu_src.toolchain import runtime
+from fmu_src.toolchain.build import CLASS_LINE, REPO_ROOT, BuildError, build_all, build_fmu, main
 
 pytestmark = pytest.mark.system
 
@@ -179,7 +179,7 @@ def test_the_guid_follows_the_shims_bytes_not_its_comments(fmus: dict, tmp_path:
     comment (the same binary) does not."""
     guid = fmpy.read_model_description(str(fmus["Reference"])).guid
     root = source_copy(tmp_path)
-    shim = root / "fmu_src" / "shim" / "fmi2_shim.c"
+    shim = root / "fmu_src" / "toolchain" / "shim" / "fmi2_shim.c"
     shim.write_text(shim.read_text() + "\n/* changed */\n")
     same = build_fmu("Reference", tmp_path / "comment", root=root)
     assert fmpy.read_model_description(str(same)).guid == guid

@@ -1,7 +1,7 @@
 """The FMUs in a host without Python: a minimal C importer (tests/fmu_c_host.c) dlopens each FMU's
 binaries/linux64/<model>.so, as C/C++ tools do, on a colleague's machine (tests/colleague.py: every
 Python of this machine hidden, ``env -i PATH=/usr/bin:/bin``; only ``env -i`` where the kernel
-refuses mount namespaces). The FMI shim (fmu_src/shim/) must start the runtime the FMU carries, or
+refuses mount namespaces). The FMI shim (fmu_src/toolchain/shim/) must start the runtime the FMU carries, or
 fail with one message. Values are checked against closed forms and solve_ivp, written out here or
 in fmu_helpers, and bit for bit against the same calls made from fmpy in this process."""
 

@@ -1,4 +1,4 @@
-"""The FMI 3.0 Co-Simulation variants of the five FMUs (build/fmus3/, fmu_src/fmi3.py and
+"""The FMI 3.0 Co-Simulation variants of the five FMUs (build/fmus3/, fmu_src/toolchain/fmi3.py and
 shim/fmi3_shim.c), against independent oracles: fmpy's FMI 3.0 schema and validation, the standard's
 function list (fmpy's copy of fmi3Functions.h), the FMI 2.0 FMUs they are made from (same variables,
 same numbers bit for bit) and fmusim, a host nobody here wrote, on a machine with no Python."""
@@ -388,7 +388,7 @@ def test_fmu_state_restores_outputs_and_time(fmus3: dict[str, Path]) -> None:
 
 def test_build_is_reproducible(fmus: dict[str, Path], fmus3: dict[str, Path], tmp_path: Path) -> None:
     """The FMI 3.0 variant of the same FMI 2.0 archive, built again elsewhere: the same bytes."""
-    from fmu_src.fmi3 import build_fmu3
+    from fmu_src.toolchain.fmi3 import build_fmu3
 
     again = build_fmu3(fmus["Actuator"], tmp_path / "again")
     assert again.read_bytes() == fmus3["Actuator"].read_bytes()
@@ -408,8 +408,8 @@ FMI2_XML = """<?xml version="1.0" encoding="UTF-8"?>
 def test_what_the_fmi3_layer_does_not_map_is_refused_by_the_build() -> None:
     """An Enumeration (FMI 3.0: Int64 valued, not mapped) or a variable named time: BuildError
     naming it; a plain description translates with dependencies by value reference."""
-    from fmu_src.build import BuildError
-    from fmu_src.fmi3 import fmi3_model_description
+    from fmu_src.toolchain.build import BuildError
+    from fmu_src.toolchain.fmi3 import fmi3_model_description
 
     enumeration = FMI2_XML.format(name="e", typed='<Enumeration declaredType="E"/>')
     with pytest.raises(BuildError, match="variable e is Enumeration"):

@@ -119,7 +119,7 @@ def test_no_call_crashes_the_host_and_each_refusal_says_why(host: Path, built: P
 @pytest.mark.parametrize("fmi", ["2", "3"] if EVERY_CASE else ["2"])
 def test_the_container_never_crashes_and_latches_after_an_error(host: Path, built: Path, unpacked: Path,
                                                                 tmp_path: Path, fmi: str) -> None:
-    """The exported container (its own guard in fmu_src/container/container.c): every scenario
+    """The exported container (its own guard in fmu_src/toolchain/container/container.c): every scenario
     ends without a signal; a NULL GUID is refused; after an error a step is refused (before: the
     container went on stepping)."""
     path, _ = export(built / "ssp" / "example1.ssp", tmp_path / "example1.fmu", fmi=fmi)

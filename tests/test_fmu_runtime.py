@@ -22,8 +22,8 @@ from pathlib import Path
 
 import pytest
 
-from fmu_src import runtime
-from fmu_src.build import REPO_ROOT
+from fmu_src.toolchain import runtime
+from fmu_src.toolchain.build import REPO_ROOT
 
 pytestmark = pytest.mark.system
 DPKG_DEB = shutil.which("dpkg-deb")
@@ -65,8 +65,8 @@ def tools_without_apt(tmp_path: Path) -> Path:
 
 def fetch_command(python: Path, cache: Path, path: Path) -> subprocess.CompletedProcess:
     env = {"PATH": str(path), "HOME": str(cache.parent), "PYTHONPATH": str(REPO_ROOT)}
-    return subprocess.run([str(python), "-m", "fmu_src.runtime", "fetch", str(cache)], capture_output=True,
-                          text=True, env=env, cwd=REPO_ROOT, timeout=600)
+    return subprocess.run([str(python), "-m", "fmu_src.toolchain.runtime", "fetch", str(cache)],
+                          capture_output=True, text=True, env=env, cwd=REPO_ROOT, timeout=600)
 
 
 def same_tree(ours: Path, theirs: Path) -> None:
@@ -83,7 +83,7 @@ def same_tree(ours: Path, theirs: Path) -> None:
 
 @pytest.mark.skipif(DPKG_DEB is None, reason="dpkg-deb (the oracle) is not installed")
 def test_fetch_without_apt_get_or_dpkg_deb_as_root_and_as_a_user(tmp_path: Path) -> None:
-    """``python -m fmu_src.runtime fetch`` with apt-get and dpkg-deb hidden from PATH: as this user
+    """``python -m fmu_src.toolchain.runtime fetch`` with apt-get and dpkg-deb hidden from PATH: as this user
     (root, as CI) and as an unprivileged one (setpriv, a Python the user may run). What it unpacked
     is, file for file, what ``dpkg-deb -x`` makes of the same packages."""
     path = tools_without_apt(tmp_path)
@@ -111,7 +111,7 @@ def test_fetch_without_apt_get_or_dpkg_deb_as_root_and_as_a_user(tmp_path: Path)
         os.chown(home, 65534, 65534)
         user = [setpriv, "--reuid=65534", "--regid=65534", "--clear-groups"]
         env = {"PATH": str(path), "HOME": str(home), "PYTHONPATH": str(REPO_ROOT)}
-        command = [*user, str(SYSTEM_PYTHON), "-m", "fmu_src.runtime", "fetch", str(home / "cache")]
+        command = [*user, str(SYSTEM_PYTHON), "-m", "fmu_src.toolchain.runtime", "fetch", str(home / "cache")]
         result = subprocess.run(command, capture_output=True, text=True, env=env, cwd=str(home), timeout=600)
         assert result.returncode == 0, result.stderr
         assert (home / "cache" / "root").stat().st_uid == 65534
@@ -132,7 +132,8 @@ def test_offline_with_no_cache_is_one_line(tmp_path: Path) -> None:
     """A mirror that does not answer (a closed port here) and an empty cache: one line, naming
     the cache and the pin file, exit 1."""
     env = {"PATH": os.environ["PATH"], "FTC_DEBIAN_MIRROR": "http://127.0.0.1:9"}
-    line = one_line_error([sys.executable, "-m", "fmu_src.runtime", "fetch", str(tmp_path / "c")], env)
+    line = one_line_error([sys.executable, "-m", "fmu_src.toolchain.runtime", "fetch", str(tmp_path / "c")],
+                          env)
     assert "cannot reach Debian's archive" in line and "runtime_pins.txt" in line
 
 
@@ -211,8 +212,8 @@ def test_a_second_builder_python_gives_the_same_bytes(built: Path, tmp_path: Pat
     if probe.returncode != 0:
         pytest.skip(f"{ALT_PYTHON} has no pythonfmu (make's .venv-alt installs it)")
     assert probe.stdout.strip() != str(sys.version_info[:2])
-    command = [str(ALT_PYTHON), "-m", "fmu_src.build", str(tmp_path / "fmus"), "--model", "Actuator",
-               "--fmi3", str(tmp_path / "fmus3")]
+    command = [str(ALT_PYTHON), "-m", "fmu_src.toolchain.build", str(tmp_path / "fmus"), "--model",
+               "Actuator", "--fmi3", str(tmp_path / "fmus3")]
     result = subprocess.run(command, capture_output=True, text=True, cwd=REPO_ROOT, timeout=600,
                             env={"PATH": os.environ["PATH"], "PYTHONPATH": str(REPO_ROOT)})
     assert result.returncode == 0, result.stderr

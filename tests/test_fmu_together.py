@@ -24,7 +24,7 @@ from fmu_helpers import (
 
 from controller.params import ControllerParameters
 from controller.stepping import AdaptiveController
-from fmu_src.build import REPO_ROOT, build_fmu
+from fmu_src.toolchain.build import REPO_ROOT, build_fmu
 
 pytestmark = pytest.mark.system
 

@@ -49,7 +49,7 @@ from wine import (  # noqa: E402
     unpack,
 )
 
-from fmu_src.build import FMU_SCRIPTS
+from fmu_src.toolchain.build import FMU_SCRIPTS
 from orchestrator.export import export  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent

@@ -17,9 +17,9 @@ from pathlib import Path
 
 import pytest
 
-from fmu_src import runtime_win64
-from fmu_src.build import FMU_SCRIPTS
-from fmu_src.runtime import RuntimeBundleError
+from fmu_src.toolchain import runtime_win64
+from fmu_src.toolchain.build import FMU_SCRIPTS
+from fmu_src.toolchain.runtime import RuntimeBundleError
 from orchestrator.export import export
 
 REPO = Path(__file__).resolve().parent.parent

@@ -1,7 +1,9 @@
 """The allowed import graph of the project's packages (developers' guide, issue 14).
 
 Lower layers never import higher ones: ``controller`` (the law) imports nothing of ours,
-``fmu_src`` (FMUs and the paper's models) only ``controller``, the SSP engine (the modules directly
+``fmu_src`` (the FMU scripts and the paper's models: what runs inside an FMU) only ``controller``,
+``fmu_src.toolchain`` (build, runtime, shim, container: nothing of it runs inside an FMU) the
+models it packages, the SSP engine (the modules directly
 in ``orchestrator/``) none of its applications, and each application (a subpackage of
 ``orchestrator``) the engine and the layers below. Imports are read with ``ast``, so an import
 inside a function counts too.
@@ -19,22 +21,23 @@ ENGINE = "orchestrator"
 # layer -> layers it may import (besides itself)
 ALLOWED = {
     "controller": set(),
-    "fmu_src": {"controller"},
+    "fmu_src": {"controller"},  # the FMU scripts and models: what runs inside an FMU
+    "fmu_src.toolchain": {"fmu_src", "controller"},  # the build, runtime, shim, container
     ENGINE: set(),
     "orchestrator.crosscheck": {ENGINE, "orchestrator.export"},
     "orchestrator.campaign": {ENGINE},
-    "orchestrator.export": {ENGINE, "fmu_src"},
+    "orchestrator.export": {ENGINE, "fmu_src", "fmu_src.toolchain"},
     "orchestrator.regress": {ENGINE},
     "orchestrator.experiments": {ENGINE, "orchestrator.crosscheck", "orchestrator.campaign", "controller",
-                                 "fmu_src"},
+                                 "fmu_src", "fmu_src.toolchain"},
 }
 
 
 def layer(module: str) -> str | None:
     """The layer a dotted module name belongs to (None: not ours)."""
     parts = module.split(".")
-    if parts[0] == "orchestrator" and len(parts) > 1 and f"orchestrator.{parts[1]}" in ALLOWED:
-        return f"orchestrator.{parts[1]}"
+    if len(parts) > 1 and f"{parts[0]}.{parts[1]}" in ALLOWED:
+        return f"{parts[0]}.{parts[1]}"
     return parts[0] if parts[0] in ALLOWED else None
 
 
@@ -88,4 +91,5 @@ def test_the_checker_catches_climbing_imports() -> None:
         "line 1: orchestrator imports orchestrator.experiments (layer orchestrator.experiments)"]
     assert len(violations("controller.law", False, "def f():\n    import fmu_src.models\n")) == 1
     assert violations("fmu_src.models.examples", False, "from controller.params import Mode\n") == []
+    assert len(violations("fmu_src.plant_core", False, "from .toolchain.build import BuildError\n")) == 1
     assert violations("orchestrator.experiments.cli", False, "from ..cli import add_command\n") == []

@@ -44,7 +44,7 @@ def test_make_build_reuses_an_up_to_date_build(tmp_path):
     for name in ("Makefile", "pyproject.toml", "constraints.txt", "orchestrator/launcher.c"):  # the set-up's
         (tmp_path / name).parent.mkdir(exist_ok=True)
         shutil.copy(ROOT / name, tmp_path / name)
-    for source in ("controller/law.py", "fmu_src/build.py", "ssp/loop/SystemStructure.ssd"):
+    for source in ("controller/law.py", "fmu_src/toolchain/build.py", "ssp/loop/SystemStructure.ssd"):
         (tmp_path / source).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / source).write_text("source\n")
     bin_ = tmp_path / ".venv" / "bin"

@@ -5,7 +5,7 @@ The first fuzzing pass (issue 13) saw ``corrupted double-linked list`` (SIGABRT)
 130, intermittently, also at the exit of a 30 s jacobi run. The cause was at process exit:
 pythonfmu 0.7.0 frees its global PyState twice (its C++ static destructor, then its ELF destructor
 through the destroyed shared_ptr; NTNU-IHB/PythonFMU#228, #229), which glibc notices only
-sometimes. The FMU shim (fmu_src/shim) releases that state once before exit. Runs here include the
+sometimes. The FMU shim (fmu_src/toolchain/shim) releases that state once before exit. Runs here include the
 archives the fuzzing found (one connection removed) and both masters, with ``MALLOC_CHECK_=3``
 (abort on any heap inconsistency glibc sees) and ``PYTHONMALLOC=debug`` (CPython's own checks).
 

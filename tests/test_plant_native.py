@@ -19,10 +19,10 @@ from fmu_helpers import compiled_extension, open_slave
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fmu_src.build import collect_bundle
 from fmu_src.models import native
 from fmu_src.models.manipulator import ManipulatorParameters, manipulator_rhs_for
 from fmu_src.models.plants import PendulumParameters, dopri_hold_step, example1_rhs, pendulum_rhs_for
+from fmu_src.toolchain.build import collect_bundle
 
 PENDULUM = PendulumParameters()
 MANIPULATOR = ManipulatorParameters()

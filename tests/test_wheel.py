@@ -35,8 +35,9 @@ def test_wheel_and_sdist_carry_what_a_build_needs(dist: Path) -> None:
     _run([sys.executable, "-m", "twine", "check", "--strict", *map(str, dist.iterdir())], cwd=dist)
     (wheel,) = dist.glob("*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
-    needed = {"fmu_src/shim/fmi2_shim.c", "fmu_src/shim/fmi3_shim.c", "fmu_src/shim/start_python.c",
-              "fmu_src/container/container.c", "fmu_src/models/_dopri.c", "orchestrator/launcher.c",
+    needed = {"fmu_src/toolchain/shim/fmi2_shim.c", "fmu_src/toolchain/shim/fmi3_shim.c",
+              "fmu_src/toolchain/shim/start_python.c",
+              "fmu_src/toolchain/container/container.c", "fmu_src/models/_dopri.c", "orchestrator/launcher.c",
               "orchestrator/experiments/ssp/pendulum/SystemStructure.ssd",
               "orchestrator/experiments/ssp/campaigns/fault_tolerance.toml"}
     assert needed <= names, sorted(needed - names)

@@ -3,7 +3,7 @@ algorithm as :func:`~fmu_src.models.plants.dopri_hold_step`, giving the same bit
 exceptions and messages, about 11 times faster (0.36 us per integrator step of Example 1
 against 3.9 us, replaying a finite escape of 174 416 steps).
 
-The FMU build (:mod:`fmu_src.build`) compiles ``_dopri.c`` into every plant FMU, so an FMU always
+The FMU build (:mod:`fmu_src.toolchain.build`) compiles ``_dopri.c`` into every plant FMU, so an FMU always
 steps with it (``tests/test_plant_native.py`` checks that the built FMUs load it; an FMU that
 cannot load it fails to instantiate rather than step slower). In the source tree, where nothing
 is compiled, :data:`COMPILED` is False and the plants use the Python reference, which the tests
@@ -31,7 +31,7 @@ from .plants import (
 try:
     from . import _dopri  # type: ignore[attr-defined]  # compiled by the FMU build
 except ImportError:
-    if __name__.startswith("_ftc_"):  # bundled in an FMU (fmu_src/build.py names the package so)
+    if __name__.startswith("_ftc_"):  # bundled in an FMU (fmu_src/toolchain/build.py names the package so)
         raise  # a built plant FMU carries it: without it the build is broken, not slower
     _dopri = None  # the source tree: the Python reference steps
 

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import cast
 
-from fmu_src.build import BuildError
+from fmu_src.toolchain.build import BuildError
 
 from ..cli import add_command, quiet, warn
 from ..errors import OrchestratorError, ScenarioError, UsageError

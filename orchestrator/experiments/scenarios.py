@@ -39,8 +39,8 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
     ``sources/<name>/`` (default: all) into ``dest/ssp/<name>.ssp`` and its FMI 3.0 twin (the same
     SSD and parameter files, the FMI 3.0 FMUs) into ``dest/ssp/<name>_fmi3.ssp``, each validated
     against its FMUs (``fmi3=False``: no FMI 3.0 variants and twins); returns name -> archive."""
-    from fmu_src.build import build_all
-    from fmu_src.fmi3 import build_fmu3
+    from fmu_src.toolchain.build import build_all
+    from fmu_src.toolchain.fmi3 import build_fmu3
 
     dest, sources = Path(dest), Path(sources)
     names = list(names) if names else all_scenarios(sources)
@@ -68,7 +68,7 @@ def _pack(name: str, sources: Path, fmus: dict[str, Path], target: Path) -> Path
     for component in component_sources(folder):
         if component not in fmus:
             raise ScenarioError(f"{folder / SSD_NAME}: FMU '{component}' is not built by "
-                                f"fmu_src.build (built: {', '.join(sorted(fmus))})")
+                                f"fmu_src.toolchain.build (built: {', '.join(sorted(fmus))})")
         needed[component] = fmus[component]
     target = pack_ssp(folder, needed, target)
     with open_system(target):  # validate the packed archive against the FMUs

@@ -3,7 +3,7 @@ tools that take one FMU and no SSP (Simulink, Modelica tools' FMU import, fmusim
 ``simulate_fmu``).
 
 The container runs the engine's master semantics (same grid, same propagation order, same FMI
-calls) with the project's own C runtime (``fmu_src/container``); see :mod:`.container`."""
+calls) with the project's own C runtime (``fmu_src/toolchain/container``); see :mod:`.container`."""
 
 from __future__ import annotations
 

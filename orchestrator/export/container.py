@@ -2,9 +2,9 @@
 
 The archive holds ``modelDescription.xml`` (the exposed variables ``<component>.<variable>``, the
 scenario's DefaultExperiment and step), ``binaries/linux64/<id>.so`` and ``binaries/win64/<id>.dll``
-(the container runtime of ``fmu_src/container``), ``resources/container.plan`` (:mod:`.plan`) and
-each distinct FMU of the scenario unpacked under ``resources/fmus/<name>/``. Rebuilding from the
-same scenario and options gives the same bytes; the GUID is a digest of them.
+(the container runtime of ``fmu_src/toolchain/container``), ``resources/container.plan``
+(:mod:`.plan`) and each distinct FMU of the scenario unpacked under ``resources/fmus/<name>/``.
+Rebuilding from the same scenario and options gives the same bytes; the GUID is a digest of them.
 """
 
 from __future__ import annotations
@@ -20,9 +20,9 @@ from xml.etree import ElementTree
 
 from fmpy.model_description import ModelVariable
 
-from fmu_src.build import BuildError
-from fmu_src.container import compile_container
-from fmu_src.licences import CONTAINER_DEPENDENCIES, documentation, generation_tool
+from fmu_src.toolchain.build import BuildError
+from fmu_src.toolchain.container import compile_container
+from fmu_src.toolchain.licences import CONTAINER_DEPENDENCIES, documentation, generation_tool
 
 from .. import open_system
 from ..errors import ScenarioError, UsageError

@@ -1,5 +1,5 @@
 """The container's plan: what the engine's master would do with a validated System, written down
-for ``fmu_src/container/container.c`` to replay.
+for ``fmu_src/toolchain/container/container.c`` to replay.
 
 Everything is computed here, at export time, by the engine's own reading and validation (SSD, SSV,
 ``--parameter-set``, ``--set``, units converted): the value buffer laid out as

@@ -10,13 +10,13 @@ bundled modules must import their own package relatively, and the other local pa
 module-level ``from ... import`` (rewritten likewise: ``fmu_src.controller_core`` uses ``controller``).
 
 Each FMU carries its own CPython runtime for each platform, and no third-party package (a bundled
-module that imports one is refused): ``binaries/linux64`` Debian 12's (``fmu_src/runtime.py``:
+module that imports one is refused): ``binaries/linux64`` Debian 12's (``fmu_src/toolchain/runtime.py``:
 libpython, the two libraries it links and the standard-library modules the FMU's code can import,
 from pinned packages), ``binaries/win64`` python.org's embeddable CPython 3.11 and the MSVC runtime
-(``fmu_src/runtime_win64.py``, the same standard-library modules). pythonfmu's binaries do not
-start a Python of their own, so the build compiles ``fmu_src/shim/`` in front of each: with the
-system C compiler into ``binaries/linux64/<model>.so``, and cross-compiled with mingw-w64 into
-``binaries/win64/<model>.dll``, pythonfmu's binary kept beside it as ``<model>_pythonfmu.so`` /
+(``fmu_src/toolchain/runtime_win64.py``, the same standard-library modules). pythonfmu's binaries do
+not start a Python of their own, so the build compiles ``fmu_src/toolchain/shim/`` in front of each:
+with the system C compiler into ``binaries/linux64/<model>.so``, and cross-compiled with mingw-w64
+into ``binaries/win64/<model>.dll``, pythonfmu's binary kept beside it as ``<model>_pythonfmu.so`` /
 ``.dll``; the shim starts the bundled runtime when the host has no Python (see the shim's
 header). C extension modules are compiled for both platforms as well.
 
@@ -24,9 +24,10 @@ The archive is normalized afterwards: GUID derived from a digest of every bundle
 generation date, sorted entries with fixed timestamps, licences under ``documentation/licenses``.
 Nothing of the build machine (no path) goes in. Rebuilding the same sources with the same
 compiler and runtime packages gives identical bytes, whichever Python (3.10 to 3.13) runs the
-build: the bytecode is compiled by the bundled runtime itself (``fmu_src/shim/bundled_python.c``).
+build: the bytecode is compiled by the bundled runtime itself (``fmu_src/toolchain/shim/bundled_python.c``).
 
-Usage: ``python -m fmu_src.build DEST [--model NAME]... [--fmi3 DEST3]`` (FMI 3.0 variants: ``fmu_src.fmi3``)
+Usage: ``python -m fmu_src.toolchain.build DEST [--model NAME]... [--fmi3 DEST3]`` (FMI 3.0
+variants: ``fmu_src.toolchain.fmi3``)
 """
 
 from __future__ import annotations
@@ -66,7 +67,7 @@ from .runtime import (
 
 __all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "c_compiler", "compile_extension", "main"]
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
+REPO_ROOT = Path(__file__).resolve().parents[2]
 LOCAL_PACKAGES = ("fmu_src", "controller")
 # Model name -> script in fmu_src/ (the model names are a contract with the scenarios).
 FMU_SCRIPTS = {
@@ -82,8 +83,8 @@ FMU_SCRIPTS = {
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
-BUILD_FORMAT = "7"
-SHIM_DIR = Path("fmu_src", "shim")  # relative to the source root
+BUILD_FORMAT = "8"
+SHIM_DIR = Path("fmu_src", "toolchain", "shim")  # relative to the source root
 SHIM_SOURCES = ("fmi2_shim.c", "start_python.c", "guard.c", "platform.c")
 SHIM_HEADERS = ("start_python.h", "fmi2_types.h", "guard.h", "platform.h")
 # No debug info, build id or symbol table, so the bytes depend only on source, compiler and flags;
@@ -100,7 +101,7 @@ MINGW_FLAGS = tuple(
     "-std=c11 -O2 -shared -g0 -Wall -Wextra -Wno-format-truncation -static-libgcc -s "
     "-Wl,--no-insert-timestamp".split()
 )
-WIN_PYCONFIG = Path("fmu_src", "shim", "win64", "pyconfig.h")  # relative to the source root
+WIN_PYCONFIG = Path("fmu_src", "toolchain", "shim", "win64", "pyconfig.h")  # relative to the source root
 # Windows extension modules: no C runtime of their own, python3.dll (stable ABI) and the Universal
 # C Runtime imported as python311.dll imports it: its math (what the math module calls) and errno
 # (where that math reports ERANGE/EDOM, read by controller/_law.c as float_pow reads it), and
@@ -304,9 +305,10 @@ def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequen
 
 def compile_shim(root: Path, runtime: Runtime, where: Path, sources: Sequence[str] = SHIM_SOURCES,
                  defines: Sequence[str] = (), windows: str = "") -> bytes:
-    """Compile the FMI shim (``sources`` of ``fmu_src/shim``, ``-D`` ``defines``) against the runtime's
-    headers; returns the shared object's bytes (the same for the same sources, compiler and runtime).
-    ``windows``: the DLL's name (``<model>.dll``), cross-compiled for 64-bit Windows instead."""
+    """Compile the FMI shim (``sources`` of ``fmu_src/toolchain/shim``, ``-D`` ``defines``) against
+    the runtime's headers; returns the shared object's bytes (the same for the same sources,
+    compiler and runtime). ``windows``: the DLL's name (``<model>.dll``), cross-compiled for 64-bit
+    Windows instead."""
     work = where / ("shim-win64" if windows else "shim")
     work.mkdir(parents=True)
     for name in (*sources, *SHIM_HEADERS):
@@ -368,7 +370,7 @@ def _ensure_runtime() -> Runtime:
 
 
 def bundled_python(runtime: Runtime, root: Path = REPO_ROOT) -> Path:
-    """The bundled runtime as a command (``fmu_src/shim/bundled_python.c``, compiled once into
+    """The bundled runtime as a command (``fmu_src/toolchain/shim/bundled_python.c``, compiled once into
     the runtime's cache): the interpreter that compiles every FMU's bytecode, so that the bytes do
     not depend on the Python running the build."""
     source = root / SHIM_DIR / LAUNCHER_SOURCE
@@ -596,7 +598,8 @@ def build_all(dest: Path, root: Path = REPO_ROOT) -> list[Path]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: build FMUs into a folder; prints one path per line."""
-    parser = argparse.ArgumentParser(prog="python -m fmu_src.build", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m fmu_src.toolchain.build",
+                                     description=__doc__.split("\n\n")[0])
     parser.add_argument("dest", type=Path, help="output folder, e.g. build/fmus")
     parser.add_argument(
         "--model", action="append", choices=list(FMU_SCRIPTS), help="build only these (repeatable)"

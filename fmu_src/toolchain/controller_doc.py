@@ -16,7 +16,7 @@ import html
 import re
 from xml.etree import ElementTree
 
-from .controller_core import DERIVATIVES, ORDERS, controller_model
+from ..controller_core import DERIVATIVES, ORDERS, controller_model
 
 __all__ = ["WORKED_EXAMPLES", "controller_documentation", "example_code"]
 
@@ -227,7 +227,7 @@ def controller_documentation(model: str, xml: bytes) -> dict[str, bytes]:
                or (v["causality"] == "output" and _base(v["name"]) not in OUTPUTS)]
     if unknown:
         raise ValueError(f"{model}: documentation/index.html describes no {', '.join(unknown)} "
-                         "(add it to fmu_src/controller_doc.py)")
+                         "(add it to fmu_src/toolchain/controller_doc.py)")
     e = html.escape
     inputs = [[f"<code>{e(v['name'])}</code>", e(v["description"]),
                "a measured plant state" if v["name"].startswith("x") else

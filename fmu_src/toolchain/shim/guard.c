@@ -1,5 +1,5 @@
 /* The guard's knowledge of its FMU (guard.h): the model description, read without an XML library
-   (the file is the build's own: fmu_src/build.py and fmu_src/fmi3.py write it), and the
+   (the file is the build's own: fmu_src/toolchain/build.py and fmu_src/toolchain/fmi3.py write it), and the
    resources folder. */
 
 #include "guard.h"

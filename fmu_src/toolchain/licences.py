@@ -82,7 +82,7 @@ def project_licence() -> bytes:
         text = None
     if text:
         return text.encode("utf-8")
-    checkout = Path(__file__).resolve().parent.parent / "LICENSE"
+    checkout = Path(__file__).resolve().parents[2] / "LICENSE"
     if checkout.is_file():
         return checkout.read_bytes()
     raise FileNotFoundError(f"no LICENSE in the installed {DISTRIBUTION} or in {checkout.parent}")

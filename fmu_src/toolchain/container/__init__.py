@@ -2,7 +2,7 @@
 loads the FMUs unpacked in its resources and replays the plan ``orchestrate export`` wrote for it
 (see the C file's header). Compiled with the system C compiler, and for 64-bit Windows with
 mingw-w64, as the FMUs' shim is; its operating-system calls go through the shim's portability
-layer (``fmu_src/shim/platform.c``).
+layer (``fmu_src/toolchain/shim/platform.c``).
 
 No Python in it: the embedded FMUs bring their own runtime (each project FMU starts its bundled
 CPython through its shim where the host has none), so the container adds nothing to carry.

@@ -1,7 +1,7 @@
 """The CPython runtime every FMU carries, so that it runs where no Python is installed.
 
 Source: Debian 12 (bookworm) binary packages, pinned by version and SHA-256 in
-``fmu_src/runtime_pins.txt`` and downloaded by URL from the pool of Debian's archive (no apt-get,
+``fmu_src/toolchain/runtime_pins.txt`` and downloaded by URL from the pool of Debian's archive (no apt-get,
 no dpkg) into ``build/runtime/debs/`` by the FMU build itself: the shared libpython (built
 ``--enable-shared``), the pure-Python standard library, the two shared libraries libpython links
 besides libc/libm (expat, zlib) and, for the shim's compile only, the headers. A ``.deb`` is an
@@ -22,9 +22,12 @@ Licences (PSF for Python; expat's MIT; zlib's) go to ``documentation/licenses/``
 
 Usage (see docs/fmus/runtime.md)::
 
-    python -m fmu_src.runtime [fetch] [CACHE]   fetch and unpack the runtime (the build does it on first use)
-    python -m fmu_src.runtime check             one line: are the pins still the newest bookworm versions?
-    python -m fmu_src.runtime update            move the pins to the newest bookworm(-security) versions
+    python -m fmu_src.toolchain.runtime [fetch] [CACHE]
+        fetch and unpack the runtime (the build does it on first use)
+    python -m fmu_src.toolchain.runtime check
+        one line: are the pins still the newest bookworm versions?
+    python -m fmu_src.toolchain.runtime update
+        move the pins to the newest bookworm(-security) versions
 """
 
 from __future__ import annotations
@@ -118,7 +121,7 @@ ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 def default_cache() -> Path:
     """Where the runtime is fetched to: ``build/runtime/`` of a checkout; for an installed package
     the user's cache (``$XDG_CACHE_HOME/fixed-time-cosim/runtime``), never site-packages."""
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]
     if (root / "pyproject.toml").is_file():
         return root / "build" / "runtime"
     return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "fixed-time-cosim" / "runtime"
@@ -195,7 +198,7 @@ class Runtime:
         return self.root / "lib" / "x86_64-linux-gnu"
 
     def run(self, launcher: Path, code: str, request: object) -> object:
-        """Run ``code`` in the bundled CPython (``launcher``: fmu_src/shim/bundled_python.c built
+        """Run ``code`` in the bundled CPython (``launcher``: fmu_src/toolchain/shim/bundled_python.c built
         for this runtime) with ``request`` as JSON on its standard input; what it printed, as JSON.
 
         A fresh interpreter of a fixed start (no site, hash seed 0, only the runtime's standard
@@ -216,7 +219,7 @@ def manifest() -> str:
     """``runtime.txt``: where the bundled runtime came from."""
     lines = [
         f"# CPython {PYTHON_VERSION[0]}.{PYTHON_VERSION[1]} runtime of this FMU, unmodified from Debian 12's",
-        "# binary packages (package, version, SHA-256 of the .deb); see fmu_src/runtime.py.",
+        "# binary packages (package, version, SHA-256 of the .deb); see fmu_src/toolchain/runtime.py.",
     ]
     lines += [f"{pin.name} {pin.version} {pin.sha256}" for pin in PACKAGES]
     return "\n".join(lines) + "\n"
@@ -516,7 +519,7 @@ def write_pins(pins: Sequence[Pin], path: Path = PINS_FILE) -> None:
     lines = [
         "# The Debian 12 (bookworm, amd64) packages of the FMUs' CPython runtime: package, version,",
         "# SHA-256 and size of the .deb, and its path under Debian's mirror. Written by",
-        f"# '{UPDATE_COMMAND}' (python -m fmu_src.runtime update); see docs/fmus/runtime.md.",
+        f"# '{UPDATE_COMMAND}' (python -m fmu_src.toolchain.runtime update); see docs/fmus/runtime.md.",
     ]
     lines += [f"{p.name} {p.version} {p.sha256} {p.size} {p.path}" for p in pins]
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")

@@ -5,7 +5,7 @@
    in its process cannot dlopen it (undefined symbol: _Py_NoneStruct). The build installs this
    shim as binaries/linux64/<model>.so, keeps pythonfmu's binary beside it as
    <model>_pythonfmu.so, and bundles a CPython runtime in binaries/linux64/python/ (libpython,
-   the two libraries it links, a zipped subset of the standard library; fmu_src/runtime.py).
+   the two libraries it links, a zipped subset of the standard library; fmu_src/toolchain/runtime.py).
    At the first fmi2Instantiate the shim:
 
    1. looks for Python in the process: dlsym(RTLD_DEFAULT, "Py_IsInitialized"). A Python host

@@ -1,4 +1,4 @@
-/* The FMUs' bundled CPython as a command, for the build only (fmu_src/runtime.py, Runtime.run):
+/* The FMUs' bundled CPython as a command, for the build only (fmu_src/toolchain/runtime.py, Runtime.run):
 
        bundled_python LIBPYTHON FALLBACK_DIR [python arguments...]
 

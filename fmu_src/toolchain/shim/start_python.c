@@ -1,11 +1,11 @@
 /* Starts the CPython runtime the FMU carries, isolated from the host: compiled against the headers
-   of exactly that runtime (fmu_src/runtime.py pins both), so the PyPreConfig/PyConfig layouts match.
+   of exactly that runtime (fmu_src/toolchain/runtime.py pins both), so the PyPreConfig/PyConfig layouts match.
 
    The functions are looked up with dlsym in the libpython the shim loaded: the shim does not link
    libpython, so that a host which already runs Python keeps its own.
 
    Windows: the same start, of python.org's embeddable CPython 3.11 (python311.dll), compiled
-   against the same 3.11 headers with the Windows pyconfig.h of fmu_src/shim/win64/ (mingw-w64
+   against the same 3.11 headers with the Windows pyconfig.h of fmu_src/toolchain/shim/win64/ (mingw-w64
    and python.org's MSVC build share the ABI: LLP64, 16-bit wchar_t, so the layouts match; the
    configuration structures are the same in every 3.11 release). */
 

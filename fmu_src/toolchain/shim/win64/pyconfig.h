@@ -2,7 +2,7 @@
    pyconfig.h describes Linux) for 64-bit Windows with mingw-w64: the configuration python.org's
    python311.dll was built with, as far as a header reads it (sizes of the LLP64 model, 16-bit
    wchar_t, the DLL's exports imported). The build puts it in place of Debian's in a copy of the
-   headers (fmu_src/build.py); only the shim's start_python.c and the stable-ABI extension
+   headers (fmu_src/toolchain/build.py); only the shim's start_python.c and the stable-ABI extension
    modules are compiled with it. */
 #ifndef Py_CONFIG_H
 #define Py_CONFIG_H

@@ -32,7 +32,7 @@
    (exact), strings percent-encoded. See orchestrator/export/plan.py, which writes it. */
 
 #define _GNU_SOURCE
-#include "platform.h" /* the shim's portability layer (fmu_src/shim): POSIX and Windows */
+#include "platform.h" /* the shim's portability layer (fmu_src/toolchain/shim): POSIX and Windows */
 #include <math.h>
 #include <stdarg.h>
 #include <stdint.h>
