@@ -114,6 +114,7 @@ windows-tools:
 ## every scenario exported, under wine64 against Linux -> docs/fmus/windows-matrix.md (commit it;
 ## make test runs one real case of each kind)
 windows-matrix: build windows-tools
+	rm -f build/windows/matrix.json
 	FTC_WINDOWS_ALL=1 $(PY) -m pytest -q tests/test_fmu_windows.py
 
 ## hostile: the hostile host (tests/fmu_hostile_host.c) on every case: all scenarios under valgrind,

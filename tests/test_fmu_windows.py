@@ -23,6 +23,7 @@ import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
+from xml.etree import ElementTree
 
 import fmpy
 import numpy as np
@@ -37,6 +38,7 @@ from wine import (  # noqa: E402
     WINE,
     Difference,
     Item,
+    Run,
     Wine,
     compare,
     difference,
@@ -55,6 +57,7 @@ from orchestrator.export import export  # noqa: E402
 REPO = Path(__file__).resolve().parent.parent
 ALL = os.environ.get("FTC_WINDOWS_ALL") == "1"
 MATRIX = REPO / "docs" / "fmus" / "windows-matrix.md"
+MATRIX_STATE = REPO / "build" / "windows" / "matrix.json"  # the results of make windows-matrix so far
 FMPY_REQUIREMENTS = REPO / "tests" / "windows" / "fmpy-requirements.txt"
 FMPY_TARGET = REPO / "build" / "windows" / "fmpy"  # pip install --target of the Windows wheels
 STEPS, H = 200, 1e-3
@@ -304,10 +307,10 @@ def test_the_windows_hostile_host_sees_a_crash(wine: Wine) -> None:
 
 
 @pytest.mark.skipif(not ALL, reason="the whole matrix: make windows-matrix")
-def test_every_fmu_host_and_scenario(wine: Wine, windows_python: Path, fmus: dict[str, Path], built: Path,
-                                     tmp_path: Path) -> None:
-    """Every FMU alone in each C host (console, GUI) for FMI 2.0 and 3.0, every FMU in FMPy for
-    both, and every scenario exported and run over its whole experiment under wine against Linux."""
+def test_every_fmu_in_every_host(wine: Wine, windows_python: Path, fmus: dict[str, Path], built: Path,
+                                 tmp_path: Path) -> None:
+    """Every FMU alone in each C host (console, GUI) for FMI 2.0 and 3.0, and every FMU in FMPy for
+    both, under wine against Linux."""
     fmus3 = {p.stem: p for p in (built / "fmus3").glob("*.fmu")}
     for model in MODELS:
         for version, source in (("2.0", fmus), ("3.0", fmus3)):
@@ -321,26 +324,64 @@ def test_every_fmu_host_and_scenario(wine: Wine, windows_python: Path, fmus: dic
         for name, found in fmpy_case(wine, windows_python, jobs).items():
             check(found)
             results[(name, f"FMPy 0.3.32 on Windows, FMI {version}")] = found.text()
+
+
+def first_departure(windows: Run, linux: Run) -> str:
+    """When the two runs first differ by more than TOLERANCE of an output's magnitude, and first
+    differ at all ('' when never)."""
+    times = {}
+    for label, rows in windows.rows.items():
+        w, lin = np.array(rows, dtype=float), np.array(linux.rows[label], dtype=float)
+        gap = np.abs(w[:, 1:] - lin[:, 1:])
+        scale = np.maximum(np.abs(w[:, 1:]).max(axis=0), np.abs(lin[:, 1:]).max(axis=0))
+        for name, mask in (("first differs", gap > 0), (f"past {TOLERANCE:g}", gap > TOLERANCE * scale)):
+            hit = np.flatnonzero(mask.any(axis=1))
+            if hit.size:
+                times[name] = min(times.get(name, np.inf), float(w[hit[0], 0]))
+    return "; ".join(f"{name} at t={t:g}" for name, t in times.items())
+
+
+@pytest.mark.skipif(not ALL, reason="the whole matrix: make windows-matrix")
+def test_every_scenario_exported(wine: Wine, built: Path, tmp_path: Path) -> None:
+    """Every scenario exported and run over its whole experiment by the console C host under wine
+    against the same host on Linux: each is recorded, then those beyond TOLERANCE fail the test."""
+    beyond = []
     for ssp in sorted((built / "ssp").glob("*.ssp")):
         if ssp.stem.endswith("_fmi3"):
             continue  # the same scenario on the FMI 3.0 FMUs: the container embeds FMI 2.0 FMUs
         scenario, _ = export(ssp, tmp_path / f"{ssp.stem}.fmu")
         folder = place(wine, scenario, ssp.stem, tmp_path)
-        from xml.etree import ElementTree
-
         experiment = ElementTree.parse(folder / "modelDescription.xml").getroot().find("DefaultExperiment")
         assert experiment is not None
         step = float(experiment.get("stepSize", "0.001"))
         start, stop_time = float(experiment.get("startTime", "0")), float(experiment.get("stopTime", "1"))
         steps = round((stop_time - start) / step)
         items = [item(ssp.stem, folder, steps, step, set_inputs=False)]
-        found = c_host_case(wine, items, tmp_path, gui=False)
-        check(found)
-        scenario_results[ssp.stem] = f"{steps} steps of {step:g} s: " + found.text()
+        windows = run_windows(wine, items)
+        assert windows.status == 0 and windows.done, windows.problem()
+        linux = run_linux(wine, items, tmp_path)
+        assert linux.status == 0 and linux.done, linux.problem()
+        found = compare(windows, linux)
+        departure = first_departure(windows, linux)
+        scenario_results[ssp.stem] = (f"{steps} steps of {step:g} s: {found.text()}"
+                                      + (f"; {departure}" if departure else ""))
+        if found.largest > TOLERANCE:
+            beyond.append(f"{ssp.stem}: {found.text()}")
+    assert not beyond, "beyond the tolerance over the whole experiment: " + "; ".join(beyond)
 
 
 def write_matrix() -> None:
-    """docs/fmus/windows-matrix.md from this session's results (make windows-matrix)."""
+    """docs/fmus/windows-matrix.md from this session's results merged into those of earlier sessions
+    since ``make windows-matrix`` started (kept in build/windows/matrix.json, which it removes
+    first), so that a test run again alone completes the page."""
+    saved = json.loads(MATRIX_STATE.read_text(encoding="utf-8")) if MATRIX_STATE.is_file() else {}
+    for key, text in saved.get("results", []):
+        results.setdefault((key[0], key[1]), text)
+    for name, text in saved.get("scenarios", {}).items():
+        scenario_results.setdefault(name, text)
+    MATRIX_STATE.parent.mkdir(parents=True, exist_ok=True)
+    MATRIX_STATE.write_text(json.dumps({"results": [[list(k), v] for k, v in results.items()],
+                                        "scenarios": scenario_results}), encoding="utf-8")
     columns = sorted({c for _, c in results})
     rows = list(dict.fromkeys(r for r, _ in sorted(results, key=lambda k: (k[0] not in MODELS, k[0]))))
     lines = ["# Windows: every FMU in every host, every scenario (generated)", "",
