@@ -15,7 +15,7 @@ BYTECODE := build/.bytecode
 SOURCES := $(shell find controller fmu_src ssp -type f -not -path '*/__pycache__/*' -not -name '*.pyc' \
                      -not -name '.*' 2>/dev/null)
 
-.PHONY: run test unit build lint docs docs-figure browser runtime-pins hostile executors crosscheck conformance table study study-fixed-time report baselines bench clean
+.PHONY: run test unit build lint docs docs-figure browser windows-tools windows-matrix runtime-pins hostile executors crosscheck conformance table study study-fixed-time report baselines bench clean
 
 # pip's console script 'orchestrate' is then replaced by orchestrator/launcher.c, which holds SIGINT and
 # SIGTERM from its first instruction until the package's handlers are in (issue 20). Compiled to a
@@ -46,9 +46,9 @@ $(ALT_STAMP): constraints.txt
 	  touch $(ALT_STAMP); \
 	else echo "no python3.12 found: the second-Python test will skip"; fi
 
-## build: the five FMUs (each with its own Python runtime, fetched once into build/runtime/) into
-## build/fmus/, every scenario into build/ssp/<name>.ssp (again only when a source or the
-## installation is newer than the last build)
+## build: the five FMUs (each with its own Python runtime for linux64 and win64, fetched once into
+## build/runtime/) into build/fmus/, every scenario into build/ssp/<name>.ssp (again only when a
+## source or the installation is newer than the last build)
 build: $(BUILT) $(BYTECODE)
 
 # The package's own bytecode, as a non-editable install has it: where PYTHONDONTWRITEBYTECODE is
@@ -58,7 +58,7 @@ $(BYTECODE): $(STAMP) $(shell find orchestrator -name '*.py' 2>/dev/null)
 	  echo "note: bytecode not written (runs still work, compiling the package in memory)"
 	@mkdir -p $(dir $(BYTECODE)) && touch $(BYTECODE)
 
-$(BUILT): $(STAMP) $(SOURCES)
+$(BUILT): $(STAMP) $(SOURCES) | windows-tools
 	$(ORCH) build
 	@mkdir -p $(dir $(BUILT)) && touch $(BUILT)
 
@@ -73,7 +73,7 @@ run: build
 ## tests sharing an expensive reference run in one worker (xdist groups). Also writes the
 ## conformance matrix of every scenario in every installed SSP tool to results/crosscheck/, and the
 ## sample project's regression (terminal, JUnit XML, report screenshots) to results/regress-sample/.
-test: build $(ALT_STAMP) browser
+test: build $(ALT_STAMP) browser windows-tools
 	@$(PY) -m fmu_src.toolchain.runtime check || true
 	CROSSCHECK_OUTPUT=results/crosscheck REGRESS_SAMPLE_OUTPUT=results/regress-sample $(PY) -m pytest -q -n 2 --dist loadgroup
 
@@ -90,6 +90,32 @@ browser:
 	      chromium fonts-liberation; } > build/chromium-install.log 2>&1 || { touch $(NO_BROWSER); \
 	    echo "note: chromium could not be installed (build/chromium-install.log): the browser test will skip"; }; \
 	else echo "note: no chromium and no apt-get as root: the HTML report's browser test will skip"; fi
+
+# binaries/win64 of every FMU: cross-compiled with Debian's mingw-w64, python.org's signatures checked
+# with osslsigncode; its tests run it under wine64. Installed here where missing and apt-get can (as
+# root; CI runs so). A failed install is tried again only after 'make clean'; without mingw-w64 or
+# osslsigncode the build stops and says so, without wine64 the Windows tests skip, saying why.
+NO_WINDOWS_TOOLS := build/.no-windows-tools
+windows-tools:
+	@missing=""; \
+	command -v x86_64-w64-mingw32-gcc >/dev/null 2>&1 || missing="$$missing gcc-mingw-w64-x86-64"; \
+	command -v osslsigncode >/dev/null 2>&1 || missing="$$missing osslsigncode"; \
+	{ command -v wine64 >/dev/null 2>&1 || [ -x /usr/lib/wine/wine64 ]; } || missing="$$missing wine64"; \
+	if [ -z "$$missing" ] || [ -e $(NO_WINDOWS_TOOLS) ]; then :; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	  mkdir -p build; \
+	  echo "installing Debian's$$missing for binaries/win64 and its tests (log: build/windows-tools-install.log)"; \
+	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
+	      $$missing; } > build/windows-tools-install.log 2>&1 || { touch $(NO_WINDOWS_TOOLS); \
+	    echo "note:$$missing could not be installed (build/windows-tools-install.log)"; }; \
+	else echo "note: no$$missing and no apt-get as root: install them (the build needs mingw-w64 and osslsigncode)"; fi
+
+## windows-matrix: every FMU in every Windows host (C host console and GUI, FMPy; FMI 2.0 and 3.0) and
+## every scenario exported, under wine64 against Linux -> docs/fmus/windows-matrix.md (commit it;
+## make test runs one real case of each kind)
+windows-matrix: build windows-tools
+	rm -f build/windows/matrix.json
+	FTC_WINDOWS_ALL=1 $(PY) -m pytest -q tests/test_fmu_windows.py
 
 ## hostile: the hostile host (tests/fmu_hostile_host.c) on every case: all scenarios under valgrind,
 ## FMI 3.0 containers, every leak figure (make test runs one real case of each kind)

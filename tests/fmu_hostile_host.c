@@ -13,20 +13,59 @@
    (S: the status of the call under test, -2 if skipped, I: 1 if the instance under test exists, M: messages the
    FMU logged, N: of them with a NULL category, X: a figure of the scenario) and the parent prints
    "EXIT name code" or "EXIT name signal N" when the child ends. Scenarios: see SCENARIOS below.
-   Linux and POSIX only (dlopen, fork, pthread), like the test that runs it (tests/test_fmu_hostile.py). */
+   On Linux (tests/test_fmu_hostile.py) a child is a fork of the host after Python has started once.
+   Cross-compiled with mingw-w64 (tests/test_fmu_windows.py, under wine) it loads
+   binaries/win64/IDENTIFIER.dll (FMI 3.0: x86_64-windows), FMU_DIR is a C:/ path, and each scenario
+   runs in a new process of the host itself (Windows has no fork), which starts the FMU's Python
+   anew; the parent prints "EXIT name code" with the child's exit code, an NTSTATUS such as
+   0xc0000005 when it crashed. */
 
 #define _GNU_SOURCE
-#include <dlfcn.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdarg.h>
 #include <stdbool.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef _WIN32
+#define NOGDI /* its ERROR would clash with the FMI status below */
+#include <windows.h>
+#include <psapi.h>
+#define BINARIES (version == 2 ? "win64" : "x86_64-windows")
+#define SUFFIX ".dll"
+#define URI_PREFIX "file:///" /* FMU_DIR is C:/... */
+typedef HANDLE thread;
+static void *open_library(const char *path) {
+    wchar_t w[4400];
+    if (MultiByteToWideChar(CP_UTF8, 0, path, -1, w, 4400) <= 0) return NULL;
+    return (void *)LoadLibraryExW(w, NULL, LOAD_WITH_ALTERED_SEARCH_PATH);
+}
+static void *symbol(void *l, const char *name) { return (void *)GetProcAddress((HMODULE)l, name); }
+static const char *library_error(void) {
+    static char text[64];
+    snprintf(text, sizeof text, "LoadLibraryExW: error %lu", GetLastError());
+    return text;
+}
+static DWORD WINAPI thread_main(void *arg);
+static void start_thread(thread *t, void *arg) { *t = CreateThread(NULL, 0, thread_main, arg, 0, NULL); }
+static void join_thread(thread t) { WaitForSingleObject(t, INFINITE), CloseHandle(t); }
+#else
+#include <dlfcn.h>
+#include <pthread.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#define BINARIES (version == 2 ? "linux64" : "x86_64-linux")
+#define SUFFIX ".so"
+#define URI_PREFIX "file://" /* FMU_DIR is /... */
+typedef pthread_t thread;
+static void *open_library(const char *path) { return dlopen(path, RTLD_NOW | RTLD_LOCAL); }
+static void *symbol(void *l, const char *name) { return dlsym(l, name); }
+static const char *library_error(void) { return dlerror(); }
+static void *thread_main(void *arg);
+static void start_thread(thread *t, void *arg) { pthread_create(t, NULL, thread_main, arg); }
+static void join_thread(thread t) { pthread_join(t, NULL); }
+#endif
 
 typedef void *component;
 typedef struct {
@@ -79,7 +118,7 @@ static callbacks2 no_logger = {NULL, calloc, free, NULL, NULL};
 /* ---- the FMI calls, for either version ------------------------------------------------------- */
 
 static void *fn(const char *name) {
-    void *f = dlsym(library, name);
+    void *f = symbol(library, name);
     if (!f) {
         printf("dlsym %s failed\n", name);
         exit(2);
@@ -250,6 +289,11 @@ static struct result before_init(int get) {
 }
 
 static long resident_bytes(void) {
+#ifdef _WIN32
+    PROCESS_MEMORY_COUNTERS counters;
+    return GetProcessMemoryInfo(GetCurrentProcess(), &counters, sizeof counters) ? (long)counters.WorkingSetSize
+                                                                                 : 0;
+#else
     FILE *f = fopen("/proc/self/statm", "r");
     long pages = 0, resident = 0;
     if (f) {
@@ -257,6 +301,7 @@ static long resident_bytes(void) {
         fclose(f);
     }
     return resident * sysconf(_SC_PAGESIZE);
+#endif
 }
 
 /* Memory kept per instantiate/free cycle (extra: bytes per cycle over `n` cycles after 200, which
@@ -298,26 +343,36 @@ struct job {
     double y;
 };
 
-static void *stepping(void *arg) {
-    struct job *j = arg;
+static void stepping(struct job *j) {
     j->status = initialize(j->c);
     for (int k = 0; k < 300 && j->status <= WARNING; k++) {
         if (in_vr >= 0) set_real(j->c, (unsigned)in_vr, 0.1 * sin(k * 1e-2));
         j->status = worst(j->status, step(j->c, k * 1e-3, 1e-3));
     }
     if (j->status <= WARNING) j->status = worst(j->status, get_real(j->c, (unsigned)out_vr, &j->y));
+}
+
+#ifdef _WIN32
+static DWORD WINAPI thread_main(void *arg) {
+    stepping(arg);
+    return 0;
+}
+#else
+static void *thread_main(void *arg) {
+    stepping(arg);
     return NULL;
 }
+#endif
 
 static struct result two_threads(void) {
     struct job alone = {fresh("alone"), 0, 0}, a = {fresh("a"), 0, 0}, b = {fresh("b"), 0, 0};
     if (!alone.c || !a.c || !b.c) return (struct result){ERROR, 0, 0};
     stepping(&alone);
-    pthread_t ta, tb;
-    pthread_create(&ta, NULL, stepping, &a);
-    pthread_create(&tb, NULL, stepping, &b);
-    pthread_join(ta, NULL);
-    pthread_join(tb, NULL);
+    thread ta, tb;
+    start_thread(&ta, &a);
+    start_thread(&tb, &b);
+    join_thread(ta);
+    join_thread(tb);
     free_instance(alone.c), free_instance(a.c), free_instance(b.c);
     int same = a.y == alone.y && b.y == alone.y;
     return (struct result){worst(alone.status, worst(a.status, b.status)), 1, same};
@@ -329,7 +384,7 @@ static struct result scenario(const char *name) {
         (out_vr < 0 && !strncmp(name, "set-output", 10)))
         return skipped;
     char missing[4300];
-    snprintf(missing, sizeof missing, version == 2 ? "file://%s/no-such-folder" : "%s/no-such-folder/", dir);
+    snprintf(missing, sizeof missing, version == 2 ? URI_PREFIX "%s/no-such-folder" : "%s/no-such-folder/", dir);
     if (!strcmp(name, "ok")) return with_resources(resources);
     if (!strcmp(name, "resources-missing")) return with_resources(missing);
     if (!strcmp(name, "resources-empty")) return with_resources("");
@@ -365,7 +420,46 @@ static struct result scenario(const char *name) {
     exit(2);
 }
 
+static void report(const char *name) {
+    struct result r = scenario(name);
+    printf("SCENARIO %s status=%d instance=%d messages=%d nullcat=%d extra=%g | %s\n", name, r.status, r.instance,
+           messages, null_categories, r.extra, first);
+    fflush(stdout);
+}
+
+#ifdef _WIN32
+/* One scenario in a new process of this host (the same arguments, the one scenario last); its exit code. */
+static DWORD child(int argc, wchar_t **wargv, int k) {
+    static wchar_t line[32768];
+    size_t used = 0;
+    for (int a = 0; a < 8; a++) /* every argument quoted: none holds a quote or ends with a backslash */
+        used += (size_t)swprintf(line + used, 32768 - used, L"\"%ls\" ", wargv[a]);
+    swprintf(line + used, 32768 - used, L"\"%ls\"", wargv[k]);
+    (void)argc;
+    STARTUPINFOW start = {.cb = sizeof start};
+    PROCESS_INFORMATION process;
+    if (!CreateProcessW(NULL, line, NULL, NULL, TRUE, 0, NULL, NULL, &start, &process)) return 0xFFFFFFFFu;
+    WaitForSingleObject(process.hProcess, INFINITE);
+    DWORD code = 0xFFFFFFFFu;
+    GetExitCodeProcess(process.hProcess, &code);
+    CloseHandle(process.hProcess), CloseHandle(process.hThread);
+    return code;
+}
+#endif
+
+#ifdef _WIN32
+int wmain(int argc, wchar_t **wargv) {
+    SetErrorMode(SEM_FAILCRITICALERRORS | SEM_NOGPFAULTERRORBOX); /* a crash ends the child, no dialog */
+    char *argv[64];
+    if (argc > 64) argc = 64;
+    for (int k = 0; k < argc; k++) {
+        static char text[64][4400];
+        WideCharToMultiByte(CP_UTF8, 0, wargv[k], -1, text[k], sizeof text[k], NULL, NULL);
+        argv[k] = text[k];
+    }
+#else
 int main(int argc, char **argv) {
+#endif
     if (argc < 9) {
         fprintf(stderr, "usage: %s FMU_DIR VERSION IDENTIFIER TOKEN IN OUT PAR SCENARIO...\n", argv[0]);
         return 2;
@@ -375,13 +469,28 @@ int main(int argc, char **argv) {
     snprintf(token, sizeof token, "%s", argv[4]);
     in_vr = atoi(argv[5]), out_vr = atoi(argv[6]), par_vr = atoi(argv[7]);
     char binary[4400];
-    snprintf(binary, sizeof binary, "%s/binaries/%s/%s.so", dir, version == 2 ? "linux64" : "x86_64-linux", argv[3]);
-    snprintf(resources, sizeof resources, version == 2 ? "file://%s/resources" : "%s/resources/", dir);
-    library = dlopen(binary, RTLD_NOW | RTLD_LOCAL);
+    snprintf(binary, sizeof binary, "%s/binaries/%s/%s" SUFFIX, dir, BINARIES, argv[3]);
+    snprintf(resources, sizeof resources, version == 2 ? URI_PREFIX "%s/resources" : "%s/resources/", dir);
+#ifdef _WIN32
+    if (argc > 9) { /* the parent: each scenario in a child process */
+        for (int k = 8; k < argc; k++) {
+            fflush(stdout);
+            DWORD code = child(argc, wargv, k);
+            if (code >= 0xC0000000u) printf("EXIT %s exception 0x%08lx\n", argv[k], (unsigned long)code);
+            else printf("EXIT %s %lu\n", argv[k], (unsigned long)code);
+        }
+        return 0;
+    }
+#endif
+    library = open_library(binary);
     if (!library) {
-        printf("dlopen failed: %s\n", dlerror());
+        printf("dlopen failed: %s\n", library_error());
         return 2;
     }
+#ifdef _WIN32
+    report(argv[8]); /* the child (or a lone scenario): run in this process */
+    return 0;
+#else
     component warm = fresh("warm-up"); /* Python started once: every child inherits it */
     if (warm) free_instance(warm);
     messages = null_categories = 0, first[0] = '\0';
@@ -389,10 +498,7 @@ int main(int argc, char **argv) {
         fflush(stdout);
         pid_t child = fork();
         if (child == 0) {
-            struct result r = scenario(argv[k]);
-            printf("SCENARIO %s status=%d instance=%d messages=%d nullcat=%d extra=%g | %s\n", argv[k], r.status,
-                   r.instance, messages, null_categories, r.extra, first);
-            fflush(stdout);
+            report(argv[k]);
             _exit(0);
         }
         int how = 0;
@@ -401,4 +507,5 @@ int main(int argc, char **argv) {
         else printf("EXIT %s %d\n", argv[k], WEXITSTATUS(how));
     }
     return 0;
+#endif
 }

@@ -28,7 +28,7 @@ SCENARIOS = (
 class Outcome:
     """What one scenario gave: its status, whether the instance existed, the messages logged (and
     of them with a NULL category), a figure of the scenario, the first message, and how the child
-    ended ('0' or 'signal N'; '' if it printed nothing)."""
+    ended ('0', 'signal N', on Windows 'exception 0x...'; '' if it printed nothing)."""
 
     status: int
     instance: bool
@@ -75,13 +75,15 @@ def unpack(fmu: Path, dest: Path) -> tuple[Path, list[str]]:
 
 
 def run(
-    host: Path, arguments: list[str], scenarios: tuple[str, ...] | list[str], wrapper: tuple[str, ...] = (),
-    timeout: float = 600,
+    host: Path | str, arguments: list[str], scenarios: tuple[str, ...] | list[str],
+    wrapper: tuple[str, ...] = (), timeout: float = 600, env: dict[str, str] | None = None,
 ) -> tuple[dict[str, Outcome], subprocess.CompletedProcess]:
-    """Run ``scenarios`` (under ``wrapper``, e.g. valgrind); the outcome of each, and the process."""
-    env = {"PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/tmp")}
+    """Run ``scenarios`` (under ``wrapper``, e.g. valgrind or wine64 with its ``env``); the outcome of
+    each, and the process."""
+    if env is None:
+        env = {"PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/tmp")}
     result = subprocess.run([*wrapper, str(host), *arguments, *scenarios], capture_output=True, text=True,
-                            timeout=timeout, env=env)
+                            timeout=timeout, env=env, stdin=subprocess.DEVNULL)
     lines: dict[str, dict[str, str]] = {}
     exits: dict[str, str] = {}
     for line in result.stdout.splitlines():

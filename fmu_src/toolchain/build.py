@@ -9,14 +9,16 @@ script's own ``from fmu_src... / from controller... import`` lines are rewritten
 bundled modules must import their own package relatively, and the other local package with a
 module-level ``from ... import`` (rewritten likewise: ``fmu_src.controller_core`` uses ``controller``).
 
-Each FMU carries its own CPython runtime (``fmu_src/toolchain/runtime.py``: libpython, the two libraries it
-links and the standard-library modules the FMU's code can import, from pinned Debian 12
-packages) and no third-party package: a bundled module that imports one is refused. pythonfmu's
-linux64 binary does not link libpython, so the build compiles ``fmu_src/toolchain/shim/`` with the system C
-compiler into ``binaries/linux64/<model>.so`` and keeps pythonfmu's binary beside it as
-``<model>_pythonfmu.so``; the shim starts the bundled runtime when the host has no Python (see
-the shim's header). Only the linux64 platform is shipped: pythonfmu's win64 binary needs a
-Python installed, which an FMU that says ``needsExecutionTool="false"`` must not.
+Each FMU carries its own CPython runtime for each platform, and no third-party package (a bundled
+module that imports one is refused): ``binaries/linux64`` Debian 12's (``fmu_src/toolchain/runtime.py``:
+libpython, the two libraries it links and the standard-library modules the FMU's code can import,
+from pinned packages), ``binaries/win64`` python.org's embeddable CPython 3.11 and the MSVC runtime
+(``fmu_src/toolchain/runtime_win64.py``, the same standard-library modules). pythonfmu's binaries do
+not start a Python of their own, so the build compiles ``fmu_src/toolchain/shim/`` in front of each:
+with the system C compiler into ``binaries/linux64/<model>.so``, and cross-compiled with mingw-w64
+into ``binaries/win64/<model>.dll``, pythonfmu's binary kept beside it as ``<model>_pythonfmu.so`` /
+``.dll``; the shim starts the bundled runtime when the host has no Python (see the shim's
+header). C extension modules are compiled for both platforms as well.
 
 The archive is normalized afterwards: GUID derived from a digest of every bundled byte, no
 generation date, sorted entries with fixed timestamps, licences under ``documentation/licenses``.
@@ -32,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import functools
 import hashlib
 import importlib.metadata
 import os
@@ -51,9 +54,17 @@ from xml.etree import ElementTree
 import pythonfmu
 from pythonfmu import FmuBuilder
 
+from . import runtime_win64
 from .controller_doc import controller_documentation
 from .licences import documentation, generation_tool
-from .runtime import Runtime, RuntimeBundleError, compile_bytecode, ensure_runtime, runtime_members
+from .runtime import (
+    Runtime,
+    RuntimeBundleError,
+    compile_bytecode,
+    ensure_runtime,
+    runtime_members,
+    stdlib_closure,
+)
 
 __all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "build_inputs", "c_compiler",
            "compile_extension", "inputs_key", "main", "record_inputs", "up_to_date"]
@@ -74,7 +85,7 @@ FMU_SCRIPTS = {
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
-BUILD_FORMAT = "6"
+BUILD_FORMAT = "8"
 SHIM_DIR = Path("fmu_src", "toolchain", "shim")  # relative to the source root
 SHIM_SOURCES = ("fmi2_shim.c", "start_python.c", "guard.c", "platform.c")
 SHIM_HEADERS = ("start_python.h", "fmi2_types.h", "guard.h", "platform.h")
@@ -85,12 +96,38 @@ SHIM_FLAGS = tuple(
     "-Wl,--build-id=none -s -Wl,--enable-new-dtags".split()
 ) + ("-Wl,-rpath,$ORIGIN/python/lib",)
 SHIM_LIBS = ("-ldl", "-pthread")
+# The Windows shim: mingw-w64, linked against the system's KERNEL32 and msvcrt.dll only; no time
+# stamp in the PE header, so the bytes depend only on sources, compiler and flags.
+MINGW = "x86_64-w64-mingw32-gcc"
+MINGW_FLAGS = tuple(
+    "-std=c11 -O2 -shared -g0 -Wall -Wextra -Wno-format-truncation -static-libgcc -s "
+    "-Wl,--no-insert-timestamp".split()
+)
+WIN_PYCONFIG = Path("fmu_src", "toolchain", "shim", "win64", "pyconfig.h")  # relative to the source root
+# Windows extension modules: no C runtime of their own, python3.dll (stable ABI) and the Universal
+# C Runtime imported as python311.dll imports it: its math (what the math module calls) and errno
+# (where that math reports ERANGE/EDOM, read by controller/_law.c as float_pow reads it), and
+# memcpy from VCRUNTIME140.dll (shipped; python311.dll has loaded it before any extension).
+WIN_EXTENSION_FLAGS = tuple(
+    "-std=c11 -O2 -shared -g0 -Wall -Wextra -ffp-contract=off -fno-builtin-sin -fno-builtin-cos "
+    "-DPy_LIMITED_API=0x03080000 -s -Wl,--no-insert-timestamp -Wl,--disable-auto-import "
+    "-Wl,--disable-runtime-pseudo-reloc -nostdlib -Wl,-e,0".split()
+)
+WIN_EXTENSION_SUFFIX = ".pyd"
+WIN_IMPORTS = {
+    "api-ms-win-crt-math-l1-1-0.dll": ("sin", "cos", "pow", "sqrt", "exp", "log", "atan2", "hypot", "fabs",
+                                       "floor", "fmod"),
+    "api-ms-win-crt-runtime-l1-1-0.dll": ("_errno",),
+    "VCRUNTIME140.dll": ("memcpy", "memmove", "memset"),
+}
 DESCRIPTION_COPY = "_modelDescription.xml"  # guard.h's DESCRIPTION_SUFFIX
+PLATFORMS = (("linux64", ".so"), ("win64", ".dll"))  # FMI 2.0 platform folders, binary suffix
 # The bundled runtime as a command (for the build's bytecode and standard-library closure).
 LAUNCHER_SOURCE = "bundled_python.c"
 LAUNCHER_FLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra")
 # The build's own code (fmu_src/): a change to it rebuilds every FMU.
-BUILD_CODE = ("build.py", "fmi3.py", "runtime.py", "runtime_pins.txt", "licences.py")
+BUILD_CODE = ("build.py", "fmi3.py", "runtime.py", "runtime_pins.txt", "runtime_win64.py",
+              "runtime_pins_win64.txt", "licences.py")
 # C extension modules bundled with the FMUs that import them (dotted name -> C source, relative to
 # the source root): built against the runtime's headers for the stable ABI, so that one binary
 # loads in the FMU's runtime and in a host's Python alike. -ffp-contract=off: no fused
@@ -237,32 +274,62 @@ def c_compiler() -> tuple[str, str]:
     )
 
 
+def mingw() -> str:
+    """The mingw-w64 cross compiler for 64-bit Windows (``$MINGW_CC``, else x86_64-w64-mingw32-gcc)."""
+    name = os.environ.get("MINGW_CC") or MINGW
+    path = shutil.which(name)
+    if not path:
+        raise BuildError(
+            f"no mingw-w64 cross compiler ({name}) to build binaries/win64: install it "
+            "(Debian: apt-get install gcc-mingw-w64-x86-64, or 'make windows-tools' as root)")
+    return path
+
+
+@functools.cache
+def _mingw_version() -> str:
+    """The cross compiler's version (a new one rebuilds the FMUs, as a new system compiler does)."""
+    return subprocess.run([mingw(), "-dumpfullversion"], capture_output=True, text=True).stdout.strip()
+
+
 def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequence[str],
-             libraries: Sequence[str], what: Path) -> bytes:
+             libraries: Sequence[str], what: Path, windows: str = "") -> bytes:
     """Compile ``sources`` (in ``work``) into a shared object against the runtime's headers; its
     bytes (the same for the same sources, compiler, flags and runtime). ``what`` names the sources
-    in the error."""
-    compiler, _ = c_compiler()
-    includes = [f"-I{d}" for d in runtime.include_dirs]
-    command = [compiler, *flags, *includes, "-o", "out.so", *sources, *libraries]
+    in the error. ``windows``: the DLL's file name, cross-compiled with mingw-w64 against the same
+    headers with the Windows pyconfig.h."""
+    compiler = mingw() if windows else c_compiler()[0]
+    if windows:
+        headers = work / "include"
+        if not headers.is_dir():
+            shutil.copytree(runtime.include_dirs[0], headers)
+            shutil.copyfile(REPO_ROOT / WIN_PYCONFIG, headers / "pyconfig.h")
+        includes = [f"-I{headers}"]
+    else:
+        includes = [f"-I{d}" for d in runtime.include_dirs]
+    out = windows or "out.so"
+    command = [compiler, *flags, *includes, "-o", out, *sources, *libraries]
     result = subprocess.run(command, cwd=work, capture_output=True, text=True)
     if result.returncode != 0:
         raise BuildError(f"{what}: {compiler} failed:\n{result.stderr.strip()}")
-    return (work / "out.so").read_bytes()
+    return (work / out).read_bytes()
 
 
 def compile_shim(root: Path, runtime: Runtime, where: Path, sources: Sequence[str] = SHIM_SOURCES,
-                 defines: Sequence[str] = ()) -> bytes:
+                 defines: Sequence[str] = (), windows: str = "") -> bytes:
     """Compile the FMI shim (``sources`` of ``fmu_src/toolchain/shim``, ``-D`` ``defines``) against
     the runtime's headers; returns the shared object's bytes (the same for the same sources,
-    compiler and runtime)."""
-    work = where / "shim"
+    compiler and runtime). ``windows``: the DLL's name (``<model>.dll``), cross-compiled for 64-bit
+    Windows instead."""
+    work = where / ("shim-win64" if windows else "shim")
     work.mkdir(parents=True)
     for name in (*sources, *SHIM_HEADERS):
         source = root / SHIM_DIR / name
         if not source.is_file():
             raise BuildError(f"FMI shim source not found: {source}")
         shutil.copyfile(source, work / name)
+    if windows:
+        flags = [*MINGW_FLAGS, *(f"-D{d}" for d in defines)]
+        return _compile(work, runtime, flags, sources, (), root / SHIM_DIR, windows)
     flags = [*SHIM_FLAGS, *(f"-D{d}" for d in defines)]
     return _compile(work, runtime, flags, sources, SHIM_LIBS, root / SHIM_DIR)
 
@@ -274,6 +341,36 @@ def compile_extension(source: Path, runtime: Runtime, where: Path) -> bytes:
     work.mkdir(parents=True)
     shutil.copyfile(source, work / source.name)
     return _compile(work, runtime, EXTENSION_FLAGS, [source.name], ["-lm"], source)
+
+
+def compile_extension_win64(source: Path, runtime: Runtime, windows: runtime_win64.WinRuntime,
+                            where: Path) -> bytes:
+    """Compile the C extension module ``source`` for 64-bit Windows (stable ABI, python3.dll;
+    its libm the Universal C Runtime's, as Python's math module on Windows); the bytes of its
+    ``<name>.pyd``."""
+    work = where / f"ext_win64_{source.stem}"
+    work.mkdir(parents=True)
+    shutil.copyfile(source, work / source.name)
+    tool = Path(mingw()).with_name(Path(mingw()).name.replace("gcc", "dlltool"))
+    libraries = [str(windows.embed / "python3.dll"), "-L."]
+    for number, (dll, symbols) in enumerate(WIN_IMPORTS.items()):  # an import library per DLL
+        definition = work / f"imports{number}.def"
+        definition.write_text(f"LIBRARY {dll}\nEXPORTS\n" + "\n".join(symbols) + "\n")
+        result = subprocess.run([str(tool), "-d", str(definition), "-l", str(work / f"libimports{number}.a")],
+                                capture_output=True, text=True)
+        if result.returncode != 0:
+            raise BuildError(f"{tool} failed:\n{result.stderr.strip()}")
+        libraries.append(f"-limports{number}")
+    libraries.append("-lkernel32")
+    return _compile(work, runtime, WIN_EXTENSION_FLAGS, [source.name], libraries, source,
+                    f"{source.stem}{WIN_EXTENSION_SUFFIX}")
+
+
+def _ensure_win_runtime() -> runtime_win64.WinRuntime:
+    try:
+        return runtime_win64.ensure_runtime()
+    except RuntimeBundleError as error:
+        raise BuildError(str(error)) from error
 
 
 def _ensure_runtime() -> Runtime:
@@ -306,7 +403,8 @@ def bundled_python(runtime: Runtime, root: Path = REPO_ROOT) -> Path:
 
 
 def _runtime(bundle: Bundle) -> dict[str, bytes]:
-    """The runtime members for ``bundle`` (standard-library closure of its script and modules)."""
+    """The runtime members of both platforms for ``bundle`` (standard-library closure of its
+    script and modules)."""
     runtime = _ensure_runtime()
     launcher = bundled_python(runtime)
     if bundle.third_party:
@@ -320,11 +418,14 @@ def _runtime(bundle: Bundle) -> dict[str, bytes]:
     if kept.is_file():
         with zipfile.ZipFile(kept) as archive:
             return {name: archive.read(name) for name in archive.namelist()}
+    windows = _ensure_win_runtime()
     with tempfile.TemporaryDirectory(prefix="ftc_closure_") as tmp:
         shutil.copytree(Path(pythonfmu.__file__).parent, Path(tmp) / "pythonfmu")
         try:
             path = [bundle.script.parent.parent, Path(tmp)]
-            members = runtime_members(runtime, launcher, [bundle.script], path)
+            closure = stdlib_closure(runtime, launcher, [bundle.script], path)
+            members = runtime_members(runtime, launcher, [bundle.script], path, closure)
+            members |= runtime_win64.runtime_members(windows, closure, runtime.stdlib)
         except RuntimeBundleError as error:
             raise BuildError(f"{bundle.model}: {error}") from error
     kept.parent.mkdir(parents=True, exist_ok=True)
@@ -436,19 +537,16 @@ def _normalized_description(xml: bytes, digest: str, model: str) -> bytes:
 def _write_normalized(
     raw_fmu: Path, target: Path, bundle: Bundle, digest: str, native: dict[str, bytes]
 ) -> None:
-    """Copy the archive with the shim in front of pythonfmu's linux64 binary, the runtime and the
-    licences added, the win64 binary left out, a deterministic description, fixed timestamps and
-    sorted entries."""
+    """Copy the archive with the shim in front of pythonfmu's linux64 and win64 binaries, the
+    runtimes and the licences added, a deterministic description, fixed timestamps and sorted
+    entries."""
     with zipfile.ZipFile(raw_fmu) as archive:
-        entries = {
-            name: archive.read(name)
-            for name in archive.namelist()
-            if not name.endswith("/") and not name.startswith("binaries/win64/")
-        }
-    binary = f"binaries/linux64/{bundle.model}.so"
-    if binary not in entries:
-        raise BuildError(f"pythonfmu's archive for {bundle.model} has no {binary}")
-    entries[f"binaries/linux64/{bundle.model}_pythonfmu.so"] = entries[binary]
+        entries = {name: archive.read(name) for name in archive.namelist() if not name.endswith("/")}
+    for platform, suffix in PLATFORMS:
+        binary = f"binaries/{platform}/{bundle.model}{suffix}"
+        if binary not in entries:
+            raise BuildError(f"pythonfmu's archive for {bundle.model} has no {binary}")
+        entries[f"binaries/{platform}/{bundle.model}_pythonfmu{suffix}"] = entries[binary]
     entries.update(native)
     entries.update(documentation(entries))
     entries["modelDescription.xml"] = _normalized_description(
@@ -459,7 +557,8 @@ def _write_normalized(
     except ValueError as error:
         raise BuildError(str(error)) from error
     # the shim's guard reads it beside the binary: hosts may unpack only binaries/ and resources/
-    entries[f"binaries/linux64/{bundle.model}{DESCRIPTION_COPY}"] = entries["modelDescription.xml"]
+    for platform, _ in PLATFORMS:
+        entries[f"binaries/{platform}/{bundle.model}{DESCRIPTION_COPY}"] = entries["modelDescription.xml"]
     entries.update(_bytecode(entries))
     write_archive(target, entries)
 
@@ -522,7 +621,8 @@ def build_inputs(root: Path = REPO_ROOT) -> tuple[str | bytes | Path, ...]:
     here = Path(__file__).resolve().parent
     shim = [root / SHIM_DIR / n for n in sorted({*SHIM_SOURCES, *SHIM_HEADERS, LAUNCHER_SOURCE})]
     return (BUILD_FORMAT, pythonfmu.__version__, repr(sorted(BUILD_OPTIONS.items())), repr(SHIM_FLAGS),
-            repr(SHIM_LIBS), repr(EXTENSION_FLAGS), c_compiler()[1], *(here / n for n in BUILD_CODE), *shim)
+            repr(SHIM_LIBS), repr(EXTENSION_FLAGS), repr(MINGW_FLAGS), c_compiler()[1], _mingw_version(),
+            *(here / n for n in BUILD_CODE), *shim, root / WIN_PYCONFIG)
 
 
 def fmu_inputs(bundle: Bundle, root: Path = REPO_ROOT) -> str:
@@ -546,20 +646,27 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT) -> Path:
         return target
     _stamp(target).unlink(missing_ok=True)
     with tempfile.TemporaryDirectory(prefix=f"ftc_build_{model}_") as tmp:
-        shim = compile_shim(root, _ensure_runtime(), Path(tmp))
+        runtime = _ensure_runtime()
+        shim = compile_shim(root, runtime, Path(tmp))
         native = _runtime(bundle) | {f"binaries/linux64/{model}.so": shim}
+        native[f"binaries/win64/{model}.dll"] = compile_shim(root, runtime, Path(tmp), windows=f"{model}.dll")
         native["documentation/licenses/pythonfmu-LICENSE.txt"] = _licence("pythonfmu")
-        extensions = {name: compile_extension(source, _ensure_runtime(), Path(tmp))
+        extensions = {name: compile_extension(source, runtime, Path(tmp))
                       for name, source in bundle.extensions.items()}
+        extensions_win64 = {name: compile_extension_win64(source, runtime, _ensure_win_runtime(), Path(tmp))
+                            for name, source in bundle.extensions.items()}
         native_digest = hashlib.sha256()
         for name in sorted(native):
             native_digest.update(name.encode() + b"\0" + hashlib.sha256(native[name]).digest())
         for name in sorted(extensions):
             native_digest.update(name.encode() + b"\0" + hashlib.sha256(extensions[name]).digest())
+            native_digest.update(hashlib.sha256(extensions_win64[name]).digest())
         digest = bundle.digest(native_digest.hexdigest())
         script, package_dir = _stage(bundle, digest, Path(tmp) / "stage")
         for name, binary in extensions.items():  # beside its importer: pythonfmu imports the script
             package_dir.joinpath(*name.split(".")).with_suffix(EXTENSION_SUFFIX).write_bytes(binary)
+            package_dir.joinpath(*name.split(".")).with_suffix(WIN_EXTENSION_SUFFIX).write_bytes(
+                extensions_win64[name])
         with _isolated_imports():
             try:
                 raw = FmuBuilder.build_FMU(

@@ -2,8 +2,9 @@
 binary, with the FMI 3.0 layer of the shim (``shim/fmi3_shim.c``) in front.
 
 The FMI 2.0 archive is the source: its members move from ``binaries/linux64/`` to
-``binaries/x86_64-linux/`` (FMI 3.0's platform tuple), the shim there is recompiled with the FMI
-3.0 layer (its FMI 2.0 functions internal), and ``modelDescription.xml`` is translated:
+``binaries/x86_64-linux/`` and from ``binaries/win64/`` to ``binaries/x86_64-windows/`` (FMI 3.0's
+platform tuples), the shims there are recompiled with the FMI 3.0 layer (their FMI 2.0 functions
+internal), and ``modelDescription.xml`` is translated:
 
 * variables: Real -> Float64, Integer -> Int32, Boolean -> Boolean, String -> String, with their
   attributes (start, min, max, nominal, unit, displayUnit, declaredType, ...), value references,
@@ -54,6 +55,9 @@ __all__ = ["FMI3_PLATFORM", "FMI3_SHIM_SOURCES", "build_fmu3", "fmi3_model_descr
 
 FMI2_PLATFORM = "binaries/linux64/"
 FMI3_PLATFORM = "binaries/x86_64-linux/"
+# FMI 2.0 platform folder -> FMI 3.0 platform tuple, and the binaries' suffix
+PLATFORM_TUPLES = {FMI2_PLATFORM: (FMI3_PLATFORM, ".so"),
+                   "binaries/win64/": ("binaries/x86_64-windows/", ".dll")}
 FMI3_SHIM_SOURCES = (*SHIM_SOURCES, "fmi3_shim.c")
 TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
 # FMI 2.0 type attributes that FMI 3.0 keeps on the variable element (String's start is a child).
@@ -209,16 +213,25 @@ def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT) -> Path:
     if f"{FMI2_PLATFORM}{model}.so" not in entries:
         raise BuildError(f"{fmu2}: no {FMI2_PLATFORM}{model}.so")
     _, time_vr = fmi3_model_description(xml, "")
+    defines = ("EXPORT=", f"FTC_TIME_VR={time_vr}", f"FTC_VR_OFFSET={VR_OFFSET}")
+    moved = dict(entries)
+    shims = {}
     with tempfile.TemporaryDirectory(prefix=f"ftc_build3_{model}_") as tmp:
-        shim = compile_shim(root, _ensure_runtime(), Path(tmp), FMI3_SHIM_SOURCES,
-                            ("EXPORT=", f"FTC_TIME_VR={time_vr}", f"FTC_VR_OFFSET={VR_OFFSET}"))
-    moved = {(FMI3_PLATFORM + name[len(FMI2_PLATFORM):] if name.startswith(FMI2_PLATFORM) else name): data
-             for name, data in entries.items()}
-    moved[f"{FMI3_PLATFORM}{model}.so"] = shim
+        for fmi2, (fmi3, suffix) in PLATFORM_TUPLES.items():
+            if f"{fmi2}{model}{suffix}" not in entries:
+                continue
+            windows = f"{model}.dll" if suffix == ".dll" else ""
+            shims[fmi3] = compile_shim(root, _ensure_runtime(), Path(tmp), FMI3_SHIM_SOURCES, defines,
+                                       windows)
+            moved = {(fmi3 + name[len(fmi2):] if name.startswith(fmi2) else name): data
+                     for name, data in moved.items()}
+            moved[f"{fmi3}{model}{suffix}"] = shims[fmi3]
+    shim = shims[FMI3_PLATFORM]
     digest = hashlib.sha256(old.get("guid", "").encode() + b"\0" + hashlib.sha256(shim).digest()).hexdigest()
     token = "{" + str(uuid.uuid5(GUID_NAMESPACE, f"{model}:fmi3:{digest}")) + "}"
     moved["modelDescription.xml"] = fmi3_model_description(xml, token)[0]
-    moved[f"{FMI3_PLATFORM}{model}{DESCRIPTION_COPY}"] = moved["modelDescription.xml"]  # not the FMI 2.0 one
+    for fmi3 in shims:  # not the FMI 2.0 one
+        moved[f"{fmi3}{model}{DESCRIPTION_COPY}"] = moved["modelDescription.xml"]
     dest.mkdir(parents=True, exist_ok=True)
     write_archive(target, moved)
     record_inputs(target, key)

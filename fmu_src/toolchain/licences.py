@@ -32,6 +32,14 @@ NOTICES = {
     "Python-debian-copyright.txt": ("Debian's packages of CPython 3.11 (copyright file)", "PSF-2.0"),
     "expat-debian-copyright.txt": ("expat, fallback/libexpat.so.1 (Debian's copyright file)", "MIT"),
     "zlib-debian-copyright.txt": ("zlib, fallback/libz.so.1 (Debian's copyright file)", "Zlib"),
+    "Python-embeddable-LICENSE.txt": (
+        "python.org's embeddable CPython 3.11 under binaries/win64/python/ (python311.dll, python3.dll, "
+        "python311.zip, the .pyd modules), unmodified; its 'Additional Conditions for this Windows binary "
+        "build' on the Microsoft Distributable Code it is linked with", "PSF-2.0"),
+    "MSVC-runtime-redistribution.txt": (
+        "Microsoft's Visual C++ runtime under binaries/win64/python/ (vcruntime140.dll, vcruntime140_1.dll, "
+        "msvcp140.dll): Visual Studio 2022's Distributable Code (its REDIST list), shipped unmodified "
+        "for Windows only", "LicenseRef-Microsoft-Visual-CPP-Redistributable"),
 }
 EXTERNAL_DEPENDENCIES = """\
 External dependencies of this FMU (FMI 3.0 section 2.5, documentation/externalDependencies.txt)
@@ -46,15 +54,22 @@ binaries/linux64 (FMI 3.0: binaries/x86_64-linux), Linux x86_64:
     libgcc_s.so.1, used by pythonfmu's binary;
   * expat and zlib are taken from the machine where present, else from python/fallback/.
   So: Debian 12+, Ubuntu 22.04+, Fedora 36+, RHEL/Rocky/Alma 10; not RHEL 9 or Ubuntu 20.04.
+
+binaries/win64 (FMI 3.0: binaries/x86_64-windows), Windows x64: Windows 10 or newer (the floor of
+python.org's CPython 3.11). From Windows itself: KERNEL32.dll, msvcrt.dll and the Universal C
+Runtime (api-ms-win-crt-*.dll, part of Windows 10); CPython (python311.dll, python3.dll) and the
+MSVC runtime (MSVCP140.dll, VCRUNTIME140.dll, VCRUNTIME140_1.dll) are under python/.
 """
 CONTAINER_DEPENDENCIES = """\
 External dependencies of this FMU (FMI 3.0 section 2.5, documentation/externalDependencies.txt)
 
-This FMU is a co-simulation of the FMUs under resources/fmus/<name>/, stepped by a C library
-(binaries/linux64 or binaries/x86_64-linux) that needs only the C library of Linux x86_64:
-glibc 2.35 or newer. No Python, no tool (needsExecutionTool="false"). The FMUs it holds may need
-more: each says so in its own documentation/externalDependencies.txt (the fixed-time-cosim FMUs
-need the C++ runtime of GCC 12: libstdc++.so.6 and libgcc_s.so.1).
+This FMU is a co-simulation of the FMUs under resources/fmus/<name>/, stepped by a C library that
+needs only the C library of its platform: on Linux x86_64 (binaries/linux64 or
+binaries/x86_64-linux) glibc 2.35 or newer, on Windows x64 (binaries/win64 or
+binaries/x86_64-windows) Windows' own KERNEL32.dll and msvcrt.dll. No Python, no tool
+(needsExecutionTool="false"). The FMUs it holds may need more: each says so in its own
+documentation/externalDependencies.txt (on Linux the fixed-time-cosim FMUs need the C++ runtime of
+GCC 12: libstdc++.so.6 and libgcc_s.so.1; on Windows, Windows 10 or newer).
 """
 
 

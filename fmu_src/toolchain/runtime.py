@@ -635,12 +635,15 @@ def compile_bytecode(runtime: Runtime, launcher: Path, sources: dict[str, bytes]
 
 
 def runtime_members(
-    runtime: Runtime, launcher: Path, scripts: Iterable[Path], path: Iterable[Path]
+    runtime: Runtime, launcher: Path, scripts: Iterable[Path], path: Iterable[Path],
+    closure: dict[str, Path] | None = None,
 ) -> dict[str, bytes]:
     """Archive members (name -> bytes) of the runtime for an FMU whose code is ``scripts`` plus
     the modules under ``path`` (``launcher``: the bundled interpreter, see :meth:`Runtime.run`):
-    libraries, standard-library zip, extension modules, manifest and licences."""
-    closure = stdlib_closure(runtime, launcher, scripts, path)
+    libraries, standard-library zip, extension modules, manifest and licences. ``closure``: the
+    :func:`stdlib_closure` of the same, if the caller has it already."""
+    if closure is None:
+        closure = stdlib_closure(runtime, launcher, scripts, path)
     base = "binaries/linux64/python/"
     members = {base + name: (runtime.root / source).read_bytes() for source, name in LIBRARIES}
     pure = {n: p for n, p in closure.items() if p.suffix == ".py"}

@@ -26,7 +26,7 @@ Co-Simulation FMU (FMI 2.0; 3.0 with --fmi 3) for tools that take an FMU but no 
 Dymola and other Modelica tools, fmusim, FMPy). The FMU holds the scenario's FMUs, connections,
 parameter values (SSD, .ssv files, --parameter-set, --set; units converted as 'run' converts
 them), step and DefaultExperiment, and runs the same master as 'orchestrate run' on the same grid:
-plant.y equals 'run's. It needs no Python on the host (needsExecutionTool="false"), linux64.
+plant.y equals 'run's. It needs no Python on the host (needsExecutionTool="false"), linux64 and win64.
 
 Exposed (default): every output of every component and every input no connection feeds, named
 COMPONENT.CONNECTOR; --expose PATTERN (repeatable, shell patterns) chooses among those and the

@@ -63,13 +63,19 @@
 #include "start_python.h"
 
 #ifndef EXPORT /* the FMI 3.0 build defines it empty: its FMI 2.0 functions are internal */
-#define EXPORT __attribute__((visibility("default")))
+#define EXPORT FTC_EXPORT
 #endif
 #ifndef FTC_VR_OFFSET /* the FMI 3.0 build: its value references are the FMI 2.0 ones plus this */
 #define FTC_VR_OFFSET 0
 #endif
 #define RUNTIME_DIR "python"
+#ifdef _WIN32
+#define INNER_SUFFIX "_pythonfmu.dll"
+#define SHIM_SUFFIX ".dll"
+#else
 #define INNER_SUFFIX "_pythonfmu.so"
+#define SHIM_SUFFIX ".so"
+#endif
 #define TEXT 4096
 
 /* pythonfmu's functions, resolved once by load() before the first instance exists. */
@@ -128,7 +134,9 @@ struct instance {
     }
 FMI2_PLAIN(INNER_CALL)
 
+#ifndef _WIN32
 static void unload(void);
+#endif
 static void resolve_python_api(void *python);
 
 static ftc_mutex load_lock = FTC_MUTEX_INIT;
@@ -139,6 +147,7 @@ static char failure[TEXT];    /* the one message of a failed load() */
 static char python_info[TEXT]; /* "Python X.Y.Z bundled with the FMU" or "of the host process" */
 static struct ftc_model description; /* the model description's token and variables */
 
+#ifndef _WIN32
 /* Loads a library of the runtime by soname, globally: one already in the process is reused, else
    the search reaches the shim's DT_RUNPATH ($ORIGIN/python/lib, holding libpython only) and then
    the system's folders; `fallback` (a path), if given, is loaded where that finds nothing. */
@@ -152,10 +161,12 @@ static void *load_runtime_library(const char *soname, const char *fallback) {
     return handle;
 }
 
+#endif
+
 /* Whether `library` is an FMU's bundled libpython (<home>/lib/<libpython> beside <home>/python311.zip);
    if so, writes <home>. */
 static int bundled_home(const char *library, char home[TEXT]) {
-    const char *suffix = "/lib/" FTC_LIBPYTHON;
+    const char *suffix = FTC_LIBPYTHON_DIR FTC_LIBPYTHON;
     size_t n = strlen(library), m = strlen(suffix);
     if (n <= m || n - m >= TEXT || strcmp(library + n - m, suffix) != 0) return 0;
     snprintf(home, TEXT, "%.*s", (int)(n - m), library);
@@ -177,7 +188,7 @@ static int load(void) {
     const char *base = slash ? slash + 1 : dir;
     snprintf(model, sizeof model, "%s", base);
     char *dot = strrchr(model, '.');
-    if (dot && strcmp(dot, ".so") == 0) *dot = '\0';
+    if (dot && strcmp(dot, SHIM_SUFFIX) == 0) *dot = '\0';
     if (slash) *slash = '\0';
     else snprintf(dir, sizeof dir, ".");
     char why[TEXT];
@@ -188,6 +199,29 @@ static int load(void) {
 
     void *python = NULL; /* NULL: every library of the process */
     int own; /* Python is an FMU's bundled runtime (this one's or another's), not the host's */
+#ifdef _WIN32
+    /* Windows has no global symbol namespace: the bundled python311.dll is loaded by its full
+       path where no module of the process exports Python (a Python host's own serves
+       otherwise); then what pythonfmu's binary imports by name and the process lacks: the
+       stable-ABI forwarder python3.dll (to whichever python311.dll is loaded) and the MSVC
+       runtime. A DLL of that name already in the process is the one every import binds to. */
+    char file[TEXT + 64];
+    if (!ftc_library_symbol(NULL, "Py_IsInitialized")) {
+        snprintf(file, sizeof file, "%s/%s/%s", dir, RUNTIME_DIR, FTC_LIBPYTHON);
+        if (!(python = ftc_library_open(file, 1))) {
+            snprintf(failure, TEXT, "%s: cannot load the bundled %s: %s", model, file, ftc_library_error(file));
+            return -1;
+        }
+    }
+    static const char *const imported[] = {"vcruntime140.dll", "vcruntime140_1.dll", "msvcp140.dll", "python3.dll"};
+    for (size_t k = 0; k < sizeof imported / sizeof imported[0]; k++) {
+        snprintf(file, sizeof file, "%s/%s/%s", dir, RUNTIME_DIR, imported[k]);
+        if (!ftc_library_loaded(imported[k]) && !ftc_library_open(file, 1)) {
+            snprintf(failure, TEXT, "%s: cannot load the bundled %s: %s", model, file, ftc_library_error(file));
+            return -1;
+        }
+    }
+#else
     if (!ftc_library_symbol(NULL, "Py_IsInitialized")) {
         char zlib[TEXT + 64], expat[TEXT + 64];
         snprintf(zlib, sizeof zlib, "%s/%s/fallback/libz.so.1", dir, RUNTIME_DIR);
@@ -196,6 +230,7 @@ static int load(void) {
             !(python = load_runtime_library(FTC_LIBPYTHON, NULL)))
             return -1;
     }
+#endif
     int (*is_initialized)(void) = (int (*)(void))ftc_library_symbol(python, "Py_IsInitialized");
     if (!is_initialized) {
         snprintf(failure, TEXT, "%s: %s has no Py_IsInitialized: not a libpython", model, FTC_LIBPYTHON);
@@ -209,6 +244,9 @@ static int load(void) {
     char library[TEXT];
     if (ftc_library_file((void *)is_initialized, library, sizeof library) != 0)
         snprintf(library, sizeof library, "%s", FTC_LIBPYTHON);
+#ifdef _WIN32
+    if (!python) python = ftc_library_loaded(library); /* the host's: symbols are per DLL */
+#endif
     char home[TEXT];
     own = bundled_home(library, home);
     int lock = ftc_file_lock(library);
@@ -255,7 +293,9 @@ static int load(void) {
         snprintf(failure, TEXT, "%s: %s lacks an FMI 2.0 function", model, path);
         return -1;
     }
+#ifndef _WIN32 /* the double free below is pythonfmu's on Linux (its binary cannot be unloaded there) */
     atexit(unload); /* after pythonfmu's static destructors were registered: runs before them */
+#endif
     resolve_python_api(python);
     const char *(*get_version)(void) = (const char *(*)(void))ftc_library_symbol(python, "Py_GetVersion");
     snprintf(python_info, TEXT, "Python %.*s %s", get_version ? (int)strcspn(get_version(), " ") : 1,
@@ -477,6 +517,7 @@ static void give_back(struct pooled *p) {
     }
 }
 
+#ifndef _WIN32 /* see unload(): Windows leaves the components to the end of the process */
 static void empty_pool(void) {
     ftc_lock(&pool_lock);
     struct pooled *p = pool;
@@ -490,6 +531,7 @@ static void empty_pool(void) {
         p = next;
     }
 }
+#endif
 
 /* ---- Direct calls ------------------------------------------------------------------------------
 
@@ -862,6 +904,12 @@ fmi2Component ftc_instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     int found = problem ? 0 : ftc_resources(&description, fmuResourceLocation, resources, sizeof resources, note,
                                             sizeof note);
     if (found < 0) problem = note;
+    char readable[TEXT]; /* what pythonfmu's binary can open: the same folder (see ftc_ascii_path) */
+    if (!problem && ftc_ascii_path(resources, readable, sizeof readable) != 0) {
+        snprintf(note, sizeof note, "the resources folder %s has no ASCII (8.3) name, which pythonfmu's binary "
+                 "needs: unpack the FMU to a path of ASCII characters, or enable short names on its volume", resources);
+        problem = note;
+    }
     if (problem) {
         snprintf(message, sizeof message, "%s: %s: %s", model, function, problem);
         report(functions, instanceName, fmi2Error, message);
@@ -875,7 +923,7 @@ fmi2Component ftc_instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     snprintf(i->name, sizeof i->name, "%s", instanceName);
     if (functions) i->host = *functions;
     if (found == 1) say(i, fmi2Warning, function, "%s", note);
-    i->pooled = component_for(i, fmuType, fmuGUID, resources, visible, loggingOn);
+    i->pooled = component_for(i, fmuType, fmuGUID, readable, visible, loggingOn);
     if (!i->pooled) {
         snprintf(message, sizeof message, "%s: pythonfmu could not instantiate %s in %s; instantiate with "
                  "logging on for its reason", model, instanceName, python_info);
@@ -1020,6 +1068,7 @@ FORWARD(fmi2GetStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Status * va
 FORWARD(fmi2GetIntegerStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Integer * value), (c, s, value))
 FORWARD(fmi2GetStringStatus, (fmi2Component c, const fmi2StatusKind s, fmi2String * value), (c, s, value))
 
+#ifndef _WIN32
 /* Releases pythonfmu's binary when the shim is unloaded and at exit, whichever comes first.
 
    pythonfmu 0.7.0 releases its global std::shared_ptr<PyState> twice when its binary is still
@@ -1043,3 +1092,4 @@ static void unload(void) {
 }
 
 __attribute__((destructor)) static void unload_with_shim(void) { unload(); }
+#endif

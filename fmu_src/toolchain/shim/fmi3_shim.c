@@ -42,13 +42,14 @@
 #include <string.h>
 
 #include "fmi2_types.h"
+#include "platform.h"
 
 #if !defined FTC_TIME_VR || !defined FTC_VR_OFFSET
 #error "compile with -DFTC_TIME_VR=<value reference of time> -DFTC_VR_OFFSET=<FMI 3.0 - FMI 2.0 references>"
 #endif
 #define VR_BUFFER 64 /* value references translated on the stack; more are allocated */
 
-#define EXPORT3 __attribute__((visibility("default")))
+#define EXPORT3 FTC_EXPORT
 #define TEXT 4096
 
 /* FMI 3.0 types (fmi3PlatformTypes.h, fmi3FunctionTypes.h), so that no header is needed. */

@@ -4,6 +4,7 @@
 
 #include "guard.h"
 
+#include <ctype.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -13,7 +14,7 @@
 #define MAX_DESCRIPTION (16u << 20) /* bytes: far above any FMU of the project */
 
 static char *read_text(const char *path, char *why, size_t size) {
-    FILE *f = fopen(path, "rb");
+    FILE *f = ftc_fopen(path, "rb");
     if (!f) {
         snprintf(why, size, "cannot read %s", path);
         return NULL;
@@ -187,7 +188,12 @@ static int native_path(const char *given, char *out, size_t size) {
         else if (strncmp(p, "///", 3) == 0) p += 2;
         else if (strncmp(p, "//", 2) == 0) return -1; /* another host */
     }
+#ifdef _WIN32 /* file:///C:/p, or C:/p or C:\p (FMI 3.0's native path); '/' in the result */
+    if (p[0] == '/' && isalpha((unsigned char)p[1]) && p[2] == ':') p++;
+    if (!isalpha((unsigned char)p[0]) || p[1] != ':' || (p[2] != '/' && p[2] != '\\')) return -1;
+#else
     if (p[0] != '/') return -1;
+#endif
     size_t j = 0;
     for (; *p && j + 1 < size; p++) {
         unsigned hex;
@@ -195,7 +201,7 @@ static int native_path(const char *given, char *out, size_t size) {
             out[j++] = (char)hex;
             p += 2;
         } else
-            out[j++] = *p;
+            out[j++] = *p == '\\' ? '/' : *p;
     }
     out[j] = '\0';
     while (j > 1 && out[j - 1] == '/') out[--j] = '\0';

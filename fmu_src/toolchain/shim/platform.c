@@ -1,12 +1,17 @@
-/* The shim's portability layer (platform.h): POSIX. */
+/* The shim's portability layer (platform.h): POSIX and Windows. */
 
+#ifndef _WIN32
 #define _GNU_SOURCE
+#endif
 #include "platform.h"
+
+#include <stdio.h>
+#include <string.h>
+
+#ifndef _WIN32 /* ---------------------------------------------------------------- POSIX */
 
 #include <dlfcn.h>
 #include <fcntl.h>
-#include <stdio.h>
-#include <string.h>
 #include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -27,6 +32,8 @@ const char *ftc_library_error(const char *path) {
     return error;
 }
 
+void *ftc_library_loaded(const char *name) { return dlopen(name, RTLD_NOW | RTLD_NOLOAD); }
+
 int ftc_library_file(const void *address, char *out, size_t size) {
     Dl_info info;
     if (!dladdr(address, &info) || !info.dli_fname || !info.dli_fname[0]) return -1;
@@ -43,6 +50,8 @@ int ftc_is_dir(const char *path) {
     return path && stat(path, &info) == 0 && S_ISDIR(info.st_mode);
 }
 
+FILE *ftc_fopen(const char *path, const char *mode) { return fopen(path, mode); }
+
 int ftc_file_lock(const char *path) {
     int lock = open(path, O_RDONLY | O_CLOEXEC);
     if (lock >= 0) flock(lock, LOCK_EX);
@@ -52,3 +61,218 @@ int ftc_file_lock(const char *path) {
 void ftc_file_unlock(int lock) {
     if (lock >= 0) close(lock); /* releases the lock */
 }
+
+int ftc_ascii_path(const char *path, char *out, size_t size) {
+    return (size_t)snprintf(out, size, "%s", path) < size ? 0 : -1;
+}
+
+void ftc_standard_streams(void *python, int saved[3]) {
+    (void)python;
+    saved[0] = saved[1] = saved[2] = -1;
+}
+
+void ftc_standard_streams_done(int saved[3]) { (void)saved; }
+
+#else /* ---------------------------------------------------------------------- Windows */
+
+#include <stdint.h>
+#include <stdlib.h>
+#include <windows.h>
+#include <psapi.h>
+
+void ftc_lock(ftc_mutex *mutex) { AcquireSRWLockExclusive((PSRWLOCK)mutex); }
+void ftc_unlock(ftc_mutex *mutex) { ReleaseSRWLockExclusive((PSRWLOCK)mutex); }
+
+/* UTF-8 -> UTF-16 (with '/' kept: Windows accepts both separators); NULL if invalid or too long. */
+static wchar_t *wide(const char *path, wchar_t *out, int size) {
+    if (!path || MultiByteToWideChar(CP_UTF8, MB_ERR_INVALID_CHARS, path, -1, out, size) == 0) return NULL;
+    return out;
+}
+
+/* UTF-16 -> UTF-8 with '\' turned into '/'; 0 on success. */
+static int narrow(const wchar_t *path, char *out, size_t size) {
+    if (WideCharToMultiByte(CP_UTF8, 0, path, -1, out, (int)size, NULL, NULL) == 0) return -1;
+    for (char *p = out; *p; p++)
+        if (*p == '\\') *p = '/';
+    return 0;
+}
+
+static char error_text[FTC_PLATFORM_TEXT];
+
+void *ftc_library_open(const char *path, int global) {
+    (void)global; /* a DLL's exports are always its own */
+    wchar_t w[FTC_PLATFORM_TEXT];
+    if (!wide(path, w, FTC_PLATFORM_TEXT)) {
+        SetLastError(ERROR_BAD_PATHNAME);
+        return NULL;
+    }
+    /* an absolute path: the DLL's own folder is searched first for what it imports */
+    return (void *)LoadLibraryExW(w, NULL, LOAD_WITH_ALTERED_SEARCH_PATH);
+}
+
+void *ftc_library_symbol(void *library, const char *name) {
+    if (library) return (void *)GetProcAddress((HMODULE)library, name);
+    HMODULE modules[1024];
+    DWORD needed = 0;
+    if (!K32EnumProcessModules(GetCurrentProcess(), modules, sizeof modules, &needed)) return NULL;
+    DWORD n = needed / sizeof modules[0];
+    for (DWORD k = 0; k < n && k < 1024; k++) {
+        FARPROC found = GetProcAddress(modules[k], name);
+        if (found) return (void *)found;
+    }
+    return NULL;
+}
+
+void ftc_library_close(void *library) { FreeLibrary((HMODULE)library); }
+
+const char *ftc_library_error(const char *path) {
+    (void)path;
+    DWORD code = GetLastError();
+    DWORD n = FormatMessageA(FORMAT_MESSAGE_FROM_SYSTEM | FORMAT_MESSAGE_IGNORE_INSERTS, NULL, code, 0, error_text,
+                             sizeof error_text, NULL);
+    while (n && (error_text[n - 1] == '\n' || error_text[n - 1] == '\r' || error_text[n - 1] == ' '))
+        error_text[--n] = '\0';
+    if (!n) snprintf(error_text, sizeof error_text, "Windows error %lu", (unsigned long)code);
+    return error_text;
+}
+
+void *ftc_library_loaded(const char *name) {
+    wchar_t w[FTC_PLATFORM_TEXT];
+    return wide(name, w, FTC_PLATFORM_TEXT) ? (void *)GetModuleHandleW(w) : NULL;
+}
+
+int ftc_library_file(const void *address, char *out, size_t size) {
+    HMODULE module;
+    if (!GetModuleHandleExW(GET_MODULE_HANDLE_EX_FLAG_FROM_ADDRESS | GET_MODULE_HANDLE_EX_FLAG_UNCHANGED_REFCOUNT,
+                            (LPCWSTR)address, &module))
+        return -1;
+    wchar_t w[FTC_PLATFORM_TEXT];
+    DWORD n = GetModuleFileNameW(module, w, FTC_PLATFORM_TEXT);
+    if (n == 0 || n >= FTC_PLATFORM_TEXT) return -1;
+    return narrow(w, out, size);
+}
+
+static DWORD attributes(const char *path) {
+    wchar_t w[FTC_PLATFORM_TEXT];
+    return wide(path, w, FTC_PLATFORM_TEXT) ? GetFileAttributesW(w) : INVALID_FILE_ATTRIBUTES;
+}
+
+int ftc_is_file(const char *path) {
+    DWORD a = attributes(path);
+    return a != INVALID_FILE_ATTRIBUTES && !(a & FILE_ATTRIBUTE_DIRECTORY);
+}
+
+int ftc_is_dir(const char *path) {
+    DWORD a = attributes(path);
+    return a != INVALID_FILE_ATTRIBUTES && (a & FILE_ATTRIBUTE_DIRECTORY);
+}
+
+FILE *ftc_fopen(const char *path, const char *mode) {
+    wchar_t w[FTC_PLATFORM_TEXT], m[16];
+    if (!wide(path, w, FTC_PLATFORM_TEXT) || !wide(mode, m, 16)) return NULL;
+    return _wfopen(w, m);
+}
+
+int ftc_file_lock(const char *path) {
+    wchar_t w[FTC_PLATFORM_TEXT];
+    if (!wide(path, w, FTC_PLATFORM_TEXT)) return -1;
+    HANDLE file = CreateFileW(w, GENERIC_READ, FILE_SHARE_READ | FILE_SHARE_WRITE | FILE_SHARE_DELETE, NULL,
+                              OPEN_EXISTING, FILE_ATTRIBUTE_NORMAL, NULL);
+    if (file == INVALID_HANDLE_VALUE) return -1;
+    OVERLAPPED whole = {0};
+    LockFileEx(file, LOCKFILE_EXCLUSIVE_LOCK, 0, 1, 0, &whole);
+    return (int)(intptr_t)file;
+}
+
+void ftc_file_unlock(int lock) {
+    if (lock == -1) return;
+    HANDLE file = (HANDLE)(intptr_t)lock;
+    OVERLAPPED whole = {0};
+    UnlockFileEx(file, 0, 1, 0, &whole);
+    CloseHandle(file);
+}
+
+static int is_ascii(const char *text) {
+    for (; *text; text++)
+        if ((unsigned char)*text > 127) return 0;
+    return 1;
+}
+
+int ftc_ascii_path(const char *path, char *out, size_t size) {
+    if (is_ascii(path)) return (size_t)snprintf(out, size, "%s", path) < size ? 0 : -1;
+    wchar_t w[FTC_PLATFORM_TEXT], s[FTC_PLATFORM_TEXT];
+    DWORD n = wide(path, w, FTC_PLATFORM_TEXT) ? GetShortPathNameW(w, s, FTC_PLATFORM_TEXT) : 0;
+    if (n == 0 || n >= FTC_PLATFORM_TEXT || narrow(s, out, size) != 0) return -1;
+    return is_ascii(out) ? 0 : -1;
+}
+
+/* The Universal C Runtime's descriptor functions (the CRT python311.dll uses; the shim's own is
+   msvcrt.dll, whose descriptors are others). */
+typedef void (*ftc_iph)(const wchar_t *, const wchar_t *, const wchar_t *, unsigned, uintptr_t);
+static void ignore_parameter(const wchar_t *a, const wchar_t *b, const wchar_t *c, unsigned d, uintptr_t e) {
+    (void)a, (void)b, (void)c, (void)d, (void)e;
+}
+static struct {
+    intptr_t (*get_handle)(int);
+    int (*open_w)(const wchar_t *, int, ...);
+    int (*dup)(int);
+    int (*dup2)(int, int);
+    int (*close)(int);
+    ftc_iph (*set_handler)(ftc_iph);
+} crt;
+
+static int find_crt(void) {
+    HMODULE m = GetModuleHandleW(L"ucrtbase.dll");
+    if (!m) return 0;
+#define CRT(field, name) *(void **)&crt.field = (void *)GetProcAddress(m, name)
+    CRT(get_handle, "_get_osfhandle");
+    CRT(open_w, "_wopen");
+    CRT(dup, "_dup");
+    CRT(dup2, "_dup2");
+    CRT(close, "_close");
+    CRT(set_handler, "_set_thread_local_invalid_parameter_handler");
+#undef CRT
+    return crt.get_handle && crt.open_w && crt.dup && crt.dup2 && crt.close && crt.set_handler;
+}
+
+/* What CPython's start asks of a standard descriptor (_Py_fstat: GetFileType, and for a file
+   GetFileInformationByHandle): 0 absent (a GUI process), 1 unusable at start (a console
+   process's file under wine, opened without the right to read its attributes), 2 usable. */
+static int usable(intptr_t h) {
+    if (h == -1 || h == -2 || h == 0) return 0;
+    SetLastError(0);
+    DWORD type = GetFileType((HANDLE)h);
+    if (type == FILE_TYPE_UNKNOWN && GetLastError() != 0) return 0;
+    BY_HANDLE_FILE_INFORMATION info;
+    if (type == FILE_TYPE_DISK && !GetFileInformationByHandle((HANDLE)h, &info)) return 1;
+    return 2;
+}
+
+void ftc_standard_streams(void *python, int saved[3]) {
+    (void)python;
+    saved[0] = saved[1] = saved[2] = -1;
+    if (!find_crt()) return;
+    ftc_iph previous = crt.set_handler(ignore_parameter); /* a closed descriptor must not end the process */
+    for (int fd = 0; fd < 3; fd++) {
+        int state = usable(crt.get_handle(fd));
+        if (state == 2) continue;
+        if (state == 1) saved[fd] = crt.dup(fd); /* given back after the start */
+        int null = crt.open_w(L"NUL", fd == 0 ? 0 /* _O_RDONLY */ : 1 /* _O_WRONLY */);
+        if (null < 0) continue;
+        if (null != fd) {
+            crt.dup2(null, fd);
+            crt.close(null);
+        }
+    }
+    crt.set_handler(previous);
+}
+
+void ftc_standard_streams_done(int saved[3]) {
+    for (int fd = 0; fd < 3; fd++)
+        if (saved[fd] >= 0) {
+            crt.dup2(saved[fd], fd); /* Python's sys.stdout writes to descriptor 1: the host's again */
+            crt.close(saved[fd]);
+        }
+}
+
+#endif

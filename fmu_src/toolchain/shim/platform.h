@@ -1,39 +1,77 @@
 /* The shim's portability layer: every call to the operating system (loading libraries, finding
-   the shim's own file, locks, file tests) goes through these few functions, so that a port adds
-   one branch here (platform.c) and nothing in the FMI code. Today: POSIX (Linux, glibc). */
+   the shim's own file, locks, file tests, opening files) goes through these few functions, so
+   that the FMI code has no branch per platform. Two branches here (platform.c): POSIX (Linux,
+   glibc) and Windows (64-bit, cross-compiled with mingw-w64). Paths are UTF-8 with '/' on both:
+   the Windows branch converts to and from UTF-16 at the system call. */
 
 #ifndef FTC_PLATFORM_H
 #define FTC_PLATFORM_H
 
 #include <stddef.h>
+#include <stdio.h>
 
 #define FTC_PLATFORM_TEXT 4096
 
-/* Shared libraries: load (global: its symbols serve libraries loaded later), find a symbol (NULL
-   library: every library of the process), unload. ftc_library_error: the last failure, without a
-   leading "<path>: ". */
+/* What the shim exports (the FMI functions). */
+#ifdef _WIN32
+#define FTC_EXPORT __declspec(dllexport)
+#else
+#define FTC_EXPORT __attribute__((visibility("default")))
+#endif
+
+/* Shared libraries: load (global: its symbols serve libraries loaded later; Windows has no such
+   thing), find a symbol (NULL library: every library of the process), unload.
+   ftc_library_error: the last failure, without a leading "<path>: ". ftc_library_loaded: the
+   library of that file name if the process has it, else NULL (nothing is loaded). */
 void *ftc_library_open(const char *path, int global);
 void *ftc_library_symbol(void *library, const char *name);
 void ftc_library_close(void *library);
 const char *ftc_library_error(const char *path);
+void *ftc_library_loaded(const char *name);
 
 /* The file of the shared library that holds `address` (a function of it); 0 on success. */
 int ftc_library_file(const void *address, char *out, size_t size);
 
-/* Whether `path` is a regular file, a folder. */
+/* Whether `path` is a regular file, a folder; fopen for a UTF-8 path. */
 int ftc_is_file(const char *path);
 int ftc_is_dir(const char *path);
+FILE *ftc_fopen(const char *path, const char *mode);
 
 /* An exclusive lock on a file shared by every process and library that opens it; -1 if the file
-   cannot be opened (then nothing is locked). */
+   cannot be opened (then nothing is locked). (A Windows HANDLE fits an int: Windows keeps handle
+   values in 32 bits for 32/64-bit interoperability.) */
 int ftc_file_lock(const char *path);
 void ftc_file_unlock(int lock);
 
+/* Windows only: a path the host's C runtime and pythonfmu's binary read alike (pythonfmu reads
+   resources/slavemodule.txt with a narrow std::ifstream, in the ANSI code page, and gives the
+   same bytes to Python as UTF-8): `path` itself when it is ASCII, else its short 8.3 form;
+   0 on success, -1 when the path has no ASCII form. POSIX: the path unchanged. */
+int ftc_ascii_path(const char *path, char *out, size_t size);
+
+/* Windows only: CPython's start stops at a standard descriptor it cannot examine
+   ("init_sys_streams: can't initialize sys standard streams", WinError 6): a GUI process has
+   none, and under wine a console process's redirected file lacks the right to read its
+   attributes. Before the start, such descriptors of the C runtime the interpreter `python` uses
+   are pointed at the null device; after it, ftc_standard_streams_done gives the host back those
+   that it had (`saved`), so its output and Python's go where they went. POSIX: nothing. */
+void ftc_standard_streams(void *python, int saved[3]);
+void ftc_standard_streams_done(int saved[3]);
+
 /* A mutex usable from any thread, statically initialized. */
+#ifdef _WIN32 /* a slim reader/writer lock (SRWLOCK), without windows.h's macros in the FMI code */
+typedef struct {
+    void *opaque;
+} ftc_mutex;
+#define FTC_MUTEX_INIT {0}
+void ftc_lock(ftc_mutex *mutex);
+void ftc_unlock(ftc_mutex *mutex);
+#else
 #include <pthread.h>
 typedef pthread_mutex_t ftc_mutex;
 #define FTC_MUTEX_INIT PTHREAD_MUTEX_INITIALIZER
 #define ftc_lock(m) pthread_mutex_lock(m)
 #define ftc_unlock(m) pthread_mutex_unlock(m)
+#endif
 
 #endif

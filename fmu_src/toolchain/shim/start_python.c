@@ -2,10 +2,20 @@
    of exactly that runtime (fmu_src/toolchain/runtime.py pins both), so the PyPreConfig/PyConfig layouts match.
 
    The functions are looked up with dlsym in the libpython the shim loaded: the shim does not link
-   libpython, so that a host which already runs Python keeps its own. */
+   libpython, so that a host which already runs Python keeps its own.
+
+   Windows: the same start, of python.org's embeddable CPython 3.11 (python311.dll), compiled
+   against the same 3.11 headers with the Windows pyconfig.h of fmu_src/toolchain/shim/win64/ (mingw-w64
+   and python.org's MSVC build share the ABI: LLP64, 16-bit wchar_t, so the layouts match; the
+   configuration structures are the same in every 3.11 release). */
 
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#ifdef _WIN32
+#define FTC_EXTENSIONS NULL /* the .pyd files sit beside python311.dll */
+#else
+#define FTC_EXTENSIONS "lib-dynload"
+#endif
 #include "platform.h"
 #include <stdio.h>
 #include <string.h>
@@ -44,10 +54,10 @@ static int find_api(void *python, struct api *a) {
     return ok;
 }
 
-/* Appends home/leaf to the module search path; 0 on success. */
+/* Appends home/leaf (leaf NULL: home) to the module search path; 0 on success. */
 static int add_path(const struct api *a, PyConfig *config, const char *home, const char *leaf) {
     char path[4096];
-    snprintf(path, sizeof path, "%s/%s", home, leaf);
+    snprintf(path, sizeof path, "%s%s%s", home, leaf ? "/" : "", leaf ? leaf : "");
     wchar_t *wide = a->decode(path, NULL);
     if (!wide) return -1;
     PyStatus status = a->append(&config->module_search_paths, wide);
@@ -82,12 +92,15 @@ int ftc_start_python(void *python, const char *home, char *failure, size_t size)
     config.module_search_paths_set = 1;
     status = a.set_bytes(&config, &config.home, home);
     if (a.is_exception(status) || add_path(&a, &config, home, "python" FTC_TAG ".zip") != 0 ||
-        add_path(&a, &config, home, "lib-dynload") != 0) {
+        add_path(&a, &config, home, FTC_EXTENSIONS) != 0) {
         a.clear(&config);
         snprintf(failure, size, "cannot set the runtime's home and path to %s (out of memory?)", home);
         return -1;
     }
+    int saved[3];
+    ftc_standard_streams(python, saved);
     status = a.initialize(&config);
+    ftc_standard_streams_done(saved);
     a.clear(&config);
     if (a.is_exception(status)) {
         snprintf(failure, size, "Py_InitializeFromConfig failed: %s%s%s",

@@ -4,9 +4,16 @@
 
 #include <stddef.h>
 
-/* The runtime's version tag, as in "python311.zip" and "libpython3.11.so.1.0". */
+/* The runtime's version tag, as in "python311.zip" and "libpython3.11.so.1.0"; the interpreter
+   library and its folder below the runtime's home. */
 #define FTC_TAG "311"
+#ifdef _WIN32
+#define FTC_LIBPYTHON "python311.dll"
+#define FTC_LIBPYTHON_DIR "/"
+#else
 #define FTC_LIBPYTHON "libpython3.11.so.1.0"
+#define FTC_LIBPYTHON_DIR "/lib/"
+#endif
 
 /* Initializes the libpython `python` (a dlopen handle) isolated, with `home` (the runtime's folder)
    as its only module source, then releases the GIL. 0 on success; else -1 and a message. */
