@@ -14,7 +14,7 @@ BYTECODE := build/.bytecode
 SOURCES := $(shell find controller fmu_src ssp -type f -not -path '*/__pycache__/*' -not -name '*.pyc' \
                      -not -name '.*' 2>/dev/null)
 
-.PHONY: run test unit build lint crosscheck table study study-fixed-time report baselines bench clean
+.PHONY: run test unit build lint docs docs-figure browser crosscheck conformance table study study-fixed-time report baselines bench clean
 
 # pip's console script 'orchestrate' is then replaced by orchestrator/launcher.c, which holds SIGINT and
 # SIGTERM from its first instruction until the package's handlers are in (issue 20). Compiled to a
@@ -29,7 +29,7 @@ $(STAMP): pyproject.toml constraints.txt $(LAUNCHER)
 	@command -v $(firstword $(CC)) >/dev/null || { echo "make: no C compiler '$(CC)' (needed for the orchestrate launcher and the FMUs): install gcc, or set CC" >&2; exit 1; }
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip==25.3
-	$(PY) -m pip install --quiet -e '.[test]' -c constraints.txt
+	$(PY) -m pip install --quiet -e '.[test,docs]' -c constraints.txt
 	@if $(PY) -c 'import sys; sys.exit(sys.version_info < (3, 11))'; then \
 	  echo "$(CC) $(LAUNCHER_FLAGS) -o $(ORCH) $(LAUNCHER)"; \
 	  $(CC) $(LAUNCHER_FLAGS) -o $(ORCH).new $(LAUNCHER) || { rm -f $(ORCH).new; exit 1; }; \
@@ -69,13 +69,45 @@ run: build
 
 ## test: the whole suite (unit + system tests with real FMUs and real SSP tools) on 2 workers;
 ## tests sharing an expensive reference run in one worker (xdist groups). Also writes the
-## conformance matrix of every scenario in every installed SSP tool to results/crosscheck/.
-test: build $(ALT_STAMP)
-	CROSSCHECK_OUTPUT=results/crosscheck $(PY) -m pytest -q -n 2 --dist loadgroup
+## conformance matrix of every scenario in every installed SSP tool to results/crosscheck/, and the
+## sample project's regression (terminal, JUnit XML, report screenshots) to results/regress-sample/.
+test: build $(ALT_STAMP) browser
+	CROSSCHECK_OUTPUT=results/crosscheck REGRESS_SAMPLE_OUTPUT=results/regress-sample $(PY) -m pytest -q -n 2 --dist loadgroup
+
+# The HTML regression report's test opens it in a real browser: Debian's chromium, installed here
+# where it is missing and apt-get can (as root; CI runs so). A failed install is tried again only
+# after 'make clean'; without the browser that test skips, saying why.
+NO_BROWSER := build/.no-browser
+browser:
+	@if command -v chromium >/dev/null 2>&1 || [ -e $(NO_BROWSER) ]; then :; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	  mkdir -p build; \
+	  echo "installing Debian's chromium for the HTML report's browser test (log: build/chromium-install.log)"; \
+	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
+	      chromium fonts-liberation; } > build/chromium-install.log 2>&1 || { touch $(NO_BROWSER); \
+	    echo "note: chromium could not be installed (build/chromium-install.log): the browser test will skip"; }; \
+	else echo "note: no chromium and no apt-get as root: the HTML report's browser test will skip"; fi
 
 ## crosscheck: every built scenario in every installed SSP tool -> results/crosscheck/matrix.md
 crosscheck: build
 	$(ORCH) crosscheck
+
+## docs: the documentation site (MkDocs, warnings are errors) into build/site/; open build/site/index.html
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet
+	@echo "docs: build/site/index.html"
+
+## docs-figure: redraw the README's figure, docs/images/pendulum.png, as 'make run' draws it (commit it)
+docs-figure: build
+	$(ORCH) run pendulum --quiet --output results/pendulum.csv --plot docs/images/pendulum.png
+
+## conformance: OMSimulator's and libcosim's whole SSP test resources (fetched: OMS_RESOURCES is
+## OMSimulator's testsuite/tests/resources, LIBCOSIM_DATA libcosim's tests/data), validated before
+## (main at 5287c35) and after issue 32, run, and compared with OMSimulator 3 and libcosim ->
+## docs/ssp-conformance.md (about 5 minutes)
+conformance: build
+	$(PY) tests/ssp_conformance/conformance.py $(if $(OMS_RESOURCES),--omsimulator $(OMS_RESOURCES)) \
+	  $(if $(LIBCOSIM_DATA),--libcosim $(LIBCOSIM_DATA))
 
 ## unit: the fast unit tests only (no FMU, no other tool, no 30 s reference)
 unit: $(STAMP)
@@ -109,9 +141,13 @@ study-fixed-time: build
 report: build
 	$(ORCH) report
 
-## baselines: regenerate tests/baselines/ after an intended change (review the diff)
+## baselines: after an intended change, run every scenario of ssp/ against tests/baselines/ and
+## write the review (results/baseline-review/index.html, one line per signal that moved); ACCEPT
+## names what to rewrite (default: every baseline that changed; ACCEPT= writes none; review the diff)
+SCENARIOS := $(patsubst ssp/%/SystemStructure.ssd,%,$(wildcard ssp/*/SystemStructure.ssd))
+ACCEPT ?= --accept-all
 baselines: build
-	$(ORCH) baseline
+	$(ORCH) baseline $(SCENARIOS) --baselines tests/baselines --review results/baseline-review $(ACCEPT)
 
 bench: build
 	$(PY) benchmarks/controller_step.py

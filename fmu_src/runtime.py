@@ -106,7 +106,18 @@ EXCLUDED = (
     "_tkinter", "_testcapi", "_testinternalcapi", "_multiprocessing", "_posixshmem", "_asyncio",
 )
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
-DEFAULT_CACHE = Path(__file__).resolve().parent.parent / "build" / "runtime"
+
+
+def default_cache() -> Path:
+    """Where the runtime is fetched to: ``build/runtime/`` of a checkout; for an installed package
+    the user's cache (``$XDG_CACHE_HOME/fixed-time-cosim/runtime``), never site-packages."""
+    root = Path(__file__).resolve().parent.parent
+    if (root / "pyproject.toml").is_file():
+        return root / "build" / "runtime"
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "fixed-time-cosim" / "runtime"
+
+
+DEFAULT_CACHE = default_cache()
 
 
 class RuntimeBundleError(RuntimeError):

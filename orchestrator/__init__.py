@@ -24,6 +24,7 @@ import numpy as np
 from . import formats, provenance
 from .errors import (
     Interrupted,
+    LoopError,
     NonFiniteError,
     OrchestratorError,
     ScenarioError,
@@ -39,7 +40,8 @@ from .ssp import DEFAULT_LIMITS, Limits
 from .system import PortRef, System
 from .validate import DEFAULT_STEP, check_scenario, no_step, timing
 
-__all__ = ["DEFAULT_STEP", "MASTERS", "Interrupted", "Limits", "NonFiniteError", "OrchestratorError",
+__all__ = ["DEFAULT_STEP", "MASTERS", "Interrupted", "Limits", "LoopError", "NonFiniteError",
+           "OrchestratorError",
            "PortRef", "RunOptions", "RunResult", "ScenarioError", "ScenarioWarning", "SimulationError",
            "TimeLimitError", "UsageError", "open_system", "run", "system_columns"]
 
@@ -48,7 +50,8 @@ __all__ = ["DEFAULT_STEP", "MASTERS", "Interrupted", "Limits", "NonFiniteError",
 def open_system(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.PathLike] = (),
                 overrides: Mapping[str, object] | None = None,
                 fmu_dirs: Iterable[str | os.PathLike] = (),
-                limits: Limits = DEFAULT_LIMITS) -> Iterator[System]:
+                limits: Limits = DEFAULT_LIMITS, root: str | os.PathLike | None = None,
+                strict_fmus: bool = False) -> Iterator[System]:
     """Open, read and validate a scenario; an archive stays unpacked until the ``with`` block ends.
 
     Parameters
@@ -64,6 +67,11 @@ def open_system(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | o
         the built FMUs).
     limits : Limits
         What an archive and its FMUs may unpack to (:class:`~orchestrator.ssp.Limits`).
+    root : path, optional
+        A folder scenario may reference files below this folder with '..' (never an archive).
+    strict_fmus : bool
+        What fmpy's checks of a model description find is an error (else a warning, where the FMU
+        still runs).
 
     Yields
     ------
@@ -78,7 +86,8 @@ def open_system(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | o
     """
     with ExitStack() as stack:
         system, errors, _ = check_scenario(scenario, stack, parameter_sets=parameter_sets,
-                                           overrides=overrides, fmu_dirs=fmu_dirs, limits=limits)
+                                           overrides=overrides, fmu_dirs=fmu_dirs, limits=limits, root=root,
+                                           strict_fmus=strict_fmus)
         if system is None or errors:
             raise ScenarioError(errors)
         yield system
@@ -128,7 +137,8 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
     if output is not None:
         formats.check_output(output, selection=selection)
     with open_system(scenario, parameter_sets=options.parameter_sets, overrides=options.overrides,
-                     fmu_dirs=options.fmu_dirs, limits=options.limits) as system:
+                     fmu_dirs=options.fmu_dirs, limits=options.limits, root=options.root,
+                     strict_fmus=options.strict_fmus) as system:
         start, stop, h = timing(system.structure, options.stop_time, options.step, options.start_time)
         series = _before_the_run(system, options, start, stop)
         record = provenance.describe(scenario, system, start=start, stop=stop, step=h, master=options.master,
@@ -151,7 +161,9 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
         runner = MASTERS[options.master](system, start, stop, h, stream, progress,
                                          keep=options.keep or output is None, timeout=options.timeout,
                                          inputs=series, instances=tracing(options.fmi_log),
-                                         binary_copy=stream is not None and stream != Path(output or ""))
+                                         binary_copy=stream is not None and stream != Path(output or ""),
+                                         loop_tolerance=options.loop_tolerance,
+                                         loop_iterations=options.loop_iterations)
         texts = descriptions(system)
         try:
             runner.run()

@@ -36,6 +36,7 @@ from .errors import (
 )
 from .fmi import CALLS
 from .inspection import inspect_scenario
+from .master import LOOP_ITERATIONS, LOOP_TOLERANCE
 from .plots import check_plot, plot_run
 from .provenance import overrides_text, read_provenance
 from .results import read_result
@@ -57,8 +58,10 @@ Run SSP co-simulation scenarios of FMI 2.0 co-simulation FMUs with fmpy.
   orchestrate inspect example1         components, variables (units, ranges, values), connections
   orchestrate metrics results/example1.csv   tracking metrics (RAE, MSE, RMSE, MAE, ...)
   orchestrate plot results/example1.csv      plot a result file
-  orchestrate compare RESULT.csv BASELINE.csv  regression check against a baseline
-  orchestrate baseline / orchestrate report  rewrite baselines / write the paper report
+  orchestrate regress regression/      every scenario against its baseline (JUnit XML, HTML report)
+  orchestrate compare RESULT.csv BASELINE.csv  one result against one baseline
+  orchestrate baseline regression/     write baselines, review and accept their updates
+  orchestrate report                   write the paper report
 
 Run 'orchestrate COMMAND --help' for the options of a command.
 """
@@ -75,7 +78,10 @@ row up to the failure.
 masters:
   gauss-seidel  (default) all FMUs step, then outputs are propagated through direct-feedthrough
                 components in dependency order: the controller's v at t_k uses the plant at t_k.
-  jacobi        libcosim's algorithm: every connection delays its value by one step.
+                An algebraic loop is iterated to a fixed point at each communication point
+                (--loop-tolerance, --loop-iterations; no convergence ends the run with its residual).
+  jacobi        libcosim's algorithm: every connection delays its value by one step (so a cycle of
+                connections is no algebraic loop).
 
 Faults: an FMU call that fails, a NaN or infinite value, or the --timeout end the run with one
 line and the rows before the fault kept; Ctrl-C (SIGINT) or SIGTERM stop it at the next
@@ -173,6 +179,12 @@ def _parser(command: str | None = None) -> argparse.ArgumentParser:
     p.add_argument("--fmi-log", action="append", default=[], metavar="COMPONENT",
                    help="print every FMI call of the components matching this shell pattern ('*': all) "
                         "on stderr (repeatable)")
+    p.add_argument("--loop-tolerance", type=float, default=LOOP_TOLERANCE, metavar="TOL",
+                   help="gauss-seidel: an algebraic loop has converged when no input on it moves by more "
+                        f"than TOL relative to 1 + its size between two sweeps (default {LOOP_TOLERANCE:g})")
+    p.add_argument("--loop-iterations", type=int, default=LOOP_ITERATIONS, metavar="N",
+                   help=f"gauss-seidel: sweeps of an algebraic loop per communication point (default "
+                        f"{LOOP_ITERATIONS})")
     p.add_argument("--timeout", type=float, metavar="SECONDS",
                    help="wall-clock limit of the run: stop at the next communication point (a step that "
                         "does not return is aborted 2 s later); exit status 1, rows kept")
@@ -209,6 +221,12 @@ def _scenario_arguments(p: argparse.ArgumentParser) -> None:
                    help="parameter values named COMPONENT.VARIABLE, applied after the SSD's own (repeatable)")
     p.add_argument("--set", action="append", default=[], metavar="COMPONENT.VARIABLE=VALUE",
                    help="set one parameter or start value, applied last (repeatable)")
+    p.add_argument("--root", type=Path, metavar="DIR",
+                   help="a scenario folder may reference files below DIR with '..' (e.g. ../fmus/x.fmu; "
+                        "never an archive)")
+    p.add_argument("--strict-fmus", action="store_true",
+                   help="what fmpy's checks of a model description find is an error, also where the FMU "
+                        "still runs (default: a warning; for CI)")
     add_archive_limits(p)
 
 
@@ -401,7 +419,9 @@ def _options(args: argparse.Namespace, scenario: Path, output: Path) -> RunOptio
                       output=output, output_variables=args.output_variables,
                       output_interval=args.output_interval, no_inputs=args.no_inputs, keep=False,
                       strict=args.strict, timeout=args.timeout, fmu_dirs=fmu_dirs(scenario),
-                      limits=archive_limits(args), input_file=args.input_file, fmi_log=args.fmi_log)
+                      limits=archive_limits(args), input_file=args.input_file, fmi_log=args.fmi_log,
+                      root=args.root, strict_fmus=args.strict_fmus, loop_tolerance=args.loop_tolerance,
+                      loop_iterations=args.loop_iterations)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -500,7 +520,8 @@ def _validate(args: argparse.Namespace) -> int:
     overrides = _overrides(args.set)
     scenario = resolve_scenario(args.scenario)
     report = validate(scenario, parameter_sets=args.parameter_set, overrides=overrides,
-                      fmu_dirs=fmu_dirs(scenario), limits=archive_limits(args))
+                      fmu_dirs=fmu_dirs(scenario), limits=archive_limits(args), root=args.root,
+                      strict_fmus=args.strict_fmus)
     for stale in scenario_checks(scenario):
         print(f"warning: {stale}")
     for problem in report.problems:
@@ -517,7 +538,8 @@ def _validate(args: argparse.Namespace) -> int:
 def _inspect(args: argparse.Namespace) -> int:
     scenario = resolve_scenario(args.scenario)
     report = inspect_scenario(scenario, parameter_sets=args.parameter_set, overrides=_overrides(args.set),
-                              fmu_dirs=fmu_dirs(scenario), limits=archive_limits(args))
+                              fmu_dirs=fmu_dirs(scenario), limits=archive_limits(args), root=args.root,
+                              strict_fmus=args.strict_fmus)
     print("\n".join(report.lines()))
     return 1 if report.problems else 0
 

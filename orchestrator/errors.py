@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["Interrupted", "NonFiniteError", "OrchestratorError", "OutputError", "ScenarioError",
+__all__ = ["Interrupted", "LoopError", "NonFiniteError", "OrchestratorError", "OutputError", "ScenarioError",
            "ScenarioWarning", "SimulationError", "Terminated", "TimeLimitError", "UsageError", "terminate"]
 
 
@@ -80,6 +80,22 @@ class NonFiniteError(SimulationError):
                                     "(not finite; the run stops at the first such value)")
         self.component, self.function, self.status, self.time = component, "fmi2GetReal", repr(value), time
         self.variable = variable
+
+
+class LoopError(SimulationError):
+    """An algebraic loop did not converge at a communication point under gauss-seidel: the inputs on
+    the loop still changed by more than the tolerance after the iteration limit. Reads
+    ``algebraic loop through a, b did not converge at t=0.010 s: residual 3.2e-05 after 50
+    iterations (--loop-tolerance 1e-10, --loop-iterations 50; or --master jacobi)``."""
+
+    def __init__(self, components: list[str], time: float, residual: float, iterations: int,
+                 tolerance: float) -> None:
+        RuntimeError.__init__(self, f"algebraic loop through {', '.join(components)} did not converge at "
+                                    f"t={time:.3f} s: residual {residual:.3g} after {iterations} iterations "
+                                    f"(--loop-tolerance {tolerance:g}, --loop-iterations {iterations}; or "
+                                    "--master jacobi)")
+        self.component, self.function, self.status, self.time = components[0], "fixed point", "diverged", time
+        self.residual = residual
 
 
 class TimeLimitError(SimulationError):

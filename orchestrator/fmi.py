@@ -14,6 +14,12 @@ no event mode, no early return) and offers the same interface: the masters' ``ge
 output arguments read and dropped: the engine has no event mode), parameters are set as Float64,
 Int32 or Boolean, and failures name the FMI 3.0 function and status (``fmi3DoStep returned
 fmi3Discard``).
+
+An FMI 1.0 Co-Simulation FMU is instantiated with fmpy's ``FMU1Slave``: its functions carry the
+model identifier as prefix (``<id>_fmiDoStep``), which the hot calls are bound to. FMI 1.0 has no
+initialization mode: start values are set once after instantiation, ``setup`` is
+``fmiInitializeSlave`` (after which only inputs may be set: the master's second pass of start
+values is skipped), and ``exit_initialization`` does nothing.
 """
 
 from __future__ import annotations
@@ -29,7 +35,14 @@ from pathlib import Path
 from typing import NoReturn
 
 import fmpy
-from fmpy.fmi1 import FMICallException
+from fmpy.fmi1 import (
+    FMICallException,
+    FMU1Slave,
+    fmi1CallbackAllocateMemoryTYPE,
+    fmi1CallbackFreeMemoryTYPE,
+    fmi1CallbackFunctions,
+    fmi1CallbackLoggerTYPE,
+)
 from fmpy.fmi2 import (
     FMU2Slave,
     fmi2CallbackAllocateMemoryTYPE,
@@ -60,6 +73,11 @@ _SETTERS3 = {"Float64": "setFloat64", "Int32": "setInt32", "Boolean": "setBoolea
 _FMI3_FUNCTIONS = {"fmi2DoStep": "fmi3DoStep", "fmi2GetReal": "fmi3GetFloat64",
                    "fmi2SetReal": "fmi3SetFloat64", "fmi2Instantiate": "fmi3InstantiateCoSimulation"}
 _FMI3_STATUS = ("fmi3OK", "fmi3Warning", "fmi3Discard", "fmi3Error", "fmi3Fatal")
+# The FMI 1.0 name of each function the masters name by its FMI 2.0 name.
+_FMI1_FUNCTIONS = {"fmi2DoStep": "fmiDoStep", "fmi2GetReal": "fmiGetReal", "fmi2SetReal": "fmiSetReal",
+                   "fmi2Instantiate": "fmiInstantiateSlave", "fmi2SetupExperiment": "fmiInitializeSlave",
+                   "fmi2Terminate": "fmiTerminateSlave"}
+_FMI1_STATUS = ("fmiOK", "fmiWarning", "fmiDiscard", "fmiError", "fmiFatal", "fmiPending")
 
 
 @contextmanager
@@ -90,6 +108,10 @@ class MessageLog:
         self.callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
         self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
         self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
+        self.callbacks1 = fmi1CallbackFunctions()  # FMI 1.0: the same logger, no variadic formatting
+        self.callbacks1.logger = fmi1CallbackLoggerTYPE(self._log)
+        self.callbacks1.allocateMemory = fmi1CallbackAllocateMemoryTYPE(fmpy.calloc)
+        self.callbacks1.freeMemory = fmi1CallbackFreeMemoryTYPE(fmpy.free)
         try:
             from fmpy.logging import addLoggerProxy
 
@@ -190,14 +212,23 @@ class InstanceBase:
 class Instance(InstanceBase):
     """One FMU instance: fmpy's slave and its hot functions bound once from the FMU's library."""
 
-    def __init__(self, name: str, fmu: FMU2Slave | FMU3Slave, messages: MessageLog) -> None:
+    def __init__(self, name: str, fmu: FMU1Slave | FMU2Slave | FMU3Slave, messages: MessageLog) -> None:
         super().__init__(name, messages)
         self.fmu = fmu
         self.fmi3 = isinstance(fmu, FMU3Slave)
+        self.fmi1 = isinstance(fmu, FMU1Slave)
         self.c = c_void_p(fmu.component)
         lib = ctypes.PyDLL(fmu.dll._name, handle=fmu.dll._handle)
         if self.fmi3:
             self._bind_fmi3(lib)
+        elif self.fmi1:
+            prefix = f"{fmu.modelIdentifier}_fmi"
+            step, get, set_ = (getattr(lib, f"{prefix}{f}") for f in ("DoStep", "GetReal", "SetReal"))
+            step.argtypes, step.restype = [c_void_p, c_double, c_double, ctypes.c_char], c_int
+            for f in (get, set_):
+                f.argtypes, f.restype = [c_void_p, POINTER(c_uint), c_size_t, POINTER(c_double)], c_int
+            self.get_real, self.set_real = get, set_
+            self.do_step = lambda c, t, h, new: step(c, t, h, b"\x01" if new else b"\x00")
         else:
             self.do_step = lib.fmi2DoStep
             self.do_step.argtypes, self.do_step.restype = [c_void_p, c_double, c_double, c_int], c_int
@@ -243,17 +274,21 @@ class Instance(InstanceBase):
     def _instantiate(cls, name: str, unzipdir: str, guid: str, model_identifier: str, messages: MessageLog,
                      time: float) -> Instance:
         """Load the unpacked FMU's library and instantiate it."""
-        fmi3 = fmi_version(unzipdir).startswith("3.")
-        kind = FMU3Slave if fmi3 else FMU2Slave
+        version = fmi_version(unzipdir)
+        fmi3 = version.startswith("3.")
+        kind = FMU3Slave if fmi3 else FMU1Slave if version.startswith("1.") else FMU2Slave
         fmu = kind(guid=guid, unzipDirectory=unzipdir, modelIdentifier=model_identifier, instanceName=name)
         try:
             if isinstance(fmu, FMU3Slave):
                 fmu.instantiate(logMessage=messages.logger3(name))
+            elif isinstance(fmu, FMU1Slave):
+                fmu.instantiate(functions=messages.callbacks1)
             else:
                 fmu.instantiate(callbacks=messages.callbacks)
         except Exception as exc:
             fmu.freeLibrary()
-            function = _FMI3_FUNCTIONS["fmi2Instantiate"] if fmi3 else "fmi2Instantiate"
+            function = (_FMI3_FUNCTIONS if fmi3 else _FMI1_FUNCTIONS if kind is FMU1Slave else {}).get(
+                "fmi2Instantiate", "fmi2Instantiate")
             raise SimulationError(name, function, "NULL", time, messages.last.get(name, "")) from exc
         return cls(name, fmu, messages)
 
@@ -271,19 +306,23 @@ class Instance(InstanceBase):
         if status >= fmi2Fatal:
             self.broken = True
         shown: int | str = status
-        if self.fmi3:
-            function = _FMI3_FUNCTIONS.get(function, function)
-            shown = _FMI3_STATUS[status] if 0 <= status < len(_FMI3_STATUS) else f"status {status}"
+        if self.fmi3 or self.fmi1:
+            function = (_FMI3_FUNCTIONS if self.fmi3 else _FMI1_FUNCTIONS).get(function, function)
+            names = _FMI3_STATUS if self.fmi3 else _FMI1_STATUS
+            shown = names[status] if 0 <= status < len(names) else f"status {status}"
         raise SimulationError(self.name, function, shown, time, self.messages.last.get(self.name, ""))
 
     def set_start_values(self, values: Mapping[str, tuple[str, int, object]], time: float) -> None:
-        """Set parameters and start values ``name -> (type, value reference, value)``, one call per type."""
+        """Set parameters and start values ``name -> (type, value reference, value)``, one call per type
+        (FMI 1.0: once, before fmiInitializeSlave)."""
+        if self.fmi1 and self.initialized:
+            return
         by_type: dict[str, tuple[list[int], list[object]]] = {}
         for type_, vr, value in values.values():
             vrs, vals = by_type.setdefault(type_, ([], []))
             vrs.append(vr)
             vals.append(value)
-        prefix, setters = ("fmi3", _SETTERS3) if self.fmi3 else ("fmi2", _SETTERS)
+        prefix, setters = ("fmi3", _SETTERS3) if self.fmi3 else ("fmi" if self.fmi1 else "fmi2", _SETTERS)
         for type_, (vrs, vals) in by_type.items():
             setter = setters[type_]  # the system refuses other types before a run
             self.call(f"{prefix}S{setter[1:]}", time, getattr(self.fmu, setter), vrs, vals)
@@ -293,18 +332,23 @@ class Instance(InstanceBase):
         if isinstance(self.fmu, FMU3Slave):
             enter = self.fmu.enterInitializationMode
             self.call("fmi3EnterInitializationMode", start, enter, None, start, stop)
+        elif isinstance(self.fmu, FMU1Slave):
+            self.call("fmiInitializeSlave", start, self.fmu.initialize, start, stop)
         else:
             self.call("fmi2SetupExperiment", start, self.fmu.setupExperiment, None, start, stop)
             self.call("fmi2EnterInitializationMode", start, self.fmu.enterInitializationMode)
         self.initialized = True
 
     def exit_initialization(self, time: float) -> None:
+        if self.fmi1:
+            return  # FMI 1.0: fmiInitializeSlave (setup) left it ready to step
         prefix = "fmi3" if self.fmi3 else "fmi2"
         self.call(f"{prefix}ExitInitializationMode", time, self.fmu.exitInitializationMode)
 
     def terminate(self, time: float) -> None:
         self.initialized = False
-        self.call("fmi3Terminate" if self.fmi3 else "fmi2Terminate", time, self.fmu.terminate)
+        function = "fmi3Terminate" if self.fmi3 else "fmiTerminateSlave" if self.fmi1 else "fmi2Terminate"
+        self.call(function, time, self.fmu.terminate)
 
     def release(self) -> None:
         """Terminate (if still running and usable) and free the instance; never raises.
@@ -320,7 +364,7 @@ class Instance(InstanceBase):
         except Exception:  # noqa: BLE001 - cleanup must go on for the other FMUs
             log.warning("%s: fmi2Terminate failed during cleanup", self.name)
         try:
-            self.fmu.freeInstance()
+            self.fmu.freeInstance()  # FMI 1.0: fmiFreeSlaveInstance, and the library is unloaded
         except Exception:  # noqa: BLE001
             log.warning("%s: fmi2FreeInstance failed during cleanup", self.name)
         release(self.fmu.unzipDirectory)

@@ -51,18 +51,18 @@ def read_inputs(path: str | os.PathLike, system: System, start: float,
     path = Path(path)
     data = read_result(path)
     names = [n for n in data.dtype.names or () if n != "time"]
-    free = {str(PortRef(c.name, i)): c for c in system.components.values() for i in c.inputs
-            if PortRef(c.name, i) not in system.links}
+    free = {str(PortRef(c.name, i)): (c, PortRef(c.name, i)) for c in system.components.values()
+            for i in c.inputs if PortRef(c.name, i) not in system.links}
     ports, discrete, problems = [], [], []
     for name in names:
-        comp = free.get(name)
-        if comp is None:
-            fed = PortRef.parse(name) if "." in name else None
+        found = free.get(name)
+        if found is None:
+            fed = system.port(name) if "." in name else None
             why = (f"fed by {system.links[fed].start}" if fed is not None and fed in system.links
                    else "not a Real input of the scenario")
             problems.append(f"'{name}' is {why}")
             continue
-        port = PortRef.parse(name)
+        comp, port = found
         ports.append(port)
         discrete.append(comp.variables[port.connector].variability == "discrete")
     if problems:

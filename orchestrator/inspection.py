@@ -47,6 +47,7 @@ class Inspection:
     timing: list[tuple[str, str, str]] = field(default_factory=list)  # (what, value, where from)
     components: list[tuple[str, list[str], list[Variable]]] = field(default_factory=list)
     connections: list[str] = field(default_factory=list)
+    connector_values: list[str] = field(default_factory=list)  # ``sub.x = 3.0 (from file)``
     problems: list[str] = field(default_factory=list)
 
     def lines(self) -> list[str]:
@@ -62,6 +63,9 @@ class Inspection:
             widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
             out += ["  " + "  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip()
                     for r in rows]
+        if self.connector_values:
+            out.append(f"system connectors given a value ({len(self.connector_values)}):")
+            out += [f"  {v}" for v in self.connector_values]
         out.append(f"connections ({len(self.connections)}):")
         out += [f"  {c}" for c in self.connections]
         if self.problems:
@@ -73,7 +77,8 @@ class Inspection:
 def inspect_scenario(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.PathLike] = (),
                      overrides: Mapping[str, object] | None = None,
                      fmu_dirs: Iterable[str | os.PathLike] = (),
-                     limits: Limits = DEFAULT_LIMITS) -> Inspection:
+                     limits: Limits = DEFAULT_LIMITS, root: str | os.PathLike | None = None,
+                     strict_fmus: bool = False) -> Inspection:
     """Read ``scenario`` (``.ssp`` archive or folder) with the parameter sets and overrides a run
     would get, and describe it (:class:`Inspection`). Nothing is instantiated or written.
 
@@ -81,13 +86,14 @@ def inspect_scenario(scenario: str | os.PathLike, *, parameter_sets: Iterable[st
     ----------
     scenario : path
         ``.ssp`` archive or folder holding ``SystemStructure.ssd``.
-    parameter_sets, overrides, fmu_dirs, limits
+    parameter_sets, overrides, fmu_dirs, limits, root, strict_fmus
         As for :class:`orchestrator.RunOptions`.
     """
     report = Inspection(str(scenario))
     with ExitStack() as stack:
         system, errors, _ = check_scenario(scenario, stack, parameter_sets=parameter_sets,
-                                           overrides=overrides, fmu_dirs=fmu_dirs, limits=limits)
+                                           overrides=overrides, fmu_dirs=fmu_dirs, limits=limits, root=root,
+                                           strict_fmus=strict_fmus)
     report.problems = list(errors)
     if system is None:
         return report
@@ -99,7 +105,7 @@ def inspect_scenario(scenario: str | os.PathLike, *, parameter_sets: Iterable[st
     targets: dict[str, list[str]] = {}
     for end, link in system.links.items():
         targets.setdefault(str(link.start), []).append(str(end))
-    in_ssd = {ps.origin for _, ps in structure_sets(structure)}
+    in_ssd = {p.origin or ps.origin for _, ps in structure_sets(structure) for p in ps.parameters}
     for c in structure.components:
         comp = system.components.get(c.name)
         if comp is None:
@@ -107,6 +113,8 @@ def inspect_scenario(scenario: str | os.PathLike, *, parameter_sets: Iterable[st
             continue
         variables = [replace(v, origin=_origin(v.origin, in_ssd)) for v in _variables(comp, sources, targets)]
         report.components.append((c.name, _about(comp), variables))
+    report.connector_values = [f"{name} = {p.value!r} (from {p.origin})"
+                               for name, p in structure.connector_values]
     report.connections = [f"{link.start} -> {link.end}{_transformation(link.factor, link.offset)}"
                           for link in structure.connections]
     return report

@@ -52,19 +52,22 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from . import files
-from .errors import Interrupted, NonFiniteError, SimulationError, TimeLimitError, terminate
+from .errors import Interrupted, LoopError, NonFiniteError, SimulationError, TimeLimitError, terminate
 from .fmi import CALLS, FAILED, Instance, InstanceBase, MessageLog, interpreter_guard, trace
 from .inputs import InputSeries
 from .results import NonFiniteError as NonFiniteRow
 from .results import Recorder
 from .system import ComponentModel, PortRef, System
 
-__all__ = ["GRACE", "MASTERS", "MAX_TIME", "NS_PER_S", "GaussSeidel", "InstanceFactory", "Jacobi", "Master",
+__all__ = ["GRACE", "LOOP_ITERATIONS", "LOOP_TOLERANCE", "MASTERS", "MAX_TIME", "NS_PER_S", "GaussSeidel",
+           "InstanceFactory", "Jacobi", "Master",
            "grid", "open_instance", "time_grid", "tracing"]
 
 NS_PER_S = 1_000_000_000
 MAX_TIME = (2**63 - 1) / NS_PER_S / 2  # s: t0 + n*h stays within int64 nanoseconds (292 years / 2)
 GRACE = 2.0  # s a step may still take after the wall-clock limit or a second Ctrl-C before it is aborted
+LOOP_TOLERANCE = 1e-10  # an algebraic loop has converged when no input on it moves by more (relative)
+LOOP_ITERATIONS = 100  # sweeps of an algebraic loop at one communication point before it is a LoopError
 
 
 def grid(start: float, stop: float, step: float) -> tuple[int, int, int]:
@@ -257,8 +260,10 @@ class Master:
                  output: str | os.PathLike | None = None,
                  progress: Callable[[int, int], None] | None = None, keep: bool = True,
                  timeout: float | None = None, instances: InstanceFactory = open_instance,
-                 inputs: InputSeries | None = None, binary_copy: bool = False) -> None:
+                 inputs: InputSeries | None = None, binary_copy: bool = False,
+                 loop_tolerance: float = LOOP_TOLERANCE, loop_iterations: int = LOOP_ITERATIONS) -> None:
         self.system = system
+        self.loop_tolerance, self.loop_iterations = loop_tolerance, loop_iterations
         self.binary_copy = binary_copy  # the CSV is staged for another format: a float64 copy beside it
         self._t0, self._h, self.n = grid(start_time, stop_time, step)
         self.start_time = self._t0 / NS_PER_S
@@ -354,7 +359,7 @@ class Master:
         assert self.recorder is not None
         row = self.recorder.data[exc.row - self.recorder._base]
         column = next((c for c in self._output_order if not math.isfinite(row[c])), exc.column)
-        port = PortRef.parse(self.columns[column])
+        port = self.system.port(self.columns[column])
         kind = "output" if column >= self._first_output else "input"
         value = float(row[column])
         return NonFiniteError(port.component, port.connector, kind, value, self.time(exc.row))
@@ -480,10 +485,12 @@ class Master:
                                            self._view(where), where, [driven.index(p) for p in fed]))
 
     def _layout_ops(self, slot: dict[PortRef, int]) -> None:
-        """The propagation at a communication point (gauss-seidel) as batched calls."""
+        """The propagation at a communication point (gauss-seidel) as batched calls, cut into
+        segments: run once, or (an algebraic loop, ``System.iterated``) repeated until it converges."""
         system = self.system
         by_name = {inst.name: inst for inst in self.instances}
         self._ops: list[Operation] = []
+        self._segments: list[tuple[list[Operation], np.ndarray | None, list[str]]] = []
         for op in system.schedule:
             inst = by_name[op.component]
             if op.kind == "get":
@@ -496,6 +503,17 @@ class Master:
                 copies, scaled = self._transfers(ports, slot)
                 self._ops.append(Operation(True, inst, inst.set_real, vrs, len(ports), self._view(dst),
                                            copies, scaled))
+        cut = 0
+        for first, end in system.iterated:
+            if first > cut:
+                self._segments.append((self._ops[cut:first], None, []))
+            loop = self._ops[first:end]
+            inputs = np.array([c[0] for op in loop for c in (*op.copies, *op.scaled)], dtype=np.intp)
+            names = list(dict.fromkeys(op.instance.name for op in loop))
+            self._segments.append((loop, inputs, names))
+            cut = end
+        if cut < len(self._ops) or not self._segments:
+            self._segments.append((self._ops[cut:], None, []))
 
     def _transfers(self, ports: list[PortRef],
                    slot: dict[PortRef, int]) -> tuple[tuple[Copy, ...], tuple[Scaled, ...]]:
@@ -543,9 +561,34 @@ class Master:
             v[dst] = factor * v[src] + offset
 
     def _propagate(self, t: float) -> None:
-        """Read outputs and set inputs in dependency order (gauss-seidel at a communication point)."""
+        """Read outputs and set inputs in dependency order (gauss-seidel at a communication point);
+        an algebraic loop is swept until its inputs converge (fixed-point iteration)."""
+        for ops, loop, names in self._segments:
+            if loop is None:
+                self._run_ops(ops, t)
+            else:
+                self._iterate(ops, loop, names, t)
+
+    def _iterate(self, ops: list[Operation], inputs: np.ndarray, names: list[str], t: float) -> None:
+        """Sweep the operations of an algebraic loop until no input on it moves by more than the
+        tolerance (relative to 1 + its size) from one sweep to the next; LoopError after
+        ``loop_iterations`` sweeps."""
+        values = self.values
+        before = values[inputs]
+        residual = math.inf
+        for _ in range(self.loop_iterations):
+            self._run_ops(ops, t)
+            after = values[inputs]
+            residual = float(np.max(np.abs(after - before) / (1.0 + np.abs(after)), initial=0.0))
+            if residual <= self.loop_tolerance or not math.isfinite(residual):
+                return  # converged; or an FMU gave a value that is not finite, which the recorder names
+            before = after
+        raise LoopError(names, t, residual, self.loop_iterations, self.loop_tolerance)
+
+    def _run_ops(self, ops: list[Operation], t: float) -> None:
+        """The batched FMI calls of ``ops`` once, transferring connections before each set."""
         v = self._cvalues
-        for is_set, inst, fn, vr, n, ptr, copies, scaled in self._ops:
+        for is_set, inst, fn, vr, n, ptr, copies, scaled in ops:
             if is_set:
                 for dst, src in copies:
                     v[dst] = v[src]

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .errors import UsageError
-from .master import MASTERS
+from .master import LOOP_ITERATIONS, LOOP_TOLERANCE, MASTERS
 from .ssp import DEFAULT_LIMITS, Limits
 
 if TYPE_CHECKING:
@@ -70,6 +70,14 @@ class RunOptions:
     fmi_log : sequence of str
         Components whose FMI calls are traced (logger ``orchestrator.fmi.calls``, level INFO);
         ``*`` for all.
+    root : path, optional
+        A folder scenario may reference files below this folder with '..' (never an archive).
+    strict_fmus : bool
+        What fmpy's checks of a model description find is an error even where the FMU still runs.
+    loop_tolerance, loop_iterations : float, int
+        Convergence of an algebraic loop under gauss-seidel: no input on it moving by more than
+        ``loop_tolerance`` (relative to 1 + its size) between two sweeps, within ``loop_iterations``
+        sweeps at each communication point (else a :class:`~orchestrator.errors.LoopError`).
 
     Raises
     ------
@@ -94,6 +102,10 @@ class RunOptions:
     limits: Limits = DEFAULT_LIMITS
     input_file: str | os.PathLike | None = None
     fmi_log: Sequence[str] = ()
+    root: str | os.PathLike | None = None
+    strict_fmus: bool = False
+    loop_tolerance: float = LOOP_TOLERANCE
+    loop_iterations: int = LOOP_ITERATIONS
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -109,7 +121,9 @@ class RunOptions:
                 set_(self, name, Path(value))
         if self.master not in MASTERS:
             raise UsageError(f"unknown master '{self.master}' (choose from {', '.join(MASTERS)})")
-        for name in ("step", "timeout", "output_interval"):
+        if not (isinstance(self.loop_iterations, int) and self.loop_iterations >= 1):
+            raise UsageError(f"loop_iterations must be a positive integer (got {self.loop_iterations!r})")
+        for name in ("step", "timeout", "output_interval", "loop_tolerance"):
             value = getattr(self, name)
             if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value)
                                           and value > 0):

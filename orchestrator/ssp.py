@@ -8,8 +8,10 @@ the compression ratio, for the archive and for every FMU in it (see ``Limits``).
 parsed (no entity expansion, no network) and validated against the SSP 1.0 schemas that fmpy
 ships, and the SSD is read into the dataclasses. fmpy's reader is used for parameter sets; the
 parts that ``fmpy.ssp.ssd.read_ssd`` drops (connector types, ``ssc:LinearTransformation``,
-``DefaultExperiment``, the tool annotations that hold the communication step) are read here.
-Every problem names the file it is in.
+``DefaultExperiment``, the tool annotations that hold the communication step) are read here, as
+are what other tools write beyond our own scenarios: nested systems (flattened once, here, into
+components named ``sub.component``), parameter bindings on systems, SSM parameter mappings, and
+files of ``version="2.0"`` (see :func:`scan_scenario`). Every problem names the file it is in.
 
 Writing (lxml) the way every tool reads it (SPEC section 7): literal ``ssd:``/``ssc:``/``ssv:``
 prefixes, ``version="1.0"``, every connector declared with its causality and type, parameter
@@ -30,7 +32,7 @@ import stat
 import zipfile
 from collections.abc import Iterable, Mapping
 from contextlib import ExitStack
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path, PurePosixPath
 from typing import overload
 
@@ -77,6 +79,7 @@ NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
     "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
     "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
+    "ssm": "http://ssp-standard.org/SSP1/SystemStructureParameterMapping",
     "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
     "oms": "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd",
 }
@@ -119,12 +122,14 @@ class Connector:
 @dataclass(frozen=True)
 class Parameter:
     """One parameter value, already converted to the Python type of its SSV type; ``unit``: the
-    unit the value is given in (SSV ``unit`` attribute of a Real; None: the variable's own)."""
+    unit the value is given in (SSV ``unit`` attribute of a Real; None: the variable's own);
+    ``origin``: how messages name where it came from when not its set's file (an SSM entry)."""
 
     name: str
     type: str
     value: float | int | bool | str
     unit: str | None = None
+    origin: str | None = None
 
 
 @dataclass(frozen=True)
@@ -198,6 +203,7 @@ class SystemStructure:
     description: str = ""
     ssd_file: str = ""
     units: tuple[UnitDef, ...] = ()  # the SSD's own ssd:Units definitions
+    connector_values: tuple[tuple[str, Parameter], ...] = ()  # values bound to system connectors
 
 
 @dataclass(frozen=True)
@@ -259,14 +265,16 @@ def open_scenario(scenario: str | os.PathLike, stack: ExitStack, limits: Limits 
 
 
 def unpack_scenario(scenario: str | os.PathLike, stack: ExitStack,
-                    limits: Limits = DEFAULT_LIMITS) -> tuple[Path | None, list[str]]:
+                    limits: Limits = DEFAULT_LIMITS,
+                    root: Path | None = None) -> tuple[Path | None, list[str]]:
     """:func:`open_scenario` that returns its problems instead of raising, for checks that go on:
     unsafe members of an archive are reported and left out, the SSD and what it references
     extracted within ``limits``; every FMU the SSD references is checked against ``limits`` (also in
-    a folder). The folder is None when there is no SSD to read, or the archive breaks a limit."""
+    a folder, with those below ``root`` it reaches with '..'). The folder is None when there is no
+    SSD to read, or the archive breaks a limit."""
     path = Path(scenario)
     if path.is_dir():
-        problems = _check_fmus(path, str(path), limits)
+        problems = _check_fmus(path, str(path), limits, root)
         if problems:
             return None, problems
         if not (path / SSD_NAME).is_file():
@@ -306,13 +314,15 @@ def _unpack(path: Path, folder: Path, limits: Limits) -> tuple[list[str], bool]:
     return problems + fmu_problems, bool(fmu_problems)
 
 
-def _check_fmus(folder: Path, label: str, limits: Limits) -> list[str]:
+def _check_fmus(folder: Path, label: str, limits: Limits, root: Path | None = None) -> list[str]:
     """The limits the FMUs the SSD in ``folder`` references break (refused before anything reads
     them: fmpy reads an FMU whole)."""
     if not (folder / SSD_NAME).is_file():
         return []
-    for reference in _references(folder / SSD_NAME, limits)[1]:
+    for reference in _references(folder / SSD_NAME, limits, root is not None)[1]:
         fmu = folder / reference
+        if root is not None and not fmu.resolve().is_relative_to(root.resolve()):
+            continue  # refused by the reading
         if fmu.is_file() and zipfile.is_zipfile(fmu):
             problems = check_zip(fmu, f"{label}: {reference}", limits)
             if problems:
@@ -445,7 +455,7 @@ def _parser() -> etree.XMLParser:
     return etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False)
 
 
-def _references(ssd: Path, limits: Limits) -> tuple[list[str], list[str]]:
+def _references(ssd: Path, limits: Limits, climb: bool = False) -> tuple[list[str], list[str]]:
     """What the SSD at ``ssd`` references, as normalized paths relative to its folder: XML files
     (SSV, SSM) and FMUs; paths that would leave the folder are left out (the reading reports them
     missing). Empty when the SSD cannot be parsed."""
@@ -462,7 +472,7 @@ def _references(ssd: Path, limits: Limits) -> tuple[list[str], list[str]]:
         if not source or etree.QName(element).localname not in ("Component", "ParameterBinding",
                                                                  "ParameterMapping"):
             continue
-        if reference_problem(source):
+        if reference_problem(source, climb):
             continue
         name = posixpath.normpath(source.replace("\\", "/"))
         (fmus if etree.QName(element).localname == "Component" else xml_files).append(name)
@@ -472,32 +482,39 @@ def _references(ssd: Path, limits: Limits) -> tuple[list[str], list[str]]:
 _SCHEME = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*:")
 
 
-def reference_problem(reference: str) -> str:
+def reference_problem(reference: str, climb: bool = False) -> str:
     """Why an SSD file reference (a component's FMU, a parameter file) may not be followed, '' when
     it may: a scenario references files inside itself only, never a URL, an absolute path (or a
-    drive letter) or a path that climbs out with '..' (backslashes count as slashes)."""
+    drive letter) or a path that climbs out with '..' (backslashes count as slashes); ``climb``:
+    '..' allowed (a folder read with ``--root``, checked against the root)."""
     if _SCHEME.match(reference):
         return "is a URL or names a drive"
     if reference.startswith(("/", "\\")):
         return "is an absolute path"
-    if ".." in reference.replace("\\", "/").split("/"):
+    if not climb and ".." in reference.replace("\\", "/").split("/"):
         return "climbs out of the scenario with '..'"
     return ""
 
 
-def _inside(folder: Path, reference: str, where: str, problems: list[str]) -> Path | None:
+def _inside(folder: Path, reference: str, where: str, problems: list[str],
+            root: Path | None = None) -> Path | None:
     """The file ``reference`` (from the SSD in ``folder``) names, when it lies inside ``folder``
-    (also after following symbolic links); else None and one line in ``problems`` naming ``where``
-    (the element) and the reference."""
-    problem = reference_problem(reference)
+    (also after following symbolic links), or inside ``root`` when one is given (``--root``: a
+    folder scenario whose FMUs lie in a sibling folder); else None and one line in ``problems``
+    naming ``where`` (the element) and the reference."""
+    problem = reference_problem(reference, climb=root is not None)
     path = folder.joinpath(*PurePosixPath(reference.replace("\\", "/")).parts)
-    if not problem and not path.resolve().is_relative_to(folder.resolve()):
-        problem = "leads outside the scenario through a symbolic link"
+    within = (root or folder).resolve()
+    if not problem and not path.resolve().is_relative_to(within):
+        problem = f"leads outside the root {root}" if root is not None else (
+            "leads outside the scenario through a symbolic link")
     if problem:
+        allowed = f"files below the root {root}" if root is not None else (
+            "files inside itself (a folder scenario may reference files below a folder named with --root)")
         problems.append(f"{where}: reference '{_shown(reference)}' {problem}; a scenario may only reference "
-                        "files inside itself")
+                        f"{allowed}")
         return None
-    return path
+    return path if root is None else Path(os.path.normpath(path))
 
 
 @functools.cache
@@ -505,10 +522,16 @@ def _schema(name: str) -> etree.XMLSchema:
     return etree.XMLSchema(file=str(Path(fmpy_ssd.__file__).parent / "schema" / name))
 
 
-def _load(path: Path, schema: str, label: str) -> tuple[etree._Element | None, list[str]]:
+def _load(path: Path, schema: str, label: str,
+          notes: list[str] | None = None) -> tuple[etree._Element | None, list[str]]:
     """Parse one XML file and validate it against ``schema``; problems name ``label`` (the file)
     and the line. The root is None when the file is missing or not XML; a root that breaks the
-    schema is still returned, so the checks after it can go on."""
+    schema is still returned, so the checks after it can go on.
+
+    A file of ``version="2.0"`` (OMSimulator writes its SSD, SSV and SSM files so, ahead of SSP 2.0)
+    is read as SSP 1.0, which its version attribute alone keeps it from being: the version is taken
+    as "1.0" and a note naming the file goes to ``notes`` (every other part must still pass the
+    SSP 1.0 schema)."""
     if not path.is_file():
         return None, [f"{label}: file is missing"]
     try:
@@ -517,6 +540,10 @@ def _load(path: Path, schema: str, label: str) -> tuple[etree._Element | None, l
         return None, [f"{label}: broken XML: {_one_line(exc)}"]  # lxml's may span lines
     except (OSError, ValueError) as exc:  # lxml: undecodable bytes, unreadable file
         return None, [f"{label}: cannot be read: {_one_line(exc)}"]
+    if root.get("version", "").startswith("2.") and notes is not None:
+        notes.append(f"{label}: version {root.get('version')!r} read as SSP 1.0 (what OMSimulator writes; "
+                     "every element must still be valid SSP 1.0)")
+        root.set("version", "1.0")
     validator = _schema(schema)
     if validator.validate(root):
         return root, []
@@ -562,10 +589,11 @@ def _parameter_set(fmpy_set: fmpy_ssd.ParameterSet, origin: str, prefix: str,
     return ParameterSet(origin, tuple(parameters), units)
 
 
-def _read_ssv(path: Path, label: str, origin: str, prefix: str) -> tuple[ParameterSet | None, list[str]]:
+def _read_ssv(path: Path, label: str, origin: str, prefix: str,
+              notes: list[str] | None = None) -> tuple[ParameterSet | None, list[str]]:
     """One ``.ssv`` file: the parameters that can be used (None when the file breaks its schema,
     which fmpy's reader needs) and the problems."""
-    root, problems = _load(path, "SystemStructureParameterValues.xsd", label)
+    root, problems = _load(path, "SystemStructureParameterValues.xsd", label, notes)
     if root is None or problems:
         return None, problems
     units = tuple(read_units(root, "ssv:Units", NS).values())
@@ -598,73 +626,55 @@ class Reading:
     ``structure`` is None when the SSD cannot be read at all. The checks that follow must treat
     two kinds of components as unknown: ``no_fmu``, whose FMU is missing or not an FMU, and
     ``partial``, some of whose parameter values could not be read (their start values are not all
-    known)."""
+    known). ``notes``: what was read in a way the file did not say exactly (an SSD of version
+    "2.0" read as SSP 1.0), reported as warnings."""
 
     structure: SystemStructure | None
     problems: tuple[str, ...] = ()
     no_fmu: frozenset[str] = frozenset()
     partial: frozenset[str] = frozenset()
+    notes: tuple[str, ...] = ()
 
 
-def read_scenario(folder: Path, label: str | None = None) -> SystemStructure:
+def read_scenario(folder: Path, label: str | None = None, root: Path | None = None) -> SystemStructure:
     """Read the SSD in ``folder``; ``label`` is how messages name the SSD (default: its path).
     Raises ScenarioError listing every problem."""
-    reading = scan_scenario(folder, label)
+    reading = scan_scenario(folder, label, root=root)
     if reading.structure is None or reading.problems:
         raise ScenarioError(list(reading.problems))
     return reading.structure
 
 
-def scan_scenario(folder: Path, label: str | None = None, fmu_dirs: Iterable[Path] = ()) -> Reading:
+def scan_scenario(folder: Path, label: str | None = None, fmu_dirs: Iterable[Path] = (),
+                  root: Path | None = None) -> Reading:
     """:func:`read_scenario` that returns its problems instead of raising and reads as much as it
     can: an SSD that breaks the schema is still read (elements lacking what the schema requires
     are left out), a component keeps its connectors when its FMU or a parameter file is bad.
     An FMU missing from the folder is taken, by file name, from the first of ``fmu_dirs`` holding
-    it (a scenario source folder run with the built FMUs)."""
-    label = label or str(folder / SSD_NAME)
-    root, problems = _load(folder / SSD_NAME, "SystemStructureDescription.xsd", label)
-    if root is None or (system := root.find("ssd:System", NS)) is None:
-        return Reading(None, tuple(problems))
-    if root.get("version") != "1.0":
-        problems.append(f"{label}: version must be \"1.0\" (got {root.get('version')!r})")
-    if system.find("ssd:Elements/ssd:System", NS) is not None:
-        problems.append(f"{label}: nested systems are not supported")
-    if system.find("ssd:ParameterBindings", NS) is not None:
-        problems.append(f"{label}: parameter bindings on the system are not supported (other tools ignore "
-                        "them); bind parameters on the components")
+    it (a scenario source folder run with the built FMUs). ``root``: a folder above ``folder``
+    whose files the SSD may reference with '..' (``--root``; never for an archive).
 
-    components, no_fmu, partial = [], set(), set()
-    for element in system.findall("ssd:Elements/ssd:Component", NS):
-        if element.get("name") is None or element.get("source") is None:
-            continue  # the schema requires both and has reported it
-        c, has_fmu, complete = _read_component(element, folder, label, problems, tuple(fmu_dirs))
-        components.append(c)
-        if not has_fmu:
-            no_fmu.add(c.name)
-        if not complete:
-            partial.add(c.name)
-    connections = []
-    for element in system.findall("ssd:Connections/ssd:Connection", NS):
-        ends = [element.get(a) for a in ("startElement", "startConnector", "endElement", "endConnector")]
-        if None in ends:
-            continue  # the schema requires all four and has reported it
-        transformation = element.find("ssc:LinearTransformation", NS)
-        if element.find("ssc:*", NS) is not None and transformation is None:
-            problems.append(f"{label}: connection from {ends[0]}.{ends[1]}"
-                            " has a transformation other than LinearTransformation (not supported)")
-        factor, offset = 1.0, 0.0
-        if transformation is not None:
-            factor = _number(transformation.get("factor"), 1.0)
-            offset = _number(transformation.get("offset"), 0.0)
-            if not (math.isfinite(factor) and math.isfinite(offset)):
-                problems.append(f"{label}: connection {ends[0]}.{ends[1]} -> {ends[2]}.{ends[3]}: "
-                                f"LinearTransformation factor={factor!r} offset={offset!r} is not finite")
-        connections.append(Connection(PortRef(ends[0], ends[1]), PortRef(ends[2], ends[3]), factor, offset))
-    structure = SystemStructure(system.get("name", ""), tuple(components), tuple(connections),
-                                _read_experiment(root, system, label, problems),
+    Nested systems are flattened here, once: a component of system ``sub`` is the component
+    ``sub.<name>``, connections through system connectors become connections between the
+    components at their ends (their transformations composed), and the parameter bindings of
+    every system (SSV files, inline values, SSM mappings) become parameter sets of the
+    components they reach, in the standard's precedence (see :class:`_SystemReader`)."""
+    label = label or str(folder / SSD_NAME)
+    notes: list[str] = []
+    root_element, problems = _load(folder / SSD_NAME, "SystemStructureDescription.xsd", label, notes)
+    if root_element is None or (system := root_element.find("ssd:System", NS)) is None:
+        return Reading(None, tuple(problems), notes=tuple(notes))
+    if root_element.get("version") != "1.0":
+        problems.append(f"{label}: version must be \"1.0\" (got {root_element.get('version')!r})")
+    reader = _SystemReader(folder, label, problems, notes, tuple(fmu_dirs), root)
+    reader.read(system, ())
+    components, connections, values = reader.flatten()
+    structure = SystemStructure(system.get("name", ""), components, connections,
+                                _read_experiment(root_element, system, label, problems),
                                 system.get("description", ""), label,
-                                tuple(read_units(root, "ssd:Units", NS).values()))
-    return Reading(structure, tuple(problems), frozenset(no_fmu), frozenset(partial))
+                                tuple(read_units(root_element, "ssd:Units", NS).values()), values)
+    return Reading(structure, tuple(problems), frozenset(reader.no_fmu), frozenset(reader.partial),
+                   tuple(notes))
 
 
 @overload
@@ -679,58 +689,445 @@ def _number(text: str | None, default: float | None) -> float | None:
         return default
 
 
-def _read_component(element: etree._Element, folder: Path, label: str, problems: list[str],
-                    fmu_dirs: tuple[Path, ...] = ()) -> tuple[Component, bool, bool]:
-    """The component with every parameter value that could be read; whether its FMU is there, and
-    whether all its parameter values could be read. Problems go to ``problems``."""
-    name = element.get("name")
-    where = f"{label}: component '{name}'"
-    inside = _inside(folder, element.get("source"), f"{where}: source", problems)
-    source = folder / element.get("source") if inside is None else inside
-    if inside is not None and not source.is_file():
-        source = next((d / source.name for d in fmu_dirs if (d / source.name).is_file()), source)
-    has_fmu = False
-    if inside is None:
-        pass  # refused above
-    elif element.get("type", "application/x-fmu-sharedlibrary") != "application/x-fmu-sharedlibrary":
-        problems.append(f"{where}: only FMU components are supported (type {element.get('type')!r})")
-    elif not source.is_file():
-        problems.append(f"{where}: FMU '{element.get('source')}' is missing")
-    else:
-        has_fmu = True
-    connectors, seen = [], set()
+Node = tuple[tuple[str, ...], str]  # (path of a component or system below the root, connector name)
+
+
+@dataclass(frozen=True)
+class _Edge:
+    """One ``ssd:Connection`` of some system, its ends as nodes."""
+
+    start: Node
+    end: Node
+    factor: float
+    offset: float
+    system: tuple[str, ...]  # where it is declared
+
+
+@dataclass
+class _SystemInfo:
+    """A system as read: its connectors and the kind of each element ("component" or "system")."""
+
+    path: tuple[str, ...]
+    name: str
+    connectors: dict[str, Connector]
+    elements: dict[str, str] = field(default_factory=dict)
+    bindings: list[ParameterSet] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class _Mapping:
+    """One ``ssm:MappingEntry``: the target name, the transformation and how messages name it."""
+
+    target: str
+    origin: str
+    factor: float = 1.0
+    offset: float = 0.0
+    table: tuple[tuple[str, str], ...] | None = None  # Boolean/Integer/EnumerationMappingTransformation
+    linear: bool = False
+    keep_unit: bool = True  # suppressUnitConversion="false"
+
+
+def _flat(path: tuple[str, ...]) -> str:
+    return ".".join(path)
+
+
+def _name(node: Node) -> str:
+    """A node as messages name it: ``sub.component.connector`` or ``sub.connector``."""
+    return _flat((*node[0], node[1]))
+
+
+class _SystemReader:
+    """Reads a system and its nested systems into flat components, connections and parameter sets.
+
+    Names: an element of a nested system ``sub`` is ``sub.<element>`` (the root system's own
+    name left out, as for the components directly in it), so the columns read
+    ``sub.<component>.<connector>``.
+
+    Parameter bindings (SSP 1.0, ``TParameterBindings``): a component's bindings name its variables;
+    a system's name the variables below it hierarchically (``<element>.<variable>``,
+    ``<subsystem>.<element>.<variable>``, or one of its own connectors). A binding's ``prefix`` is
+    stripped from the names of a component's binding (as before; the names must start with it)
+    and prepended to those of a system's binding. A ParameterMapping renames a source parameter
+    to its entries' targets, through their transformation; parameters it does not name keep their
+    names. Precedence: later bindings of one element over earlier ones, and a system's over those
+    of the systems and components inside it; ``--parameter-set`` and ``--set`` come after all.
+    A value bound to a system connector applies to every component input or parameter the
+    connector feeds (through the connections' transformations)."""
+
+    def __init__(self, folder: Path, label: str, problems: list[str], notes: list[str],
+                 fmu_dirs: tuple[Path, ...], root: Path | None) -> None:
+        self.folder, self.label, self.problems, self.notes = folder, label, problems, notes
+        self.fmu_dirs, self.root = fmu_dirs, root
+        self.systems: dict[tuple[str, ...], _SystemInfo] = {}
+        self.components: dict[tuple[str, ...], Component] = {}
+        self.edges: list[_Edge] = []
+        self.no_fmu: set[str] = set()
+        self.partial: set[str] = set()
+
+    # -- reading ----------------------------------------------------------------------------------
+    def read(self, system: etree._Element, path: tuple[str, ...]) -> None:
+        """Read ``system`` (at ``path`` below the root) and everything inside it."""
+        where = f"{self.label}: system '{_flat(path) or system.get('name', '')}'"
+        info = _SystemInfo(path, system.get("name", ""), _connectors(system, where, self.problems))
+        self.systems[path] = info
+        for element in system.findall("ssd:Elements/*", NS):
+            kind, name = etree.QName(element).localname, element.get("name")
+            if name is None or kind not in ("Component", "System", "SignalDictionaryReference"):
+                continue  # the schema requires a name and has reported it
+            if name in info.elements:
+                self.problems.append(f"{where}: element name '{name}' is used twice")
+                continue
+            if kind == "SignalDictionaryReference":
+                self.problems.append(f"{where}: signal dictionaries are not supported ('{name}')")
+            elif kind == "System":
+                info.elements[name] = "system"
+                self.read(element, (*path, name))
+            elif element.get("source") is not None:  # the schema requires it and has reported it
+                info.elements[name] = "component"
+                self._component(element, (*path, name))
+        for element in system.findall("ssd:Connections/ssd:Connection", NS):
+            self._connection(element, path, where)
+        info.bindings = self._bindings(system, where, strip_prefix=False, path=path)
+
+    def _component(self, element: etree._Element, path: tuple[str, ...]) -> None:
+        """One component: its FMU, connectors and own parameter bindings."""
+        name = _flat(path)
+        where = f"{self.label}: component '{name}'"
+        reference = element.get("source", "")
+        inside = None
+        if reference.startswith("proxyfmu:"):
+            target = reference.partition("file=")[2] or reference
+            self.problems.append(f"{where}: source '{_shown(reference)}' is a libcosim proxy FMU (an FMU run "
+                                 f"in a separate process): not supported; reference the FMU file instead "
+                                 f"('{_shown(target)}')")
+        else:
+            inside = _inside(self.folder, reference, f"{where}: source", self.problems, self.root)
+        source = self.folder / reference if inside is None else inside
+        if inside is not None and not source.is_file():
+            source = next((d / source.name for d in self.fmu_dirs if (d / source.name).is_file()), source)
+        has_fmu = False
+        if inside is None:
+            pass  # refused above
+        elif element.get("type", "application/x-fmu-sharedlibrary") != "application/x-fmu-sharedlibrary":
+            self.problems.append(f"{where}: only FMU components are supported (type {element.get('type')!r})")
+        elif not source.is_file():
+            self.problems.append(f"{where}: FMU '{reference}' is missing")
+        else:
+            has_fmu = True
+        before = len(self.problems)
+        sets = self._bindings(element, where, strip_prefix=True, path=path)
+        if len(self.problems) > before:
+            self.partial.add(name)
+        if not has_fmu:
+            self.no_fmu.add(name)
+        self.components[path] = Component(name, source, tuple(_connectors(element, where, self.problems)
+                                                              .values()), tuple(sets))
+
+    def _connection(self, element: etree._Element, path: tuple[str, ...], where: str) -> None:
+        ends = [element.get(a) for a in ("startElement", "startConnector", "endElement", "endConnector")]
+        if ends[1] is None or ends[3] is None:
+            return  # the schema requires both connectors and has reported it
+        shown = f"{'.'.join(e for e in ends[:2] if e)} -> {'.'.join(e for e in ends[2:] if e)}"
+        transformation = element.find("ssc:LinearTransformation", NS)
+        if element.find("ssc:*", NS) is not None and transformation is None:
+            self.problems.append(f"{where}: connection {shown} has a transformation other than "
+                                 "LinearTransformation (not supported)")
+        factor, offset = 1.0, 0.0
+        if transformation is not None:
+            factor = _number(transformation.get("factor"), 1.0)
+            offset = _number(transformation.get("offset"), 0.0)
+            if not (math.isfinite(factor) and math.isfinite(offset)):
+                self.problems.append(f"{where}: connection {shown}: LinearTransformation factor={factor!r} "
+                                     f"offset={offset!r} is not finite")
+        start = ((*path, ends[0]) if ends[0] else path, ends[1])
+        end = ((*path, ends[2]) if ends[2] else path, ends[3])
+        self.edges.append(_Edge(start, end, factor, offset, path))
+
+    def _bindings(self, element: etree._Element, where: str, strip_prefix: bool,
+                  path: tuple[str, ...]) -> list[ParameterSet]:
+        """The parameter sets an element's ParameterBindings give, in order: prefix and mapping
+        applied (names relative to the element). Problems go to ``self.problems``."""
+        found: list[ParameterSet] = []
+        for binding in element.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
+            prefix = binding.get("prefix", "")
+            kind = binding.get("type", "application/x-ssp-parameter-set")
+            if kind != "application/x-ssp-parameter-set":
+                self.problems.append(f"{where}: ParameterBinding of type {kind!r}: only SSV parameter sets "
+                                     "(application/x-ssp-parameter-set) are supported")
+                continue
+            sets: list[ParameterSet] = []
+            if binding.get("source") is not None:
+                origin = binding.get("source", "")
+                file = _inside(self.folder, origin, f"{where}: ParameterBinding source", self.problems,
+                               self.root)
+                if file is not None:
+                    ps, problems = _read_ssv(file, f"{self.label}: {origin}", origin,
+                                             prefix if strip_prefix else "", self.notes)
+                    self.problems.extend(problems)
+                    sets += [ps] if ps is not None else []
+            for inline in binding.findall("ssd:ParameterValues/ssv:ParameterSet", NS):
+                inline_problems: list[str] = []
+                units = tuple(read_units(inline, "ssv:Units", NS).values())
+                sets.append(_parameter_set(fmpy_ssd._get_parameter_set(inline),
+                                           f"{self.label} (inline values of '{_flat(path) or 'the system'}')",
+                                           prefix if strip_prefix else "", inline_problems, units))
+                self.problems.extend(inline_problems)
+            mapping = self._mapping(binding, where)
+            for ps in sets:
+                if prefix and not strip_prefix:
+                    ps = replace(ps, parameters=tuple(replace(p, name=prefix + p.name)
+                                                      for p in ps.parameters))
+                found.append(_mapped(ps, mapping, self.problems) if mapping else ps)
+        return found
+
+    def _mapping(self, binding: etree._Element, where: str) -> dict[str, list[_Mapping]]:
+        """The binding's ParameterMapping (an .ssm file or inline): source name -> its entries."""
+        element = binding.find("ssd:ParameterMapping", NS)
+        if element is None:
+            return {}
+        if element.get("source") is not None:
+            reference = element.get("source", "")
+            file = _inside(self.folder, reference, f"{where}: ParameterMapping source", self.problems,
+                           self.root)
+            if file is None:
+                return {}
+            ssm, problems = _load(file, "SystemStructureParameterMapping.xsd", f"{self.label}: {reference}",
+                                  self.notes)
+            self.problems.extend(problems)
+            label = reference
+        else:
+            ssm = element.find("ssm:ParameterMapping", NS)
+            label = f"{self.label} (inline mapping)"
+        if ssm is None:
+            return {}
+        entries: dict[str, list[_Mapping]] = {}
+        for entry in ssm.findall("ssm:MappingEntry", NS):
+            source, target = entry.get("source"), entry.get("target")
+            if source is None or target is None:
+                continue  # the schema requires both and has reported it
+            origin = f"{label}: MappingEntry '{source}' -> '{target}'"
+            keep_unit = entry.get("suppressUnitConversion", "false") not in ("true", "1")
+            linear = entry.find("ssc:LinearTransformation", NS)
+            table = next((t for t in entry.findall("ssc:*", NS) if etree.QName(t).localname.endswith(
+                "MappingTransformation")), None)
+            if linear is not None:
+                mapped = _Mapping(target, origin, _number(linear.get("factor"), 1.0),
+                                  _number(linear.get("offset"), 0.0), None, True, keep_unit)
+            elif table is not None:
+                pairs = tuple((e.get("source", ""), e.get("target", ""))
+                              for e in table.findall("ssc:MapEntry", NS))
+                mapped = _Mapping(target, origin, table=pairs, keep_unit=keep_unit)
+            else:
+                mapped = _Mapping(target, origin, keep_unit=keep_unit)
+            entries.setdefault(source, []).append(mapped)
+        return entries
+
+    # -- flattening -----------------------------------------------------------------------------
+    def flatten(self) -> tuple[tuple[Component, ...], tuple[Connection, ...],
+                               tuple[tuple[str, Parameter], ...]]:
+        """The flat components (their parameter sets in precedence order), the connections between
+        components, and the values bound to system connectors (``sub.connector``)."""
+        reversed_ = [e for e in self.edges if (e.factor, e.offset) == (1.0, 0.0)
+                     and (self._role(e.start, e.system), self._role(e.end, e.system)) == ("sink", "source")]
+        if reversed_:
+            example = reversed_[0]
+            self.notes.append(f"{self.label}: {len(reversed_)} connection(s) written from an input to an "
+                              f"output (e.g. {_name(example.start)} -> {_name(example.end)}) read the other "
+                              "way round, as OMSimulator reads them")
+            self.edges = [replace(e, start=e.end, end=e.start) if e in reversed_ else e for e in self.edges]
+        into: dict[Node, _Edge] = {}
+        for edge in self.edges:
+            if edge.end[0] in self.systems:
+                if edge.end in into:
+                    first = into[edge.end].start
+                    self.problems.append(f"{self.label}: system connector {_name(edge.end)} is connected "
+                                         f"twice (from {_name(first)} and {_name(edge.start)})")
+                    continue
+                into[edge.end] = edge
+        connections: list[Connection] = []
+        feeds: dict[Node, list[tuple[PortRef, float, float]]] = {}
+        for edge in self.edges:
+            if edge.end[0] in self.systems:
+                continue  # reached through the chain from the component it ends at
+            traced = self._trace(edge, into)
+            if traced is None:
+                continue
+            start, factor, offset = traced
+            end = PortRef(_flat(edge.end[0]), edge.end[1])
+            if start[0] in self.systems:
+                feeds.setdefault(start, []).append((end, factor, offset))
+            else:
+                connections.append(Connection(PortRef(_flat(start[0]), start[1]), end, factor, offset))
+        sets: dict[tuple[str, ...], list[tuple[int, int, ParameterSet]]] = {}
+        order = 0
+        for path, component in self.components.items():
+            for ps in component.parameter_sets:
+                sets.setdefault(path, []).append((-len(path), order, ps))
+                order += 1
+        values: dict[str, Parameter] = {}
+        for info in self.systems.values():
+            for ps in info.bindings:
+                order += 1
+                self._bind(info, ps, into, feeds, sets, values, order)
+        components = tuple(replace(c, parameter_sets=tuple(ps for *_, ps in sorted(sets.get(path, []),
+                                                                                    key=lambda s: s[:2])))
+                           for path, c in self.components.items())
+        return components, tuple(connections), tuple(values.items())
+
+    def _role(self, node: Node, system: tuple[str, ...]) -> str:
+        """Whether a connection end declared in ``system`` gives a value ("source"), takes one
+        ("sink"), or neither is known (""): a component's output or calculated parameter gives, its
+        input or parameter takes; a system's own input or parameter connector gives inside it, a
+        subsystem's takes."""
+        path, name = node
+        if path in self.components:
+            kind = next((k.kind for k in self.components[path].connectors if k.name == name), "")
+            own = False
+        elif path in self.systems and name in self.systems[path].connectors:
+            kind, own = self.systems[path].connectors[name].kind, path == system
+        else:
+            return ""
+        gives = kind in ("output", "calculatedParameter")
+        takes = kind in ("input", "parameter")
+        if own:
+            gives, takes = takes, gives
+        return "source" if gives else "sink" if takes else ""
+
+    def _trace(self, edge: _Edge, into: Mapping[Node, _Edge]) -> tuple[Node, float, float] | None:
+        """Where the value arriving over ``edge`` comes from: a component's connector (or an unknown
+        element, which the system reports), or a system connector nothing feeds; with the composed
+        transformation. None (and a problem) for a cycle through system connectors."""
+        factor, offset, node, seen = edge.factor, edge.offset, edge.start, {edge.end}
+        while node[0] in self.systems:
+            if node in seen:
+                self.problems.append(f"{self.label}: connections through system connector {_name(node)} form "
+                                     "a cycle")
+                return None
+            seen.add(node)
+            feeding = into.get(node)
+            if feeding is None:
+                break
+            factor, offset = factor * feeding.factor, factor * feeding.offset + offset
+            node = feeding.start
+        return node, factor, offset
+
+    def _resolve(self, path: tuple[str, ...], name: str) -> Node | None:
+        """A hierarchical name inside system ``path``: (component path, variable), (system path,
+        connector) for a system connector, None when it names nothing (longest element name first:
+        names may contain dots)."""
+        info = self.systems[path]
+        for element in sorted(info.elements, key=len, reverse=True):
+            if name.startswith(element + ".") and len(name) > len(element) + 1:
+                rest = name[len(element) + 1:]
+                if info.elements[element] == "component":
+                    return (*path, element), rest
+                found = self._resolve((*path, element), rest)
+                if found is not None:
+                    return found
+        return (path, name) if name in info.connectors else None
+
+    def _bind(self, info: _SystemInfo, ps: ParameterSet, into: Mapping[Node, _Edge],
+              feeds: Mapping[Node, list[tuple[PortRef, float, float]]],
+              sets: dict[tuple[str, ...], list[tuple[int, int, ParameterSet]]],
+              values: dict[str, Parameter], order: int) -> None:
+        """Distribute one system-level parameter set over the components (and system connectors)
+        its names reach. A name that reaches nothing is ignored with a note, as SSP 1.0 says (a
+        file written for a larger system), but an SSM entry's target that reaches nothing is an
+        error. A value reaching a component through a system connector applies after every binding
+        (a connection: OMSimulator too gives the connector's value at initialization)."""
+        reached: dict[tuple[str, ...], list[Parameter]] = {}
+        through: dict[tuple[str, ...], list[Parameter]] = {}
+        system = f"system '{_flat(info.path) or info.name}'"
+        for p in ps.parameters:
+            origin = p.origin or ps.origin
+            node = self._resolve(info.path, p.name)
+            if node is None and p.origin is not None:
+                self.problems.append(f"{origin}: the target '{p.name}' names no element or connector of "
+                                     f"{system}")
+                continue
+            if node is None:
+                self.notes.append(f"{origin}: '{p.name}' names no element or connector of {system}: ignored "
+                                  "(SSP 1.0 ignores names that match nothing)")
+                continue
+            if node[0] in self.components:
+                reached.setdefault(node[0], []).append(replace(p, name=node[1], origin=origin))
+                continue
+            name = _name(node)
+            if node in into:
+                source = into[node].start
+                self.problems.append(f"{origin}: system connector {name} is fed by {_name(source)}: a value "
+                                     "given for it would be overwritten")
+                continue
+            values[name] = replace(p, origin=origin)
+            for port, factor, offset in feeds.get(node, []):
+                value = p.value
+                if (factor, offset) != (1.0, 0.0) and p.type == "Real":
+                    value = factor * float(value) + offset
+                path = tuple(port.component.split(".")) if port.component else ()
+                target = next((k for k, c in self.components.items() if c.name == port.component), path)
+                via = f"{origin} (through system connector {name})"
+                through.setdefault(target, []).append(Parameter(port.connector, p.type, value, p.unit, via))
+        for rank, found in ((-len(info.path), reached), (1, through)):
+            for path, parameters in found.items():
+                sets.setdefault(path, []).append((rank, order, replace(ps, parameters=tuple(parameters))))
+
+
+def _connectors(element: etree._Element, where: str, problems: list[str]) -> dict[str, Connector]:
+    """The connectors an element (component or system) declares, by name."""
+    connectors: dict[str, Connector] = {}
     for c in element.findall("ssd:Connectors/ssd:Connector", NS):
-        if c.get("name") is None or c.get("kind") is None:
+        name, kind = c.get("name"), c.get("kind")
+        if name is None or kind is None:
             continue  # the schema requires both and has reported it
-        if c.get("name") in seen:
-            problems.append(f"{where}: connector '{c.get('name')}' is declared more than once")
+        if name in connectors:
+            problems.append(f"{where}: connector '{name}' is declared more than once")
             continue
-        seen.add(c.get("name"))
         type_ = next((t for t in TYPES if c.find(f"ssc:{t}", NS) is not None), None)
-        unit = c.find(f"ssc:{type_}", NS).get("unit") if type_ == "Real" else None
-        connectors.append(Connector(c.get("name"), c.get("kind"), type_, unit))
-    parameter_sets, complete = [], True
-    for binding in element.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
-        prefix = binding.get("prefix", "")
-        found = []
-        if binding.get("source") is not None:
-            origin = binding.get("source")
-            refused: list[str] = []
-            path = _inside(folder, origin, f"{where}: ParameterBinding source", refused)
-            found.append((None, refused) if path is None else
-                         _read_ssv(path, f"{label}: {origin}", origin, prefix))
-        for inline in binding.findall("ssd:ParameterValues/ssv:ParameterSet", NS):
-            inline_problems: list[str] = []
-            inline_units = tuple(read_units(inline, "ssv:Units", NS).values())
-            inline_set = _parameter_set(fmpy_ssd._get_parameter_set(inline), f"{label} (inline values of "
-                                        f"'{name}')", prefix, inline_problems, inline_units)
-            found.append((inline_set, inline_problems))
-        for parameter_set, set_problems in found:
-            problems.extend(set_problems)
-            complete = complete and not set_problems
-            if parameter_set is not None:
-                parameter_sets.append(parameter_set)
-    return Component(name, source, tuple(connectors), tuple(parameter_sets)), has_fmu, complete
+        typed = c.find(f"ssc:{type_}", NS)
+        unit = typed.get("unit") if type_ == "Real" and typed is not None else None
+        connectors[name] = Connector(name, kind, type_, unit)
+    return connectors
+
+
+def _mapped(ps: ParameterSet, mapping: Mapping[str, list[_Mapping]], problems: list[str]) -> ParameterSet:
+    """``ps`` through a ParameterMapping: each parameter a mapping entry names becomes one parameter
+    per entry (its target, the value transformed); the others keep their names."""
+    parameters: list[Parameter] = []
+    for p in ps.parameters:
+        for entry in mapping.get(p.name, [None]):
+            if entry is None:
+                parameters.append(p)
+                continue
+            unit = p.unit if entry.keep_unit else None
+            value: float | int | bool | str = p.value
+            if entry.linear:
+                if p.type != "Real":
+                    problems.append(f"{entry.origin}: a LinearTransformation applies to Real values "
+                                    f"('{p.name}' is {p.type})")
+                    continue
+                value = entry.factor * float(p.value) + entry.offset
+            elif entry.table is not None:
+                table = {_literal_of(p.type, s): t for s, t in entry.table}
+                if _literal(p.value) not in table:
+                    problems.append(f"{entry.origin}: value {_literal(p.value)} of '{p.name}' is not in the "
+                                    f"mapping table ({', '.join(table)})")
+                    continue
+                try:
+                    value = _convert(p.type, table[_literal(p.value)])
+                except ValueError:
+                    problems.append(f"{entry.origin}: mapped value {table[_literal(p.value)]!r} is not a "
+                                    f"{p.type}")
+                    continue
+            parameters.append(Parameter(entry.target, p.type, value, unit, entry.origin))
+    return replace(ps, parameters=tuple(parameters))
+
+
+def _literal_of(type_: str, text: str) -> str:
+    """A MapEntry's value in the form :func:`_literal` writes values (``1`` -> ``true`` for a Boolean)."""
+    try:
+        return _literal(_convert(type_, text))
+    except ValueError:
+        return text
 
 
 def _read_experiment(root: etree._Element, system: etree._Element, label: str,

@@ -3,21 +3,24 @@
 ``System`` joins what the SSD says with what each FMU's modelDescription.xml says, collects every
 inconsistency into one ScenarioError, and derives the order in which outputs must be read and
 inputs set at a communication point (from the ModelStructure dependencies), so that an input is
-set only after the outputs it depends on are up to date. Real algebraic loops are reported with the
-ports on the loop.
+set only after the outputs it depends on are up to date. Real algebraic loops are named by the
+ports on the loop (a warning) and become spans of the schedule that gauss-seidel iterates.
 """
 
 from __future__ import annotations
 
 import os
+import zipfile
 from collections.abc import Collection, Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import SupportsFloat, SupportsIndex, SupportsInt
+from typing import SupportsFloat, SupportsIndex, SupportsInt, TypeVar
 
+import fmpy
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription, ModelVariable
 from fmpy.validation import validate_fmu, validate_model_description
+from lxml import etree
 
 from .errors import ScenarioError
 from .ssp import Component, Connection, Parameter, ParameterSet, PortRef, SystemStructure
@@ -74,9 +77,15 @@ class System:
     ``no_fmu`` (FMU missing, already reported) are checked only as far as the SSD goes; those in
     ``partial`` (some parameter values unreadable, already reported) are not checked for inputs
     without a value. Inputs left at the FMU's start value, with no connection and no value given,
-    are listed in ``unconnected`` (and ``warnings``). ``fmu_warnings`` adds fmpy's full FMU
-    validation (``validate_fmu``): what it finds beyond the checks a run needs goes to ``warnings``.
-    ``schedule`` is empty when there are problems.
+    are listed in ``unconnected`` (and ``warnings``). What fmpy's checks of a model description find
+    (a unit used but not defined, an Enumeration marked continuous, ...) goes to ``warnings`` when
+    the FMU can still run as the other tools run it (``strict_fmus``: to ``problems``, for CI);
+    ``fmu_warnings`` adds fmpy's full FMU validation (``validate_fmu``) to ``warnings``.
+
+    Algebraic loops (a cycle of direct feedthrough through connections) are no error: ``loops``
+    lists them (and ``warnings``); under gauss-seidel ``iterated`` holds the spans ``(first, end)``
+    of the ``schedule`` that the master repeats until the inputs on them converge, under jacobi every
+    connection is delayed and there is no loop. ``schedule`` is empty when there are problems.
     """
 
     def __init__(self, structure: SystemStructure,
@@ -84,8 +93,9 @@ class System:
                  overrides: Mapping[str, object] | None = None,
                  model_descriptions: Mapping[Path, ModelDescription] | None = None, *,
                  strict: bool = True, no_fmu: Collection[str] = (), partial: Collection[str] = (),
-                 fmu_warnings: bool = False) -> None:
+                 fmu_warnings: bool = False, strict_fmus: bool = False) -> None:
         self.structure = structure
+        self.strict_fmus = strict_fmus
         self.ssd = structure.ssd_file
         self.problems: list[str] = []
         self.warnings: list[str] = []
@@ -114,13 +124,16 @@ class System:
         self.values_checked = (sum(len(ps.parameters) for _, ps in structure_sets(structure))
                                + sum(len(ps.parameters) for ps in parameter_sets) + len(overrides or {}))
         self._check_inputs(problems, partial)
-        problems.extend(self._algebraic_loops())
+        self.loops = self._algebraic_loops()
+        self.warnings.extend(f"{loop} (gauss-seidel iterates it to a fixed point at every communication "
+                             "point; jacobi delays every connection by one step)" for loop in self.loops)
         self.schedule: list[Operation] = []
+        self.iterated: list[tuple[int, int]] = []
         if problems:
             if strict:
                 raise ScenarioError(problems)
             return
-        self.schedule = self._schedule()
+        self.schedule, self.iterated = self._schedule()
 
     # -- construction -----------------------------------------------------------------------
     def _model_description(self, c: Component, md: ModelDescription | None,
@@ -133,17 +146,24 @@ class System:
         except Exception as exc:  # fmpy raises plain Exception for unreadable FMUs
             self.problems.append(f"{where}: cannot read modelDescription.xml: {exc}")
             return None
-        # fmpy's checks, except a missing input start, which _check_inputs reports in context
+        # fmpy's checks, except a missing input start, which _check_inputs reports in context: the
+        # FMU still loads (OMSimulator and libcosim run it), so a warning unless strict_fmus
         found = validate_model_description(md)
         invalid = [p for p in found if not _is_input_start(p, md)]
         if fmu_warnings:
             self.warnings.extend(f"{where}: {p}" for p in validate_fmu(str(c.source))
                                  if p not in found and not _is_input_start(p, md))
-        if invalid:
-            self.problems.extend(f"{where}: {p}" for p in invalid)
+        (self.problems if self.strict_fmus else self.warnings).extend(f"{where}: {p}" for p in invalid)
+        if invalid and self.strict_fmus:
             return None
         if md.coSimulation is None:
-            self.problems.append(f"{self.ssd}: component '{c.name}': FMU is not a Co-Simulation FMU")
+            kind = "Model Exchange" if md.modelExchange is not None else "no"
+            self.problems.append(f"{self.ssd}: component '{c.name}': FMU is an FMI {md.fmiVersion} {kind} "
+                                 "FMU: orchestrate runs Co-Simulation FMUs only")
+            return None
+        missing = _no_binary(c.source, md)
+        if missing:
+            self.problems.append(f"{where}: {missing}")
             return None
         return md
 
@@ -181,10 +201,9 @@ class System:
                 (outputs if k.kind == "output" else inputs if k.kind == "input" else []).append(k.name)
         feedthrough: dict[str, set[str]] = {}
         all_inputs = {v.name for v in md.modelVariables if v.causality == "input"}
-        for unknown in md.outputs:
-            deps = all_inputs if unknown.dependencies is None else {d.name for d in unknown.dependencies}
+        for output, deps in _dependencies(c.source, md, all_inputs).items():
             for d in deps:
-                feedthrough.setdefault(d, set()).add(unknown.variable.name)
+                feedthrough.setdefault(d, set()).add(output)
         return ComponentModel(c.name, c.source, md, outputs, inputs, feedthrough=feedthrough)
 
     def _check_connections(self, problems: list[str]) -> None:
@@ -231,6 +250,10 @@ class System:
             except UnitError as exc:
                 problems.append(f"{self.ssd}: connection {con}: {exc}")
                 continue
+            except _UndefinedUnitError as exc:  # the FMU's own fault, which fmpy's checks reported
+                self.warnings.append(f"{self.ssd}: connection {con}: {exc.args[0]}: the value is passed "
+                                     "unchanged")
+                continue
             if start is None or target is None or start.name == target.name:
                 continue
             try:
@@ -257,7 +280,15 @@ class System:
                          for k in c.connectors if k.name == ref.connector), None)
         if declared is not None:
             return self._resolve(declared)
-        return _unit_def(comp.model, var) if _unit_name(var) is not None else None
+        if _unit_name(var) is None:
+            return None
+        try:
+            return _unit_def(comp.model, var)
+        except UnitError as exc:
+            if self.strict_fmus or any(u.name == _unit_name(var) for u in comp.model.unitDefinitions):
+                raise
+            raise _UndefinedUnitError(f"{ref} has the unit {_unit_name(var)}, which its FMU does not "
+                                      f"define ({exc})") from exc
 
     @staticmethod
     def _twice(ps: ParameterSet, problems: list[str]) -> None:
@@ -272,13 +303,13 @@ class System:
     def _apply(self, component: str, ps: ParameterSet, problems: list[str]) -> None:
         self._twice(ps, problems)
         for p in ps.parameters:
-            self._set_start(PortRef(component, p.name), p, ps.origin, problems, ps.units)
+            self._set_start(PortRef(component, p.name), p, p.origin or ps.origin, problems, ps.units)
 
     def _apply_prefixed(self, ps: ParameterSet, problems: list[str]) -> None:
         self._twice(ps, problems)
         for p in ps.parameters:
             try:
-                ref = PortRef.parse(p.name)
+                ref = self.port(p.name)
             except ValueError as exc:
                 problems.append(f"{ps.origin}: {exc}")
                 continue
@@ -287,7 +318,7 @@ class System:
 
     def _override(self, key: str, value: object, problems: list[str]) -> None:
         try:
-            ref = PortRef.parse(key)
+            ref = self.port(key)
         except ValueError as exc:
             problems.append(f"--set: {exc}")
             return
@@ -372,17 +403,31 @@ class System:
     def _feeds(self, comp: ComponentModel, inputs: Iterable[str]) -> bool:
         return any(comp.feedthrough.get(i) for i in inputs)
 
-    def _schedule(self) -> list[Operation]:
+    def _schedule(self) -> tuple[list[Operation], list[tuple[int, int]]]:
         """Order of 'get outputs' / 'set inputs' at a communication point (one set per component
-        when possible, else the inputs that feed no output are set last)."""
-        order = self._toposort(split=False)
-        if order is None:
-            order = self._toposort(split=True)
-        # Still None only when a connection starts at a component whose FMU is missing: an error
-        # the reading reports, so no run uses the (then empty) schedule.
-        return order if order is not None else []
+        when possible, else the inputs that feed no output are set last), and the spans
+        ``(first, end)`` of it that form an algebraic loop, to be repeated until they converge."""
+        for split in (False, True):
+            nodes, before = self._graph(split)
+            order = _toposort(nodes, before)
+            if order is not None:
+                return order, []
+        # a loop: its strongly connected parts in dependency order, each part one span
+        succ: dict[Operation, list[Operation]] = {n: [] for n in nodes}
+        for n, deps in before.items():
+            for d in deps & succ.keys():  # a component whose FMU is missing (reported) has no node
+                succ[d].append(n)
+        labels = _strong_components(nodes, succ)
+        order, spans = [], []
+        for label in sorted(set(labels.values()), reverse=True):  # Tarjan finishes sinks first
+            part = [n for n in nodes if labels[n] == label]
+            if len(part) > 1 or part[0] in succ[part[0]]:
+                spans.append((len(order), len(order) + len(part)))
+            order += part
+        return order, spans
 
-    def _toposort(self, split: bool) -> list[Operation] | None:
+    def _graph(self, split: bool) -> tuple[list[Operation], dict[Operation, set[Operation]]]:
+        """The operations at a communication point and, for each, those that must come before it."""
         nodes: list[Operation] = []
         for comp in self.components.values():
             connected = [i for i in comp.inputs if PortRef(comp.name, i) in self.links]
@@ -401,15 +446,20 @@ class System:
                     before[n].add(Operation("get", self.links[PortRef(n.component, i)].start.component))
                 if self._feeds(comp, n.inputs):
                     before[Operation("get", n.component)].add(n)
-        order: list[Operation] = []
-        done: set[Operation] = set()
-        while len(order) < len(nodes):
-            ready = [n for n in nodes if n not in done and before[n] <= done]
-            if not ready:
-                return None
-            order.append(ready[0])
-            done.add(ready[0])
-        return order
+        return nodes, before
+
+    def port(self, text: str) -> PortRef:
+        """``"sub.plant.y"`` -> PortRef("sub.plant", "y"): the longest component name that starts the
+        text (component names of nested systems contain dots, so do variable names); ValueError
+        when no component does (then ``component.variable`` as :meth:`PortRef.parse` splits it)."""
+        for name in sorted(self.components, key=len, reverse=True):
+            if text.startswith(name + ".") and len(text) > len(name) + 1:
+                return PortRef(name, text[len(name) + 1:])
+        names = {c.name for c in self.structure.components}
+        for name in sorted(names, key=len, reverse=True):
+            if text.startswith(name + ".") and len(text) > len(name) + 1:
+                return PortRef(name, text[len(name) + 1:])
+        return PortRef.parse(text)
 
     def _algebraic_loops(self) -> list[str]:
         """Port graph: output -> connected input -> outputs depending on it. Every strongly
@@ -436,14 +486,31 @@ class System:
         return loops
 
 
-def _strong_components(nodes: list[PortRef], succ: Mapping[PortRef, list[PortRef]]) -> dict[PortRef, int]:
+def _toposort(nodes: list[Operation], before: Mapping[Operation, set[Operation]]) -> list[Operation] | None:
+    """``nodes`` in an order where each comes after those ``before`` it (the first ready first);
+    None when they form a cycle."""
+    order: list[Operation] = []
+    done: set[Operation] = set()
+    while len(order) < len(nodes):
+        ready = [n for n in nodes if n not in done and before[n] <= done]
+        if not ready:
+            return None
+        order.append(ready[0])
+        done.add(ready[0])
+    return order
+
+
+Node = TypeVar("Node", PortRef, Operation)
+
+
+def _strong_components(nodes: list[Node], succ: Mapping[Node, list[Node]]) -> dict[Node, int]:
     """Tarjan's strongly connected components, iterative: node -> label (equal labels, one part).
     A few lines here instead of scipy.sparse.csgraph, whose import alone (0.18 s) cost more than a
     whole short run; the graphs are a scenario's ports (tens to thousands)."""
-    index: dict[PortRef, int] = {}
-    low: dict[PortRef, int] = {}
-    labels: dict[PortRef, int] = {}
-    stack: list[PortRef] = []
+    index: dict[Node, int] = {}
+    low: dict[Node, int] = {}
+    labels: dict[Node, int] = {}
+    stack: list[Node] = []
     parts = 0
     for root in nodes:
         if root in index:
@@ -525,6 +592,10 @@ def _unit_def(md: ModelDescription, var: ModelVariable) -> UnitDef:
                    float(base.offset))
 
 
+class _UndefinedUnitError(Exception):
+    """A unit an FMU's variable uses without defining it (and orchestrate does not know)."""
+
+
 INT32 = (-(2**31), 2**31 - 1)  # what fmi2SetInteger passes (the value would wrap around)
 
 
@@ -580,3 +651,47 @@ def _convert(type_: str, value: object) -> float | int | bool | str:
             return value.lower() in ("true", "1")
         return bool(value)
     return str(value)
+
+
+def _no_binary(fmu: Path, md: ModelDescription) -> str:
+    """Why the FMU cannot be loaded on this platform ('' when it can): no shared library of its
+    model identifier for this platform, naming the platforms it has."""
+    assert md.coSimulation is not None
+    identifier = md.coSimulation.modelIdentifier
+    folders = ((fmpy.platform_tuple,) if md.fmiVersion.startswith("3.") else
+               (fmpy.platform, fmpy.platform_tuple))
+    wanted = {f"binaries/{folder}/{identifier}{fmpy.sharedLibraryExtension}" for folder in folders}
+    try:
+        with zipfile.ZipFile(fmu) as zf:
+            names = zf.namelist()
+    except (OSError, zipfile.BadZipFile):
+        return ""  # an extracted or broken FMU: the instantiation reports it
+    if wanted & set(names):
+        return ""
+    platforms = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") >= 2
+                        and not n.endswith("/")})
+    has = f"it has binaries for {', '.join(platforms)}" if platforms else "it has no binaries at all"
+    return (f"no binary for this platform ({fmpy.platform}: {sorted(wanted)[0]}); {has}"
+            + ("; it has C sources, which orchestrate does not compile" if
+               any(n.startswith("sources/") for n in names) else ""))
+
+
+def _dependencies(fmu: Path, md: ModelDescription, inputs: set[str]) -> dict[str, set[str]]:
+    """Each output -> the inputs it depends on directly: the ModelStructure (FMI 2.0, 3.0; every
+    input when it lists none), or FMI 1.0's DirectDependency of each output (which fmpy does not
+    read; every input when the output has none, as FMI 1.0 says)."""
+    if not md.fmiVersion.startswith("1."):
+        return {u.variable.name: inputs if u.dependencies is None else {d.name for d in u.dependencies}
+                for u in md.outputs}
+    try:
+        with zipfile.ZipFile(fmu) as zf, zf.open("modelDescription.xml") as xml:
+            root = etree.parse(xml, etree.XMLParser(resolve_entities=False, no_network=True)).getroot()
+    except (OSError, KeyError, zipfile.BadZipFile, etree.XMLSyntaxError):
+        return {v.name: inputs for v in md.modelVariables if v.causality == "output"}
+    found: dict[str, set[str]] = {}
+    for variable in root.iter("ScalarVariable"):
+        if variable.get("causality") == "output":
+            direct = variable.find("DirectDependency")
+            found[variable.get("name", "")] = (inputs if direct is None else
+                                               {n.text.strip() for n in direct.iter("Name") if n.text})
+    return found

@@ -89,19 +89,32 @@ def check_scenario(scenario: str | os.PathLike, stack: ExitStack, *,
                    fmu_warnings: bool = False,
                    fmu_dirs: Iterable[str | os.PathLike] = (),
                    limits: Limits = DEFAULT_LIMITS,
-                   unpack_fmus: bool = False) -> tuple[System | None, list[str], list[str]]:
+                   unpack_fmus: bool = False,
+                   root: str | os.PathLike | None = None,
+                   strict_fmus: bool = False) -> tuple[System | None, list[str], list[str]]:
     """Unpack (into a folder ``stack`` removes; within ``limits``), read and check a scenario, every
     stage as far as it can go. Returns the system (None when no SSD could be read; its ``schedule``
     is empty when there are errors), the errors and the warnings (``fmu_warnings``: add fmpy's full
     FMU validation). FMUs missing from the scenario are looked up by file name in ``fmu_dirs``.
     ``unpack_fmus``: also read every member of every FMU, as a run unpacks it (a corrupt member, or
-    one whose declared size lies, is an error here rather than when the run starts)."""
-    folder, errors = unpack_scenario(scenario, stack, limits)
+    one whose declared size lies, is an error here rather than when the run starts). ``root``: a
+    folder scenario may reference files below it with '..' (never an archive). ``strict_fmus``:
+    what fmpy's checks of a model description find is an error even where the FMU still runs (else
+    a warning)."""
+    path = Path(scenario)
+    if root is not None and not path.is_dir():
+        raise UsageError(f"--root {root}: only a scenario folder may reference files outside itself, "
+                         f"not an archive ({path})")
+    if root is not None and not Path(root).is_dir():
+        raise UsageError(f"--root {root}: no such folder")
+    if root is not None and not path.resolve().is_relative_to(Path(root).resolve()):
+        raise UsageError(f"--root {root}: the scenario {path} is not below it")
+    top = Path(root) if root is not None else None
+    folder, errors = unpack_scenario(scenario, stack, limits, top)
     if folder is None:
         return None, errors, []
-    path = Path(scenario)
     reading = scan_scenario(folder, f"{path}:{SSD_NAME}" if path.is_file() else str(folder / SSD_NAME),
-                            [Path(d) for d in fmu_dirs])
+                            [Path(d) for d in fmu_dirs], top)
     errors += reading.problems
     sets, unreadable = [], False
     for file in parameter_sets:
@@ -121,8 +134,8 @@ def check_scenario(scenario: str | os.PathLike, stack: ExitStack, *,
     # a value lost from a --parameter-set may have been meant for any input of any component
     partial = {c.name for c in structure.components} if unreadable else reading.partial
     system = System(structure, sets, overrides, strict=False, no_fmu=reading.no_fmu, partial=partial,
-                    fmu_warnings=fmu_warnings)
-    return system, errors + system.problems, system.warnings
+                    fmu_warnings=fmu_warnings, strict_fmus=strict_fmus)
+    return system, errors + system.problems, [*reading.notes, *system.warnings]
 
 
 def timing(structure: SystemStructure, stop_time: float | None = None,
@@ -178,14 +191,15 @@ def timing(structure: SystemStructure, stop_time: float | None = None,
 
 def validate(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.PathLike] = (),
              overrides: Mapping[str, object] | None = None,
-             fmu_dirs: Iterable[str | os.PathLike] = (), limits: Limits = DEFAULT_LIMITS) -> Validation:
+             fmu_dirs: Iterable[str | os.PathLike] = (), limits: Limits = DEFAULT_LIMITS,
+             root: str | os.PathLike | None = None, strict_fmus: bool = False) -> Validation:
     """Check a scenario without simulating and report every problem found; nothing is written.
 
     Parameters
     ----------
     scenario : path
         ``.ssp`` archive or folder holding ``SystemStructure.ssd``.
-    parameter_sets, overrides, fmu_dirs, limits
+    parameter_sets, overrides, fmu_dirs, limits, root, strict_fmus
         As for :func:`orchestrator.open_system` (what ``run`` would get).
 
     Returns
@@ -197,7 +211,8 @@ def validate(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.P
     with ExitStack() as stack:
         system, errors, warnings = check_scenario(scenario, stack, parameter_sets=parameter_sets,
                                                   overrides=overrides, fmu_warnings=True, fmu_dirs=fmu_dirs,
-                                                  limits=limits, unpack_fmus=True)
+                                                  limits=limits, unpack_fmus=True, root=root,
+                                                  strict_fmus=strict_fmus)
     if system is None:
         return Validation(str(scenario), tuple(Problem(e) for e in errors))
     structure = system.structure

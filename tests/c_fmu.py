@@ -1,6 +1,7 @@
 """A tiny FMI 2.0 Co-Simulation FMU written in C and compiled in the test (``cc``), for tests that
 need many cheap steps or an Integer parameter: ``Ramp`` has an Integer parameter ``n`` (start 1)
-and an output ``x`` with x(t) = n * t (Euler: x += n h each step, exact for a constant rate). The
+and an output ``x`` with x(t) = n * t (Euler: x += n h each step, exact for a constant rate);
+``n = -13`` (``CRASH``) kills its host with SIGSEGV in the first step, as a broken FMU does. The
 headers are fmpy's copy of the FMI 2.0 standard headers."""
 
 from __future__ import annotations
@@ -12,13 +13,25 @@ from pathlib import Path
 
 import fmpy
 
-from orchestrator.ssp import Component, Connector, Experiment, SystemStructure, pack_ssp, write_ssd
+from orchestrator.ssp import (
+    Component,
+    Connector,
+    Experiment,
+    ParameterSet,
+    SystemStructure,
+    pack_ssp,
+    write_ssd,
+)
 
 HEADERS = Path(fmpy.__file__).parent / "c-code"
+CRASH = -13  # the value of n that crashes the host (SOURCE)
 
 SOURCE = r"""
+#include <signal.h>
 #include <stdlib.h>
 #include "fmi2Functions.h"
+
+#define CRASH -13  /* n = CRASH: the host process dies of SIGSEGV in the first fmi2DoStep */
 
 typedef struct { double x; int n; } Ramp;
 
@@ -49,7 +62,7 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
     Ramp* r = c; for (size_t i = 0; i < n; i++) { if (vr[i] != 1) return fmi2Error; r->n = v[i]; }
     return fmi2OK; }
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean np) {
-    Ramp* r = c; r->x += r->n * h; return fmi2OK; }
+    Ramp* r = c; if (r->n == CRASH) raise(SIGSEGV); r->x += r->n * h; return fmi2OK; }
 #define NO(f, ...) fmi2Status f(__VA_ARGS__) { return fmi2Error; }
 NO(fmi2GetBoolean, fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[])
 NO(fmi2GetString, fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[])
@@ -109,8 +122,11 @@ def build_ramp(dest: Path) -> Path:
     return fmu
 
 
-def ramp_scenario(folder: Path, fmu: Path, stop: float = 1.0, step: float = 1e-3) -> Path:
-    """``folder.ssp``: one Ramp component ``ramp`` (output x), no connection."""
-    ramp = Component("ramp", Path("resources/Ramp.fmu"), (Connector("x", "output", "Real"),))
+def ramp_scenario(folder: Path, fmu: Path, stop: float = 1.0, step: float = 1e-3,
+                  n: int | None = None) -> Path:
+    """``folder.ssp``: one Ramp component ``ramp`` (output x), no connection; ``n`` bound from an
+    SSV file when given."""
+    sets = (ParameterSet.of("ramp.ssv", {"n": n}),) if n is not None else ()
+    ramp = Component("ramp", Path("resources/Ramp.fmu"), (Connector("x", "output", "Real"),), sets)
     write_ssd(folder, SystemStructure("ramp", (ramp,), (), Experiment(0.0, stop, step)))
     return pack_ssp(folder, {"Ramp.fmu": fmu}, folder.parent / f"{folder.name}.ssp")

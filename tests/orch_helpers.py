@@ -11,6 +11,7 @@ from pathlib import Path
 from orchestrator.ssp import Connection, Experiment, SystemStructure, component, pack_ssp, write_ssd
 
 FMU_SCRIPTS = Path(__file__).parent / "fmus"
+BASELINE_DIR = Path(__file__).parent / "baselines"  # this project's regression baselines and tubes
 PYTHONFMU = Path(sys.executable).with_name("pythonfmu")
 
 # ModelStructure dependencies pythonfmu does not write: output -> inputs it depends on (by name)

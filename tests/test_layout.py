@@ -24,6 +24,7 @@ ALLOWED = {
     "orchestrator.crosscheck": {ENGINE, "orchestrator.export"},
     "orchestrator.campaign": {ENGINE},
     "orchestrator.export": {ENGINE, "fmu_src"},
+    "orchestrator.regress": {ENGINE},
     "orchestrator.experiments": {ENGINE, "orchestrator.crosscheck", "orchestrator.campaign", "controller",
                                  "fmu_src"},
 }

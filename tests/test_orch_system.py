@@ -12,6 +12,7 @@ import orchestrator
 from orchestrator import RunOptions, ScenarioError
 from orchestrator.ssp import Connection, Experiment, SystemStructure, component, read_scenario, write_ssd
 from orchestrator.system import Operation, System
+from orchestrator.validate import validate
 
 pytestmark = pytest.mark.system
 
@@ -60,10 +61,19 @@ def test_connector_missing_in_fmu_and_type_mismatch_reported_together(tmp_path, 
 
 
 def test_wrong_direction(tmp_path, test_fmus):
+    """A connection written from an input to an output (as OMSimulator writes some: dcmotor, acvs)
+    is read the other way round with a note (issue 32; it was an error), and runs as the one written
+    the right way; a connection from an output to an output stays an error."""
+    right = orchestrator.run(loop_scenario(tmp_path / "r", test_fmus, pack=False)).rows
     folder = loop_scenario(tmp_path / "s", test_fmus, pack=False)
     _edit(folder, 'startElement="integrator" startConnector="x" endElement="gain" endConnector="u"',
           'startElement="gain" startConnector="u" endElement="integrator" endConnector="x"')
-    with pytest.raises(ScenarioError, match=r"gain\.u is an input, not an output"):
+    report = validate(folder)
+    assert report.ok and [p for p in report.problems if "read the other way round" in p.message
+                          and "gain.u -> integrator.x" in p.message]
+    assert (orchestrator.run(folder).rows == right).all()
+    _edit(folder, 'startElement="gain" startConnector="u"', 'startElement="source" startConnector="y"')
+    with pytest.raises(ScenarioError, match=r"integrator\.x is an output, not an input"):
         orchestrator.run(folder)
 
 
@@ -95,7 +105,10 @@ def test_bad_parameter_bindings_all_reported(tmp_path, test_fmus):
     }
 
 
-def test_algebraic_loop_is_reported_by_name(tmp_path, test_fmus):
+def test_algebraic_loop_is_a_warning_and_runs(tmp_path, test_fmus):
+    """A ring of two gains is an algebraic loop: named by its ports as a warning (it was an error
+    before issue 32), one iterated span of the gauss-seidel schedule, and the run completes under
+    both masters (k = 1 each: every value is a fixed point, and the start values 0 stay)."""
     gain = [("u", "input", "Real"), ("y", "output", "Real")]
     ring = SystemStructure("ring", (component("a", "Gain.fmu", gain), component("b", "Gain.fmu", gain)),
                            (Connection.between("a.y", "b.u"), Connection.between("b.y", "a.u")),
@@ -103,5 +116,9 @@ def test_algebraic_loop_is_reported_by_name(tmp_path, test_fmus):
     write_ssd(tmp_path, ring)
     (tmp_path / "resources").mkdir()
     (tmp_path / "resources" / "Gain.fmu").write_bytes(test_fmus["Gain"].read_bytes())
-    with pytest.raises(ScenarioError, match=r"algebraic loop: a\.u -> a\.y -> b\.u -> b\.y -> a\.u"):
-        orchestrator.run(tmp_path)
+    system = System(read_scenario(tmp_path))
+    assert [w for w in system.warnings if "algebraic loop: a.u -> a.y -> b.u -> b.y -> a.u" in w]
+    assert system.iterated == [(0, len(system.schedule))]
+    for master in ("gauss-seidel", "jacobi"):
+        rows = orchestrator.run(tmp_path, RunOptions(master=master)).rows
+        assert len(rows) == 11 and not rows["a.y"].any()

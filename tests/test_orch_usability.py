@@ -112,12 +112,15 @@ def test_cli_refuses_bad_grids_and_honours_start_time(loop, tmp_path, capsys):
 
 def test_baseline_resolves_paths_from_the_working_directory(tmp_path):
     """Before: 'baseline' read ssp/ and wrote tests/baselines/ beside the installed package while
-    'build' and 'run' used the working directory."""
-    done = subprocess.run([str(Path(sys.executable).with_name("orchestrate")), "baseline"], cwd=tmp_path,
-                          capture_output=True, text=True, env={**os.environ, "PYTHONWARNINGS": "ignore"})
+    'build' and 'run' used the working directory (a scenario name is a built one, build/ssp/NAME.ssp,
+    of the working directory, as for 'run')."""
+    done = subprocess.run([str(Path(sys.executable).with_name("orchestrate")), "baseline", "example1"],
+                          cwd=tmp_path, capture_output=True, text=True,
+                          env={**os.environ, "PYTHONWARNINGS": "ignore"})
     assert done.returncode == 2
-    assert "no scenarios found in ssp/" in done.stderr
-    assert not (tmp_path / "tests").exists()
+    assert ("no scenario 'example1': not a file or folder, and build/ssp/example1.ssp does not exist"
+            in done.stderr)
+    assert not (tmp_path / "tests").exists() and not (tmp_path / "baselines").exists()
 
 
 # -- part 3: unconnected inputs -------------------------------------------------------------------

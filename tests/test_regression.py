@@ -9,20 +9,21 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from orch_helpers import BASELINE_DIR
 
 from orchestrator.cli import main
-from orchestrator.experiments.regression import (
-    BASELINE_DIR,
+from orchestrator.master import time_grid
+from orchestrator.regress.tubes import (
     BASELINE_GRID,
     RegressionError,
     Tolerance,
     Tolerances,
     compare,
     compare_files,
+    format_comparison,
     load_tolerances,
     write_baseline,
 )
-from orchestrator.master import time_grid
 from orchestrator.results import ResultFileError, read_result
 
 
@@ -127,12 +128,25 @@ def test_result_on_a_finer_grid_is_compared_on_the_baseline_grid() -> None:
 
 
 def test_missing_columns_short_results_and_extra_columns() -> None:
+    """A baseline column the result lacks is listed, and fails only when chosen (issue 36)."""
     base = table(T, p__y=np.sin(T), p__u=np.cos(T))
     partial = table(T, p__y=np.sin(T), p__extra=np.ones_like(T))
     result = compare(partial, base, TUBE, "r.csv", "b.csv")
-    assert not result.passed
-    assert result.missing == ["p.u"]
+    assert result.passed
+    assert result.missing == ["p.u"] and result.lost == []
     assert result.extra == ["p.extra"]
+    assert [c.name for c in result.checks] == ["p.y"]
+    assert "missing in r.csv (not compared): p.u" in format_comparison(result)
+    assert "PASS: 1 of 1 signals" in format_comparison(result)
+    chosen = compare(partial, base, TUBE, "r.csv", "b.csv", signals=["p.y", "p.u"])
+    assert not chosen.passed and chosen.lost == ["p.u"]
+    assert "missing in r.csv (required): p.u" in format_comparison(chosen)
+    assert compare(partial, base, TUBE, signals=["p.y"]).passed
+    with pytest.raises(RegressionError, match="b.csv: no column p.z"):
+        compare(partial, base, TUBE, "r.csv", "b.csv", signals=["p.z"])
+    nothing = compare(table(T, p__other=np.sin(T)), base, TUBE, "r.csv", "b.csv")
+    assert not nothing.passed
+    assert "r.csv has none of the 2 signal(s) of b.csv: nothing compared" in nothing.problems
     short = compare(base[:500], base, TUBE, "r.csv", "b.csv")
     assert not short.passed
     assert "r.csv covers t = 0 .. 4.99 s but b.csv runs over t = 0 .. 10 s" in short.problems[0]
@@ -161,8 +175,12 @@ def test_command_exit_status_table_and_plots(tmp_path: Path, capsys: pytest.Capt
     assert main(["compare", str(bad), str(baseline), "--tol", "p.y=0.6"]) == 0
 
     missing = write(tmp_path / "missing.csv", table(T, p__y=np.sin(T)))
-    assert main(["compare", str(missing), str(baseline)]) == 1
+    assert main(["compare", str(missing), str(baseline)]) == 0
     assert "missing in" in capsys.readouterr().out
+    assert main(["compare", str(missing), str(baseline), "--signal", "p.*"]) == 1
+    assert f"missing in {missing} (required): p.u" in capsys.readouterr().out
+    assert exit_status(["compare", str(missing), str(baseline), "--signal", "q.*"]) == 2
+    assert "--signal: no signal of" in capsys.readouterr().err
 
 
 def exit_status(argv: list[str]) -> int:

@@ -13,11 +13,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from orch_helpers import BASELINE_DIR
 
 from orchestrator import RunOptions, run
 from orchestrator.cli import main
-from orchestrator.experiments.regression import (
-    BASELINE_DIR,
+from orchestrator.experiments.scenarios import all_scenarios
+from orchestrator.regress.tubes import (
     BASELINE_GRID,
     compare,
     format_comparison,
@@ -26,7 +27,6 @@ from orchestrator.experiments.regression import (
     resample,
     write_baseline,
 )
-from orchestrator.experiments.scenarios import all_scenarios
 from orchestrator.results import read_result
 
 pytestmark = pytest.mark.system

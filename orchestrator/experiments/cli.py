@@ -1,4 +1,4 @@
-"""Subcommands of the paper's experiments: build, metrics, compare, baseline, report."""
+"""Subcommands of the paper's experiments: build, metrics, report."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ from ..cli import add_command
 from ..errors import ScenarioError, UsageError
 from ..provenance import read_provenance, summary
 from ..results import read_result
-from . import regression, report
+from . import report
 from .metrics import format_table, tracking_metrics
-from .scenarios import build_scenarios
+from .scenarios import SCENARIO_DIR, build_scenarios
 
 __all__ = ["register"]
 
@@ -21,9 +21,10 @@ __all__ = ["register"]
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the experiments' subcommands to ``orchestrate``."""
     p = add_command(sub, "build", _build, help="build the FMUs and pack the scenarios into .ssp archives")
-    p.add_argument("scenarios", nargs="*", metavar="NAME", help="scenarios to pack (default: all in ssp/)")
-    p.add_argument("--sources", type=Path, default=Path("ssp"), help="scenario sources (default: ssp/)")
-    p.add_argument("--dest", type=Path, default=Path("build"), help="output folder (default: build/)")
+    p.add_argument("scenarios", nargs="*", metavar="NAME", help="scenarios to pack (default: all)")
+    p.add_argument("--sources", type=Path, default=SCENARIO_DIR,
+                   help="scenario sources (default: the project's ssp/, or its installed copy)")
+    p.add_argument("--dest", type=Path, default=Path("build"), help="output folder (default: ./build/)")
 
     p = add_command(sub, "metrics", _metrics, help="tracking metrics of result files (SPEC section 4)")
     p.add_argument("results", nargs="+", type=Path, metavar="RESULT.csv")
@@ -31,27 +32,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--signal", default="plant.y", metavar="COLUMN", help="the output y (default plant.y)")
     p.add_argument("--reference", default="reference.yd", metavar="COLUMN",
                    help="the reference yd it tracks (default reference.yd)")
-
-    p = add_command(sub, "compare", _compare, help="compare a result CSV with a baseline (regression tubes)",
-                    description="Exit status: 0 pass, 1 regression, 2 usage or unreadable input.")
-    p.add_argument("result", type=Path, metavar="RESULT.csv")
-    p.add_argument("baseline", type=Path, metavar="BASELINE.csv")
-    p.add_argument("--tolerances", type=Path, metavar="FILE.json",
-                   help=f"tubes (default: {regression.TOLERANCES_NAME} beside the baseline, "
-                        "else 1 %% of range)")
-    p.add_argument("--tol", action="append", default=[], metavar="SIGNAL=ATOL|KEY:VALUE,...",
-                   help="one signal's tube, e.g. plant.y=1e-3 or plant.y=atol:1e-3,quiet_atol:1e-6")
-    p.add_argument("--plot-dir", type=Path, metavar="DIR", help="write DIR/<signal>.png per failing signal")
-
-    # relative to the working directory, as 'build' and 'run' resolve build/ and ssp/
-    p = add_command(sub, "baseline", _baseline, help="run the scenarios and rewrite the regression baselines")
-    p.add_argument("--scenario", action="append", default=[], metavar="NAME",
-                   help="scenario folder name in --sources (repeatable; default: all)")
-    p.add_argument("--sources", type=Path, default=Path("ssp"), help="scenario sources (default: ssp/)")
-    p.add_argument("--dest", type=Path, default=Path("tests") / "baselines",
-                   help="baselines (default: tests/baselines/)")
-    p.add_argument("--grid", type=float, default=regression.BASELINE_GRID,
-                   help=f"grid in s (default {regression.BASELINE_GRID})")
 
     p = add_command(sub, "report", _report, help="the paper's examples by co-simulation, as a report",
                     description=report.__doc__.split("\n\n")[0])
@@ -119,41 +99,6 @@ def _check_grid(path: Path, record: dict | None) -> None:
     if isinstance(interval, (int, float)) and isinstance(step, (int, float)) and interval > step * (1 + 1e-9):
         raise UsageError(f"{path}: written every {interval:g} s (--output-interval) of a run at {step:g} s: "
                          "the metrics need every step; run again without --output-interval")
-
-
-def _compare(args: argparse.Namespace) -> int:
-    tolerances = regression.load_tolerances(args.tolerances) if args.tolerances else None
-    if tolerances is None:
-        beside = args.baseline.parent / regression.TOLERANCES_NAME
-        tolerances = regression.load_tolerances(beside) if beside.is_file() else regression.Tolerances()
-    tolerances = tolerances.for_scenario(args.baseline.stem)  # the baseline's own tubes, if any
-    overrides = dict(regression.parse_tolerance(text, tolerances) for text in args.tol)
-    baseline = read_result(args.baseline)
-    signals = [n for n in baseline.dtype.names or () if n != "time"]
-    unknown = [n for n in overrides if n not in signals]
-    if unknown:
-        raise UsageError(f"--tol: no signal {', '.join(unknown)} in {args.baseline} "
-                         f"(signals: {', '.join(signals)})")
-    comparison = regression.compare(read_result(args.result), baseline, tolerances.with_overrides(overrides),
-                                    str(args.result), str(args.baseline))
-    print(f"result:   {args.result}: {summary(read_provenance(args.result))}")
-    print(f"baseline: {args.baseline}: {summary(read_provenance(args.baseline))}")
-    print(regression.format_comparison(comparison))
-    if args.plot_dir is not None:
-        for path in regression.plot_failures(comparison, args.plot_dir):
-            print(path)
-    return 0 if comparison.passed else 1
-
-
-def _baseline(args: argparse.Namespace) -> int:
-    if args.grid <= 0:
-        raise UsageError("--grid must be positive")
-    if not list(args.sources.glob("*/SystemStructure.ssd")):
-        raise UsageError(f"no scenarios found in {args.sources}/ (run from the project folder or give "
-                         "--sources)")
-    for path in regression.write_baselines(args.scenario, args.dest, args.sources, args.grid):
-        print(path)
-    return 0
 
 
 def _report(args: argparse.Namespace) -> int:

@@ -16,7 +16,9 @@ from ..ssp import NS, SSD_NAME, pack_ssp
 __all__ = ["FMI3_SUFFIX", "SCENARIO_DIR", "all_scenarios", "build_scenarios", "component_sources"]
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
-SCENARIO_DIR = REPO_ROOT / "ssp"
+# The scenario sources: the checkout's ssp/, or the copy an installed wheel carries (setup.py).
+_PACKAGED = Path(__file__).resolve().parent / "ssp"
+SCENARIO_DIR = _PACKAGED if _PACKAGED.is_dir() else REPO_ROOT / "ssp"
 FMI3_SUFFIX = "_fmi3"  # build/ssp/<name>_fmi3.ssp: the scenario with the FMUs' FMI 3.0 variants
 
 

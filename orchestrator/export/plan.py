@@ -153,6 +153,9 @@ def make_plan(system: System, start: float, step: float, master: str, exposed: S
     """The plan of ``system`` run by ``master`` on the grid ``start + k * step``, exposing ``exposed``
     (value references 0, 1, ...) and, with ``time_variable``, the time (the next value reference:
     FMI 3.0's independent variable)."""
+    if master == "gauss-seidel" and system.iterated:
+        raise ScenarioError([f"{loop}: the container does not iterate algebraic loops (export with --master "
+                             "jacobi, whose delayed connections have none)" for loop in system.loops])
     t0, h, _ = grid(start, start + step, step)
     components = list(system.components.values())
     index = {c.name: i for i, c in enumerate(components)}

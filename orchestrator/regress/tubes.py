@@ -1,26 +1,19 @@
-"""Regression of co-simulation results against stored baselines, with tubes.
+"""Tubes: every signal of a baseline checked against a result on the baseline's time grid.
 
-``compare`` checks every signal of a baseline against a result on the baseline's time grid with the
-tube of the FMI cross-check practice (:func:`fmpy.util.validate_signal`): a band of half-width
-``max(atol, rtol * range)`` around the baseline, widened by ``dt`` seconds horizontally (the band's
-min/max over neighbouring samples). ``baseline`` runs scenarios and stores their outputs, resampled
-to a coarse grid, as CSV text under ``tests/baselines/``; the tolerances live beside them in
-``tolerances.json`` with the measurement behind each one.
+The tube is that of the FMI cross-check practice (:func:`fmpy.util.validate_signal`): a band of
+half-width ``max(atol, rtol * range)`` around the baseline, widened by ``dt`` seconds horizontally
+(the band's min/max over neighbouring samples). The tolerances live in ``tolerances.json`` beside
+the baselines, with the measurement behind each one; ``quiet_atol`` (if given) replaces a tube up
+to ``quiet_until`` seconds, where a loop's trajectories still agree closely.
 
-Two tolerances per signal, because of the physics of the sampled loop (1 ms zero-order hold, high
-gains, ``sig(z)^(2 beta - 1)`` terms): up to the first chattering burst (``quiet_until``) nearby
+Why two tolerances per signal, in this project's sampled loop (1 ms zero-order hold, high gains,
+``sig(z)^(2 beta - 1)`` terms): up to the first chattering burst (``quiet_until``) nearby
 trajectories contract and two correct integrators agree to 1e-8, so the tube is tight there
 (``quiet_atol``); during bursts any difference, even round-off, is amplified to a bounded level
 (about 5e-4 in y, several units in v), so afterwards the tube (``atol``) must be that wide.
 
-Usage::
-
-    orchestrate compare RESULT.csv BASELINE.csv [--plot-dir DIR]
-    orchestrate baseline [--scenario NAME]...
-
-Exit status of ``compare``: 0 every signal inside its tube, 1 regression (a signal outside its tube,
-a baseline column missing from the result, or a result that does not cover the baseline's time
-span), 2 usage or unreadable input.
+The verdict rests on the signals both files have (or on a chosen set): a baseline column missing
+from the result is reported, and fails the comparison only when it was chosen (issue 36).
 """
 
 from __future__ import annotations
@@ -28,23 +21,21 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 from fmpy.util import validate_signal
 
-from .. import files, open_system, run
+from .. import files, open_system
 from ..errors import UsageError
 from ..master import time_grid
 from ..results import read_result
-from .scenarios import SCENARIO_DIR, all_scenarios, build_scenarios
 
 __all__ = [
-    "BASELINE_DIR",
     "BASELINE_GRID",
+    "TOLERANCES_NAME",
     "Comparison",
     "RegressionError",
     "SignalCheck",
@@ -55,15 +46,11 @@ __all__ = [
     "format_comparison",
     "load_tolerances",
     "output_columns",
-    "plot_failures",
-    "read_result",
+    "parse_tolerance",
     "resample",
     "write_baseline",
-    "write_baselines",
 ]
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
-BASELINE_DIR = REPO_ROOT / "tests" / "baselines"
 TOLERANCES_NAME = "tolerances.json"
 BASELINE_GRID = 0.02  # s: 1501 rows per 30 s scenario; the loop's features last longer than 20 ms
 DIGITS = 9  # significant digits in baselines: rounding stays far below every tube (even quiet ones)
@@ -210,6 +197,32 @@ def resample(result: np.ndarray, grid: float, columns: Sequence[str] | None = No
     return out
 
 
+def thin(result: np.ndarray, grid: float, columns: Sequence[str] | None = None) -> np.ndarray:
+    """Every k-th row of a result on a uniform grid (k: the number of steps nearest to ``grid``, at
+    least 1) and its last row, keeping ``columns`` (default all), values rounded to the digits of a
+    baseline file: the baseline of a run, whose times and values are the run's own rows (nothing
+    interpolated, so a rerun compares exactly)."""
+    t = result["time"]
+    step = float(t[1] - t[0]) if len(t) > 1 else grid
+    every = max(1, round(grid / step))
+    rows = np.arange(0, len(t), every)
+    if rows[-1] != len(t) - 1:
+        rows = np.append(rows, len(t) - 1)
+    names = ["time", *[c for c in (columns or _fields(result)) if c != "time"]]
+    out = structured_copy(result[rows], names)
+    for n in names[1:]:  # the values a baseline file holds, so that a new one compares as written
+        out[n] = [float(f"{v:.{DIGITS}g}") for v in out[n].tolist()]
+    return out
+
+
+def structured_copy(data: np.ndarray, names: Sequence[str]) -> np.ndarray:
+    """A float64 structured array of ``data``'s fields ``names`` (a new array, not a view)."""
+    out = np.zeros(len(data), dtype=[(n, np.float64) for n in names])
+    for n in names:
+        out[n] = data[n]
+    return out
+
+
 def write_baseline(data: np.ndarray, path: str | os.PathLike) -> Path:
     """Write a baseline CSV readable by ``fmpy.util.read_csv``: exact time, values to 9 significant
     digits (a reviewable, stable text diff)."""
@@ -245,10 +258,26 @@ class SignalCheck:
         """True if every sample lies inside the tube."""
         return self.n_out == 0
 
+    @property
+    def severity(self) -> float:
+        """How far the worst sample lies beyond the tube, in half-widths of the tube there (0 inside;
+        infinite for a non-finite value or a tube of width 0): signals of any unit ranked alike."""
+        if not self.n_out or self.worst_time is None:
+            return 0.0
+        at = int(np.searchsorted(self.time, self.worst_time))
+        half = float(self.upper[at] - self.lower[at]) / 2
+        return self.worst_excess / half if half > 0 else math.inf
+
 
 @dataclass
 class Comparison:
-    """All signal checks plus the problems that fail a comparison without a tube."""
+    """All signal checks plus what fails a comparison without a tube.
+
+    ``missing`` lists the baseline's columns the result does not have: reported, and part of the
+    verdict only for those in ``required`` (the signals chosen, or every baseline column of a
+    scenario's regression). ``problems`` (a result that does not cover the baseline, non-finite
+    baseline values, nothing in common) always fail.
+    """
 
     result: str
     baseline: str
@@ -258,6 +287,7 @@ class Comparison:
     extra: list[str]
     problems: list[str]
     grid: str = ""  # where the signals were compared
+    required: list[str] = field(default_factory=list)
 
     @property
     def failed(self) -> list[SignalCheck]:
@@ -265,9 +295,14 @@ class Comparison:
         return [c for c in self.checks if not c.passed]
 
     @property
+    def lost(self) -> list[str]:
+        """Required signals the result does not have (each fails the comparison)."""
+        return [n for n in self.missing if n in self.required]
+
+    @property
     def passed(self) -> bool:
-        """No signal outside its tube, no missing column, no coverage problem."""
-        return not self.failed and not self.missing and not self.problems
+        """No signal outside its tube, no required signal missing, no coverage problem."""
+        return not self.failed and not self.lost and not self.problems
 
 
 def _tube(t: np.ndarray, y: np.ndarray, y_ref: np.ndarray, width: float,
@@ -317,15 +352,44 @@ def _check(name: str, t: np.ndarray, y: np.ndarray, y_ref: np.ndarray, tol: Tole
 
 
 def compare(result: np.ndarray, baseline: np.ndarray, tolerances: Tolerances | None = None,
-            result_name: str = "result", baseline_name: str = "baseline") -> Comparison:
-    """Compare every baseline column with the result's column of the same name on the baseline's
-    time grid (the result is interpolated linearly onto it)."""
+            result_name: str = "result", baseline_name: str = "baseline", *,
+            signals: Sequence[str] | None = None) -> Comparison:
+    """Compare baseline columns with the result's columns of the same name on the baseline's time
+    grid (the result is interpolated linearly onto it where it has no row there).
+
+    Parameters
+    ----------
+    result, baseline : numpy.ndarray
+        Structured arrays, ``time`` first (:func:`orchestrator.results.read_result`).
+    tolerances : Tolerances, optional
+        The tubes (default: 1 % of each signal's range).
+    result_name, baseline_name : str
+        How messages name the two.
+    signals : sequence of str, optional
+        The baseline columns the verdict rests on, each required of the result (a missing one
+        fails). Default: every column both have; baseline columns the result lacks are listed in
+        ``missing`` but do not fail.
+
+    Returns
+    -------
+    Comparison
+        One :class:`SignalCheck` per compared signal and what else was found.
+    """
     tolerances = tolerances or Tolerances()
-    names = [n for n in _fields(baseline) if n != "time"]
+    columns = [n for n in _fields(baseline) if n != "time"]
+    unknown = [n for n in signals or () if n not in columns]
+    if unknown:
+        raise RegressionError(f"{baseline_name}: no column {', '.join(unknown)} "
+                              f"(columns: {', '.join(columns)})")
+    names = list(signals) if signals is not None else columns
     have = set(_fields(result))
-    missing = [n for n in names if n not in have]
-    extra = [n for n in _fields(result) if n != "time" and n not in set(_fields(baseline))]
+    missing = [n for n in columns if n not in have]
+    extra = [n for n in _fields(result) if n != "time" and n not in set(columns)]
+    required = list(signals) if signals is not None else []
     problems = []
+    if not any(n in have for n in names):
+        problems.append(f"{result_name} has none of the {len(names)} signal(s) of {baseline_name}: "
+                        "nothing compared")
     t_ref, t_res = baseline["time"], result["time"]
     eps = 1e-9 * max(1.0, abs(float(t_ref[-1])))
     if t_res[0] > t_ref[0] + eps or t_res[-1] < t_ref[-1] - eps:
@@ -334,7 +398,8 @@ def compare(result: np.ndarray, baseline: np.ndarray, tolerances: Tolerances | N
     at_ref, at_res, grid = _points(t_ref, t_res, eps)
     if len(at_ref) < 2:
         problems.append(f"{result_name} and {baseline_name} have fewer than two times in common")
-        return Comparison(result_name, baseline_name, tolerances, [], missing, extra, problems)
+        return Comparison(result_name, baseline_name, tolerances, [], missing, extra, problems,
+                          required=required)
     t = t_ref[at_ref]
     checks = []
     for n in names:
@@ -345,7 +410,8 @@ def compare(result: np.ndarray, baseline: np.ndarray, tolerances: Tolerances | N
                 continue
             y = result[n][at_res] if at_res is not None else np.interp(t, t_res, result[n])
             checks.append(_check(n, t, y, y_ref, tolerances.of(n), tolerances.quiet_until))
-    return Comparison(result_name, baseline_name, tolerances, checks, missing, extra, problems, grid)
+    return Comparison(result_name, baseline_name, tolerances, checks, missing, extra, problems, grid,
+                      required)
 
 
 def _points(t_ref: np.ndarray, t_res: np.ndarray,
@@ -365,14 +431,30 @@ def _points(t_ref: np.ndarray, t_res: np.ndarray,
 
 
 def compare_files(result: str | os.PathLike, baseline: str | os.PathLike,
-                  tolerances: Tolerances | None = None) -> Comparison:
-    """``compare`` on two CSV files; tolerances default to ``tolerances.json`` beside the baseline."""
+                  tolerances: Tolerances | None = None, *,
+                  signals: Sequence[str] | None = None) -> Comparison:
+    """:func:`compare` on two result files; tolerances default to ``tolerances.json`` beside the
+    baseline (with the tubes of the scenario named as the baseline's file)."""
     baseline = Path(baseline)
     if tolerances is None:
-        beside = baseline.parent / TOLERANCES_NAME
-        tolerances = load_tolerances(beside) if beside.is_file() else Tolerances()
-        tolerances = tolerances.for_scenario(baseline.stem)
-    return compare(read_result(result), read_result(baseline), tolerances, str(result), str(baseline))
+        tolerances = tolerances_beside(baseline)
+    return compare(read_result(result), read_result(baseline), tolerances, str(result), str(baseline),
+                   signals=signals)
+
+
+def tolerances_beside(baseline: str | os.PathLike) -> Tolerances:
+    """The tubes of baseline ``DIR/NAME.csv``: ``DIR/tolerances.json`` with scenario NAME's own
+    tubes (built-in defaults, 1 % of each signal's range, where there is no such file)."""
+    baseline = Path(baseline)
+    beside = baseline.parent / TOLERANCES_NAME
+    tolerances = load_tolerances(beside) if beside.is_file() else Tolerances()
+    return tolerances.for_scenario(baseline.stem)
+
+
+def tube_text(check: SignalCheck) -> str:
+    """The tube of a check as the tables print it: ``0.001`` or ``0.001 (1e-06 quiet)``."""
+    quiet = "" if check.tolerance.quiet_atol is None else f" ({check.tolerance.quiet_atol:.3g} quiet)"
+    return f"{check.width:.3g}{quiet}"
 
 
 def format_comparison(comparison: Comparison) -> str:
@@ -383,77 +465,31 @@ def format_comparison(comparison: Comparison) -> str:
     if failed:
         lines += ["", "| signal | tube +- | first out (s) | worst at (s) | beyond tube | max abs deviation "
                   "| samples out |", "|---|---|---|---|---|---|---|"]
-        for s in failed:
-            quiet = "" if s.tolerance.quiet_atol is None else f" ({s.tolerance.quiet_atol:.3g} quiet)"
-            lines.append(f"| {s.name} | {s.width:.3g}{quiet} | {s.first_out:.3f} | {s.worst_time:.3f} | "
+        for s in sorted(failed, key=lambda s: -s.severity):
+            lines.append(f"| {s.name} | {tube_text(s)} | {s.first_out:.3f} | {s.worst_time:.3f} | "
                          f"{s.worst_excess:.3g} | {s.max_deviation:.3g} | {s.n_out} of {len(s.time)} |")
         lines.append("")
     for p in c.problems:
         lines.append(f"problem: {p}")
-    if c.missing:
-        lines.append(f"missing in {c.result}: {', '.join(c.missing)}")
+    if c.lost:
+        lines.append(f"missing in {c.result} (required): {', '.join(c.lost)}")
+    skipped = [n for n in c.missing if n not in c.required]
+    if skipped:
+        lines.append(f"missing in {c.result} (not compared): {', '.join(skipped)}")
     if c.extra:
         lines.append(f"not in the baseline (not compared): {', '.join(c.extra)}")
     verdict = "PASS" if c.passed else "REGRESSION"
     where = f" at {c.grid}" if c.grid else ""
     also = f"; {len(c.problems)} problem(s) above" if c.problems else ""
-    lines.append(f"{verdict}: {len(c.checks) - len(failed)} of {len(c.checks) + len(c.missing)} signals "
-                 f"inside their tubes{where}{also}")
+    lost = f", {len(c.lost)} required signal(s) missing" if c.lost else ""
+    lines.append(f"{verdict}: {len(c.checks) - len(failed)} of {len(c.checks)} signals inside their tubes"
+                 f"{lost}{where}{also}")
     return "\n".join(lines)
 
 
-def plot_failures(comparison: Comparison, folder: str | os.PathLike) -> list[Path]:
-    """One PNG per signal outside its tube: baseline, result and tube, then the deviation."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    written = []
-    for s in comparison.failed:
-        fig, (ax, ax_d) = plt.subplots(2, 1, sharex=True, figsize=(9, 5.5))
-        ax.fill_between(s.time, s.lower, s.upper, color="tab:green", alpha=0.25, label="tube")
-        ax.plot(s.time, s.reference, color="tab:green", linewidth=1, label="baseline")
-        ax.plot(s.time, s.value, color="tab:blue", linewidth=1, label="result")
-        out = (s.value < s.lower) | (s.value > s.upper) | ~np.isfinite(s.value)
-        ax.plot(s.time[out], s.value[out], "r.", markersize=3, label="outside")
-        ax.set_ylabel(s.name)
-        ax.legend(loc="upper right", fontsize="small")
-        ax.set_title(f"{s.name}: {s.n_out} samples outside, worst {s.worst_excess:.3g} beyond at "
-                     f"t = {s.worst_time:.3f} s")
-        ax_d.fill_between(s.time, s.lower - s.reference, s.upper - s.reference, color="tab:green", alpha=0.25)
-        ax_d.plot(s.time, s.value - s.reference, color="tab:blue", linewidth=1)
-        ax_d.set_ylabel("result - baseline")
-        ax_d.set_xlabel("time (s)")
-        for a in (ax, ax_d):
-            a.grid(True, alpha=0.3)
-        fig.tight_layout()
-        path = folder / f"{s.name}.png"
-        fig.savefig(path, dpi=100)
-        plt.close(fig)
-        written.append(path)
-    return written
-
-
 # -- scenarios and baselines ------------------------------------------------------------------------
-def output_columns(scenario: str | os.PathLike) -> list[str]:
-    """Result columns of every component output (inputs are copies of outputs and are left out)."""
-    with open_system(scenario) as system:
+def output_columns(scenario: str | os.PathLike, fmu_dirs: Sequence[str | os.PathLike] = ()) -> list[str]:
+    """Result columns of every component output (inputs are copies of outputs and are left out);
+    ``fmu_dirs`` as for :func:`orchestrator.open_system`."""
+    with open_system(scenario, fmu_dirs=fmu_dirs) as system:
         return [f"{c.name}.{o}" for c in system.components.values() for o in c.outputs]
-
-
-def write_baselines(names: Iterable[str] | None = None, dest: str | os.PathLike = BASELINE_DIR,
-                    sources: str | os.PathLike = SCENARIO_DIR, grid: float = BASELINE_GRID) -> list[Path]:
-    """Run each scenario over its full DefaultExperiment and write ``dest/<name>.csv`` (outputs on
-    ``grid``). Each file is replaced only once its run has succeeded."""
-    names = list(names) if names else all_scenarios(sources)
-    written = []
-    with tempfile.TemporaryDirectory(prefix="baselines-") as work:
-        archives = build_scenarios(names, work, sources, fmi3=False)  # twins: FMI 2.0 baselines
-        for name, archive in archives.items():
-            result = run(archive).rows
-            written.append(write_baseline(resample(result, grid, output_columns(archive)),
-                                          Path(dest) / f"{name}.csv"))
-    return written
