@@ -4,17 +4,18 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 ORCH   := $(VENV)/bin/orchestrate
 STAMP  := $(VENV)/.installed
-# A second Python version for the FMUs' test in a Python host other than the build's (fmpy only).
+# A second Python version for the FMUs' test in a Python host other than the build's (fmpy), and for
+# the build with another builder Python (pythonfmu), which must give the same bytes.
 ALT_PYTHON ?= $(firstword $(wildcard /usr/bin/python3.12 /usr/local/bin/python3.12 $(HOME)/.pyenv/versions/3.12*/bin/python3.12))
 ALT_VENV   := .venv-alt
-ALT_STAMP  := $(ALT_VENV)/.installed
+ALT_STAMP  := $(ALT_VENV)/.installed-fmpy-pythonfmu
 BUILT  := build/.built
 BYTECODE := build/.bytecode
 # what 'orchestrate build' makes the FMUs and scenarios from: a build newer than all of them is reused
 SOURCES := $(shell find controller fmu_src ssp -type f -not -path '*/__pycache__/*' -not -name '*.pyc' \
                      -not -name '.*' 2>/dev/null)
 
-.PHONY: run test unit build lint docs docs-figure browser crosscheck conformance table study study-fixed-time report baselines bench clean
+.PHONY: run test unit build lint docs docs-figure browser runtime-pins hostile crosscheck conformance table study study-fixed-time report baselines bench clean
 
 # pip's console script 'orchestrate' is then replaced by orchestrator/launcher.c, which holds SIGINT and
 # SIGTERM from its first instruction until the package's handlers are in (issue 20). Compiled to a
@@ -41,7 +42,8 @@ $(STAMP): pyproject.toml constraints.txt $(LAUNCHER)
 $(ALT_STAMP): constraints.txt
 	@if [ -n "$(ALT_PYTHON)" ]; then \
 	  $(ALT_PYTHON) -m venv $(ALT_VENV) && \
-	  $(ALT_VENV)/bin/python -m pip install --quiet fmpy==0.3.32 -c constraints.txt && touch $(ALT_STAMP); \
+	  $(ALT_VENV)/bin/python -m pip install --quiet fmpy==0.3.32 pythonfmu==0.7.0 -c constraints.txt && \
+	  touch $(ALT_STAMP); \
 	else echo "no python3.12 found: the second-Python test will skip"; fi
 
 ## build: the five FMUs (each with its own Python runtime, fetched once into build/runtime/) into
@@ -72,6 +74,7 @@ run: build
 ## conformance matrix of every scenario in every installed SSP tool to results/crosscheck/, and the
 ## sample project's regression (terminal, JUnit XML, report screenshots) to results/regress-sample/.
 test: build $(ALT_STAMP) browser
+	@$(PY) -m fmu_src.runtime check || true
 	CROSSCHECK_OUTPUT=results/crosscheck REGRESS_SAMPLE_OUTPUT=results/regress-sample $(PY) -m pytest -q -n 2 --dist loadgroup
 
 # The HTML regression report's test opens it in a real browser: Debian's chromium, installed here
@@ -87,6 +90,16 @@ browser:
 	      chromium fonts-liberation; } > build/chromium-install.log 2>&1 || { touch $(NO_BROWSER); \
 	    echo "note: chromium could not be installed (build/chromium-install.log): the browser test will skip"; }; \
 	else echo "note: no chromium and no apt-get as root: the HTML report's browser test will skip"; fi
+
+## hostile: the hostile host (tests/fmu_hostile_host.c) on every case: all scenarios under valgrind,
+## FMI 3.0 containers, every leak figure (make test runs one real case of each kind)
+hostile: build
+	FTC_HOSTILE_ALL=1 $(PY) -m pytest -q -n 2 tests/test_fmu_hostile.py
+
+## runtime-pins: move the FMUs' runtime (fmu_src/runtime_pins.txt) to the newest bookworm and
+## bookworm-security packages, saying what changed; then 'make build' fetches them
+runtime-pins: $(STAMP)
+	$(PY) -m fmu_src.runtime update
 
 ## crosscheck: every built scenario in every installed SSP tool -> results/crosscheck/matrix.md
 crosscheck: build

@@ -1,4 +1,4 @@
-"""Build the project's five FMUs with pythonfmu, reproducibly and safe to load side by side.
+"""Build the project's FMUs with pythonfmu, reproducibly and safe to load side by side.
 
 All pythonfmu FMUs in one process share one interpreter and one module cache, and each FMU's
 ``resources`` folder goes to ``sys.path[0]``. So two FMUs that bundle modules of the same name
@@ -21,7 +21,8 @@ Python installed, which an FMU that says ``needsExecutionTool="false"`` must not
 The archive is normalized afterwards: GUID derived from a digest of every bundled byte, no
 generation date, sorted entries with fixed timestamps, licences under ``documentation/licenses``.
 Nothing of the build machine (no path) goes in. Rebuilding the same sources with the same
-compiler and runtime packages gives identical bytes.
+compiler and runtime packages gives identical bytes, whichever Python (3.10 to 3.13) runs the
+build: the bytecode is compiled by the bundled runtime itself (``fmu_src/shim/bundled_python.c``).
 
 Usage: ``python -m fmu_src.build DEST [--model NAME]... [--fmi3 DEST3]`` (FMI 3.0 variants: ``fmu_src.fmi3``)
 """
@@ -32,7 +33,6 @@ import argparse
 import ast
 import hashlib
 import importlib.metadata
-import json
 import os
 import re
 import shutil
@@ -51,7 +51,8 @@ import pythonfmu
 from pythonfmu import FmuBuilder
 
 from .controller_doc import controller_documentation
-from .runtime import PYTHON_VERSION, Runtime, RuntimeBundleError, ensure_runtime, runtime_members
+from .licences import documentation, generation_tool
+from .runtime import Runtime, RuntimeBundleError, compile_bytecode, ensure_runtime, runtime_members
 
 __all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "c_compiler", "compile_extension", "main"]
 
@@ -71,10 +72,10 @@ FMU_SCRIPTS = {
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
-BUILD_FORMAT = "5"
+BUILD_FORMAT = "6"
 SHIM_DIR = Path("fmu_src", "shim")  # relative to the source root
-SHIM_SOURCES = ("fmi2_shim.c", "start_python.c")
-SHIM_HEADERS = ("start_python.h", "fmi2_types.h")
+SHIM_SOURCES = ("fmi2_shim.c", "start_python.c", "guard.c", "platform.c")
+SHIM_HEADERS = ("start_python.h", "fmi2_types.h", "guard.h", "platform.h")
 # No debug info, build id or symbol table, so the bytes depend only on source, compiler and flags;
 # the runtime's libraries are found by soname through $ORIGIN/python/lib (see the shim's header).
 SHIM_FLAGS = tuple(
@@ -82,6 +83,10 @@ SHIM_FLAGS = tuple(
     "-Wl,--build-id=none -s -Wl,--enable-new-dtags".split()
 ) + ("-Wl,-rpath,$ORIGIN/python/lib",)
 SHIM_LIBS = ("-ldl", "-pthread")
+DESCRIPTION_COPY = "_modelDescription.xml"  # guard.h's DESCRIPTION_SUFFIX
+# The bundled runtime as a command (for the build's bytecode and standard-library closure).
+LAUNCHER_SOURCE = "bundled_python.c"
+LAUNCHER_FLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra")
 # C extension modules bundled with the FMUs that import them (dotted name -> C source, relative to
 # the source root): built against the runtime's headers for the stable ABI, so that one binary
 # loads in the FMU's runtime and in a host's Python alike. -ffp-contract=off: no fused
@@ -273,9 +278,32 @@ def _ensure_runtime() -> Runtime:
         raise BuildError(str(error)) from error
 
 
+def bundled_python(runtime: Runtime, root: Path = REPO_ROOT) -> Path:
+    """The bundled runtime as a command (``fmu_src/shim/bundled_python.c``, compiled once into
+    the runtime's cache): the interpreter that compiles every FMU's bytecode, so that the bytes do
+    not depend on the Python running the build."""
+    source = root / SHIM_DIR / LAUNCHER_SOURCE
+    if not source.is_file():
+        raise BuildError(f"launcher source not found: {source}")
+    digest = hashlib.sha256(source.read_bytes() + repr(LAUNCHER_FLAGS).encode()).hexdigest()[:16]
+    target = runtime.root.parent / "bin" / f"bundled_python-{digest}"
+    if target.is_file():
+        return target
+    target.parent.mkdir(parents=True, exist_ok=True)
+    compiler, _ = c_compiler()
+    partial = target.with_name(target.name + f".{os.getpid()}")
+    command = [compiler, *LAUNCHER_FLAGS, "-o", str(partial), str(source), "-ldl"]
+    result = subprocess.run(command, capture_output=True, text=True)
+    if result.returncode != 0:
+        raise BuildError(f"{source}: {compiler} failed:\n{result.stderr.strip()}")
+    partial.replace(target)
+    return target
+
+
 def _runtime(bundle: Bundle) -> dict[str, bytes]:
     """The runtime members for ``bundle`` (standard-library closure of its script and modules)."""
     runtime = _ensure_runtime()
+    launcher = bundled_python(runtime)
     if bundle.third_party:
         raise BuildError(
             f"{bundle.model} imports {', '.join(sorted(bundle.third_party))}: an FMU carries no third-party "
@@ -284,7 +312,8 @@ def _runtime(bundle: Bundle) -> dict[str, bytes]:
     with tempfile.TemporaryDirectory(prefix="ftc_closure_") as tmp:
         shutil.copytree(Path(pythonfmu.__file__).parent, Path(tmp) / "pythonfmu")
         try:
-            return runtime_members(runtime, [bundle.script], [bundle.script.parent.parent, Path(tmp)])
+            path = [bundle.script.parent.parent, Path(tmp)]
+            return runtime_members(runtime, launcher, [bundle.script], path)
         except RuntimeBundleError as error:
             raise BuildError(f"{bundle.model}: {error}") from error
 
@@ -363,6 +392,8 @@ def _normalized_description(xml: bytes, digest: str, model: str) -> bytes:
     root = ElementTree.fromstring(xml)
     root.set("guid", "{" + str(uuid.uuid5(GUID_NAMESPACE, f"{model}:{digest}")) + "}")
     root.attrib.pop("generationDateAndTime", None)
+    root.set("generationTool", generation_tool("PythonFMU 0.7.0, the shim and its own CPython"))
+    root.set("license", "BSD-2-Clause; bundled third-party licences: documentation/licenses/license.txt")
     cosimulation = root.find("CoSimulation")
     if cosimulation is None:
         raise BuildError(f"pythonfmu's model description of {model} has no CoSimulation element")
@@ -388,6 +419,7 @@ def _write_normalized(
         raise BuildError(f"pythonfmu's archive for {bundle.model} has no {binary}")
     entries[f"binaries/linux64/{bundle.model}_pythonfmu.so"] = entries[binary]
     entries.update(native)
+    entries.update(documentation(entries))
     entries["modelDescription.xml"] = _normalized_description(
         entries["modelDescription.xml"], digest, bundle.model
     )
@@ -395,50 +427,24 @@ def _write_normalized(
         entries.update(controller_documentation(bundle.model, entries["modelDescription.xml"]))
     except ValueError as error:
         raise BuildError(str(error)) from error
+    # the shim's guard reads it beside the binary: hosts may unpack only binaries/ and resources/
+    entries[f"binaries/linux64/{bundle.model}{DESCRIPTION_COPY}"] = entries["modelDescription.xml"]
     entries.update(_bytecode(entries))
     write_archive(target, entries)
 
 
-# Compiles in a fresh interpreter (no site, hash seed 0), as the runtime's standard-library zip
-# is, so that the same sources give the same bytes in any build.
-PYC_WRITER = """
-import json, py_compile, sys
-for source, cfile, dfile in json.loads(sys.stdin.read()):
-    py_compile.compile(source, cfile=cfile, dfile=dfile, doraise=True,
-                       invalidation_mode=py_compile.PycInvalidationMode.UNCHECKED_HASH)
-"""
-
-
-def compiles_bytecode() -> bool:
-    """Whether this build adds ``.pyc`` files: only a Python of the runtime's version writes ones
-    the runtime (and a host of that version) can read."""
-    return sys.version_info[:2] == PYTHON_VERSION and sys.implementation.name == "cpython"
-
-
 def _bytecode(entries: dict[str, bytes]) -> dict[str, bytes]:
     """``__pycache__`` members for every Python source under ``resources/``: unchecked-hash
-    ``.pyc`` files (PEP 552), read whatever the unpacked files' times. Without them a Python FMU's
-    sources are compiled on every instantiation wherever bytecode is not written (the runtime
-    never writes it; nor does a host with PYTHONDONTWRITEBYTECODE): 36 modules, about 0.04 s per
-    run for example1's four FMUs."""
-    if not compiles_bytecode():
-        return {}
-    sources = sorted(n for n in entries if n.startswith("resources/") and n.endswith(".py"))
-    tag = sys.implementation.cache_tag
-    with tempfile.TemporaryDirectory() as tmp:
-        jobs, members = [], []
-        for i, name in enumerate(sources):
-            source = Path(tmp, f"{i}.py")
-            source.write_bytes(entries[name])
-            folder, file = name.rsplit("/", 1)
-            members.append(f"{folder}/__pycache__/{file[:-3]}.{tag}.pyc")
-            jobs.append((str(source), str(Path(tmp, f"{i}.pyc")), name.removeprefix("resources/")))
-        env = {"PYTHONHASHSEED": "0", "PATH": os.environ.get("PATH", "/usr/bin:/bin")}
-        result = subprocess.run([sys.executable, "-S", "-c", PYC_WRITER], input=json.dumps(jobs), env=env,
-                                capture_output=True, text=True)
-        if result.returncode != 0:
-            raise BuildError(f"cannot compile the FMU's Python sources: {result.stderr.strip()}")
-        return {member: Path(cfile).read_bytes() for member, (_, cfile, _) in zip(members, jobs, strict=True)}
+    ``.pyc`` files (PEP 552) of the bundled runtime's version, compiled by that runtime, read
+    whatever the unpacked files' times. Without them a Python FMU's sources are compiled on every
+    instantiation wherever bytecode is not written (the runtime never writes it; nor does a host
+    with PYTHONDONTWRITEBYTECODE): 36 modules, about 0.04 s per run for example1's four FMUs."""
+    sources = {n: entries[n] for n in entries if n.startswith("resources/") and n.endswith(".py")}
+    runtime = _ensure_runtime()
+    try:
+        return compile_bytecode(runtime, bundled_python(runtime), sources)
+    except RuntimeBundleError as error:
+        raise BuildError(f"cannot compile the FMU's Python sources: {error}") from error
 
 
 def write_archive(target: Path, entries: dict[str, bytes]) -> None:
@@ -467,7 +473,6 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT) -> Path:
             native_digest.update(name.encode() + b"\0" + hashlib.sha256(native[name]).digest())
         for name in sorted(extensions):
             native_digest.update(name.encode() + b"\0" + hashlib.sha256(extensions[name]).digest())
-        native_digest.update(b"pyc" if compiles_bytecode() else b"py")  # _bytecode's members
         digest = bundle.digest(native_digest.hexdigest())
         script, package_dir = _stage(bundle, digest, Path(tmp) / "stage")
         for name, binary in extensions.items():  # beside its importer: pythonfmu imports the script

@@ -55,6 +55,11 @@ ORDERS = tuple(range(1, MAX_ORDER + 1))  # plant orders with a controller FMU
 # Example 1's gains (SPEC section 3): name -> default for every step (a: a1 = 5, a_i = 2 from step 2
 # on; SPEC 11: steps beyond 2 repeat step 2's values, the paper gives gains for n = 2 only).
 GAINS = {"k": 10.0, "q": 8.0, "kappa": 2.0, "rho": 2.0, "rho_bar": 1.0}
+# The law's open bounds (beta < 1, alpha > 1, q > 0 ...) as the closed min/max FMI declares: the
+# nearest doubles inside, so an importer's range check refuses what the law refuses (beta = 1.0
+# passed validate and failed in the FMU at t = 0, issue 36).
+ABOVE_ZERO = math.nextafter(0.0, 1.0)
+POSITIVE_GAINS = ("q", "a", "kappa", "rho", "rho_bar")  # k may be 0: the finite-time law (mode 1)
 GAIN_DESCRIPTIONS = {
     "k": "Fast (fixed-time) gain k_{i} of step {i}",
     "q": "Gain q_{i} of the sig(z)^(2 beta - 1) term of step {i}",
@@ -151,15 +156,16 @@ def _defaults(slave: Fmi2Slave, n: int) -> None:
     slave.sample_time = 1e-3
     slave.b_max = 1.0
     slave._order = n
-    slave._check_step = False  # semi-implicit and the step != sample_time warning not logged yet
+    slave._step_unchecked = False  # semi-implicit, and no step-size warning logged yet
     for name in output_names(n):  # written by refresh_controller_outputs
         setattr(slave, name, 0.0)
     slave._law = None  # built at exit_initialization_mode
     slave._state = ()  # (r, eta_hat_1..eta_hat_n)
     slave._stage = None  # the law behind the outputs (current unless stale)
     slave._inputs = itemgetter(*inputs)
-    # the outputs in the order refresh_outputs computes them: the law's v, z_i, zeta_i, then the state's
-    slave._outputs = (*output_names(n)[: 2 * n], "r", *(f"eta{i}_hat" for i in range(1, n + 1)))
+    # the outputs in the order refresh_outputs has them: the state's r, eta_hat_i, then the law's v, z_i,
+    # zeta_i (the first 2n values of its result)
+    slave._outputs = ("r", *(f"eta{i}_hat" for i in range(1, n + 1)), *output_names(n)[: 2 * n])
 
 
 def _declare_inputs_and_outputs(slave: Fmi2Slave, n: int) -> None:
@@ -186,14 +192,16 @@ def _declare_parameters(slave: Fmi2Slave, n: int) -> None:
     steps = range(1, n + 1)
     for name in GAIN_DESCRIPTIONS:
         for i in steps:
-            declare(slave, f"{name}{i}", PARAMETER, GAIN_DESCRIPTIONS[name].format(i=i), minimum=0.0)
+            declare(slave, f"{name}{i}", PARAMETER, GAIN_DESCRIPTIONS[name].format(i=i),
+                    minimum=ABOVE_ZERO if name in POSITIVE_GAINS else 0.0)
     declare(slave, "alpha", PARAMETER, "Exponent alpha > 1 of the fast term sig(z)^(2 alpha - 1)",
-            minimum=1.0)
-    declare(slave, "beta", PARAMETER, "Exponent 0.5 < beta < 1 of the term sig(z)^(2 beta - 1)", minimum=0.5,
-            maximum=1.0)
+            minimum=math.nextafter(1.0, 2.0))
+    declare(slave, "beta", PARAMETER, "Exponent 0.5 < beta < 1 of the term sig(z)^(2 beta - 1)",
+            minimum=math.nextafter(0.5, 1.0), maximum=math.nextafter(1.0, 0.0))
     declare(slave, "mode", PARAMETER, "Control law: 0 = fixed-time, 1 = finite-time (k = 0)", integer=True,
             minimum=0, maximum=1)
-    declare(slave, "a_bar", PARAMETER, "Decay rate a_bar of the dynamic signal r", unit="1/s", minimum=0.0)
+    declare(slave, "a_bar", PARAMETER, "Decay rate a_bar of the dynamic signal r", unit="1/s",
+            minimum=ABOVE_ZERO)
     declare(slave, "gamma_gain", PARAMETER, "Gain of x1^gamma_power in r' (unmodeled dynamics bound)",
             minimum=0.0)
     declare(slave, "gamma_power", PARAMETER, "Power of x1 in r'", minimum=0.0)
@@ -203,7 +211,7 @@ def _declare_parameters(slave: Fmi2Slave, n: int) -> None:
         declare(slave, f"eta{i}_0", PARAMETER, f"Initial value of eta_hat_{i}", minimum=0.0)
     for j in range(1, len(DEFAULT_CENTERS) + 1):
         declare(slave, f"mu{j}", PARAMETER, f"Center of RBF neuron {j} (mu_{j} * ones)")
-    declare(slave, "tau", PARAMETER, "Width tau of the Gaussian RBF neurons", minimum=0.0)
+    declare(slave, "tau", PARAMETER, "Width tau of the Gaussian RBF neurons", minimum=ABOVE_ZERO)
     declare(slave, "substeps", PARAMETER, "RK4 sub-steps per communication step for r and eta_hat",
             integer=True, minimum=1)
     # Added last (issue 11), so the value references above stay where they were.
@@ -264,8 +272,7 @@ def refresh_controller_outputs(slave: Fmi2Slave) -> None:
         state = _initial_state(params)
         law = law_for(params, slave.substeps)
     d["_stage"] = stage = law.evaluate(state, d["_inputs"](d))
-    n = d["_order"]
-    d.update(zip(d["_outputs"], (*stage[: 2 * n], *state), strict=True))  # v, z_i, zeta_i; r, eta_hat_i
+    d.update(zip(d["_outputs"], state + stage, strict=False))  # r, eta_hat_i; v, z_i, zeta_i (then unused)
 
 
 def start_controller(slave: Fmi2Slave) -> None:
@@ -275,7 +282,7 @@ def start_controller(slave: Fmi2Slave) -> None:
     d["_law"] = law_for(params, slave.substeps)
     d["_state"] = _initial_state(params)
     d["_params"] = params
-    d["_check_step"] = bool(params.discretization)
+    d["_step_unchecked"] = bool(params.discretization)
     mark_stale(slave)
 
 
@@ -288,7 +295,7 @@ def step_controller(slave: Fmi2Slave, current_time: float, step_size: float) -> 
     d = slave.__dict__
     law = d["_law"]
     assert law is not None, "doStep before exitInitializationMode"
-    if d["_check_step"]:
+    if d["_step_unchecked"] and step_size != d["_params"].sample_time:  # equal: nothing to check
         _check_step(slave, current_time, step_size)
     # The law behind the outputs is the first RK4 stage, unless something changed since.
     inputs = d["_inputs"](d)
@@ -310,7 +317,7 @@ def _check_step(slave: Fmi2Slave, current_time: float, step_size: float) -> None
     """Warn once when the communication step differs from the semi-implicit law's sample time."""
     params = slave._params
     if not math.isclose(step_size, params.sample_time, rel_tol=1e-9):
-        slave._check_step = False  # logged once
+        slave._step_unchecked = False  # logged once
         report(slave, f"communication step {step_size!r} s at t = {current_time!r} differs from "
                f"sample_time = {params.sample_time!r} s that the semi-implicit law assumes "
                "(logged once)", Fmi2Status.warning)

@@ -33,6 +33,7 @@ from pathlib import Path
 from xml.etree import ElementTree
 
 from .build import (
+    DESCRIPTION_COPY,
     GUID_NAMESPACE,
     REPO_ROOT,
     SHIM_SOURCES,
@@ -41,6 +42,7 @@ from .build import (
     compile_shim,
     write_archive,
 )
+from .licences import generation_tool
 
 __all__ = ["FMI3_PLATFORM", "FMI3_SHIM_SOURCES", "build_fmu3", "fmi3_model_description"]
 
@@ -98,6 +100,7 @@ def fmi3_model_description(xml: bytes, token: str) -> tuple[bytes, int]:
                  "variableNamingConvention"):
         if old.get(name) is not None:
             root.set(name, old.get(name, ""))
+    root.set("generationTool", generation_tool("FMI 3.0 layer on PythonFMU 0.7.0, the shim, its own CPython"))
     root.set("instantiationToken", token)
     cs = ElementTree.SubElement(root, "CoSimulation")
     for name2, name3 in COSIMULATION.items():
@@ -202,6 +205,7 @@ def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT) -> Path:
     digest = hashlib.sha256(old.get("guid", "").encode() + b"\0" + hashlib.sha256(shim).digest()).hexdigest()
     token = "{" + str(uuid.uuid5(GUID_NAMESPACE, f"{model}:fmi3:{digest}")) + "}"
     moved["modelDescription.xml"] = fmi3_model_description(xml, token)[0]
+    moved[f"{FMI3_PLATFORM}{model}{DESCRIPTION_COPY}"] = moved["modelDescription.xml"]  # not the FMI 2.0 one
     dest = Path(dest)
     dest.mkdir(parents=True, exist_ok=True)
     target = dest / fmu2.name

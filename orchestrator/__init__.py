@@ -1,6 +1,10 @@
 """fmpy-based SSP co-simulation orchestrator: ``orchestrator.run(scenario, RunOptions(...))`` or
 ``orchestrate`` (also ``python -m orchestrator``).
 
+A scenario is named as on the command line: a ``.ssp`` archive, a folder holding
+``SystemStructure.ssd``, or the name of a built scenario (``run("pendulum")`` runs
+``build/ssp/pendulum.ssp``).
+
 Data flows top to bottom through the modules: ssp (read the archive) -> system (validated
 components, connections, propagation order) -> master (FMI stepping) -> results (CSV + array);
 validate runs ssp and system as far as they go and reports everything (``orchestrate validate``).
@@ -32,8 +36,11 @@ from .errors import (
     SimulationError,
     TimeLimitError,
     UsageError,
+    option,
 )
 from .inputs import InputSeries, read_inputs
+from .locate import fmu_dirs as _fmu_dirs
+from .locate import resolve_scenario
 from .master import MASTERS, Master, tracing
 from .result import RunOptions, RunResult
 from .ssp import DEFAULT_LIMITS, Limits
@@ -43,7 +50,25 @@ from .validate import DEFAULT_STEP, check_scenario, no_step, timing
 __all__ = ["DEFAULT_STEP", "MASTERS", "Interrupted", "Limits", "LoopError", "NonFiniteError",
            "OrchestratorError",
            "PortRef", "RunOptions", "RunResult", "ScenarioError", "ScenarioWarning", "SimulationError",
-           "TimeLimitError", "UsageError", "open_system", "run", "system_columns"]
+           "TimeLimitError", "UsageError", "open_system", "resolve_scenario", "run", "system_columns"]
+
+# The engine's modules a user may reach for (dir() lists them with __all__, not the imports above).
+MODULES = ("errors", "formats", "inputs", "inspection", "plots", "provenance", "result", "results", "ssp",
+           "system", "units", "validate")
+
+
+def __dir__() -> list[str]:
+    """The public names only (``dir(orchestrator)``, tab completion): no ``np``, ``os``, ``Path``."""
+    return sorted({*__all__, *MODULES})
+
+
+def __getattr__(name: str) -> object:
+    """The engine's modules on first use (``orchestrator.plots`` imports matplotlib only then)."""
+    if name in MODULES:
+        import importlib
+
+        return importlib.import_module(f".{name}", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 @contextmanager
@@ -56,15 +81,16 @@ def open_system(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | o
 
     Parameters
     ----------
-    scenario : path
-        ``.ssp`` archive or folder holding ``SystemStructure.ssd``.
+    scenario : path or str
+        ``.ssp`` archive, folder holding ``SystemStructure.ssd``, or a built scenario's name
+        (:func:`~orchestrator.locate.resolve_scenario`).
     parameter_sets : iterable of path
         ``.ssv`` files naming parameters ``<component>.<variable>``, after the SSD's own.
     overrides : mapping, optional
         ``{"component.variable": value}``, applied last.
     fmu_dirs : iterable of path
-        Where FMUs missing from the scenario are looked up by file name (a source folder with
-        the built FMUs).
+        Where FMUs missing from the scenario are looked up by file name (default for a source
+        folder ``PROJECT/ssp/NAME``: ``PROJECT/build/fmus``, as ``orchestrate run`` does).
     limits : Limits
         What an archive and its FMUs may unpack to (:class:`~orchestrator.ssp.Limits`).
     root : path, optional
@@ -84,6 +110,8 @@ def open_system(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | o
         Every problem found (the checks of :func:`orchestrator.validate.validate`, without its
         warnings).
     """
+    scenario = resolve_scenario(scenario)
+    fmu_dirs = list(fmu_dirs) or _fmu_dirs(scenario)
     with ExitStack() as stack:
         system, errors, _ = check_scenario(scenario, stack, parameter_sets=parameter_sets,
                                            overrides=overrides, fmu_dirs=fmu_dirs, limits=limits, root=root,
@@ -99,8 +127,9 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
 
     Parameters
     ----------
-    scenario : path
-        A ``.ssp`` archive or a folder holding ``SystemStructure.ssd``.
+    scenario : path or str
+        A ``.ssp`` archive, a folder holding ``SystemStructure.ssd``, or the name of a built
+        scenario (``"pendulum"``: ``build/ssp/pendulum.ssp``), as ``orchestrate run`` takes it.
     options : RunOptions, optional
         Timing, parameters, master, output file, limits (:class:`RunOptions`; default: the
         scenario's own experiment, no output file).
@@ -125,13 +154,22 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
         ``timeout``); Interrupted on SIGINT/SIGTERM. Each carries the :class:`RunResult` of the rows
         kept in ``result``; the output file and its provenance hold them too.
 
+    Examples
+    --------
+    >>> import orchestrator
+    >>> result = orchestrator.run("pendulum", orchestrator.RunOptions(stop_time=2.0))  # doctest: +SKIP
+    >>> result.to_pandas()["plant.y"].max()  # doctest: +SKIP
+
     Notes
     -----
-    An input that no connection feeds and no value was given for is a ScenarioWarning
+    Inputs that no connection feeds and no value was given for are one ScenarioWarning
     (``strict``: a ScenarioError). The output format is chosen by the extension of ``output``;
     ``output_variables``, ``output_interval`` and ``no_inputs`` select what the file holds.
     """
     options = options if options is not None else RunOptions()
+    if not isinstance(options, RunOptions):
+        raise UsageError(f"options must be a RunOptions (got {type(options).__name__})")
+    scenario = resolve_scenario(scenario)
     selection = formats.Selection(tuple(options.output_variables), options.output_interval)
     output = options.output
     if output is not None:
@@ -148,12 +186,12 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
                                     "sha256": provenance.digest(options.input_file),
                                     "inputs": [str(p) for p in series.ports]}
         stream = None
+        if options.no_inputs:
+            selection = replace(selection, drop=tuple(str(end) for end, link in system.links.items()
+                                                      if not link.transformed))
+        selection.columns(["time", *system_columns(system)])  # a pattern matching nothing: now, file or not
         if output is not None:  # the master streams a CSV; other formats and selections come from it
             formats.check_output(output, h, selection)
-            if options.no_inputs:
-                selection = replace(selection, drop=tuple(str(end) for end, link in system.links.items()
-                                                          if not link.transformed))
-            selection.columns(["time", *system_columns(system)])  # a pattern matching nothing: now
             stream = formats.staging_path(output, selection)
             record["output"] = {"format": Path(output).suffix.lower(), "variables": list(selection.variables),
                                 "interval": selection.interval, "left_out": list(selection.drop)}
@@ -171,11 +209,11 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
             status = ("timeout" if isinstance(exc, TimeLimitError) else
                       "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed")
             result = _finish(runner, record, status, str(exc) or type(exc).__name__, output, stream,
-                             selection, texts)
+                             selection, texts, h)
             if isinstance(exc, (SimulationError, Interrupted)):
                 exc.result = result
             raise
-        return _finish(runner, record, "complete", "", output, stream, selection, texts)
+        return _finish(runner, record, "complete", "", output, stream, selection, texts, h)
 
 
 def _before_the_run(system: System, options: RunOptions, start: float, stop: float) -> InputSeries | None:
@@ -184,23 +222,54 @@ def _before_the_run(system: System, options: RunOptions, start: float, stop: flo
     at their start value and a step the SSD does not give. Returns the input series."""
     unmatched = [p for p in options.fmi_log if not fnmatch.filter(system.components, p)]
     if unmatched:
-        raise UsageError(f"--fmi-log: no component matches {', '.join(unmatched)} "
+        raise UsageError(f"{option('fmi_log')}: no component matches {', '.join(unmatched)} "
                          f"(components: {', '.join(system.components)})")
     series, noted = (None, []) if options.input_file is None else read_inputs(options.input_file, system,
                                                                              start, stop)
     driven = set(series.ports) if series is not None else set()
-    unconnected = [m for m, port in zip(system.unconnected, system.unconnected_ports, strict=True)
+    unconnected = [(m, port) for m, port in zip(system.unconnected, system.unconnected_ports, strict=True)
                    if port not in driven]
     defaulted = [no_step(system.structure)] if options.step is None and no_step(system.structure) else []
     if options.strict and (unconnected or defaulted):
-        raise ScenarioError([*unconnected, *defaulted])
-    for message in [*unconnected, *defaulted, *noted]:
+        raise ScenarioError([*(m for m, _ in unconnected), *defaulted])
+    for message in [*_unconnected_warning(system, unconnected), *defaulted, *noted]:
         warnings.warn(message, ScenarioWarning, stacklevel=3)
     return series
 
 
+SHOWN_INPUTS = 40  # inputs named in the one warning about unconnected inputs
+
+
+def _unconnected_warning(system: System, unconnected: list[tuple[str, PortRef]]) -> list[str]:
+    """The inputs left at their start values as one warning (a third-party FMU may have many: a
+    line each, on every run, buried everything else); a single one keeps its own sentence."""
+    if len(unconnected) < 2:
+        return [m for m, _ in unconnected]
+    by_component: dict[str, list[str]] = {}
+    for _, port in unconnected[:SHOWN_INPUTS]:
+        start = system.components[port.component].variables[port.connector].start
+        by_component.setdefault(port.component, []).append(f"{port.connector} ({start})")
+    shown = "; ".join(f"{c}: {', '.join(names)}" for c, names in by_component.items())
+    more = f" and {len(unconnected) - SHOWN_INPUTS} more" if len(unconnected) > SHOWN_INPUTS else ""
+    return [f"{system.ssd}: {len(unconnected)} inputs are not connected and keep the FMU's start value "
+            f"(in brackets) for the whole run: {shown}{more} (give values with {option('overrides')} or "
+            f"{option('input_file')}; 'orchestrate validate' lists each)"]
+
+
 def system_columns(system: System) -> list[str]:
-    """Every connector of ``system`` as a result column names it (``component.connector``)."""
+    """Every connector of a system as a result column names it.
+
+    Parameters
+    ----------
+    system : System
+        A validated system (:func:`open_system`).
+
+    Returns
+    -------
+    list of str
+        ``component.connector`` for each input and output, in the order of the result's columns
+        (after ``time``).
+    """
     return [str(PortRef(name, c)) for name, comp in system.components.items()
             for c in (*comp.inputs, *comp.outputs)]
 
@@ -221,9 +290,10 @@ def descriptions(system: System) -> dict[str, str]:
 
 def _finish(runner: Master, record: dict[str, object], status: str, message: str,
             output: str | os.PathLike | None, stream: str | os.PathLike | None,
-            selection: formats.Selection, texts: Mapping[str, str]) -> RunResult:
+            selection: formats.Selection, texts: Mapping[str, str], step: float) -> RunResult:
     """The result of a run that ended with ``status``; with an ``output``, its rows written in the
-    format asked for and the provenance finished."""
+    format asked for and the provenance finished (``rows``: the rows the file holds, after
+    ``output_interval``; ``rows_computed``: every communication point computed)."""
     recorder = runner.recorder
     count = recorder.count if recorder is not None else 0
     rows = recorder.result() if recorder is not None else np.empty(0, [("time", np.float64)])
@@ -231,10 +301,13 @@ def _finish(runner: Master, record: dict[str, object], status: str, message: str
     outputs: dict[str, Path] = {}
     if output is not None and stream is not None:
         saved = recorder.saved if recorder is not None else 0  # what is on disk, never more
-        outputs["provenance"] = provenance.finish(output, record, status, saved,
+        record["rows_computed"] = count
+        outputs["provenance"] = provenance.finish(output, record, status, selection.kept(saved, step),
                                                   runner.time(saved - 1) if saved else None, message)
         if saved and Path(stream).is_file():
-            formats.write_selected(stream, output, selection, texts)  # the rows kept, in the format asked for
+            units = record.get("units")  # the rows kept, in the format asked for, with their units
+            formats.write_selected(stream, output, selection, texts,
+                                   units if isinstance(units, dict) else None)
             outputs["result"] = Path(output)
         formats.binary_copy_path(stream).unlink(missing_ok=True)
     else:

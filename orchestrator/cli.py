@@ -21,21 +21,23 @@ import warnings
 from collections.abc import Callable, Sequence
 from importlib.metadata import PackageNotFoundError, entry_points, version
 from pathlib import Path
-from typing import TypedDict, Unpack
+from typing import NoReturn, TypedDict, Unpack
 
 from . import MASTERS, RunOptions, RunResult, run
 from .errors import (
     Interrupted,
     OrchestratorError,
+    OrchestratorWarning,
     OutputError,
     ScenarioError,
-    ScenarioWarning,
     SimulationError,
     UsageError,
+    command_line,
     terminate,
 )
 from .fmi import CALLS
 from .inspection import inspect_scenario
+from .locate import BUILD_DIR, fmu_dirs, resolve_scenario
 from .master import LOOP_ITERATIONS, LOOP_TOLERANCE
 from .plots import check_plot, plot_run
 from .provenance import overrides_text, read_provenance
@@ -43,14 +45,17 @@ from .results import read_result
 from .ssp import DEFAULT_LIMITS, Limits
 from .validate import validate
 
-__all__ = ["CHECK_GROUP", "COMMAND_GROUP", "add_archive_limits", "add_command", "archive_limits", "fmu_dirs",
-           "main", "plot_title", "resolve_scenario", "scenario_checks", "version_line"]
+SHELLS = ("bash", "zsh", "fish", "tcsh", "powershell")  # what argcomplete writes scripts for
+
+__all__ = ["BUILD_DIR", "CHECK_GROUP", "COMMAND_GROUP", "EXIT_STATUS", "add_archive_limits", "add_command",
+           "add_output", "archive_limits", "fmu_dirs", "main", "parse_overrides", "plot_title", "quiet",
+           "resolve_scenario", "scenario_checks", "size_text", "version_line", "warn"]
 
 COMMAND_GROUP = "orchestrate.commands"
 CHECK_GROUP = "orchestrate.checks"
 
 DESCRIPTION = """\
-Run SSP co-simulation scenarios of FMI 2.0 co-simulation FMUs with fmpy.
+Run SSP co-simulation scenarios of FMI 1.0, 2.0 and 3.0 Co-Simulation FMUs with fmpy.
 
   orchestrate build                    build the FMUs and pack ssp/<name>/ into build/ssp/<name>.ssp
   orchestrate run example1             simulate; writes results/example1.csv and .png
@@ -62,6 +67,7 @@ Run SSP co-simulation scenarios of FMI 2.0 co-simulation FMUs with fmpy.
   orchestrate compare RESULT.csv BASELINE.csv  one result against one baseline
   orchestrate baseline regression/     write baselines, review and accept their updates
   orchestrate report                   write the paper report
+  eval "$(orchestrate completion bash)"     shell completion (also zsh, fish)
 
 Run 'orchestrate COMMAND --help' for the options of a command.
 """
@@ -91,6 +97,14 @@ temporary file and renamed, so its name never holds a half-written file.
 exit status: 0 success, 1 scenario error, simulation failure or --timeout, 2 usage error,
 130 interrupted (SIGINT), 143 terminated (SIGTERM).
 """
+EXIT_STATUS = """\
+exit status: 0 success, 1 failure (named on one line), 2 usage error, 130 interrupted (SIGINT),
+143 terminated (SIGTERM)."""
+PLOT_HELP = """\
+Plot a result file (.csv, .parquet or .mat, as 'run' writes them) with the figure 'run' draws:
+an application's figure for the results it recognises (this project: the tracking figure), else
+one panel per component; units from the result's provenance file (RESULT.json) when there is one.
+"""
 VALIDATE_HELP = """\
 Check SCENARIO (as for 'run') without simulating: the archive, the SSD and SSV files against the
 SSP schemas, every FMU (fmpy's validate_fmu), connections (components, connectors, direction,
@@ -115,6 +129,16 @@ exit status: 0 read without problems, 1 problems listed, 2 usage error.
 """
 
 Handler = Callable[[argparse.Namespace], int]
+_quiet = threading.local()  # --quiet of the command running in this thread
+
+
+class _CommandParser(argparse.ArgumentParser):
+    """A subcommand's parser: its own usage, then the one line every error of orchestrate has
+    (``orchestrate: error: ...``, not argparse's ``orchestrate run: error: ...``), exit status 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.print_usage(sys.stderr)
+        self.exit(2, f"orchestrate: error: {message}\n")
 
 
 class CommandOptions(TypedDict, total=False):
@@ -126,15 +150,57 @@ class CommandOptions(TypedDict, total=False):
     formatter_class: type[argparse.HelpFormatter]
 
 
-def add_command(subparsers: argparse._SubParsersAction, name: str, handler: Handler,
-                **kwargs: Unpack[CommandOptions]) -> argparse.ArgumentParser:
-    """Add subcommand ``name`` run by ``handler(args) -> exit status``; returns its parser."""
+def add_command(subparsers: argparse._SubParsersAction, name: str, handler: Handler, *,
+                quiet: bool = False, **kwargs: Unpack[CommandOptions]) -> argparse.ArgumentParser:
+    """Add subcommand ``name`` run by ``handler(args) -> exit status``; returns its parser.
+
+    A description or epilog that says nothing of the exit status gets :data:`EXIT_STATUS`.
+    ``quiet``: the command takes ``-q``/``--quiet`` (no progress, no summary, no warnings: only
+    errors and what the command is for; :func:`warn` and :func:`quiet` honour it).
+    """
+    told = " ".join(str(kwargs.get(k) or "") for k in ("description", "epilog")).lower()
+    if "exit status" not in told:
+        kwargs["epilog"] = f"{kwargs['epilog']}\n\n{EXIT_STATUS}" if kwargs.get("epilog") else EXIT_STATUS
+        kwargs.setdefault("formatter_class", argparse.RawDescriptionHelpFormatter)
     parser = subparsers.add_parser(name, **kwargs)
-    parser.set_defaults(handler=handler)
+    parser.set_defaults(handler=handler, command_parser=parser)
+    if quiet:
+        parser.add_argument("-q", "--quiet", action="store_true",
+                            help="no progress, no summary and no warnings: errors only")
     return parser
 
 
-BUILTIN_COMMANDS = ("run", "validate", "inspect", "plot")
+def add_output(parser: argparse.ArgumentParser, metavar: str, help: str, *, aliases: Sequence[str] = (),
+               **kwargs: object) -> None:
+    """The command's output as every command names it: ``-o``/``--output`` (older spellings in
+    ``aliases`` are still accepted, not shown)."""
+    parser.add_argument("-o", "--output", type=Path, metavar=metavar, help=help, **kwargs)  # type: ignore[arg-type]
+    for alias in aliases:
+        parser.add_argument(alias, dest="output", type=Path, help=argparse.SUPPRESS)
+
+
+def quiet() -> bool:
+    """True while a command given ``--quiet`` runs (in this thread)."""
+    return bool(getattr(_quiet, "on", False))
+
+
+def warn(text: str) -> None:
+    """``orchestrate: warning: text`` on stderr, one line, unless the command is ``--quiet``."""
+    if not quiet():
+        print(f"orchestrate: warning: {' '.join(text.split())}", file=sys.stderr)
+
+
+BUILTIN_COMMANDS = ("run", "validate", "inspect", "plot", "completion")
+COMPLETION_HELP = """\
+Print the script that makes SHELL complete orchestrate's subcommands, options, scenario names and
+COMPONENT.VARIABLE names (argcomplete). Load it in the current shell, or from its start-up file:
+
+  eval "$(orchestrate completion bash)"        # ~/.bashrc
+  eval "$(orchestrate completion zsh)"         # ~/.zshrc
+  orchestrate completion fish | source         # ~/.config/fish/config.fish
+
+exit status: 0 printed, 2 usage error.
+"""
 
 
 def _parser(command: str | None = None) -> argparse.ArgumentParser:
@@ -144,18 +210,17 @@ def _parser(command: str | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="orchestrate", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=version_line())
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, parser_class=_CommandParser)
 
-    p = add_command(sub, "run", _run, help="simulate a scenario", description=RUN_HELP,
+    p = add_command(sub, "run", _run, help="simulate a scenario", description=RUN_HELP, quiet=True,
                     formatter_class=argparse.RawDescriptionHelpFormatter)
     _scenario_arguments(p)
     p.add_argument("--start-time", type=float, metavar="T", help="start time in s (default: from the SSD)")
     p.add_argument("--stop-time", type=float, metavar="T", help="stop time in s (default: from the SSD)")
     p.add_argument("--step", type=float, metavar="H",
                    help="communication step in s (default: from the SSD); must divide the run")
-    p.add_argument("--output", type=Path, metavar="FILE",
-                   help="result file, format by extension: .csv, .parquet, .mat (Dymola/OpenModelica "
-                        "trajectory) (default: results/<name>.csv)")
+    add_output(p, "FILE", "result file, format by extension: .csv, .parquet, .mat (Dymola/OpenModelica "
+                          "trajectory) (default: results/<name>.csv)")
     p.add_argument("--output-variables", action="append", default=[], metavar="PATTERN",
                    help="columns to write, shell patterns such as 'plant.*' (repeatable; default: all)")
     p.add_argument("--output-interval", type=float, metavar="S",
@@ -174,7 +239,6 @@ def _parser(command: str | None = None) -> argparse.ArgumentParser:
                         "than its sources)")
     p.add_argument("--strict", action="store_true",
                    help="refuse the scenario when an input is not connected (default: a warning)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
     p.add_argument("--verbose", action="store_true", help="show the FMUs' log messages as they come")
     p.add_argument("--fmi-log", action="append", default=[], metavar="COMPONENT",
                    help="print every FMI call of the components matching this shell pattern ('*': all) "
@@ -189,18 +253,23 @@ def _parser(command: str | None = None) -> argparse.ArgumentParser:
                    help="wall-clock limit of the run: stop at the next communication point (a step that "
                         "does not return is aborted 2 s later); exit status 1, rows kept")
 
-    p = add_command(sub, "validate", _validate, help="check a scenario without simulating",
+    p = add_command(sub, "validate", _validate, help="check a scenario without simulating", quiet=True,
                     description=VALIDATE_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     _scenario_arguments(p)
 
     p = add_command(sub, "inspect", _inspect, help="list a scenario's components, variables, connections",
-                    description=INSPECT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+                    quiet=True, description=INSPECT_HELP,
+                    formatter_class=argparse.RawDescriptionHelpFormatter)
     _scenario_arguments(p)
 
-    p = add_command(sub, "plot", _plot, help="plot a result file")
+    p = add_command(sub, "plot", _plot, help="plot a result file", description=PLOT_HELP, quiet=True)
     p.add_argument("result", type=Path, metavar="RESULT.csv")
-    p.add_argument("--output", type=Path, metavar="FILE.png", help="default: RESULT with .png")
+    add_output(p, "FILE.png", "image file, format by extension (default: RESULT with .png)")
     _plot_variables(p)
+
+    p = add_command(sub, "completion", _completion, help="print the shell completion script",
+                    description=COMPLETION_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("shell", choices=SHELLS, metavar="SHELL", help=f"one of {', '.join(SHELLS)}")
 
     if command not in BUILTIN_COMMANDS:
         for entry in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
@@ -242,17 +311,33 @@ def add_archive_limits(p: argparse.ArgumentParser) -> None:
                                 ("xml", "--max-xml-size", "one SSD, SSV, SSM or modelDescription.xml")):
         default = getattr(DEFAULT_LIMITS, field)
         group.add_argument(option, dest=f"limit_{field}", type=_ratio if field == "ratio" else _bytes,
-                           default=default, metavar="N", help=f"{what} (default {default:g})")
+                           default=default, metavar="N",
+                           help=f"{what} (default {default:g})" if field in ("ratio", "members") else
+                           f"{what} (default {size_text(default)})")
 
 
-def _overrides(items: Sequence[str]) -> dict[str, str]:
-    """``--set COMPONENT.VARIABLE=VALUE`` options as a mapping (values converted by the engine)."""
-    overrides = {}
+def size_text(size: float) -> str:
+    """``1073741824`` -> ``1G``: a size in bytes as the size options take it (K, M, G: powers of 1024)."""
+    for suffix, factor in (("G", 1 << 30), ("M", 1 << 20), ("K", 1 << 10)):
+        if size >= factor and size % factor == 0:
+            return f"{int(size) // factor}{suffix}"
+    return f"{int(size)}"
+
+
+def parse_overrides(items: Sequence[str], option: str = "--set") -> dict[str, str]:
+    """``--set COMPONENT.VARIABLE=VALUE`` options as a mapping (values converted by the engine);
+    UsageError for a malformed one, or a name given twice with different values (the last would
+    win without a word)."""
+    overrides: dict[str, str] = {}
     for item in items:
         key, sep, value = item.partition("=")
+        key, value = key.strip(), value.strip()
         if not sep or "." not in key:
-            raise UsageError(f"--set expects COMPONENT.VARIABLE=VALUE (got '{item}')")
-        overrides[key.strip()] = value.strip()
+            raise UsageError(f"{option} expects COMPONENT.VARIABLE=VALUE (got '{item}')")
+        if key in overrides and overrides[key] != value:
+            raise UsageError(f"{option} {key} is given twice ({overrides[key]!r} and {value!r}): "
+                             "give it once")
+        overrides[key] = value
     return overrides
 
 
@@ -310,11 +395,21 @@ def main(argv: Sequence[str] | None = None) -> int:
                     signal.signal(signum, handler)
         words = sys.argv[1:] if argv is None else list(argv)
         parser = _parser(next((w for w in words if not w.startswith("-")), None))
+        if "_ARGCOMPLETE" in os.environ:  # the shell asks for completions (docs/shell-completion.md)
+            from .completion import complete
+
+            complete(parser)
         args = parser.parse_args(words)
+        _quiet.on = bool(getattr(args, "quiet", False))
         try:
-            return args.handler(args)
-        except UsageError as exc:
-            parser.error(str(exc))  # usage, one line "orchestrate: error: ...", exit status 2
+            with command_line(), warnings.catch_warnings():
+                warnings.showwarning = _show_warning
+                warnings.simplefilter("always", OrchestratorWarning)  # each run's, deduplicated by text
+                _shown_warnings.clear()
+                return args.handler(args)
+        except UsageError as exc:  # the command's own usage (not orchestrate's), then the one line
+            command: _CommandParser = args.command_parser
+            command.error(str(exc))
         except OrchestratorError as exc:
             what = "cannot write the results: " if isinstance(exc, OutputError) else ""
             print(f"orchestrate: error: {what}{exc}", file=sys.stderr)
@@ -322,6 +417,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         except BrokenPipeError:  # 'orchestrate inspect X | head': the reader left; no traceback
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             return 0
+        finally:
+            _quiet.on = False
     except KeyboardInterrupt as exc:
         print(f"orchestrate: {str(exc) or 'interrupted by SIGINT'}", file=sys.stderr)
         return getattr(exc, "exit_status", 130)
@@ -331,29 +428,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             signal.signal(signal.SIGTERM, previous[1])
 
 
-BUILD_DIR = Path("build")
+_shown_warnings: set[str] = set()
 
 
-def resolve_scenario(scenario: str) -> Path:
-    """A scenario given as a file, a folder, or the name of a built scenario (build/ssp/NAME.ssp)."""
-    path = Path(scenario)
-    if path.exists():
-        return path
-    built = BUILD_DIR / "ssp" / f"{scenario}.ssp"
-    if built.is_file():
-        return built
-    raise ScenarioError(f"no scenario '{scenario}': not a file or folder, and {built} does not exist "
-                        "(run 'orchestrate build' first)")
-
-
-def fmu_dirs(scenario: Path) -> list[Path]:
-    """Where a scenario source folder (no FMUs under resources/) takes its FMUs: the build/fmus/
-    of its project (``PROJECT/ssp/NAME`` -> ``PROJECT/build/fmus``), whatever the working
-    directory, else build/fmus/ of the working directory."""
-    if not scenario.is_dir():
-        return []
-    candidates = [scenario.resolve().parent.parent / BUILD_DIR / "fmus", BUILD_DIR / "fmus"]
-    return [d for d in candidates if d.is_dir()][:1]
+def _show_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                  file: object = None, line: str | None = None) -> None:
+    """A Python warning during a command as one line (no source file and line), each text once;
+    none with --quiet."""
+    text = " ".join(str(message).split())
+    if text in _shown_warnings:
+        return
+    _shown_warnings.add(text)
+    warn(text if issubclass(category, OrchestratorWarning) else f"{text} ({category.__name__})")
 
 
 def scenario_checks(scenario: Path) -> list[str]:
@@ -392,9 +478,10 @@ class _LastMessage(logging.Handler):
 
     MAX_WARNINGS = 10
 
-    def __init__(self, verbose: bool) -> None:
+    def __init__(self, verbose: bool, quiet: bool = False) -> None:
         super().__init__(logging.INFO if verbose else logging.WARNING)
         self.verbose = verbose
+        self.quiet = quiet
         self.last = ""
         self.shown: set[str] = set()
 
@@ -404,7 +491,7 @@ class _LastMessage(logging.Handler):
             self.last = text.splitlines()[-1] if text else ""
         if self.verbose:
             print(f"{record.name}: {record.getMessage()}", file=sys.stderr)
-        elif record.levelno == logging.WARNING and text not in self.shown:
+        elif record.levelno == logging.WARNING and text not in self.shown and not self.quiet:
             self.shown.add(text)
             if len(self.shown) <= self.MAX_WARNINGS:
                 print(f"orchestrate: warning: {text}", file=sys.stderr)
@@ -415,7 +502,8 @@ class _LastMessage(logging.Handler):
 def _options(args: argparse.Namespace, scenario: Path, output: Path) -> RunOptions:
     """The :class:`RunOptions` of 'run' (a value out of range is a UsageError naming the field)."""
     return RunOptions(start_time=args.start_time, stop_time=args.stop_time, step=args.step,
-                      parameter_sets=args.parameter_set, overrides=_overrides(args.set), master=args.master,
+                      parameter_sets=args.parameter_set, overrides=parse_overrides(args.set),
+                      master=args.master,
                       output=output, output_variables=args.output_variables,
                       output_interval=args.output_interval, no_inputs=args.no_inputs, keep=False,
                       strict=args.strict, timeout=args.timeout, fmu_dirs=fmu_dirs(scenario),
@@ -432,25 +520,25 @@ def _run(args: argparse.Namespace) -> int:
     stale = scenario_checks(scenario)
     if stale and not args.allow_stale:
         raise ScenarioError(stale)
-    plot = None if args.no_plot else args.plot or output.with_suffix(".png")
+    if args.no_plot and args.plot is not None:
+        raise UsageError(f"--no-plot and --plot {args.plot}: choose one")
+    # -o '' is Path('.'): no plot of its name (the run refuses the folder as its output)
+    plot = None if args.no_plot or not (args.plot or output.name) else args.plot or output.with_suffix(".png")
     if plot is not None:
         check_plot(plot)
     progress = None if args.quiet or not sys.stderr.isatty() else _Progress(name)
-    messages = _LastMessage(args.verbose)
+    messages = _LastMessage(args.verbose, args.quiet)
     logging.getLogger().addHandler(messages)
     if args.verbose:
         logging.getLogger().setLevel(logging.INFO)
     calls = _call_log(args.fmi_log)
     try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", ScenarioWarning)
-            result = run(scenario, options, progress=progress)
-        _print_warnings(caught)
+        result = run(scenario, options, progress=progress)  # warnings: one line each, as they come (main)
     except (SimulationError, Interrupted) as exc:
         result = exc.result
         detail = f" ({messages.last})" if messages.last and "(" not in str(exc) else ""
         prefix = "orchestrate: " if isinstance(exc, Interrupted) else "orchestrate: error: "
-        stopped = f"{prefix}{exc}{detail}; {result.count} rows kept in {output}"
+        stopped = f"{prefix}{exc}{detail}; {_rows_text(result)} kept in {output}"
         if plot is None or result.count < 2:
             print(stopped, file=sys.stderr)
             return exc.exit_status
@@ -472,8 +560,19 @@ def _run(args: argparse.Namespace) -> int:
     if not args.quiet:
         extra = f" and {plot}" if plot is not None else ""
         span = f"t = {result.rows['time'][0]:g} .. {result.time:g} s"
-        print(f"{name}: {result.count} rows, {span} -> {output}{extra}")
+        print(f"{name}: {_rows_text(result)}, {span} -> {output}{extra}")
     return 0
+
+
+def _rows_text(result: RunResult) -> str:
+    """``2001 rows``, or what the file holds of them: ``101 rows (every 0.05 s of 2001 computed)``."""
+    written = result.provenance.get("rows")
+    written = written if isinstance(written, int) else result.count
+    if written == result.count:
+        return f"{written} rows"
+    interval = (result.provenance.get("output") or {}).get("interval")
+    every = f"every {interval:g} s of " if isinstance(interval, (int, float)) else ""
+    return f"{written} rows ({every}{result.count} computed)"
 
 
 def _call_log(patterns: Sequence[str]) -> logging.Handler:
@@ -487,8 +586,16 @@ def _call_log(patterns: Sequence[str]) -> logging.Handler:
     return handler
 
 
+def _files_backend() -> None:
+    """matplotlib's Agg: the command line writes image files and never opens a window."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+
+
 def _plot_result(result: RunResult, plot: Path, name: str, args: argparse.Namespace) -> bool:
     """Write the plot of a run; False (after one line on stderr) when it cannot be written."""
+    _files_backend()
     try:
         plot_run(result.rows, plot, plot_title(name, result.provenance, args.master), result.units,
                  variables=args.plot_variables, record=result.provenance)
@@ -497,15 +604,6 @@ def _plot_result(result: RunResult, plot: Path, name: str, args: argparse.Namesp
         print(f"orchestrate: error: cannot write the plot: {exc}; results kept in {kept}", file=sys.stderr)
         return False
     return True
-
-
-def _print_warnings(caught: Sequence[warnings.WarningMessage]) -> None:
-    """Scenario warnings on stderr, one line each (every run, also with --quiet); others re-issued."""
-    for w in caught:
-        if issubclass(w.category, ScenarioWarning):
-            print(f"orchestrate: warning: {w.message}", file=sys.stderr)
-        else:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
 def plot_title(name: str, record: dict | None, master: object = None) -> str:
@@ -517,39 +615,54 @@ def plot_title(name: str, record: dict | None, master: object = None) -> str:
 
 
 def _validate(args: argparse.Namespace) -> int:
-    overrides = _overrides(args.set)
+    overrides = parse_overrides(args.set)
     scenario = resolve_scenario(args.scenario)
     report = validate(scenario, parameter_sets=args.parameter_set, overrides=overrides,
                       fmu_dirs=fmu_dirs(scenario), limits=archive_limits(args), root=args.root,
                       strict_fmus=args.strict_fmus)
-    for stale in scenario_checks(scenario):
-        print(f"warning: {stale}")
+    if not args.quiet:  # --quiet: the errors only, the exit status says the rest
+        for stale in scenario_checks(scenario):
+            print(f"warning: {stale}")
     for problem in report.problems:
-        print(problem)
+        if problem.severity == "error" or not args.quiet:
+            print(problem)
     if not report.ok:
         warnings = len(report.problems) - len(report.errors)
-        print(f"failed: {scenario}: {len(report.errors)} error(s), {warnings} warning(s)")
+        if not args.quiet:
+            print(f"failed: {scenario}: {len(report.errors)} error(s), {warnings} warning(s)")
         return 1
-    print(f"ok: {scenario}: {report.components} components, {report.connections} connections, "
-          f"{report.parameters} parameters checked")
+    if not args.quiet:
+        print(f"ok: {scenario}: {report.components} components, {report.connections} connections, "
+              f"{report.parameters} parameters checked")
     return 0
 
 
 def _inspect(args: argparse.Namespace) -> int:
     scenario = resolve_scenario(args.scenario)
-    report = inspect_scenario(scenario, parameter_sets=args.parameter_set, overrides=_overrides(args.set),
-                              fmu_dirs=fmu_dirs(scenario), limits=archive_limits(args), root=args.root,
-                              strict_fmus=args.strict_fmus)
-    print("\n".join(report.lines()))
+    report = inspect_scenario(scenario, parameter_sets=args.parameter_set,
+                              overrides=parse_overrides(args.set), fmu_dirs=fmu_dirs(scenario),
+                              limits=archive_limits(args), root=args.root, strict_fmus=args.strict_fmus)
+    lines = [f"  {p}" for p in report.problems] if args.quiet else report.lines()  # --quiet: problems only
+    if lines:
+        print("\n".join(lines))
     return 1 if report.problems else 0
 
 
+def _completion(args: argparse.Namespace) -> int:
+    from .completion import shellcode
+
+    print(shellcode(args.shell))
+    return 0
+
+
 def _plot(args: argparse.Namespace) -> int:
+    _files_backend()
     data = read_result(args.result)
     target = args.output or args.result.with_suffix(".png")
     record = read_provenance(args.result)
     units = record.get("units") if record else None
     plot_run(data, target, plot_title(args.result.stem, record, record.get("master") if record else None),
              units if isinstance(units, dict) else None, variables=args.plot_variables, record=record)
-    print(target)
+    if not args.quiet:
+        print(target)
     return 0

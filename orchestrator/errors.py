@@ -6,10 +6,46 @@ line returns after printing the one-line message.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import Any
 
-__all__ = ["Interrupted", "LoopError", "NonFiniteError", "OrchestratorError", "OutputError", "ScenarioError",
-           "ScenarioWarning", "SimulationError", "Terminated", "TimeLimitError", "UsageError", "terminate"]
+__all__ = ["FLAGS", "CacheWarning", "Interrupted", "LoopError", "NonFiniteError", "OrchestratorError",
+           "OrchestratorWarning", "OutputError", "ScenarioError", "ScenarioWarning", "SimulationError",
+           "Terminated", "TimeLimitError", "UnpackError", "UsageError", "command_line", "is_option", "option",
+           "terminate"]
+
+# The option of ``orchestrate`` that sets each field of RunOptions (and of the other API calls): a
+# message names the field to a caller of the Python API, the option to a user of the command line.
+FLAGS = {"overrides": "--set", "parameter_sets": "--parameter-set", "start_time": "--start-time",
+         "stop_time": "--stop-time", "step": "--step", "output": "--output",
+         "output_variables": "--output-variables", "output_interval": "--output-interval",
+         "input_file": "--input-file", "fmi_log": "--fmi-log", "timeout": "--timeout", "master": "--master",
+         "plot": "--plot", "variables": "--plot-variables", "no_inputs": "--no-inputs",
+         "scheduler": "--scheduler", "dashboard": "--dashboard", "out": "--output", "workers": "--workers"}
+_COMMAND_LINE: ContextVar[bool] = ContextVar("orchestrate_command_line", default=False)
+
+
+def option(field: str) -> str:
+    """How a message names ``field`` (a RunOptions field): ``output_variables`` to the Python API,
+    ``--output-variables`` within :func:`command_line`."""
+    return FLAGS.get(field, field) if _COMMAND_LINE.get() else field
+
+
+def is_option(name: str) -> bool:
+    """True when ``name`` is what :func:`option` gives for one of the fields."""
+    return name in FLAGS or name in FLAGS.values()
+
+
+@contextmanager
+def command_line() -> Iterator[None]:
+    """Within this block, messages name command-line options (``orchestrate``), not API fields."""
+    token = _COMMAND_LINE.set(True)
+    try:
+        yield
+    finally:
+        _COMMAND_LINE.reset(token)
 
 
 class OrchestratorError(Exception):
@@ -42,6 +78,11 @@ class ScenarioError(OrchestratorError, ValueError):
 class OutputError(OrchestratorError, OSError):
     """The results cannot be written (a full disk, a folder that is not writable); the message names
     the file. Distinct from an OSError of reading, which names what could not be read."""
+
+
+class UnpackError(OrchestratorError, OSError):
+    """An FMU cannot be unpacked for lack of space or permission, neither into the FMU cache nor
+    into the run's own folder; the message names the FMU, the folder and the reason."""
 
 
 class SimulationError(OrchestratorError, RuntimeError):
@@ -105,9 +146,9 @@ class TimeLimitError(SimulationError):
     def __init__(self, limit: float, time: float, component: str = "", grace: float = 0.0) -> None:
         if component:
             message = (f"{component}: fmi2DoStep did not return within {limit:g} s + {grace:g} s "
-                       f"(--timeout) at t={time:.3f} s; step aborted")
+                       f"({option('timeout')}) at t={time:.3f} s; step aborted")
         else:
-            message = f"wall-clock limit of {limit:g} s (--timeout) reached at t={time:.3f} s"
+            message = f"wall-clock limit of {limit:g} s ({option('timeout')}) reached at t={time:.3f} s"
         RuntimeError.__init__(self, message)
         self.component, self.function, self.status, self.time = component, "fmi2DoStep", "timeout", time
 
@@ -142,6 +183,15 @@ def terminate(signum: int, frame: object) -> None:
     raise Terminated
 
 
-class ScenarioWarning(UserWarning):
+class OrchestratorWarning(UserWarning):
+    """Base of the warnings ``orchestrate`` prints as one line (``orchestrate: warning: ...``)."""
+
+
+class CacheWarning(OrchestratorWarning):
+    """The FMU cache could not be used (a full disk, a damaged entry): the run went on, unpacking
+    the FMU into its own folder or again into the cache; the message says which and why."""
+
+
+class ScenarioWarning(OrchestratorWarning):
     """A scenario that runs but is probably not what was meant (e.g. an input no connection feeds);
     ``run(strict=True)`` (``orchestrate run --strict``) makes it a ScenarioError."""

@@ -17,7 +17,14 @@ FMUs for the same reason. Here the folder of an FMU is ``<cache>/fmus/<sha256 of
   every instance had before, so no shared library is loaded twice from one file;
 * ``ORCHESTRATE_CACHE`` sets the folder (default ``$XDG_CACHE_HOME/orchestrate``, else
   ``~/.cache/orchestrate``); ``ORCHESTRATE_CACHE=off`` unpacks every FMU into the run's own
-  temporary folder, as before; so does a cache folder that cannot be made or written.
+  temporary folder, as before; so does a cache folder that cannot be made or written;
+* a cache that fails while an FMU is unpacked into it (a full disk, a quota) costs the run
+  nothing: the FMU, and every later one of this process, is unpacked into the run's folder
+  instead, with one CacheWarning naming the folder and the reason;
+* an entry's ``.complete`` marker lists every file with its size and modification time as
+  unpacked (a manifest, checked by ``stat`` on every use, 1 ms for 180 files): an entry whose
+  file was deleted, truncated or rewritten is damaged, removed and unpacked again, with one
+  CacheWarning (it made every later run fail until deleted by hand).
 
 FMUs are unpacked by fmpy within the limits the scenario's checks applied to each FMU
 (:func:`orchestrator.ssp.check_zip`), wherever they go.
@@ -26,17 +33,20 @@ FMUs are unpacked by fmpy within the limits the scenario's checks applied to eac
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import re
 import secrets
 import shutil
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import fmpy
 
 from . import files
+from .errors import CacheWarning, UnpackError
 
 __all__ = ["IN_USE", "MAX_ENTRIES", "cache_folder", "member_sha256", "release", "sha256", "unpack_fmu"]
 
@@ -46,6 +56,7 @@ IN_USE = 3600.0  # s: an entry used more recently than this is never removed
 COMPLETE = ".complete"
 
 _digests: dict[tuple[int, ...], str] = {}
+_failed: list[str] = []  # why the cache failed in this process (then it is not used again)
 _in_use: set[str] = set()  # entries an instance of this process has loaded
 _lock = threading.Lock()
 
@@ -146,17 +157,35 @@ def unpack_fmu(fmu: str | os.PathLike, fallback: str | os.PathLike) -> str:
     no usable cache, ``fallback`` (a fresh folder the caller removes) with the FMU unpacked into it.
     A cache entry is reserved for the caller until :func:`release`. Raises what fmpy and zipfile
     raise for an FMU that cannot be unpacked, OSError for a full disk."""
-    folder = cache_folder()
+    folder = None if _failed else cache_folder()
     entry = None if folder is None else folder / sha256(fmu)
     with _lock:
         if folder is None or entry is None or str(entry) in _in_use:
-            return str(fmpy.extract(str(fmu), unzipdir=str(fallback)))
+            return _extract(fmu, fallback)
         _in_use.add(str(entry))
     try:
         return _entry(fmu, folder, entry)
+    except OSError as exc:  # the cache's disk is full, a quota, ...: the run's own folder will do
+        release(str(entry))
+        _failed.append(_reason(exc))
+        warnings.warn(f"FMU cache {folder}: cannot unpack {os.path.basename(fmu)} ({_reason(exc)}); FMUs are "
+                      "unpacked into the run's folder instead", CacheWarning, stacklevel=2)
+        return _extract(fmu, fallback)
     except BaseException:
         release(str(entry))
         raise
+
+
+def _reason(exc: OSError) -> str:
+    return " ".join(str(exc.strerror or exc).split()) + (f": {exc.filename}" if exc.filename else "")
+
+
+def _extract(fmu: str | os.PathLike, folder: str | os.PathLike) -> str:
+    """fmpy's extraction into ``folder``; UnpackError naming FMU, folder and reason (a full disk)."""
+    try:
+        return str(fmpy.extract(str(fmu), unzipdir=str(folder)))
+    except OSError as exc:
+        raise UnpackError(f"cannot unpack FMU {os.path.basename(fmu)} into {folder}: {_reason(exc)}") from exc
 
 
 def release(folder: str) -> None:
@@ -165,16 +194,55 @@ def release(folder: str) -> None:
         _in_use.discard(folder)
 
 
+def _manifest(folder: Path) -> dict[str, list[int]]:
+    """Every file under ``folder`` (but the marker): relative path -> [size, modification time ns]."""
+    found = {}
+    for root, _, names in os.walk(folder):
+        for name in names:
+            path = os.path.join(root, name)
+            relative = os.path.relpath(path, folder)
+            if relative != COMPLETE:
+                info = os.stat(path, follow_symlinks=False)
+                found[relative] = [info.st_size, info.st_mtime_ns]
+    return found
+
+
+def _damage(entry: Path) -> str | None:
+    """Why the complete entry ``entry`` cannot be used as it is ('' : no manifest, an entry of an
+    earlier version, unpacked again without a word), None when every file is as unpacked."""
+    try:
+        listed = json.loads((entry / COMPLETE).read_text(encoding="utf-8")).get("files")
+    except (OSError, ValueError, AttributeError):
+        listed = None
+    if not isinstance(listed, dict):
+        return ""
+    for relative, expected in listed.items():
+        try:
+            info = os.stat(entry / relative, follow_symlinks=False)
+        except OSError:
+            return f"{relative} is missing"
+        if [info.st_size, info.st_mtime_ns] != expected:
+            return f"{relative} changed ({info.st_size} bytes, {expected[0]} when unpacked)"
+    return None
+
+
 def _entry(fmu: str | os.PathLike, folder: Path, entry: Path) -> str:
-    """The cache entry ``entry`` of ``fmu``, unpacked first when missing."""
+    """The cache entry ``entry`` of ``fmu``, unpacked first when missing or damaged."""
     if (entry / COMPLETE).is_file():
-        _touch(entry)
-        return str(entry)
+        damage = _damage(entry)
+        if damage is None:
+            _touch(entry)
+            return str(entry)
+        if damage:
+            warnings.warn(f"FMU cache entry {entry} ({os.path.basename(fmu)}) was damaged ({damage}): "
+                          "unpacked again", CacheWarning, stacklevel=3)
+        _remove(entry, folder)
     files.remove_stale(folder, rf"\.(?:new|old)-{files.HOST}-(?P<pid>\d+)-[0-9a-f]+", files.QUIET)
     new = folder / f".new-{files.HOST}-{os.getpid()}-{secrets.token_hex(4)}"
     try:
         fmpy.extract(str(fmu), unzipdir=str(new))
-        (new / COMPLETE).write_text(f"{os.path.basename(fmu)}\n", encoding="utf-8")
+        marker = {"fmu": os.path.basename(fmu), "files": _manifest(new)}
+        (new / COMPLETE).write_text(json.dumps(marker) + "\n", encoding="utf-8")
         try:
             new.rename(entry)
         except OSError:  # another process renamed its copy first (or a broken entry is in the way)

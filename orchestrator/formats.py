@@ -3,7 +3,8 @@
 
 * ``.csv``: text, ``time`` then one column per signal (what the master writes as the run goes);
 * ``.parquet``: one float64 column per signal, the same names (pyarrow; read with pandas, polars,
-  DuckDB, Spark ...);
+  DuckDB, Spark ...); each field's metadata holds its ``unit`` and ``description``, and the
+  schema's ``PANDAS_ATTRS`` the units, so ``pandas.read_parquet(f).attrs["units"]`` has them;
 * ``.mat``: the Dymola/OpenModelica trajectory format (MATLAB v4, ``Aclass = Atrajectory 1.1
   binTrans``, ``name``, ``description``, ``dataInfo``, ``data_1``, ``data_2``) that OMSimulator and
   Dymola write, so the tools their users have read it; the same names (scipy).
@@ -26,7 +27,7 @@ import numpy as np
 import orjson
 
 from . import files
-from .errors import OutputError, UsageError
+from .errors import OutputError, UsageError, option
 
 __all__ = ["FORMATS", "Selection", "binary_copy_path", "check_output", "csv_rows", "read_table",
            "read_tool_csv", "staging_path", "write_selected"]
@@ -58,9 +59,17 @@ class Selection:
             return ["time", *signals]
         for pattern in self.variables:
             if not fnmatch.filter(signals, pattern):
-                raise UsageError(f"--output-variables: '{pattern}' matches no column "
+                raise UsageError(f"{option('output_variables')}: '{pattern}' matches no column "
                                  f"(columns: {', '.join(signals)})")
         return ["time", *[n for n in signals if any(fnmatch.fnmatchcase(n, p) for p in self.variables)]]
+
+    def kept(self, count: int, step: float) -> int:
+        """How many of ``count`` rows computed every ``step`` s from the start the file holds (the
+        rows on the output grid, as :meth:`rows` selects them)."""
+        if self.interval is None or count <= 0:
+            return max(count, 0)
+        every = max(1, round(self.interval * NS_PER_S) // round(step * NS_PER_S))
+        return -(-count // every)
 
     def rows(self, time: np.ndarray) -> np.ndarray:
         """Mask of the rows on the output grid ``t0 + k * interval`` (integer nanoseconds)."""
@@ -77,20 +86,22 @@ def check_output(path: str | os.PathLike, step: float | None = None,
     is not a regular file (a folder, a FIFO, which would block the run until a reader comes, a
     device or a socket; ``os.devnull`` excepted)."""
     if not os.fspath(path):
-        raise UsageError("--output: the file name is empty")
+        raise UsageError(f"{option('output')}: the file name is empty")
     unusable = files.not_regular(path)
     if unusable:
         raise OutputError(f"{path}: {unusable}")
     suffix = Path(path).suffix.lower()
     if suffix and suffix not in FORMATS:
-        raise UsageError(f"--output {path}: cannot write '{suffix}' files (choose {', '.join(FORMATS)}; "
-                         "a name without extension gets CSV)")
+        raise UsageError(f"{option('output')} {path}: cannot write '{suffix}' files (choose "
+                         f"{', '.join(FORMATS)}; a name without extension gets CSV)")
     interval = selection.interval
     if interval is not None:
         if not (np.isfinite(interval) and interval > 0):
-            raise UsageError(f"--output-interval must be positive and finite (got {interval!r})")
+            raise UsageError(f"{option('output_interval')} must be positive and finite "
+                             f"(got {interval!r})")
         if step is not None and round(interval * NS_PER_S) % round(step * NS_PER_S):
-            raise UsageError(f"--output-interval {interval:g} s is not a multiple of the step {step:g} s")
+            raise UsageError(f"{option('output_interval')} {interval:g} s is not a multiple of the step "
+                             f"{step:g} s")
 
 
 def staging_path(output: str | os.PathLike, selection: Selection = Selection()) -> Path:
@@ -111,11 +122,13 @@ def binary_copy_path(staged: str | os.PathLike) -> Path:
 
 
 def write_selected(csv: str | os.PathLike, output: str | os.PathLike,
-                   selection: Selection = Selection(), descriptions: Mapping[str, str] | None = None) -> Path:
+                   selection: Selection = Selection(), descriptions: Mapping[str, str] | None = None,
+                   units: Mapping[str, str | None] | None = None) -> Path:
     """Write the selected columns and rows of the result CSV ``csv`` to ``output`` in the format
     of its extension (written to a temporary name, then renamed), and remove ``csv`` when it is
     not ``output`` itself. ``descriptions`` (column -> text, e.g. ``Plant output [rad]``) go into a
-    ``.mat`` file's ``description`` matrix. Returns ``output``."""
+    ``.mat`` file's ``description`` matrix and a Parquet field's metadata, ``units`` (column ->
+    unit, None: none declared) into the Parquet metadata. Returns ``output``."""
     csv, output = Path(csv), Path(output)
     if csv == output and selection.everything:
         return output
@@ -133,7 +146,7 @@ def write_selected(csv: str | os.PathLike, output: str | os.PathLike,
             table = pa.Table.from_arrays(
                 [pa.Array.from_buffers(pa.float64(), len(data),
                                        [None, pa.py_buffer(np.ascontiguousarray(data[c], dtype=np.float64))])
-                 for c in columns], names=columns)
+                 for c in columns], schema=_parquet_schema(columns, units or {}, descriptions or {}))
             pq.write_table(table, partial)
         elif suffix == ".mat":
             _write_mat(partial, data, columns, descriptions or {})
@@ -145,6 +158,19 @@ def write_selected(csv: str | os.PathLike, output: str | os.PathLike,
     if csv != output:
         csv.unlink(missing_ok=True)
     return output
+
+
+def _parquet_schema(columns: Sequence[str], units: Mapping[str, str | None],
+                    descriptions: Mapping[str, str]):  # -> pyarrow.Schema
+    """float64 fields carrying their unit and description; the units also as pandas' ``attrs``."""
+    import pyarrow as pa
+
+    known = {"time": "s", **{c: units.get(c) for c in columns if c != "time"}}
+    fields = []
+    for c in columns:
+        meta = {k: v for k, v in (("unit", known.get(c)), ("description", descriptions.get(c))) if v}
+        fields.append(pa.field(c, pa.float64(), metadata=meta or None))
+    return pa.schema(fields, metadata={"PANDAS_ATTRS": orjson.dumps({"units": known}).decode()})
 
 
 def csv_rows(block: np.ndarray) -> bytes:

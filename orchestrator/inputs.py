@@ -5,6 +5,10 @@ as result columns are. At each communication point the masters set every driven 
 value at that time: linear interpolation for a continuous input, the last row at or before it for
 a discrete one; before the first row the first value, after the last row the last value (a file
 that does not cover the run is a ScenarioWarning, not a silent hold).
+
+The whole file is held in memory as float64 for the run (it is read once), so it may have at most
+``MAX_INPUT_BYTES``: a 1 GB file reached 6.9 GB of memory and was still being parsed after 400 s.
+CSV files are parsed by pyarrow (about twice the file size while reading).
 """
 
 from __future__ import annotations
@@ -15,12 +19,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import UsageError
+from .errors import UsageError, option
 from .results import read_result
 from .ssp import PortRef
 from .system import System
 
-__all__ = ["InputSeries", "read_inputs"]
+__all__ = ["MAX_INPUT_BYTES", "InputSeries", "read_inputs"]
+
+MAX_INPUT_BYTES = 256 << 20  # about 10 million values as CSV text
 
 
 @dataclass(frozen=True)
@@ -43,13 +49,39 @@ class InputSeries:
         return out
 
 
+def _read_csv(path: Path) -> np.ndarray:
+    """A CSV of numbers parsed by pyarrow (fmpy's reader needs about 7 times the file's size)."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    try:
+        table = pacsv.read_csv(path)
+    except pa.ArrowException as exc:
+        raise ValueError(str(exc).splitlines()[0]) from None
+    data = np.empty(table.num_rows, dtype=[(n, np.float64) for n in table.column_names])
+    for name in table.column_names:
+        column = table[name]
+        if not (pa.types.is_integer(column.type) or pa.types.is_floating(column.type)):
+            raise ValueError(f"column '{name}' is not numbers ({column.type})")
+        data[name] = column.to_numpy()
+    return data
+
+
 def read_inputs(path: str | os.PathLike, system: System, start: float,
                 stop: float) -> tuple[InputSeries, list[str]]:
     """Read an input file for ``system``: UsageError naming a column that is not an input no
     connection feeds (with the inputs that are), a non-Real input or a non-finite value; the
     warnings (the file does not cover ``start`` .. ``stop``)."""
     path = Path(path)
-    data = read_result(path)
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise UsageError(f"{option('input_file')} {path}: {exc.strerror or exc}") from None
+    if size > MAX_INPUT_BYTES:
+        raise UsageError(f"{option('input_file')} {path}: {size / (1 << 20):.0f} MiB, more than an input "
+                         f"file may have ({MAX_INPUT_BYTES >> 20} MiB, held in memory for the run): thin it "
+                         "out (the inputs are interpolated between its rows)")
+    data = read_result(path, reader=_read_csv)
     names = [n for n in data.dtype.names or () if n != "time"]
     free = {str(PortRef(c.name, i)): (c, PortRef(c.name, i)) for c in system.components.values()
             for i in c.inputs if PortRef(c.name, i) not in system.links}
@@ -67,18 +99,19 @@ def read_inputs(path: str | os.PathLike, system: System, start: float,
         discrete.append(comp.variables[port.connector].variability == "discrete")
     if problems:
         inputs = ", ".join(free) or "none"
-        raise UsageError(f"--input-file {path}: {'; '.join(problems)} (inputs it can drive: {inputs})")
+        raise UsageError(f"{option('input_file')} {path}: {'; '.join(problems)} "
+                         f"(inputs it can drive: {inputs})")
     if not ports:
-        raise UsageError(f"--input-file {path}: no input column (inputs it can drive: "
+        raise UsageError(f"{option('input_file')} {path}: no input column (inputs it can drive: "
                          f"{', '.join(free) or 'none'})")
     values = np.column_stack([np.asarray(data[str(p)], dtype=float) for p in ports])
     if not np.isfinite(values).all():
         row, column = np.argwhere(~np.isfinite(values))[0]
-        raise UsageError(f"--input-file {path}: '{ports[column]}' is {values[row, column]!r} at "
+        raise UsageError(f"{option('input_file')} {path}: '{ports[column]}' is {values[row, column]!r} at "
                          f"t={float(data['time'][row]):g} s")
     time = np.asarray(data["time"], dtype=float)
     warnings = []
     if time[0] > start or time[-1] < stop:
-        warnings.append(f"--input-file {path} covers t = {time[0]:g} .. {time[-1]:g} s of the run's "
-                        f"{start:g} .. {stop:g} s: its first and last values are held outside")
+        warnings.append(f"{option('input_file')} {path} covers t = {time[0]:g} .. {time[-1]:g} s of the "
+                        f"run's {start:g} .. {stop:g} s: its first and last values are held outside")
     return InputSeries(tuple(ports), time, values, tuple(discrete)), warnings

@@ -24,13 +24,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import files
-from .errors import OutputError, UsageError
+from .errors import OutputError, UsageError, option
 
 if TYPE_CHECKING:
     import matplotlib.figure
 
 __all__ = ["FIGURE_GROUP", "MAX_PANELS", "axis_label", "build_figure", "check_plot", "chosen_columns",
-           "plot_run"]
+           "plot_run", "show_figure"]
 
 FIGURE_GROUP = "orchestrate.figures"
 MAX_PANELS = 12  # a result of more components gets the first ones and a note in the title
@@ -57,7 +57,7 @@ def chosen_columns(names: Sequence[str], variables: Sequence[str] = (),
     if variables:
         for pattern in variables:
             if not fnmatch.filter(signals, pattern):
-                raise UsageError(f"--plot-variables: '{pattern}' matches no column "
+                raise UsageError(f"{option('variables')}: '{pattern}' matches no column "
                                  f"(columns: {', '.join(signals)})")
         return [n for n in signals if any(fnmatch.fnmatchcase(n, p) for p in variables)]
     if outputs:
@@ -76,7 +76,7 @@ def check_plot(path: str | os.PathLike) -> None:
     formats = FigureCanvasBase.get_supported_filetypes()
     suffix = Path(path).suffix.lower().lstrip(".")
     if suffix not in formats:
-        raise UsageError(f"--plot {path}: cannot write '{suffix}' images (choose "
+        raise UsageError(f"{option('plot')} {path}: cannot write '{suffix}' images (choose "
                          f"{', '.join(sorted(formats))})")
     unusable = files.not_regular(path)
     if unusable:
@@ -105,25 +105,43 @@ def plot_run(result: np.ndarray, path: str | os.PathLike, title: str = "",
     """
     import matplotlib.pyplot as plt
 
+    fig = _figure(result, title, units, variables, record)
+    try:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path, dpi=110)
+    finally:
+        plt.close(fig)  # drawn for the file only: an interactive session does not show it
+    return path
+
+
+def show_figure(result: np.ndarray, title: str = "", units: Mapping[str, str | None] | None = None, *,
+                variables: Sequence[str] = (),
+                record: Mapping[str, object] | None = None) -> matplotlib.figure.Figure:
+    """Show the figure of ``result`` (as :func:`plot_run` draws it) in matplotlib's current backend,
+    as FMPy's ``plot_result`` does: inline in Jupyter, in a window elsewhere; returns it."""
+    import matplotlib.pyplot as plt
+
+    fig = _figure(result, title, units, variables, record)
+    plt.show()
+    return fig
+
+
+def _figure(result: np.ndarray, title: str, units: Mapping[str, str | None] | None,
+            variables: Sequence[str], record: Mapping[str, object] | None) -> matplotlib.figure.Figure:
     fig = None if variables else _application_figure(result, units or {}, record)
     if fig is None:
         fig = build_figure(result, title, units, variables=variables, record=record)
     elif title:
         fig.suptitle(title)
-        fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+        if fig.get_layout_engine() is None:
+            fig.tight_layout()
+    return fig
 
 
 def _application_figure(result: np.ndarray, units: Mapping[str, str | None],
                         record: Mapping[str, object] | None) -> matplotlib.figure.Figure | None:
     """The figure of the first ``orchestrate.figures`` entry point that recognises ``result``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
     for entry in sorted(entry_points(group=FIGURE_GROUP), key=lambda e: e.name):
         function: FigureFunction = entry.load()
         fig = function(result, units, record)
@@ -138,9 +156,6 @@ def build_figure(result: np.ndarray, title: str = "", units: Mapping[str, str | 
                  record: Mapping[str, object] | None = None) -> matplotlib.figure.Figure:
     """The engine's default figure (the caller closes it): the chosen columns
     (:func:`chosen_columns`) on the time axis, one panel per component."""
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     units = units or {}

@@ -8,7 +8,9 @@ still raises (nothing hides a failure), and the error carries the same :class:`R
 
 from __future__ import annotations
 
+import html
 import math
+import numbers
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -17,16 +19,18 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .errors import UsageError
+from .errors import UsageError, option
 from .master import LOOP_ITERATIONS, LOOP_TOLERANCE, MASTERS
 from .ssp import DEFAULT_LIMITS, Limits
 
 if TYPE_CHECKING:
+    import matplotlib.figure
     import pandas
 
 __all__ = ["STATUSES", "RunOptions", "RunResult"]
 
 STATUSES = ("complete", "failed", "timeout", "interrupted")
+HTML_ROWS = 40  # signals listed by RunResult._repr_html_
 
 
 def _paths(items: str | os.PathLike | Sequence[str | os.PathLike]) -> tuple[Path, ...]:
@@ -120,18 +124,27 @@ class RunOptions:
             if value is not None:
                 set_(self, name, Path(value))
         if self.master not in MASTERS:
-            raise UsageError(f"unknown master '{self.master}' (choose from {', '.join(MASTERS)})")
+            raise UsageError(f"{option('master')}: unknown master {self.master!r} (choose from "
+                             f"{', '.join(MASTERS)})")
+        if not isinstance(self.limits, Limits):
+            raise UsageError(f"limits must be a Limits (got {type(self.limits).__name__})")
         if not (isinstance(self.loop_iterations, int) and self.loop_iterations >= 1):
             raise UsageError(f"loop_iterations must be a positive integer (got {self.loop_iterations!r})")
-        for name in ("step", "timeout", "output_interval", "loop_tolerance"):
+        if not (isinstance(self.loop_tolerance, numbers.Real) and not isinstance(self.loop_tolerance, bool)
+                and math.isfinite(self.loop_tolerance) and self.loop_tolerance > 0):
+            raise UsageError(f"loop_tolerance must be positive and finite (got {self.loop_tolerance!r})")
+        for name in ("step", "timeout", "output_interval", "start_time", "stop_time"):
             value = getattr(self, name)
-            if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value)
-                                          and value > 0):
-                raise UsageError(f"{name} must be positive and finite (got {value!r})")
-        for name in ("start_time", "stop_time"):
-            value = getattr(self, name)
-            if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value)):
-                raise UsageError(f"{name} must be finite (got {value!r})")
+            if value is None:
+                continue
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
+                raise UsageError(f"{option(name)} must be a number of seconds (got {type(value).__name__} "
+                                 f"{value!r})")
+            positive = name not in ("start_time", "stop_time")
+            number = float(value)
+            if not (math.isfinite(number) and (number > 0 or not positive)):
+                raise UsageError(f"{option(name)} must be {'positive and ' if positive else ''}finite "
+                                 f"(got {value!r})")
 
 
 @dataclass(frozen=True)
@@ -185,16 +198,85 @@ class RunResult:
         units = self.provenance.get("units")
         return dict(units) if isinstance(units, Mapping) else {}
 
+    def _span(self) -> str:
+        if not len(self.rows):
+            return "no rows"
+        first, last = float(self.rows["time"][0]), float(self.rows["time"][-1])
+        shown = f"{len(self.rows)} rows (preview of {self.count})" if self.preview else f"{self.count} rows"
+        return f"{shown}, t = {first:g} .. {last:g} s"
+
+    def __repr__(self) -> str:
+        """One line: status, rows, time span, columns, files (never the whole array)."""
+        signals = max(len(self.columns) - 1, 0)
+        files = ", ".join(f"{k}={str(v)!r}" for k, v in self.outputs.items())
+        message = f", message={self.message!r}" if self.message else ""
+        return (f"RunResult(status={self.status!r}{message}, {self._span()}, {signals} signals"
+                + (f", outputs: {files}" if files else "") + ")")
+
+    def _repr_html_(self) -> str:
+        """A table for Jupyter: status, span, then each signal with its unit, first and last value."""
+        e = html.escape
+        units = self.units
+        head = (f"<p><b>RunResult</b>: {e(self.status)}{': ' + e(self.message) if self.message else ''}; "
+                f"{e(self._span())}</p>")
+        rows = "".join(
+            f"<tr><td><code>{e(c)}</code></td><td>{e(units.get(c) or '')}</td>"
+            + ("".join(f"<td>{float(self.rows[c][i]):.6g}</td>" for i in (0, -1)) if len(self.rows) else
+               "<td></td><td></td>") + "</tr>"
+            for c in self.columns[1:HTML_ROWS + 1])
+        more = (f"<p>and {len(self.columns) - 1 - HTML_ROWS} more signals</p>"
+                if len(self.columns) - 1 > HTML_ROWS else "")
+        files = "".join(f"<li>{e(k)}: <code>{e(str(v))}</code></li>" for k, v in self.outputs.items())
+        return (head + "<table><tr><th>signal</th><th>unit</th><th>first</th><th>last</th></tr>" + rows
+                + "</table>" + more + (f"<ul>{files}</ul>" if files else ""))
+
     def to_pandas(self) -> pandas.DataFrame:
-        """The rows as a DataFrame indexed by ``time`` (needs pandas)."""
-        import pandas
+        """The rows as a DataFrame indexed by ``time`` (needs pandas).
 
-        frame = pandas.DataFrame.from_records(self.rows)
-        return frame.set_index("time")
+        Returns
+        -------
+        pandas.DataFrame
+            One column per signal; ``attrs["units"]`` maps each column to the unit its FMU
+            declares (None: none; ``time`` is in s), ``attrs["status"]`` is :attr:`status`.
+            ``DataFrame.to_parquet`` keeps ``attrs`` in the file's metadata.
+        Raises
+        ------
+        ImportError
+            pandas is not installed: it is the optional extra ``pandas``
+            (``pip install 'fixed-time-cosim[pandas]'``).
+        """
+        try:
+            import pandas
+        except ImportError as exc:
+            raise ImportError("RunResult.to_pandas() needs pandas, the optional extra 'pandas': "
+                              "pip install 'fixed-time-cosim[pandas]'") from exc
 
-    def plot(self, path: str | os.PathLike, variables: Sequence[str] = (), title: str = "") -> Path:
-        """Write the default figure of the rows to ``path`` (:func:`orchestrator.plots.plot_run`):
-        ``variables`` (shell patterns) choose the signals; returns the path."""
-        from .plots import plot_run
+        frame = pandas.DataFrame.from_records(self.rows).set_index("time")
+        frame.attrs["units"] = {"time": "s", **{c: self.units.get(c) for c in self.columns[1:]}}
+        frame.attrs["status"] = self.status
+        return frame
 
+    def plot(self, path: str | os.PathLike | None = None, variables: Sequence[str] = (),
+             title: str = "") -> Path | matplotlib.figure.Figure:
+        """Plot the rows (the figure of :func:`orchestrator.plots.plot_run`).
+
+        Parameters
+        ----------
+        path : path, optional
+            Image file to write (format by extension). None: show the figure in the current
+            matplotlib backend (inline in Jupyter, a window elsewhere), as FMPy's ``plot_result``.
+        variables : sequence of str
+            Shell patterns of the signals to plot, e.g. ``["plant.*"]`` (default: every output).
+        title : str
+            Figure title.
+
+        Returns
+        -------
+        pathlib.Path or matplotlib.figure.Figure
+            The file written, or (``path`` None) the figure shown.
+        """
+        from .plots import plot_run, show_figure
+
+        if path is None:
+            return show_figure(self.rows, title, self.units, variables=variables, record=self.provenance)
         return plot_run(self.rows, path, title, self.units, variables=variables, record=self.provenance)

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -58,15 +58,17 @@ class ResultFileError(UsageError, ValueError):
     """A file given as a result is missing or is not a result CSV; the message names it."""
 
 
-def read_result(path: str | os.PathLike) -> np.ndarray:
-    """Read a result CSV (``time`` first, one column per signal) with fmpy's reader; errors name the
-    file. Time must increase strictly."""
+def read_result(path: str | os.PathLike,
+                reader: Callable[[Path], np.ndarray] | None = None) -> np.ndarray:
+    """Read a result CSV (``time`` first, one column per signal) with fmpy's reader (``reader``:
+    another for CSV, e.g. pyarrow's for a large file); errors name the file. Time must increase
+    strictly."""
     path = Path(path)
     if not path.is_file():
         raise ResultFileError(f"{path}: no such file")
     kind = path.suffix.lower()
     try:  # .parquet and .mat: what 'run --output' writes besides CSV (orchestrator.formats)
-        data = read_table(path) if kind in (".parquet", ".mat") else _read_any_csv(path)
+        data = read_table(path) if kind in (".parquet", ".mat") else (reader or _read_any_csv)(path)
     except (OSError, ValueError, IndexError, KeyError, UnicodeDecodeError) as exc:
         what = kind[1:].upper() if kind in (".parquet", ".mat") else "CSV"
         raise ResultFileError(f"{path}: not a result {what} ({exc})") from exc

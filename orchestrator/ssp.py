@@ -811,7 +811,11 @@ class _SystemReader:
         elif element.get("type", "application/x-fmu-sharedlibrary") != "application/x-fmu-sharedlibrary":
             self.problems.append(f"{where}: only FMU components are supported (type {element.get('type')!r})")
         elif not source.is_file():
-            self.problems.append(f"{where}: FMU '{reference}' is missing")
+            looked = [str(p) for p in (source.resolve(),
+                                       *(d.resolve() / source.name for d in self.fmu_dirs))]
+            places = "not in the archive" if self.label.endswith(f":{SSD_NAME}") else \
+                f"looked for {', '.join(dict.fromkeys(looked))}"  # a folder: absolute paths
+            self.problems.append(f"{where}: FMU '{reference}' is missing ({places})")
         else:
             has_fmu = True
         before = len(self.problems)

@@ -22,7 +22,7 @@ from fmpy.model_description import ModelDescription, ModelVariable
 from fmpy.validation import validate_fmu, validate_model_description
 from lxml import etree
 
-from .errors import ScenarioError
+from .errors import ScenarioError, option
 from .ssp import Component, Connection, Parameter, ParameterSet, PortRef, SystemStructure
 from .units import BASE, UnitDef, UnitError, conversion, convert, resolve, split_value
 
@@ -154,7 +154,10 @@ class System:
             self.warnings.extend(f"{where}: {p}" for p in validate_fmu(str(c.source))
                                  if p not in found and not _is_input_start(p, md))
         (self.problems if self.strict_fmus else self.warnings).extend(f"{where}: {p}" for p in invalid)
-        if invalid and self.strict_fmus:
+        bad_starts = [f"variable '{v.name}': start=\"{v.start}\" is no {v.type} value"
+                      for v in md.modelVariables if not _start_ok(v)]  # FMI 3.0: fmpy keeps it a string
+        self.problems.extend(f"{where}: {p}" for p in bad_starts)  # a run would fail on it at once
+        if (invalid and self.strict_fmus) or bad_starts:
             return None
         if md.coSimulation is None:
             kind = "Model Exchange" if md.modelExchange is not None else "no"
@@ -320,7 +323,7 @@ class System:
         try:
             ref = self.port(key)
         except ValueError as exc:
-            problems.append(f"--set: {exc}")
+            problems.append(f"{option('overrides')}: {exc}")
             return
         comp = self.components.get(ref.component)
         var = comp.variables.get(ref.connector) if comp else None
@@ -331,48 +334,49 @@ class System:
         try:
             converted = _convert(type_, value)
         except ValueError:
-            problems.append(f"--set {key}: {value!r} is not a valid {type_}")
+            problems.append(f"{option('overrides')} {key}: {value!r} is not a valid {type_}")
             return
         self._set_start(ref, Parameter(ref.connector, type_, converted, unit), "--set", problems)
 
     def _set_start(self, ref: PortRef, p: Parameter, origin: str, problems: list[str],
                    units: Iterable[UnitDef] = ()) -> None:
+        label = option("overrides") if origin == "--set" else origin  # the API names the field
         comp = self.components.get(ref.component)
         if comp is None:
             if ref.component not in {c.name for c in self.structure.components}:
-                problems.append(f"{origin}: no component named '{ref.component}' (for {ref})")
+                problems.append(f"{label}: no component named '{ref.component}' (for {ref})")
             return
         var = comp.variables.get(ref.connector)
         type_ = ssp_type(comp.model, var) if var is not None else None
         if var is None:
-            problems.append(f"{origin}: component '{ref.component}' has no variable '{ref.connector}'")
+            problems.append(f"{label}: component '{ref.component}' has no variable '{ref.connector}'")
         elif var.causality not in SETTABLE or var.variability == "constant":
-            problems.append(f"{origin}: {ref} is a {var.variability} {var.causality}, it cannot be set")
+            problems.append(f"{label}: {ref} is a {var.variability} {var.causality}, it cannot be set")
         elif ref in self.links:
-            problems.append(f"{origin}: {ref} is an input fed by {self.links[ref].start}: a value given for "
+            problems.append(f"{label}: {ref} is an input fed by {self.links[ref].start}: a value given for "
                             "it would be overwritten at once (set a parameter of a component instead)")
         elif type_ is None:
-            problems.append(f"{origin}: {ref}: {_unsupported(comp.model, var)}")
+            problems.append(f"{label}: {ref}: {_unsupported(comp.model, var)}")
         elif type_ != p.type and not (type_ == "Real" and p.type == "Integer"):
-            problems.append(f"{origin}: {ref} is {var.type} but the value given is {p.type}")
+            problems.append(f"{label}: {ref} is {var.type} but the value given is {p.type}")
         else:
             value = float(p.value) if type_ == "Real" else p.value
             if p.unit is not None and type_ == "Real":
                 try:
                     given, own = self._resolve(p.unit, units), _unit_def(comp.model, var)
                 except UnitError as exc:
-                    problems.append(f"{origin}: {ref} = {p.value!r} {p.unit}: {exc}")
+                    problems.append(f"{label}: {ref} = {p.value!r} {p.unit}: {exc}")
                     return
                 if given.exponents != own.exponents:
                     fmu = (f"the FMU's unit {own.name} ({own.dimension()})" if _unit_name(var) else
                            "the FMU's variable, which is dimensionless (give the value without a unit)")
-                    problems.append(f"{origin}: {ref} = {p.value!r} {p.unit}: a value in {p.unit} "
+                    problems.append(f"{label}: {ref} = {p.value!r} {p.unit}: a value in {p.unit} "
                                     f"({given.dimension()}) cannot be converted to {fmu}")
                     return
                 value = convert(float(value), given, own)  # already a float: a Real
             outside = _outside(var, value)
             if outside:
-                problems.append(f"{origin}: {ref} = {value!r} {outside}")
+                problems.append(f"{label}: {ref} = {value!r} {outside}")
             else:
                 comp.start_values[ref.connector] = value
                 comp.origins[ref.connector] = origin
@@ -619,6 +623,26 @@ def _outside(var: ModelVariable, value: float | int | bool | str) -> str:
     if high is not None and not number <= float(high):
         return f"is above the FMU's max {high}"
     return ""
+
+
+NUMBERS = ("Real", "Integer", "Enumeration", "Float32", "Float64", "Int8", "UInt8", "Int16", "UInt16",
+           "Int32", "UInt32", "Int64", "UInt64")
+
+
+def _start_ok(var: ModelVariable) -> bool:
+    """False for a scalar variable whose start attribute is no value of its type (``start=""``,
+    which validate passed and the run died on)."""
+    start = var.start
+    if start is None or getattr(var, "dimensions", None) or not isinstance(start, str):
+        return True
+    if var.type in NUMBERS:
+        try:
+            float(start)
+        except ValueError:
+            return False
+    elif var.type == "Boolean":
+        return start.strip() in ("true", "false", "1", "0")
+    return True
 
 
 def _is_input_start(problem: str, md: ModelDescription) -> bool:

@@ -21,7 +21,7 @@ from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import OrchestratorError, ScenarioError, UsageError
+from .errors import OrchestratorError, ScenarioError, UsageError, is_option, option
 from .master import NS_PER_S, grid
 from .ssp import (
     DEFAULT_LIMITS,
@@ -39,15 +39,16 @@ __all__ = ["DEFAULT_STEP", "STEP_ANNOTATIONS", "Problem", "Validation", "check_s
            "validate"]
 
 DEFAULT_STEP = 1e-3
-STEP_ANNOTATIONS = ("a step annotation: libcosim's osp:FixedStepAlgorithm baseStepSize in the "
-                    "DefaultExperiment, or OMSimulator's oms:FixedStepMaster stepSize in the System")
+STEP_ANNOTATIONS = ("a step annotation (libcosim's osp:FixedStepAlgorithm baseStepSize in the "
+                    "DefaultExperiment, or OMSimulator's oms:FixedStepMaster stepSize in the System)")
 
 
 def no_step(structure: SystemStructure) -> str:
     """Why a run of ``structure`` would take the default step ('' when the SSD gives one)."""
     if structure.experiment.step is not None:
         return ""
-    return (f"{structure.ssd_file}: no communication step: the SSD has no {STEP_ANNOTATIONS}; "
+    return (f"{structure.ssd_file}: no communication step: the SSD has no step annotation "
+            f"{STEP_ANNOTATIONS.removeprefix('a step annotation ')}; "
             f"running at the default {DEFAULT_STEP:g} s (give --step)")
 
 
@@ -155,20 +156,20 @@ def timing(structure: SystemStructure, stop_time: float | None = None,
         raise ScenarioError(f"{structure.ssd_file}: no stopTime in DefaultExperiment; give a stop time")
     h = step if step is not None else experiment.step if experiment.step is not None else DEFAULT_STEP
     ssd = structure.ssd_file
-    origin = {"start time": "--start-time" if start_time is not None else ssd,
-              "stop time": "--stop-time" if stop_time is not None else ssd,
-              "communication step": "--step" if step is not None else
+    origin = {"start time": option("start_time") if start_time is not None else ssd,
+              "stop time": option("stop_time") if stop_time is not None else ssd,
+              "communication step": option("step") if step is not None else
               ssd if experiment.step is not None else "default"}
 
     def error(message: str, *at_fault: str) -> OrchestratorError:
-        options = [origin[name] for name in at_fault if origin[name].startswith("--")]
+        options = [origin[name] for name in at_fault if is_option(origin[name])]
         return (UsageError if options else ScenarioError)(f"{', '.join(options) or ssd}: {message}")
 
     def source(*names: str) -> str:
         """`` (from SSD)`` for the values the SSD (or the default) gave, when options are named in
         front of the message (with none, the SSD is, and it gave them all)."""
-        given = sorted({origin[name] for name in names if not origin[name].startswith("--")})
-        options = any(name.startswith("--") for name in origin.values())
+        given = sorted({origin[name] for name in names if not is_option(origin[name])})
+        options = any(is_option(name) for name in origin.values())
         return f" (from {' and '.join(given)})" if given and options else ""
 
     step_text = f"the step {h:g} s{source('communication step')}"

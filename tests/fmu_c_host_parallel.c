@@ -9,7 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-#define MAX_FMUS 8
+#define MAX_FMUS 16
 
 typedef struct {
     void (*logger)(void *, const char *, int, const char *, const char *, ...);

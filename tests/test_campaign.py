@@ -202,8 +202,7 @@ def test_external_scheduler_gives_the_same_table(
             str(path),
             "--out",
             str(tmp_path / "out"),
-            "--quiet",
-        ],
+        ],  # not --quiet (issue 36: it silences the summary too); no progress bar off a terminal
         env=env,
         capture_output=True,
         text=True,
@@ -217,8 +216,9 @@ def test_external_scheduler_gives_the_same_table(
 
 
 def test_failing_variant_is_a_row_and_the_rest_finish(scenario: Path, tmp_path: Path) -> None:
-    # beta = 1.0: inside the FMU's declared range [0.5, 1], refused by the FMU's own (open) check
-    path = design(tmp_path, {"controller.beta": [0.75, 1.0], "plant.x1_0": [0.0, 1.0]})
+    # k1 = 0: inside the FMU's declared range (the finite-time law has k = 0), refused by the FMU's
+    # own check of the fixed-time law (mode 0); beta = 1.0 did it before issue 36 refused it up front
+    path = design(tmp_path, {"controller.k1": [10.0, 0.0], "plant.x1_0": [0.0, 1.0]})
     assert (
         main(
             [
@@ -238,10 +238,10 @@ def test_failing_variant_is_a_row_and_the_rest_finish(scenario: Path, tmp_path: 
     _, rows = read_rows(tmp_path / "out" / "runs.csv")
     assert len(rows) == 4
     for row in rows:
-        if row["controller.beta"] == 1.0:
+        if row["controller.k1"] == 0.0:
             assert row["status"] == "failed" and row["rae"] is None
             assert row["reason"].startswith("controller: fmi2GetReal returned fmi2Fatal at t=0.000 s")
-            assert "beta must satisfy 0.5 < beta < 1 (got 1.0)" in row["reason"]
+            assert "k1 must satisfy k1 > 0 (got 0.0)" in row["reason"]
         else:
             assert row["status"] == "ok" and row["reason"] == "" and row["rmse"] > 0
 
@@ -268,7 +268,7 @@ def test_timeout_is_a_row(scenario: Path, tmp_path: Path) -> None:
     )
     _, [row] = read_rows(tmp_path / "out" / "runs.csv")
     assert row["status"] == "timeout" and row["reason"].startswith(
-        "wall-clock limit of 0.05 s (--timeout) reached at t="
+        "wall-clock limit of 0.05 s (timeout) reached at t="  # the design's key: the API names its fields
     )
     assert row["stop_time"] == 5.0
 
@@ -315,7 +315,7 @@ def test_ctrl_c_keeps_finished_rows_and_resume_skips_them(scenario: Path, tmp_pa
     with pytest.raises(SystemExit) as usage:  # the table exists: neither --resume nor --force is an error
         main(["sweep", str(scenario), "--design", str(path), "--out", str(out), "--quiet"])
     assert usage.value.code == 2
-    done = subprocess.run(command + ["--resume", "--quiet"], capture_output=True, text=True, timeout=120)
+    done = subprocess.run(command + ["--resume"], capture_output=True, text=True, timeout=120)  # a summary
     assert done.returncode == 0, done.stderr
     assert f"16 runs ({len(kept)} kept from before)" in done.stdout
     _, rows = read_rows(out / "runs.csv")

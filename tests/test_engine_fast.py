@@ -267,7 +267,7 @@ def test_a_failed_get_names_the_call():
 def test_a_value_for_a_connected_input_is_refused():
     """Before: --set gain.u=5 on the loop was accepted, recorded in provenance and the plot title,
     and overwritten by integrator.x at the first propagation."""
-    expected = r"^--set: gain\.u is an input fed by integrator\.x: a value given"
+    expected = r"^overrides: gain\.u is an input fed by integrator\.x: a value given"  # the API field
     with pytest.raises(ScenarioError, match=expected):
         System(loop_system().structure, overrides={"gain.u": 5.0},
                model_descriptions={Path("Integrator.fmu"): INTEGRATOR, Path("Gain.fmu"): GAIN})

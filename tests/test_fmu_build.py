@@ -129,8 +129,8 @@ def test_linux64_is_the_shim_pythonfmus_binary_and_debians_runtime(fmus: dict) -
     shipped = Path(pythonfmu.__file__).parent / "resources" / "binaries"
     debs = REPO_ROOT / "build" / "runtime" / "debs"
     manifests: dict[str, str] = {}
-    for name, _, _ in runtime.PACKAGES:
-        manifests |= debian_md5sums(next(debs.glob(f"{name}_*.deb")))
+    for pin in runtime.PACKAGES:
+        manifests |= debian_md5sums(debs / pin.file_name)
     for model, fmu in fmus.items():
         with zipfile.ZipFile(fmu) as archive:
             names = archive.namelist()
@@ -236,7 +236,7 @@ def test_every_python_source_ships_with_its_unchecked_hash_bytecode(fmus: dict, 
         for name in sources:
             folder, file = name.rsplit("/", 1)
             pyc = archive.read(f"{folder}/__pycache__/{file[:-3]}.cpython-311.pyc")
-            assert pyc[:4] == importlib.util.MAGIC_NUMBER  # the build runs on 3.11, as the runtime
+            assert pyc[:4] == importlib.util.MAGIC_NUMBER  # this test runs on 3.11, as the runtime
             assert int.from_bytes(pyc[4:8], "little") == 0b01  # hash-based, not checked
             assert pyc[8:16] == importlib.util.source_hash(archive.read(name)), name
         assert not [n for n in names if n.endswith(".pyc") and "/__pycache__/" in n

@@ -33,6 +33,13 @@ CASES = {  # start values: inputs held so that every output moves
     "Actuator": {"v": 1.7, "x1": 0.4, "x2": -0.3, "t_fault": 0.5},
     "Example1Plant": {"x1_0": 0.3, "x2_0": -0.2, "uf": 0.5},
     "PendulumPlant": {"x1_0": 0.6, "x2_0": 0.1, "uf": -2.0},
+    # issue 35: the controllers of orders 1, 3, 4 and the manipulator
+    "FixedTimeController1": {"x1": 0.7, "yd": 0.5, "yd_dot": 0.1},
+    "FixedTimeController3": {"x1": 0.7, "x2": -0.2, "x3": 0.3, "yd": 0.5, "yd_dot": 0.1, "yd_ddot": -0.05,
+                             "yd_dddot": -0.1},
+    "FixedTimeController4": {"x1": 0.7, "x2": -0.2, "x3": 0.3, "x4": 0.1, "yd": 0.5, "yd_dot": 0.1,
+                             "yd_ddot": -0.05, "yd_dddot": -0.1, "yd_ddddot": 0.05},
+    "ManipulatorPlant": {"x1_0": 0.5, "x2_0": 0.1, "uf": 3.0},
 }
 TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
 NO_NAMESPACE = refusal()
@@ -43,7 +50,7 @@ def fmus3(built: Path) -> dict[str, Path]:
     return {path.stem: path for path in sorted((built / "fmus3").glob("*.fmu"))}
 
 
-def test_five_fmi3_fmus_are_built(fmus: dict[str, Path], fmus3: dict[str, Path]) -> None:
+def test_every_fmu_has_its_fmi3_twin(fmus: dict[str, Path], fmus3: dict[str, Path]) -> None:
     assert sorted(fmus3) == sorted(fmus) == sorted(CASES)
 
 
@@ -269,6 +276,8 @@ def test_do_step_writes_every_output_argument(plant: Boundary) -> None:
     try:
         assert plant.do_step(instance, 0.0, H) == (ERROR, [0, 0, 0], 0.0)
         assert "fmi3DoStep: not allowed in Instantiated" in plant.messages[-1][1]
+        # an error latches the instance (only getters, fmi3Reset and fmi3FreeInstance go on)
+        assert plant.call("fmi3Reset", c_int, c_void_p(instance)) == OK
         assert (
             plant.call(
                 "fmi3EnterInitializationMode",

@@ -26,6 +26,16 @@ SETUP = {  # model -> (parameters, inputs at step k)
     "Actuator": ({"t_fault": 0.0505}, lambda k: {"v": 3.0 - 0.2 * k, "x1": 0.2, "x2": 0.01 * k}),
     "Example1Plant": ({}, lambda k: {"uf": 700.0 * math.exp(-k) - k}),
     "PendulumPlant": ({"M": 0.3}, lambda k: {"uf": 15000.0 * math.exp(-k) + 0.5 * k}),
+    # issue 35
+    "FixedTimeController1": ({"substeps": 2}, lambda k: {"x1": 0.5 + 0.1 * math.sin(k), "yd": 0.1,
+                                                         "yd_dot": 0.2}),
+    "FixedTimeController3": ({"discretization": 1}, lambda k: {
+        "x1": 0.5 + 0.1 * math.sin(k), "x2": -0.3 * k / 50, "x3": 0.2, "yd": 0.1, "yd_dot": 0.2,
+        "yd_ddot": -0.1, "yd_dddot": -0.2}),
+    "FixedTimeController4": ({}, lambda k: {
+        "x1": 0.5 + 0.1 * math.sin(k), "x2": -0.3 * k / 50, "x3": 0.2, "x4": -0.1, "yd": 0.1, "yd_dot": 0.2,
+        "yd_ddot": -0.1, "yd_dddot": -0.2, "yd_ddddot": 0.1}),
+    "ManipulatorPlant": ({"K_tau": 0.8}, lambda k: {"uf": 900.0 * math.exp(-k) - 0.5 * k}),
 }
 
 

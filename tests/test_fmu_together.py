@@ -140,16 +140,16 @@ def test_all_five_in_libcosim(fmus: dict) -> None:
 
 
 def test_two_builds_of_a_module_do_not_shadow_each_other(fmus: dict, tmp_path: Path) -> None:
-    """Reference built from sources whose models.reference.reference_signal adds 1 to yd, loaded next to
-    the original: each instance uses its own bundled modules."""
+    """Reference built from sources whose models.reference.reference_derivatives adds 1 to yd, loaded next
+    to the original: each instance uses its own bundled modules."""
     root = tmp_path / "src"
     for package in ("fmu_src", "controller"):
         shutil.copytree(REPO_ROOT / package, root / package, ignore=shutil.ignore_patterns("__pycache__"))
     models = root / "fmu_src" / "models" / "reference.py"
     models.write_text(
         models.read_text()
-        + "\n\n_original = reference_signal\n\n\n"
-        + "def reference_signal(t, p):\n    yd, d1, d2 = _original(t, p)\n    return yd + 1.0, d1, d2\n"
+        + "\n\n_original = reference_derivatives\n\n\n"
+        + "def reference_derivatives(t, p):\n    yd, *rest = _original(t, p)\n    return (yd + 1.0, *rest)\n"
     )
     changed = build_fmu("Reference", tmp_path / "changed", root=root)
     with open_slaves({"original": fmus["Reference"], "changed": changed}) as s:

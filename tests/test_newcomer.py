@@ -70,7 +70,8 @@ def test_an_ssd_without_a_step_annotation_is_not_run_at_1_ms_in_silence(test_fmu
     """Before: it ran at the default 1 ms without a word."""
     folder = loop_scenario(tmp_path / "loop", test_fmus, stop=0.01, step=None, pack=False)
     assert "step" not in (folder / "SystemStructure.ssd").read_text().lower()
-    with pytest.warns(ScenarioWarning, match="no communication step: the SSD has no a step annotation"):
+    with pytest.warns(ScenarioWarning,
+                      match=r"no communication step: the SSD has no step annotation \(libcosim"):
         result = orchestrator.run(folder)
     assert result.provenance["step"] == 0.001 and result.count == 11
     with pytest.raises(ScenarioError, match="no communication step"):
@@ -83,11 +84,14 @@ def test_an_ssd_without_a_step_annotation_is_not_run_at_1_ms_in_silence(test_fmu
 @pytest.mark.system
 def test_fmu_warnings_are_shown_without_verbose(built, tmp_path, capsys):
     """Before: the controller's sample-time warning needed --verbose."""
-    assert main(["run", str(built / "ssp" / "pendulum.ssp"), "--stop-time", "0.01", "--quiet", "--no-plot",
-                 "--set", "controller.discretization=1", "--output", str(tmp_path / "p.csv")]) == 0
+    argv = ["run", str(built / "ssp" / "pendulum.ssp"), "--stop-time", "0.01", "--no-plot",
+            "--set", "controller.discretization=1", "--output", str(tmp_path / "p.csv")]
+    assert main(argv) == 0
     err = capsys.readouterr().err
     assert "orchestrate: warning: controller (FixedTimeController): communication step 0.0005 s" in err
     assert err.count("differs from sample_time") == 1
+    assert main([*argv, "--quiet"]) == 0  # issue 36: --quiet means quiet, FMU warnings too
+    assert "warning" not in capsys.readouterr().err
 
 
 @pytest.mark.system
@@ -112,8 +116,8 @@ def test_crosscheck_says_what_an_archive_misses(test_fmus, tmp_path):
     from orchestrator.crosscheck.tools import Scenario
 
     archive = loop_scenario(tmp_path / "loop", test_fmus, stop=0.01, step=None)
-    expected = ("other tools need a step annotation: libcosim's osp:FixedStepAlgorithm baseStepSize in "
-                "the DefaultExperiment, or OMSimulator's oms:FixedStepMaster stepSize in the System; "
+    expected = (r"other tools need a step annotation \(libcosim's osp:FixedStepAlgorithm baseStepSize in "
+                r"the DefaultExperiment, or OMSimulator's oms:FixedStepMaster stepSize in the System\); "
                 "it has none$")
     with pytest.raises(ValueError, match=expected):
         Scenario.read(archive)

@@ -161,7 +161,7 @@ def test_cli_run_metrics_plot_and_usage(loop, tmp_path, capsys):
             main(bad)
         assert info.value.code == 2
     assert main(["run", "no_such_scenario", "--quiet"]) == 1
-    assert "run 'orchestrate build' first" in capsys.readouterr().err
+    assert "no built scenario build/ssp/no_such_scenario.ssp" in capsys.readouterr().err
     for delegated in (["report", "--help"], ["baseline", "--help"], ["compare", "--help"]):
         with pytest.raises(SystemExit) as info:  # registered by orchestrator.experiments and .regress
             main(delegated)

@@ -170,17 +170,18 @@ def test_pendulum_as_shipped_runs_in_libcosim(built):
 
 
 def test_invalid_parameter_fails_cleanly_without_crashing_the_process(built, tmp_path):
-    """beta = 1.0 (inside the FMU's declared closed range [0.5, 1], outside its open one) makes the
-    controller FMU return fmi2Fatal; the CLI reports it on one line and the
-    process survives its garbage collection (it used to die with SIGSEGV: freeing a fatal pythonfmu
-    instance). Run three times in one fresh interpreter, since the crash came at a random GC."""
+    """k1 = 0 under the fixed-time law (inside the FMU's declared range, which the finite-time law
+    needs; beta = 1.0 before issue 36 declared its open range) makes the controller FMU return
+    fmi2Fatal; the CLI reports it on one line and the process survives its garbage collection (it
+    used to die with SIGSEGV: freeing a fatal pythonfmu instance). Run three times in one fresh
+    interpreter, since the crash came at a random GC."""
     import subprocess
     import sys
 
     code = (
         "import gc, sys\n"
         "from orchestrator.cli import main\n"
-        "codes = [main(['run', sys.argv[1], '--set', 'controller.beta=1.0', '--stop-time', '0.01',\n"
+        "codes = [main(['run', sys.argv[1], '--set', 'controller.k1=0', '--stop-time', '0.01',\n"
         "               '--quiet', '--no-plot', '--output', sys.argv[2]]) for _ in range(3)]\n"
         "gc.collect()\n"
         "print(codes)\n"
@@ -193,4 +194,4 @@ def test_invalid_parameter_fails_cleanly_without_crashing_the_process(built, tmp
     errors = done.stderr.strip().splitlines()
     assert len(errors) == 3 and "Traceback" not in done.stderr
     assert errors[0].startswith("orchestrate: error: controller: ")
-    assert "fmi2Fatal" in errors[0] and "beta must satisfy 0.5 < beta < 1 (got 1.0)" in errors[0]
+    assert "fmi2Fatal" in errors[0] and "k1 must satisfy k1 > 0 (got 0.0)" in errors[0]

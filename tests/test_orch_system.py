@@ -99,9 +99,9 @@ def test_bad_parameter_bindings_all_reported(tmp_path, test_fmus):
                                                        "gain.k": "abc"}))
     assert set(info.value.problems) == {
         "gain.ssv: component 'gain' has no variable 'kk'",
-        "--set: integrator.x is a continuous output, it cannot be set",
-        "--set: no component named 'nothere' (for nothere.k)",
-        "--set gain.k: 'abc' is not a valid Real",
+        "overrides: integrator.x is a continuous output, it cannot be set",  # the API's field (issue 36)
+        "overrides: no component named 'nothere' (for nothere.k)",
+        "overrides gain.k: 'abc' is not a valid Real",
     }
 
 

@@ -16,8 +16,6 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 RUNTIME = REPO / "build" / "runtime"  # the checkout's fetched runtime, lent to the new install
 
-pytestmark = pytest.mark.system
-
 
 def _run(command: list[str], cwd: Path, env: dict[str, str] | None = None) -> str:
     proc = subprocess.run(command, cwd=cwd, env=env, capture_output=True, text=True, timeout=1200)
@@ -32,6 +30,7 @@ def dist(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+@pytest.mark.system
 def test_wheel_and_sdist_carry_what_a_build_needs(dist: Path) -> None:
     _run([sys.executable, "-m", "twine", "check", "--strict", *map(str, dist.iterdir())], cwd=dist)
     (wheel,) = dist.glob("*.whl")
@@ -53,6 +52,7 @@ def _files(folder: Path) -> set[str]:
     return {str(p.relative_to(folder)) for p in folder.rglob("*") if "__pycache__" not in p.parts}
 
 
+@pytest.mark.system
 def test_installed_wheel_builds_runs_and_exports_in_an_empty_folder(dist: Path, tmp_path: Path) -> None:
     (wheel,) = dist.glob("*.whl")
     venv = tmp_path / "venv"
@@ -81,3 +81,15 @@ def test_installed_wheel_builds_runs_and_exports_in_an_empty_folder(dist: Path, 
              "assert len(simulate_fmu('example1.fmu', stop_time=0.01)) == 11")
     _run([str(python), "-c", check], cwd=work, env=env)
     assert _files(site) == before, sorted(_files(site) ^ before)
+
+
+def test_to_pandas_without_pandas_names_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:
+    """pandas is the optional extra 'pandas': without it, to_pandas says how to install it."""
+    import numpy as np
+
+    from orchestrator import RunResult
+
+    monkeypatch.setitem(sys.modules, "pandas", None)  # what an install without the extra has
+    rows = np.zeros(2, dtype=[("time", "f8"), ("plant.y", "f8")])
+    with pytest.raises(ImportError, match=r"pip install 'fixed-time-cosim\[pandas\]'"):
+        RunResult("complete", "", rows, 2, 1.0).to_pandas()

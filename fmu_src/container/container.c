@@ -170,6 +170,7 @@ static void say(struct container *x, fmi2Status status, const char *format, ...)
     va_end(args);
     const char *category =
         status == fmi2OK ? "logAll" : status == fmi2Warning ? "logStatusWarning" : "logStatusError";
+    if (x && status >= fmi2Error) x->state = FAILED; /* the standard's Error state: latched */
     if (x && x->log3) {
         x->log3(x->env3, (int)status, category, text);
         return;
@@ -543,7 +544,9 @@ static void release(struct container *x) {
         struct component *c = &x->plan.components[i];
         if (c->c && !c->broken) c->f.free_instance(c->c);
         c->c = NULL;
-        if (c->library) dlclose(c->library);
+        /* The library stays loaded (no dlclose): the next container instance finds it, and the
+           project's FMUs then reuse their pythonfmu components (see the shim's "Pool"), whose
+           construction leaks in pythonfmu; unloaded, 80 KB per instantiate/free cycle were lost. */
         c->library = NULL;
     }
     free_plan(&x->plan);
@@ -637,8 +640,9 @@ static fmi2Status apply_inputs(struct container *x, double t) {
 #define CONTAINER(c, allowed)                                                                                \
     struct container *x = (c);                                                                               \
     if (!x) return fmi2Error;                                                                                \
-    if (x->state == FAILED) {                                                                                \
-        say(x, fmi2Error, "%s: called after a failure", __func__);                                          \
+    if (x->state == FAILED && strcmp(__func__, "fmi2Reset") != 0) {                                         \
+        say(x, fmi2Error, "%s: called after a failure (only fmi2Reset and fmi2FreeInstance are allowed)",    \
+            __func__);                                                                                       \
         return fmi2Error;                                                                                    \
     }                                                                                                        \
     if (!((allowed) & (1 << x->state))) {                                                                    \
@@ -647,6 +651,7 @@ static fmi2Status apply_inputs(struct container *x, double t) {
     }
 
 #define ANY (1 << INSTANTIATED | 1 << INITIALIZATION | 1 << STEPPING | 1 << TERMINATED)
+#define ANY_OR_FAILED (ANY | 1 << FAILED)
 
 EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
 
@@ -672,8 +677,9 @@ static struct container *create(struct container *x, const char *function, const
         free(x);
         return NULL;
     }
-    if (token && strcmp(token, x->plan.guid) != 0) {
-        say(x, fmi2Error, "%s: GUID %s does not match the container's %s", function, token, x->plan.guid);
+    if (!token || strcmp(token, x->plan.guid) != 0) {
+        say(x, fmi2Error, "%s: GUID %s does not match the container's %s", function, token ? token : "(NULL)",
+            x->plan.guid);
         release(x);
         return NULL;
     }
@@ -987,7 +993,7 @@ EXPORT fmi2Status fmi2Terminate(fmi2Component c) {
 }
 
 EXPORT fmi2Status fmi2Reset(fmi2Component c) {
-    CONTAINER(c, ANY);
+    CONTAINER(c, ANY_OR_FAILED);
     for (size_t i = 0; i < x->plan.ncomponents; i++) {
         struct component *k = &x->plan.components[i];
         CHECK(x, (int)i, "fmi2Reset", k->f.reset(k->c), grid_time(x, x->k));

@@ -32,26 +32,41 @@
    (host logger and stderr) and returns NULL. At unload and at exit the shim works around a
    double free in pythonfmu's binary (see unload()).
 
+   The guard (section "Guard" below; docs/fmus/host-safety.md): pythonfmu trusts its host, and a
+   host's mistake crashed the host (a resource location that does not exist, a call after a fatal
+   error, a NULL logger). So before a call reaches pythonfmu the shim checks it, as the Modelica
+   Reference FMUs do (one table of allowed states per function): the instance's FMI state, every
+   value reference against the model description (type, causality, variability), the step size,
+   the GUID; a refused call returns fmi2Error with one message naming the function and the reason
+   and is not forwarded. After fmi2Error the instance is latched (only getters, fmi2Reset and
+   fmi2FreeInstance go on), after fmi2Fatal only fmi2FreeInstance, which then leaves pythonfmu's
+   half-destroyed component alone. pythonfmu gets the shim's own callbacks: its messages reach the
+   host with a category and a format-safe text, and never a NULL logger. pythonfmu's components
+   are kept for reuse after fmi2FreeInstance (section "Pool"): constructing one leaks 16-34 KB in
+   pythonfmu 0.7.0, resetting one nothing.
+
+   Operating-system calls go through platform.h (POSIX today).
+
    Needs a C compiler, libc and the pinned runtime's headers (for start_python.c only): the
    Python C-API functions are looked up with dlsym, so the shim links no libpython. */
 
-#define _GNU_SOURCE
-#include <dlfcn.h>
-#include <fcntl.h>
-#include <pthread.h>
+#include <math.h>
+#include <stdarg.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/file.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include "fmi2_types.h"
+#include "guard.h"
+#include "platform.h"
 #include "start_python.h"
 
 #ifndef EXPORT /* the FMI 3.0 build defines it empty: its FMI 2.0 functions are internal */
 #define EXPORT __attribute__((visibility("default")))
+#endif
+#ifndef FTC_VR_OFFSET /* the FMI 3.0 build: its value references are the FMI 2.0 ones plus this */
+#define FTC_VR_OFFSET 0
 #endif
 #define RUNTIME_DIR "python"
 #define INNER_SUFFIX "_pythonfmu.so"
@@ -64,15 +79,45 @@ static fmi2Component (*inner_fmi2Instantiate)(fmi2String, fmi2Type, fmi2String, 
                                               const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean);
 static void (*inner_fmi2FreeInstance)(fmi2Component);
 
-/* What the shim hands the host as fmi2Component: pythonfmu's component and the direct path. */
+/* The FMI states an instance can be in (one bit each, so that a set of them is a mask). */
+enum state {
+    INSTANTIATED = 1,
+    INITIALIZATION = 2,
+    STEP_COMPLETE = 4,
+    STEP_FAILED = 8, /* after fmi2Discard */
+    TERMINATED = 16,
+    ERROR = 32,      /* after fmi2Error: getters, fmi2Reset and fmi2FreeInstance only */
+    FATAL = 64,      /* after fmi2Fatal: fmi2FreeInstance only */
+};
+#define ANY_STATE (INSTANTIATED | INITIALIZATION | STEP_COMPLETE | STEP_FAILED | TERMINATED)
+
+/* A pythonfmu component and the callbacks it was given (it keeps a pointer to them), kept for
+   reuse after its instance is freed (see "Pool"). */
+struct instance;
+struct pooled {
+    fmi2Component c;
+    fmi2CallbackFunctions callbacks; /* relay() with this entry as environment */
+    struct instance *owner;          /* NULL while in the pool */
+    char name[256];                  /* what pythonfmu was instantiated with */
+    char resources[TEXT];
+    fmi2Boolean visible;
+    struct pooled *next;
+};
+
+/* What the shim hands the host as fmi2Component: pythonfmu's component, the guard's state and
+   the direct path. */
 struct direct;
 struct instance {
     fmi2Component inner;        /* pythonfmu's component */
+    struct pooled *pooled;      /* its pool entry */
     struct direct *direct;      /* NULL: every call forwarded (see "Direct calls") */
     int direct_allowed;         /* FTC_FMU_DIRECT is not "0" */
     char name[256];             /* instance name */
     fmi2Real last_successful_time; /* what pythonfmu's fmi2DoStep would record */
     fmi2Boolean wants_to_terminate;
+    enum state state;
+    fmi2CallbackFunctions host; /* the host's callbacks (all NULL if it gave none) */
+    const char *serving;        /* the FMI 3.0 function being served, if any (messages name it) */
 };
 
 /* call_<name>(c, ...): the pythonfmu function on the instance's own component. */
@@ -86,31 +131,23 @@ FMI2_PLAIN(INNER_CALL)
 static void unload(void);
 static void resolve_python_api(void *python);
 
-static pthread_mutex_t load_lock = PTHREAD_MUTEX_INITIALIZER;
+static ftc_mutex load_lock = FTC_MUTEX_INIT;
 static int loaded;            /* 0: not tried, 1: pythonfmu's binary is ready, -1: failed */
 static void *inner;           /* handle of <model>_pythonfmu.so */
 static char model[256];       /* model identifier: the shim's file name without .so */
 static char failure[TEXT];    /* the one message of a failed load() */
 static char python_info[TEXT]; /* "Python X.Y.Z bundled with the FMU" or "of the host process" */
-
-/* dlerror() without a leading "<path>: " (the message names the path already). */
-static const char *dl_reason(const char *path) {
-    const char *error = dlerror();
-    size_t n = strlen(path);
-    if (!error) return "unknown error";
-    if (strncmp(error, path, n) == 0 && strncmp(error + n, ": ", 2) == 0) return error + n + 2;
-    return error;
-}
+static struct ftc_model description; /* the model description's token and variables */
 
 /* Loads a library of the runtime by soname, globally: one already in the process is reused, else
    the search reaches the shim's DT_RUNPATH ($ORIGIN/python/lib, holding libpython only) and then
    the system's folders; `fallback` (a path), if given, is loaded where that finds nothing. */
 static void *load_runtime_library(const char *soname, const char *fallback) {
-    void *handle = dlopen(soname, RTLD_NOW | RTLD_GLOBAL);
-    if (!handle && fallback) handle = dlopen(fallback, RTLD_NOW | RTLD_GLOBAL);
+    void *handle = ftc_library_open(soname, 1);
+    if (!handle && fallback) handle = ftc_library_open(fallback, 1);
     if (!handle) {
         const char *name = fallback ? fallback : soname;
-        snprintf(failure, TEXT, "%s: cannot load the bundled %s: %s", model, soname, dl_reason(name));
+        snprintf(failure, TEXT, "%s: cannot load the bundled %s: %s", model, soname, ftc_library_error(name));
     }
     return handle;
 }
@@ -124,19 +161,18 @@ static int bundled_home(const char *library, char home[TEXT]) {
     snprintf(home, TEXT, "%.*s", (int)(n - m), library);
     char zip[TEXT + 32];
     snprintf(zip, sizeof zip, "%s/python" FTC_TAG ".zip", home);
-    struct stat info;
-    return stat(zip, &info) == 0 && S_ISREG(info.st_mode);
+    return ftc_is_file(zip);
 }
 
 /* Makes Python available if needed, then opens pythonfmu's binary. Called once, under load_lock. */
 static int load(void) {
-    Dl_info self;
-    if (!dladdr((void *)&load, &self) || !self.dli_fname) {
+    char self[TEXT];
+    if (ftc_library_file((void *)&load, self, sizeof self) != 0) {
         snprintf(failure, TEXT, "fmi2 shim: cannot find its own file (dladdr failed)");
         return -1;
     }
     char dir[TEXT];
-    snprintf(dir, sizeof dir, "%s", self.dli_fname);
+    snprintf(dir, sizeof dir, "%s", self);
     char *slash = strrchr(dir, '/');
     const char *base = slash ? slash + 1 : dir;
     snprintf(model, sizeof model, "%s", base);
@@ -144,10 +180,15 @@ static int load(void) {
     if (dot && strcmp(dot, ".so") == 0) *dot = '\0';
     if (slash) *slash = '\0';
     else snprintf(dir, sizeof dir, ".");
+    char why[TEXT];
+    if (ftc_read_model(self, &description, why, sizeof why) != 0) {
+        snprintf(failure, TEXT, "%s: %s", model, why);
+        return -1;
+    }
 
-    void *python = RTLD_DEFAULT;
+    void *python = NULL; /* NULL: every library of the process */
     int own; /* Python is an FMU's bundled runtime (this one's or another's), not the host's */
-    if (!dlsym(RTLD_DEFAULT, "Py_IsInitialized")) {
+    if (!ftc_library_symbol(NULL, "Py_IsInitialized")) {
         char zlib[TEXT + 64], expat[TEXT + 64];
         snprintf(zlib, sizeof zlib, "%s/%s/fallback/libz.so.1", dir, RUNTIME_DIR);
         snprintf(expat, sizeof expat, "%s/%s/fallback/libexpat.so.1", dir, RUNTIME_DIR);
@@ -155,7 +196,7 @@ static int load(void) {
             !(python = load_runtime_library(FTC_LIBPYTHON, NULL)))
             return -1;
     }
-    int (*is_initialized)(void) = (int (*)(void))dlsym(python, "Py_IsInitialized");
+    int (*is_initialized)(void) = (int (*)(void))ftc_library_symbol(python, "Py_IsInitialized");
     if (!is_initialized) {
         snprintf(failure, TEXT, "%s: %s has no Py_IsInitialized: not a libpython", model, FTC_LIBPYTHON);
         return -1;
@@ -165,14 +206,12 @@ static int load(void) {
        runtime is decided by the file that defines it (<home>/lib/libpython... beside
        <home>/python311.zip), whoever loaded it, and a lock on that file makes the first start it
        completely before the other looks. */
-    Dl_info defining;
-    const char *library = FTC_LIBPYTHON;
-    if (dladdr((void *)is_initialized, &defining) && defining.dli_fname && defining.dli_fname[0])
-        library = defining.dli_fname;
+    char library[TEXT];
+    if (ftc_library_file((void *)is_initialized, library, sizeof library) != 0)
+        snprintf(library, sizeof library, "%s", FTC_LIBPYTHON);
     char home[TEXT];
     own = bundled_home(library, home);
-    int lock = open(library, O_RDONLY | O_CLOEXEC);
-    if (lock >= 0) flock(lock, LOCK_EX);
+    int lock = ftc_file_lock(library);
     int status = 0;
     if (!is_initialized()) {
         if (own) {
@@ -181,8 +220,8 @@ static int load(void) {
             if (status != 0)
                 snprintf(failure, TEXT, "%s: cannot start the bundled Python in %s: %s", model, home, reason);
         } else { /* the host loaded a libpython of its own without starting it: start that one */
-            void (*initialize)(int) = (void (*)(int))dlsym(python, "Py_InitializeEx");
-            void *(*save_thread)(void) = (void *(*)(void))dlsym(python, "PyEval_SaveThread");
+            void (*initialize)(int) = (void (*)(int))ftc_library_symbol(python, "Py_InitializeEx");
+            void *(*save_thread)(void) = (void *(*)(void))ftc_library_symbol(python, "PyEval_SaveThread");
             if (initialize && save_thread) {
                 initialize(0); /* 0: keep the host's signal handlers */
                 save_thread();
@@ -191,39 +230,49 @@ static int load(void) {
             if (status != 0) snprintf(failure, TEXT, "%s: cannot initialize the host's Python (%s)", model, library);
         }
     }
-    if (lock >= 0) close(lock); /* releases the lock */
+    ftc_file_unlock(lock);
     if (status != 0) return -1;
 
     char path[TEXT + 300];
     snprintf(path, sizeof path, "%s/%s%s", dir, model, INNER_SUFFIX);
-    inner = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    inner = ftc_library_open(path, 0);
     if (!inner) {
-        snprintf(failure, TEXT, "%s: cannot load pythonfmu's binary %s: %s", model, path, dl_reason(path));
+        snprintf(failure, TEXT, "%s: cannot load pythonfmu's binary %s: %s", model, path, ftc_library_error(path));
         return -1;
     }
     inner_fmi2Instantiate = (fmi2Component(*)(fmi2String, fmi2Type, fmi2String, fmi2String,
                                                const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean))
-        dlsym(inner, "fmi2Instantiate");
-    inner_fmi2FreeInstance = (void (*)(fmi2Component))dlsym(inner, "fmi2FreeInstance");
+        ftc_library_symbol(inner, "fmi2Instantiate");
+    inner_fmi2FreeInstance = (void (*)(fmi2Component))ftc_library_symbol(inner, "fmi2FreeInstance");
     if (!inner_fmi2Instantiate || !inner_fmi2FreeInstance) {
         snprintf(failure, TEXT, "%s: %s lacks fmi2Instantiate or fmi2FreeInstance", model, path);
         return -1;
     }
-#define RESOLVE(name, params, args) *(void **)(&inner_##name) = dlsym(inner, #name);
+    int complete = 1;
+#define RESOLVE(name, params, args) complete &= (*(void **)(&inner_##name) = ftc_library_symbol(inner, #name)) != NULL;
     FMI2_FORWARDED(RESOLVE)
+    if (!complete) {
+        snprintf(failure, TEXT, "%s: %s lacks an FMI 2.0 function", model, path);
+        return -1;
+    }
     atexit(unload); /* after pythonfmu's static destructors were registered: runs before them */
     resolve_python_api(python);
-    const char *(*get_version)(void) = (const char *(*)(void))dlsym(python, "Py_GetVersion");
+    const char *(*get_version)(void) = (const char *(*)(void))ftc_library_symbol(python, "Py_GetVersion");
     snprintf(python_info, TEXT, "Python %.*s %s", get_version ? (int)strcspn(get_version(), " ") : 1,
              get_version ? get_version() : "?", own ? "bundled with the FMU" : "of the host process");
     return 0;
 }
 
-/* One message to the host's logger (if any) and to stderr; '%' escaped for the printf-style logger. */
-static void report(const fmi2CallbackFunctions *functions, fmi2String instanceName, fmi2Status status,
-                   const char *message) {
-    fprintf(stderr, "%s\n", message);
-    if (!functions || !functions->logger) return;
+/* One message to a host's logger: its text with '%' escaped (the logger takes a printf format),
+   a category always. `host` NULL or without a logger: the message goes to stderr only. */
+static void deliver(const fmi2CallbackFunctions *host, fmi2String instanceName, fmi2Status status,
+                    const char *category, const char *message) {
+    if (!category || !category[0])
+        category = status == fmi2OK ? "logAll" : status == fmi2Warning ? "logStatusWarning" : "logStatusError";
+    if (!host || !host->logger) {
+        if (status >= fmi2Warning) fprintf(stderr, "%s: %s\n", instanceName ? instanceName : model, message);
+        return;
+    }
     char escaped[2 * TEXT];
     size_t j = 0;
     for (const char *p = message; *p && j + 2 < sizeof escaped; p++) {
@@ -231,8 +280,215 @@ static void report(const fmi2CallbackFunctions *functions, fmi2String instanceNa
         escaped[j++] = *p;
     }
     escaped[j] = '\0';
-    functions->logger(functions->componentEnvironment, instanceName ? instanceName : model, status,
-                      status == fmi2Warning ? "logStatusWarning" : "logStatusError", escaped);
+    host->logger(host->componentEnvironment, instanceName ? instanceName : model, status, category, escaped);
+}
+
+/* One message to the host's logger (if any) and to stderr. */
+static void report(const fmi2CallbackFunctions *functions, fmi2String instanceName, fmi2Status status,
+                   const char *message) {
+    if (functions && functions->logger) fprintf(stderr, "%s\n", message);
+    deliver(functions, instanceName, status, NULL, message);
+}
+
+/* The logger pythonfmu gets: its message (plain text: pythonfmu passes no arguments, and a '%' in
+   it is not a format) to the current owner's host, with a category where pythonfmu gives none. */
+static void relay(fmi2ComponentEnvironment environment, fmi2String instanceName, fmi2Status status,
+                  fmi2String category, fmi2String message, ...) {
+    struct pooled *p = environment;
+    struct instance *i = p ? p->owner : NULL;
+    deliver(i ? &i->host : NULL, i ? i->name : instanceName, status, category, message ? message : "");
+}
+
+/* ---- Guard ------------------------------------------------------------------------------------- */
+
+static const char *state_name(enum state s) {
+    switch (s) {
+    case INSTANTIATED: return "Instantiated";
+    case INITIALIZATION: return "Initialization Mode";
+    case STEP_COMPLETE: return "Step Complete";
+    case STEP_FAILED: return "Step Failed (after fmi2Discard)";
+    case TERMINATED: return "Terminated";
+    case ERROR: return "Error";
+    default: return "Fatal";
+    }
+}
+
+static void say(struct instance *i, fmi2Status status, const char *function, const char *format, ...)
+    __attribute__((format(printf, 4, 5)));
+
+/* One message of the guard: "<function>: <reason>", to the host's logger and stderr. */
+static void say(struct instance *i, fmi2Status status, const char *function, const char *format, ...) {
+    char text[TEXT], message[TEXT + 64];
+    va_list args;
+    va_start(args, format);
+    vsnprintf(text, sizeof text, format, args);
+    va_end(args);
+    snprintf(message, sizeof message, "%s: %s", i->serving ? i->serving : function, text);
+    report(&i->host, i->name, status, message);
+}
+
+/* The state after a call that returned `status`: fmi2Error and fmi2Fatal latch the instance. */
+static fmi2Status settle(struct instance *i, fmi2Status status) {
+    if (status == fmi2Fatal) i->state = FATAL;
+    else if (status >= fmi2Error && i->state != FATAL) i->state = ERROR;
+    return status;
+}
+
+/* fmi2Error with one message, and the instance latched (the standard's Error state). */
+static fmi2Status refuse(struct instance *i, const char *function, const char *reason) {
+    say(i, fmi2Error, function, "%s", reason);
+    return settle(i, fmi2Error);
+}
+
+/* fmi2OK if `function` may be called in the instance's state (`allowed`; `in_error`: also after
+   fmi2Error), else fmi2Error and a message; a call after fmi2Fatal is never allowed. */
+static fmi2Status allowed_in(struct instance *i, const char *function, int allowed, int in_error) {
+    if (i->state == FATAL) {
+        say(i, fmi2Error, function, "not allowed after a fatal error: only fmi2FreeInstance is");
+        return fmi2Error;
+    }
+    if (i->state == ERROR) {
+        if (in_error) return fmi2OK;
+        say(i, fmi2Error, function, "not allowed after an error: only getters, fmi2Reset and fmi2FreeInstance are");
+        return fmi2Error;
+    }
+    if (allowed & (int)i->state) return fmi2OK;
+    char reason[128];
+    snprintf(reason, sizeof reason, "not allowed in %s", state_name(i->state));
+    return refuse(i, function, reason);
+}
+
+#define GUARD(function, allowed, in_error)                                                                   \
+    struct instance *i = c;                                                                                  \
+    if (!i) return fmi2Error;                                                                                \
+    if (allowed_in(i, function, allowed, in_error) != fmi2OK) return fmi2Error
+
+static const char *TYPE_NAMES[] = {"Real", "Integer", "Boolean", "String"};
+static const char TYPE_CODES[] = "ribs";
+
+/* Whether variable `v` may be set in state `s`; NULL, or the reason it may not. */
+static const char *unsettable(const struct ftc_variable *v, enum state s) {
+    if (v->variability == 'c') return "is a constant";
+    switch (v->causality) {
+    case 'o': return "is an output";
+    case 'c': return "is a calculated parameter";
+    case 't': return "is the independent variable";
+    case 'l':
+        if ((s & (INSTANTIATED | INITIALIZATION)) && (v->initial == 'e' || v->initial == 'a')) return NULL;
+        return "is a local variable";
+    case 'i': return NULL;
+    default: /* parameters */
+        if (s & (INSTANTIATED | INITIALIZATION)) return NULL;
+        return v->variability == 't' ? NULL : "is a fixed parameter";
+    }
+}
+
+/* fmi2OK if every value reference names a variable of type `type` (an index into TYPE_NAMES) that
+   may be read (`set` 0) or set in the current state; else fmi2Error and one message. */
+static fmi2Status check_references(struct instance *i, const char *function, const fmi2ValueReference vr[],
+                                   size_t n, const void *values, int type, int set) {
+    if (n > 0 && (!vr || !values)) return refuse(i, function, "the value reference or value array is NULL");
+    for (size_t k = 0; k < n; k++) {
+        const struct ftc_variable *v = ftc_variable(&description, vr[k] + FTC_VR_OFFSET);
+        char reason[TEXT];
+        const char *problem = NULL;
+        if (!v) {
+            snprintf(reason, sizeof reason, "no variable has the value reference %u", vr[k] + FTC_VR_OFFSET);
+            return refuse(i, function, reason);
+        }
+        if (v->type != TYPE_CODES[type]) {
+            const char *actual = strchr(TYPE_CODES, v->type) ? TYPE_NAMES[strchr(TYPE_CODES, v->type) - TYPE_CODES]
+                                                             : "variable of another type";
+            snprintf(reason, sizeof reason, "%s (value reference %u) is a%s %s, not a%s %s", v->name,
+                     vr[k] + FTC_VR_OFFSET, actual[0] == 'I' ? "n" : "", actual, type == 1 ? "n" : "",
+                     TYPE_NAMES[type]);
+            return refuse(i, function, reason);
+        }
+        if (set && (problem = unsettable(v, i->state))) {
+            snprintf(reason, sizeof reason, "%s (value reference %u) %s: it cannot be set in %s", v->name,
+                     vr[k] + FTC_VR_OFFSET, problem, state_name(i->state));
+            return refuse(i, function, reason);
+        }
+    }
+    return fmi2OK;
+}
+
+#ifdef FTC_TIME_VR /* the FMI 3.0 build: FMI 3.0 allows the getters in Instantiated too */
+#define GET_STATES (INSTANTIATED | INITIALIZATION | STEP_COMPLETE | STEP_FAILED | TERMINATED)
+#else
+#define GET_STATES (INITIALIZATION | STEP_COMPLETE | STEP_FAILED | TERMINATED)
+#endif
+#define SET_STATES (INSTANTIATED | INITIALIZATION | STEP_COMPLETE)
+
+/* Served by the FMI 3.0 layer of this shared object (fmi3_shim.c): messages name its function;
+   and its own refusals latch the instance too. */
+void ftc_serving(fmi2Component c, const char *function) {
+    if (c) ((struct instance *)c)->serving = function;
+}
+
+fmi2Status ftc_latch(fmi2Component c, fmi2Status status) { return c ? settle(c, status) : status; }
+
+fmi2Status ftc_allowed(fmi2Component c, const char *function, int in_error) {
+    return c ? allowed_in(c, function, ANY_STATE, in_error) : fmi2Error;
+}
+
+/* ---- Pool ----------------------------------------------------------------------------------------
+
+   pythonfmu 0.7.0 leaks 16-34 KB every time it constructs a component (its findClass runs the
+   FMU's script again and keeps references to the classes it made; each constructor also puts the
+   resources folder on sys.path once more), and nothing when it resets one. So a freed instance's
+   component is kept, and the next fmi2Instantiate with the same instance name, resources folder
+   and visibility resets it (pythonfmu constructs a new Python slave from the class it found, as
+   fmi2Reset does) instead of constructing another. At most POOL_SIZE are kept; the pool is
+   emptied when the shim is unloaded. */
+
+#define POOL_SIZE 16
+static ftc_mutex pool_lock = FTC_MUTEX_INIT;
+static struct pooled *pool;
+static size_t pooled_count;
+
+static struct pooled *take(const char *name, const char *resources, fmi2Boolean visible) {
+    ftc_lock(&pool_lock);
+    struct pooled **p = &pool;
+    while (*p && (strcmp((*p)->name, name) || strcmp((*p)->resources, resources) || (*p)->visible != visible))
+        p = &(*p)->next;
+    struct pooled *found = *p;
+    if (found) {
+        *p = found->next;
+        pooled_count--;
+    }
+    ftc_unlock(&pool_lock);
+    return found;
+}
+
+static void give_back(struct pooled *p) {
+    p->owner = NULL;
+    ftc_lock(&pool_lock);
+    int kept = pooled_count < POOL_SIZE;
+    if (kept) {
+        p->next = pool;
+        pool = p;
+        pooled_count++;
+    }
+    ftc_unlock(&pool_lock);
+    if (!kept) {
+        inner_fmi2FreeInstance(p->c);
+        free(p);
+    }
+}
+
+static void empty_pool(void) {
+    ftc_lock(&pool_lock);
+    struct pooled *p = pool;
+    pool = NULL;
+    pooled_count = 0;
+    ftc_unlock(&pool_lock);
+    while (p) {
+        struct pooled *next = p->next;
+        inner_fmi2FreeInstance(p->c);
+        free(p);
+        p = next;
+    }
 }
 
 /* ---- Direct calls ------------------------------------------------------------------------------
@@ -294,11 +550,12 @@ static struct {
     void (*clear_error)(void);
     void (*decref)(PyObject *);
     PyObject *true_object;
+    int (*is_initialized)(void);
 } py;
 
 static void resolve_python_api(void *python) {
     py.ready = 1;
-#define FIND(field, symbol) py.ready &= (*(void **)(&py.field) = dlsym(python, symbol)) != NULL
+#define FIND(field, symbol) py.ready &= (*(void **)(&py.field) = ftc_library_symbol(python, symbol)) != NULL
     FIND(gil_ensure, "PyGILState_Ensure");
     FIND(gil_release, "PyGILState_Release");
     FIND(import, "PyImport_ImportModule");
@@ -321,6 +578,7 @@ static void resolve_python_api(void *python) {
     FIND(clear_error, "PyErr_Clear");
     FIND(decref, "Py_DecRef");
     FIND(true_object, "_Py_TrueStruct"); /* the object Py_True itself */
+    FIND(is_initialized, "Py_IsInitialized");
 #undef FIND
 }
 
@@ -407,10 +665,8 @@ static int covered(const struct direct *d, const fmi2ValueReference vr[], size_t
     return 1;
 }
 
-EXPORT fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[]) {
-    struct instance *i = c;
+static fmi2Status get_real(struct instance *i, const fmi2ValueReference vr[], size_t n, fmi2Real v[]) {
     int outputs;
-    if (!i || !inner_fmi2GetReal) return fmi2Error;
     if (!i->direct || !covered(i->direct, vr, n, 1 << KIND_INPUT | 1 << KIND_OUTPUT, &outputs))
         return inner_fmi2GetReal(i->inner, vr, n, v);
     struct direct *d = i->direct;
@@ -440,10 +696,8 @@ EXPORT fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], si
     return fmi2OK;
 }
 
-EXPORT fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]) {
-    struct instance *i = c;
+static fmi2Status set_real(struct instance *i, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]) {
     int outputs;
-    if (!i || !inner_fmi2SetReal) return fmi2Error;
     if (!i->direct || !covered(i->direct, vr, n, 1 << KIND_INPUT, &outputs))
         return inner_fmi2SetReal(i->inner, vr, n, v);
     struct direct *d = i->direct;
@@ -464,9 +718,7 @@ EXPORT fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], si
     return fmi2OK;
 }
 
-EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior) {
-    struct instance *i = c;
-    if (!i || !inner_fmi2DoStep) return fmi2Error;
+static fmi2Status do_step(struct instance *i, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior) {
     if (!i->direct) return inner_fmi2DoStep(i->inner, t, h, noSetPrior);
     int gil = py.gil_ensure();
     PyObject *time = py.from_double(t), *step = py.from_double(h), *result = NULL;
@@ -490,90 +742,283 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolea
     return fmi2Discard;
 }
 
+/* ---- The FMI 2.0 functions: guard, then the direct path or pythonfmu ---------------------------- */
+
+EXPORT fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[]) {
+    GUARD("fmi2GetReal", GET_STATES, 1);
+    if (check_references(i, "fmi2GetReal", vr, n, v, 0, 0)) return fmi2Error;
+    return settle(i, get_real(i, vr, n, v));
+}
+
+EXPORT fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]) {
+    GUARD("fmi2SetReal", SET_STATES, 0);
+    if (check_references(i, "fmi2SetReal", vr, n, v, 0, 1)) return fmi2Error;
+    return settle(i, set_real(i, vr, n, v));
+}
+
+EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior) {
+    GUARD("fmi2DoStep", STEP_COMPLETE, 0);
+    if (!isfinite(h) || h <= 0.0 || !isfinite(t)) {
+        char reason[160];
+        snprintf(reason, sizeof reason, "the step from %g by %g: the step size must be a positive finite number, "
+                 "the time finite", t, h);
+        return refuse(i, "fmi2DoStep", reason);
+    }
+    fmi2Status status = do_step(i, t, h, noSetPrior);
+    if (status == fmi2Discard) i->state = STEP_FAILED;
+    return settle(i, status);
+}
+
 EXPORT fmi2Status fmi2Reset(fmi2Component c) {
-    struct instance *i = c;
-    if (!i || !inner_fmi2Reset) return fmi2Error;
+    GUARD("fmi2Reset", ANY_STATE, 1);
     release_binding(i);
     fmi2Status status = inner_fmi2Reset(i->inner); /* pythonfmu constructs a new slave */
     i->last_successful_time = 0.0;
     i->wants_to_terminate = 0;
-    if (status < fmi2Error) bind_direct(i);
-    return status;
+    if (status < fmi2Error) {
+        bind_direct(i);
+        i->state = INSTANTIATED;
+    }
+    return settle(i, status);
 }
 
 /* Once the direct path has made a step, pythonfmu's record of the last step is not current. */
 EXPORT fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
-    struct instance *i = c;
-    if (!i || !inner_fmi2GetRealStatus) return fmi2Error;
-    if (i->direct && s == fmi2LastSuccessfulTime && value) {
+    GUARD("fmi2GetRealStatus", STEP_COMPLETE | STEP_FAILED | TERMINATED, 1);
+    if (!value) return refuse(i, "fmi2GetRealStatus", "value is NULL");
+    if (i->direct && s == fmi2LastSuccessfulTime) {
         *value = i->last_successful_time;
         return fmi2OK;
     }
-    return inner_fmi2GetRealStatus(i->inner, s, value);
+    return settle(i, inner_fmi2GetRealStatus(i->inner, s, value));
 }
 
 EXPORT fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
-    struct instance *i = c;
-    if (!i || !inner_fmi2GetBooleanStatus) return fmi2Error;
-    if (i->direct && s == fmi2Terminated && value) {
+    GUARD("fmi2GetBooleanStatus", STEP_COMPLETE | STEP_FAILED | TERMINATED, 1);
+    if (!value) return refuse(i, "fmi2GetBooleanStatus", "value is NULL");
+    if (i->direct && s == fmi2Terminated) {
         *value = i->wants_to_terminate;
         return fmi2OK;
     }
-    return inner_fmi2GetBooleanStatus(i->inner, s, value);
+    return settle(i, inner_fmi2GetBooleanStatus(i->inner, s, value));
 }
 
 EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
 
 EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
 
-EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
-                                     fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
-                                     fmi2Boolean visible, fmi2Boolean loggingOn) {
-    pthread_mutex_lock(&load_lock);
+/* pythonfmu's component for a new instance: one from the pool, reset, or a new one. */
+static struct pooled *component_for(struct instance *i, fmi2Type type, fmi2String guid, const char *resources,
+                                    fmi2Boolean visible, fmi2Boolean loggingOn) {
+    struct pooled *p = take(i->name, resources, visible);
+    if (p) {
+        p->owner = i;
+        if (inner_fmi2Reset(p->c) < fmi2Error) {
+            inner_fmi2SetDebugLogging(p->c, loggingOn, 0, NULL);
+            return p;
+        }
+        p->owner = NULL; /* pythonfmu could not construct the slave again: abandoned, as after fmi2Fatal */
+    }
+    p = calloc(1, sizeof *p);
+    if (!p) return NULL;
+    p->owner = i;
+    p->callbacks.logger = relay;
+    p->callbacks.allocateMemory = calloc;
+    p->callbacks.freeMemory = free;
+    p->callbacks.componentEnvironment = p;
+    snprintf(p->name, sizeof p->name, "%s", i->name);
+    snprintf(p->resources, sizeof p->resources, "%s", resources);
+    p->visible = visible;
+    p->c = inner_fmi2Instantiate(i->name, type, guid, resources, &p->callbacks, visible, loggingOn);
+    if (!p->c) {
+        free(p);
+        return NULL;
+    }
+    return p;
+}
+
+/* fmi2Instantiate, and fmi3InstantiateCoSimulation for the FMI 3.0 layer (`function` names the
+   host's call in messages). */
+fmi2Component ftc_instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                              fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
+                              fmi2Boolean visible, fmi2Boolean loggingOn, const char *function) {
+    ftc_lock(&load_lock);
     if (loaded == 0) loaded = load() == 0 ? 1 : -1;
-    pthread_mutex_unlock(&load_lock);
+    ftc_unlock(&load_lock);
     if (loaded < 0) {
         report(functions, instanceName, fmi2Error, failure);
         return NULL;
     }
-    fmi2Component c = inner_fmi2Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation, functions,
-                                            visible, loggingOn);
-    if (!c) {
-        char message[2 * TEXT];
-        snprintf(message, sizeof message, "%s: pythonfmu could not instantiate %s in %s; instantiate with "
-                 "logging on for its reason", model, instanceName ? instanceName : "the model", python_info);
-        report(functions, instanceName, fmi2Error, message);
+    char message[3 * TEXT], resources[TEXT], note[2 * TEXT];
+    const char *problem = NULL;
+    if (!instanceName) problem = "instanceName is NULL";
+    else if (fmuType != fmi2CoSimulation) problem = "this FMU is a Co-Simulation FMU only";
+    else if (!fmuGUID) problem = "the GUID (instantiation token) is NULL";
+    else if (strcmp(fmuGUID, description.token) != 0) {
+        snprintf(note, sizeof note, "the GUID (instantiation token) %s is not this FMU's %s (modelDescription.xml)",
+                 fmuGUID, description.token);
+        problem = note;
     }
-    if (!c) return NULL;
+    int found = problem ? 0 : ftc_resources(&description, fmuResourceLocation, resources, sizeof resources, note,
+                                            sizeof note);
+    if (found < 0) problem = note;
+    if (problem) {
+        snprintf(message, sizeof message, "%s: %s: %s", model, function, problem);
+        report(functions, instanceName, fmi2Error, message);
+        return NULL;
+    }
     struct instance *i = calloc(1, sizeof *i);
     if (!i) {
-        inner_fmi2FreeInstance(c);
         report(functions, instanceName, fmi2Error, "fmi2 shim: out of memory");
         return NULL;
     }
-    i->inner = c;
-    snprintf(i->name, sizeof i->name, "%s", instanceName ? instanceName : "");
+    snprintf(i->name, sizeof i->name, "%s", instanceName);
+    if (functions) i->host = *functions;
+    if (found == 1) say(i, fmi2Warning, function, "%s", note);
+    i->pooled = component_for(i, fmuType, fmuGUID, resources, visible, loggingOn);
+    if (!i->pooled) {
+        snprintf(message, sizeof message, "%s: pythonfmu could not instantiate %s in %s; instantiate with "
+                 "logging on for its reason", model, instanceName, python_info);
+        report(functions, instanceName, fmi2Error, message);
+        free(i);
+        return NULL;
+    }
+    i->inner = i->pooled->c;
+    i->state = INSTANTIATED;
     const char *setting = getenv("FTC_FMU_DIRECT");
     i->direct_allowed = !(setting && strcmp(setting, "0") == 0);
     bind_direct(i);
     return i;
 }
 
+EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                                     fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
+                                     fmi2Boolean visible, fmi2Boolean loggingOn) {
+    return ftc_instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation, functions, visible, loggingOn,
+                           "fmi2Instantiate");
+}
+
 EXPORT void fmi2FreeInstance(fmi2Component c) {
     struct instance *i = c;
     if (!i) return;
     release_binding(i);
-    if (inner_fmi2FreeInstance) inner_fmi2FreeInstance(i->inner);
+    /* After fmi2Fatal pythonfmu has released its slave's objects already (and would release them
+       again when deleting its component): the component is left as it is. */
+    if (i->state == FATAL) i->pooled->owner = NULL;
+    else give_back(i->pooled);
     free(i);
 }
 
-/* The FMI2_PLAIN functions: pythonfmu's, called with its own component. */
+/* The FMI2_PLAIN functions: guarded, then pythonfmu's, called with its own component. */
+#define MASK_fmi2SetDebugLogging ANY_STATE
+#define MASK_fmi2SetupExperiment INSTANTIATED
+#define MASK_fmi2EnterInitializationMode INSTANTIATED
+#define MASK_fmi2ExitInitializationMode INITIALIZATION
+/* Also in Initialization Mode, which the standard does not list: hosts terminate every instance
+   when the initialization of another failed (the orchestrator does), and pythonfmu handles it. */
+#define MASK_fmi2Terminate (INITIALIZATION | STEP_COMPLETE | STEP_FAILED)
+#define MASK_fmi2GetFMUstate ANY_STATE
+#define MASK_fmi2SetFMUstate ANY_STATE
+#define MASK_fmi2FreeFMUstate ANY_STATE
+#define MASK_fmi2SerializedFMUstateSize ANY_STATE
+#define MASK_fmi2SerializeFMUstate ANY_STATE
+#define MASK_fmi2DeSerializeFMUstate ANY_STATE
+#define MASK_fmi2GetDirectionalDerivative GET_STATES
+#define MASK_fmi2SetRealInputDerivatives SET_STATES
+#define MASK_fmi2GetRealOutputDerivatives (STEP_COMPLETE | STEP_FAILED | TERMINATED)
+#define MASK_fmi2CancelStep 0 /* fmi2DoStep never returns fmi2Pending */
+#define MASK_fmi2GetStatus (STEP_COMPLETE | STEP_FAILED | TERMINATED)
+#define MASK_fmi2GetIntegerStatus MASK_fmi2GetStatus
+#define MASK_fmi2GetStringStatus MASK_fmi2GetStatus
+/* Also allowed after fmi2Error: the getters (for the host's diagnosis) and logging. */
+#define ERROR_fmi2SetDebugLogging 1
+#define ERROR_fmi2GetDirectionalDerivative 1
+#define ERROR_fmi2GetRealOutputDerivatives 1
+#define ERROR_fmi2GetStatus 1
+#define ERROR_fmi2GetIntegerStatus 1
+#define ERROR_fmi2GetStringStatus 1
+#define ERROR_fmi2SetupExperiment 0
+#define ERROR_fmi2EnterInitializationMode 0
+#define ERROR_fmi2ExitInitializationMode 0
+#define ERROR_fmi2Terminate 0
+#define ERROR_fmi2GetFMUstate 0
+#define ERROR_fmi2SetFMUstate 0
+#define ERROR_fmi2FreeFMUstate 0
+#define ERROR_fmi2SerializedFMUstateSize 0
+#define ERROR_fmi2SerializeFMUstate 0
+#define ERROR_fmi2DeSerializeFMUstate 0
+#define ERROR_fmi2SetRealInputDerivatives 0
+#define ERROR_fmi2CancelStep 0
+/* The state after a successful call (0: unchanged). */
+#define NEXT_fmi2EnterInitializationMode INITIALIZATION
+#define NEXT_fmi2ExitInitializationMode STEP_COMPLETE
+#define NEXT_fmi2Terminate TERMINATED
+#define NEXT_fmi2SetFMUstate (i->state == STEP_FAILED ? STEP_COMPLETE : 0)
+
 #define FORWARD(name, params, args)                                                                          \
     EXPORT fmi2Status name params {                                                                          \
-        if (!inner_##name || !c) return fmi2Error;                                                           \
-        return call_##name args;                                                                             \
+        GUARD(#name, MASK_##name, ERROR_##name);                                                             \
+        return settle(i, call_##name args);                                                                  \
     }
-FMI2_PLAIN(FORWARD)
+#define FORWARD_NEXT(name, params, args)                                                                     \
+    EXPORT fmi2Status name params {                                                                          \
+        GUARD(#name, MASK_##name, ERROR_##name);                                                             \
+        fmi2Status status = call_##name args;                                                                \
+        int next = NEXT_##name;                                                                              \
+        if (status < fmi2Discard && next) i->state = (enum state)next;                                       \
+        return settle(i, status);                                                                            \
+    }
+/* Typed getters and setters: each value reference checked first. */
+#define FORWARD_VALUES(name, params, args, type, set)                                                        \
+    EXPORT fmi2Status name params {                                                                          \
+        GUARD(#name, set ? SET_STATES : GET_STATES, !set);                                                   \
+        if (check_references(i, #name, vr, n, v, type, set)) return fmi2Error;                               \
+        return settle(i, call_##name args);                                                                  \
+    }
+
+FORWARD(fmi2SetDebugLogging, (fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[]),
+        (c, on, n, categories))
+FORWARD(fmi2SetupExperiment,
+        (fmi2Component c, fmi2Boolean tolDefined, fmi2Real tol, fmi2Real start, fmi2Boolean stopDefined,
+         fmi2Real stop),
+        (c, tolDefined, tol, start, stopDefined, stop))
+FORWARD_NEXT(fmi2EnterInitializationMode, (fmi2Component c), (c))
+FORWARD_NEXT(fmi2ExitInitializationMode, (fmi2Component c), (c))
+FORWARD_NEXT(fmi2Terminate, (fmi2Component c), (c))
+FORWARD_VALUES(fmi2GetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[]),
+               (c, vr, n, v), 1, 0)
+FORWARD_VALUES(fmi2GetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[]),
+               (c, vr, n, v), 2, 0)
+FORWARD_VALUES(fmi2GetString, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[]),
+               (c, vr, n, v), 3, 0)
+FORWARD_VALUES(fmi2SetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer v[]),
+               (c, vr, n, v), 1, 1)
+FORWARD_VALUES(fmi2SetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[]),
+               (c, vr, n, v), 2, 1)
+FORWARD_VALUES(fmi2SetString, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[]),
+               (c, vr, n, v), 3, 1)
+FORWARD(fmi2GetFMUstate, (fmi2Component c, fmi2FMUstate * state), (c, state))
+FORWARD_NEXT(fmi2SetFMUstate, (fmi2Component c, fmi2FMUstate state), (c, state))
+FORWARD(fmi2FreeFMUstate, (fmi2Component c, fmi2FMUstate * state), (c, state))
+FORWARD(fmi2SerializedFMUstateSize, (fmi2Component c, fmi2FMUstate state, size_t * size), (c, state, size))
+FORWARD(fmi2SerializeFMUstate, (fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size),
+        (c, state, bytes, size))
+FORWARD(fmi2DeSerializeFMUstate, (fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate * state),
+        (c, bytes, size, state))
+FORWARD(fmi2GetDirectionalDerivative,
+        (fmi2Component c, const fmi2ValueReference unknown[], size_t nUnknown, const fmi2ValueReference known[],
+         size_t nKnown, const fmi2Real dvKnown[], fmi2Real dvUnknown[]),
+        (c, unknown, nUnknown, known, nKnown, dvKnown, dvUnknown))
+FORWARD(fmi2SetRealInputDerivatives,
+        (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[], const fmi2Real value[]),
+        (c, vr, n, order, value))
+FORWARD(fmi2GetRealOutputDerivatives,
+        (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[], fmi2Real value[]),
+        (c, vr, n, order, value))
+FORWARD(fmi2CancelStep, (fmi2Component c), (c))
+FORWARD(fmi2GetStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Status * value), (c, s, value))
+FORWARD(fmi2GetIntegerStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Integer * value), (c, s, value))
+FORWARD(fmi2GetStringStatus, (fmi2Component c, const fmi2StatusKind s, fmi2String * value), (c, s, value))
 
 /* Releases pythonfmu's binary when the shim is unloaded and at exit, whichever comes first.
 
@@ -585,12 +1030,15 @@ FMI2_PLAIN(FORWARD)
    make it NODELETE), so the shim calls finalizePythonInterpreter() itself while the pointer is
    alive: the PyState is freed once, and the later destructors see nullptr. The exit handler is
    registered after pythonfmu's static destructors (at load), so it runs before them. Python itself
-   stays: an interpreter cannot be unloaded. */
+   stays: an interpreter cannot be unloaded. The pool is emptied first while Python is there (a
+   Python host has finalized its interpreter before the exit handlers run: then the components
+   are left to the end of the process). */
 static void unload(void) {
     if (!inner) return;
-    void (*finalize)(void) = (void (*)(void))dlsym(inner, "finalizePythonInterpreter");
+    if (py.ready && py.is_initialized()) empty_pool();
+    void (*finalize)(void) = (void (*)(void))ftc_library_symbol(inner, "finalizePythonInterpreter");
     if (finalize) finalize();
-    dlclose(inner);
+    ftc_library_close(inner);
     inner = NULL;
 }
 

@@ -85,9 +85,17 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
 /* The FMI 2.0 functions of this shared object (fmi2_shim.c), internal in the FMI 3.0 build. */
 #define PROTOTYPE(name, params, args) fmi2Status name params;
 FMI2_FORWARDED(PROTOTYPE)
-fmi2Component fmi2Instantiate(fmi2String, fmi2Type, fmi2String, fmi2String, const fmi2CallbackFunctions *,
-                              fmi2Boolean, fmi2Boolean);
 void fmi2FreeInstance(fmi2Component);
+/* The FMI 2.0 layer's guard (fmi2_shim.c, "Guard"): instantiate naming the FMI 3.0 function;
+   name the function being served in its messages; latch the
+   instance after a refusal of this layer; whether a call is allowed at all (after an error). */
+fmi2Component ftc_instantiate(fmi2String, fmi2Type, fmi2String, fmi2String, const fmi2CallbackFunctions *,
+                              fmi2Boolean, fmi2Boolean, const char *);
+void ftc_serving(fmi2Component, const char *);
+fmi2Status ftc_latch(fmi2Component, fmi2Status);
+fmi2Status ftc_allowed(fmi2Component, const char *, int);
+#define SERVE(i, function)                                                                                    \
+    if (i) ftc_serving((i)->c, function)
 
 enum mode { INSTANTIATED, INITIALIZATION, EVENT, STEP, TERMINATED };
 static const char *const MODE_NAMES[] = {"Instantiated", "Initialization Mode", "Event Mode", "Step Mode",
@@ -132,6 +140,7 @@ static fmi3Status refuse(struct instance3 *i, const char *function, const char *
         return fmi3Error;
     }
     say(i->environment, i->log, fmi3Error, "%s: %s: %s", i->name, function, reason);
+    ftc_latch(i->c, fmi2Error); /* the standard's Error state, as for the FMI 2.0 layer's refusals */
     return fmi3Error;
 }
 
@@ -153,6 +162,8 @@ static void *allocate(size_t n, size_t size) { return calloc(n, size); }
 
 static fmi3Status check_mode(struct instance3 *i, const char *function, int allowed) {
     if (!i) return fmi3Error;
+    SERVE(i, function);
+    if (ftc_allowed(i->c, function, 0) != fmi2OK) return fmi3Error; /* after an error, said why */
     if (allowed & (1 << i->mode)) return fmi3OK;
     char reason[128];
     snprintf(reason, sizeof reason, "not allowed in %s", MODE_NAMES[i->mode]);
@@ -166,6 +177,7 @@ EXPORT3 const char *fmi3GetVersion(void) { return "3.0"; }
 EXPORT3 fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
                                        const fmi3String categories[]) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3SetDebugLogging");
     if (!i) return fmi3Error;
     return (fmi3Status)fmi2SetDebugLogging(i->c, loggingOn, nCategories, categories);
 }
@@ -208,11 +220,6 @@ EXPORT3 fmi3Instance fmi3InstantiateCoSimulation(
             name, nRequiredIntermediateVariables);
         return NULL;
     }
-    if (!resourcePath || !resourcePath[0]) {
-        say(instanceEnvironment, logMessage, fmi3Error,
-            "%s: fmi3InstantiateCoSimulation: the FMU needs its resources folder (resourcePath is empty)", name);
-        return NULL;
-    }
     struct instance3 *i = calloc(1, sizeof *i);
     if (!i) {
         say(instanceEnvironment, logMessage, fmi3Error, "%s: fmi3InstantiateCoSimulation: out of memory", name);
@@ -226,9 +233,9 @@ EXPORT3 fmi3Instance fmi3InstantiateCoSimulation(
     i->functions.allocateMemory = allocate;
     i->functions.freeMemory = free;
     i->functions.componentEnvironment = i;
-    /* pythonfmu takes a native path as well as a file:// URI */
-    i->c = fmi2Instantiate(instanceName, fmi2CoSimulation, instantiationToken, resourcePath, &i->functions,
-                           visible, loggingOn);
+    /* a native path (FMI 3.0's resourcePath) is taken as well as a file:// URI */
+    i->c = ftc_instantiate(instanceName, fmi2CoSimulation, instantiationToken, resourcePath, &i->functions,
+                           visible, loggingOn, "fmi3InstantiateCoSimulation");
     if (!i->c) { /* the FMI 2.0 layer has said why */
         free(i);
         return NULL;
@@ -238,6 +245,7 @@ EXPORT3 fmi3Instance fmi3InstantiateCoSimulation(
 
 EXPORT3 void fmi3FreeInstance(fmi3Instance instance) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3FreeInstance");
     if (!i) return;
     fmi2FreeInstance(i->c);
     free(i);
@@ -247,6 +255,7 @@ EXPORT3 fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolea
                                                fmi3Float64 tolerance, fmi3Float64 startTime,
                                                fmi3Boolean stopTimeDefined, fmi3Float64 stopTime) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3EnterInitializationMode");
     if (check_mode(i, "fmi3EnterInitializationMode", 1 << INSTANTIATED)) return fmi3Error;
     fmi2Status status = fmi2SetupExperiment(i->c, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime);
     if (status < fmi2Discard) {
@@ -262,6 +271,7 @@ EXPORT3 fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolea
 
 EXPORT3 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3ExitInitializationMode");
     if (check_mode(i, "fmi3ExitInitializationMode", 1 << INITIALIZATION)) return fmi3Error;
     fmi2Status status = fmi2ExitInitializationMode(i->c);
     if (status < fmi2Discard) i->mode = i->event_mode_used ? EVENT : STEP;
@@ -270,6 +280,7 @@ EXPORT3 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
 
 EXPORT3 fmi3Status fmi3EnterEventMode(fmi3Instance instance) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3EnterEventMode");
     if (check_mode(i, "fmi3EnterEventMode", 1 << STEP | 1 << EVENT)) return fmi3Error;
     if (!i->event_mode_used) return refuse(i, "fmi3EnterEventMode", "instantiated with eventModeUsed = false");
     i->mode = EVENT;
@@ -278,6 +289,7 @@ EXPORT3 fmi3Status fmi3EnterEventMode(fmi3Instance instance) {
 
 EXPORT3 fmi3Status fmi3Terminate(fmi3Instance instance) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3Terminate");
     if (!i) return fmi3Error;
     fmi2Status status = fmi2Terminate(i->c);
     if (status < fmi2Discard) i->mode = TERMINATED;
@@ -286,6 +298,7 @@ EXPORT3 fmi3Status fmi3Terminate(fmi3Instance instance) {
 
 EXPORT3 fmi3Status fmi3Reset(fmi3Instance instance) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3Reset");
     if (!i) return fmi3Error;
     fmi2Status status = fmi2Reset(i->c);
     if (status < fmi2Discard) {
@@ -354,6 +367,7 @@ static int translate_settable(struct instance3 *i, const char *function, struct 
 EXPORT3 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                   size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3GetFloat64");
     struct references t;
     if (!i || count_matches(i, "fmi3GetFloat64", nValueReferences, nValues) ||
         translate(i, "fmi3GetFloat64", &t, valueReferences, nValueReferences))
@@ -376,6 +390,7 @@ EXPORT3 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReferenc
 EXPORT3 fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                   size_t nValueReferences, const fmi3Float64 values[], size_t nValues) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3SetFloat64");
     struct references t;
     if (!i || translate_settable(i, "fmi3SetFloat64", &t, valueReferences, nValueReferences, nValues))
         return fmi3Error;
@@ -392,6 +407,7 @@ EXPORT3 fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReferenc
                                      size_t nValueReferences, ctype values[], size_t nValues) {                \
         struct instance3 *i = instance;                                                                       \
         struct references t;                                                                                  \
+        SERVE(i, "fmi3Get" #Name);                                                                            \
         if (!i || translate_settable(i, "fmi3Get" #Name, &t, valueReferences, nValueReferences, nValues))    \
             return fmi3Error;                                                                                 \
         fmi2Status status = get2(i->c, t.vr, t.n, values);                                                    \
@@ -402,6 +418,7 @@ EXPORT3 fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReferenc
                                      size_t nValueReferences, const ctype values[], size_t nValues) {          \
         struct instance3 *i = instance;                                                                       \
         struct references t;                                                                                  \
+        SERVE(i, "fmi3Set" #Name);                                                                            \
         if (!i || translate_settable(i, "fmi3Set" #Name, &t, valueReferences, nValueReferences, nValues))    \
             return fmi3Error;                                                                                 \
         fmi2Status status = set2(i->c, t.vr, t.n, values);                                                    \
@@ -414,6 +431,7 @@ SAME_TYPE(String, fmi3String, fmi2GetString, fmi2SetString)
 EXPORT3 fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                   size_t nValueReferences, fmi3Boolean values[], size_t nValues) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3GetBoolean");
     struct references t;
     if (!i || translate_settable(i, "fmi3GetBoolean", &t, valueReferences, nValueReferences, nValues))
         return fmi3Error;
@@ -428,6 +446,7 @@ EXPORT3 fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReferenc
 EXPORT3 fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                   size_t nValueReferences, const fmi3Boolean values[], size_t nValues) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3SetBoolean");
     struct references t;
     if (!i || translate_settable(i, "fmi3SetBoolean", &t, valueReferences, nValueReferences, nValues))
         return fmi3Error;
@@ -604,6 +623,7 @@ REFUSED(fmi3GetOutputDerivatives, "output derivatives are not provided (maxOutpu
 
 EXPORT3 fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3GetFMUState");
     if (!i || !FMUState) return refuse(i, "fmi3GetFMUState", "no place for the state (FMUState is NULL)");
     struct state3 *s = *FMUState; /* non-NULL: update that state */
     int fresh = s == NULL;
@@ -620,6 +640,7 @@ EXPORT3 fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState
 
 EXPORT3 fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3SetFMUState");
     struct state3 *s = FMUState;
     if (!i || !s) return refuse(i, "fmi3SetFMUState", "no state given (FMUState is NULL)");
     fmi2Status status = fmi2SetFMUstate(i->c, s->inner);
@@ -629,6 +650,7 @@ EXPORT3 fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState)
 
 EXPORT3 fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3FreeFMUState");
     if (!i) return fmi3Error;
     if (!FMUState || !*FMUState) return fmi3OK;
     struct state3 *s = *FMUState;
@@ -641,6 +663,7 @@ EXPORT3 fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUStat
 /* Serialized: the time (8 bytes, host order), then the FMI 2.0 layer's bytes. */
 EXPORT3 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState, size_t *size) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3SerializedFMUStateSize");
     struct state3 *s = FMUState;
     if (!i || !s || !size) return refuse(i, "fmi3SerializedFMUStateSize", "no state or size given");
     fmi2Status status = fmi2SerializedFMUstateSize(i->c, s->inner, size);
@@ -651,6 +674,7 @@ EXPORT3 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUStat
 EXPORT3 fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte serializedState[],
                                          size_t size) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3SerializeFMUState");
     struct state3 *s = FMUState;
     if (!i || !s || !serializedState || size < sizeof s->time)
         return refuse(i, "fmi3SerializeFMUState", "no state, or a buffer smaller than the serialized size");
@@ -662,6 +686,7 @@ EXPORT3 fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMU
 EXPORT3 fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[], size_t size,
                                            fmi3FMUState *FMUState) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3DeserializeFMUState");
     double time;
     if (!i || !serializedState || !FMUState || size < sizeof time)
         return refuse(i, "fmi3DeserializeFMUState", "no state bytes, too few of them, or no place for the state");
@@ -688,6 +713,7 @@ EXPORT3 fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *
                                             fmi3Boolean *valuesOfContinuousStatesChanged,
                                             fmi3Boolean *nextEventTimeDefined, fmi3Float64 *nextEventTime) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3UpdateDiscreteStates");
     if (check_mode(i, "fmi3UpdateDiscreteStates", 1 << EVENT)) return fmi3Error;
     fmi3Boolean *flags[] = {discreteStatesNeedUpdate, terminateSimulation, nominalsOfContinuousStatesChanged,
                             valuesOfContinuousStatesChanged, nextEventTimeDefined};
@@ -699,6 +725,7 @@ EXPORT3 fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *
 
 EXPORT3 fmi3Status fmi3EnterStepMode(fmi3Instance instance) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3EnterStepMode");
     if (check_mode(i, "fmi3EnterStepMode", 1 << EVENT)) return fmi3Error;
     i->mode = STEP;
     return fmi3OK;
@@ -711,6 +738,7 @@ EXPORT3 fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunic
                               fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation,
                               fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime) {
     struct instance3 *i = instance;
+    SERVE(i, "fmi3DoStep");
     double t = currentCommunicationPoint, reached = currentCommunicationPoint;
     fmi2Boolean terminate = 0;
     fmi2Status status;

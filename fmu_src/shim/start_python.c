@@ -6,7 +6,7 @@
 
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
-#include <dlfcn.h>
+#include "platform.h"
 #include <stdio.h>
 #include <string.h>
 
@@ -28,7 +28,7 @@ struct api {
 
 static int find_api(void *python, struct api *a) {
     int ok = 1;
-#define FIND(field, symbol) ok &= (*(void **)(&a->field) = dlsym(python, symbol)) != NULL
+#define FIND(field, symbol) ok &= (*(void **)(&a->field) = ftc_library_symbol(python, symbol)) != NULL
     FIND(pre_isolated, "PyPreConfig_InitIsolatedConfig");
     FIND(pre_initialize, "Py_PreInitialize");
     FIND(config_isolated, "PyConfig_InitIsolatedConfig");

@@ -13,7 +13,15 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from ..cli import add_archive_limits, add_command, archive_limits, resolve_scenario
+from ..cli import (
+    add_archive_limits,
+    add_command,
+    add_output,
+    archive_limits,
+    parse_overrides,
+    resolve_scenario,
+    warn,
+)
 from ..errors import UsageError
 from .design import read_design
 from .report import write_report
@@ -42,6 +50,7 @@ def register(sub: argparse._SubParsersAction, metrics: Metrics | None = None) ->
         lambda args: _sweep(args, metrics),
         help="run a campaign of scenario variants",
         description=SWEEP_HELP,
+        quiet=True,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument(
@@ -51,9 +60,7 @@ def register(sub: argparse._SubParsersAction, metrics: Metrics | None = None) ->
         help=".ssp file, scenario folder or built scenario name (several: crossed with the design)",
     )
     p.add_argument("--design", type=Path, required=True, metavar="FILE", help="design file (.toml or .json)")
-    p.add_argument(
-        "--out", type=Path, metavar="DIR", help="output folder (default: results/campaigns/<design>)"
-    )
+    add_output(p, "DIR", "output folder (default: results/campaigns/<design>)", aliases=["--out"])
     p.add_argument(
         "--set",
         action="append",
@@ -91,7 +98,6 @@ def register(sub: argparse._SubParsersAction, metrics: Metrics | None = None) ->
     p.add_argument(
         "--plot", type=Path, metavar="DIR", help="also write the campaign report (figures + summary)"
     )
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument(
         "--dashboard",
         metavar="HOST:PORT",
@@ -101,12 +107,12 @@ def register(sub: argparse._SubParsersAction, metrics: Metrics | None = None) ->
     add_archive_limits(p)
 
     p = add_command(
-        sub, "campaign-report", _report, help="figures and a Markdown summary of a campaign table"
+        sub, "campaign-report", _report, help="figures and a Markdown summary of a campaign table", quiet=True
     )
     p.add_argument(
         "table", type=Path, metavar="TABLE", help="runs.parquet (or runs.csv beside campaign.json)"
     )
-    p.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: report/ beside TABLE)")
+    add_output(p, "DIR", "output folder (default: report/ beside TABLE)", aliases=["--out"])
 
 
 def _describe(s: CampaignSummary) -> str:
@@ -120,12 +126,7 @@ def _describe(s: CampaignSummary) -> str:
 
 def _sweep(args: argparse.Namespace, metrics: Metrics | None) -> int:
     design = read_design(args.design)
-    extra = {}
-    for item in args.set:
-        key, sep, value = item.partition("=")
-        if not sep or "." not in key:
-            raise UsageError(f"--set expects COMPONENT.VARIABLE=VALUE (got '{item}')")
-        extra[key.strip()] = value.strip()
+    extra = parse_overrides(args.set)
     changes: dict[str, Any] = {}
     if extra:
         changes["fixed"] = {**design.fixed, **extra}
@@ -148,7 +149,7 @@ def _sweep(args: argparse.Namespace, metrics: Metrics | None) -> int:
     if args.trajectory_every < 1:
         raise UsageError("--trajectory-every must be at least 1")
     scenarios = [resolve_scenario(s) for s in args.scenarios]
-    out = args.out or Path("results") / "campaigns" / args.design.stem
+    out = args.output or Path("results") / "campaigns" / args.design.stem
     try:
         summary = sweep(
             scenarios,
@@ -161,7 +162,7 @@ def _sweep(args: argparse.Namespace, metrics: Metrics | None) -> int:
             force=args.force,
             timeout=args.timeout,
             keep_every=args.trajectory_every if args.keep_trajectories else None,
-            progress=not args.quiet,
+            progress=not args.quiet and sys.stderr.isatty(),  # as 'run': no bar in a log file
             limits=archive_limits(args),
             dashboard=args.dashboard,
         )
@@ -173,21 +174,26 @@ def _sweep(args: argparse.Namespace, metrics: Metrics | None) -> int:
             file=sys.stderr,
         )
         return 130
-    print(_describe(summary))
+    if not args.quiet:
+        print(_describe(summary))
     for worker, runs in summary.lost_workers.items():
         held = f"runs {', '.join(map(str, runs))} were on it, run again elsewhere" if runs else "no run on it"
-        print(f"orchestrate: warning: worker {worker} was lost ({held})", file=sys.stderr)
+        warn(f"worker {worker} was lost ({held})")
     if summary.not_run:
         print(f"orchestrate: error: {summary.not_run} of {summary.total} runs not run: the cluster did not "
               f"finish them ({summary.not_run_reason}); rerun with --resume to run them", file=sys.stderr)
         return 1
     if args.plot is not None:
-        print(write_report(summary.parquet, args.plot))
+        report = write_report(summary.parquet, args.plot)
+        if not args.quiet:
+            print(report)
     return 0 if summary.failed == summary.timed_out == 0 else 1
 
 
 def _report(args: argparse.Namespace) -> int:
     if not args.table.is_file():
         raise UsageError(f"{args.table}: no such table")
-    print(write_report(args.table, args.out or args.table.parent / "report"))
+    summary = write_report(args.table, args.output or args.table.parent / "report")
+    if not args.quiet:
+        print(summary)
     return 0

@@ -34,6 +34,9 @@ A design names parameters as ``--set`` does (``component.variable``), plus ``sto
     y = "plant.x2_0"
     metric = "settling_time"
     facet = "controller.mode"
+
+A design holds at most ``MAX_POINTS`` points (the product of its sections, counted before any is
+made: ``num = 1e9`` reached 3.6 GB in 2 minutes), and a ``[table]`` file at most ``MAX_TABLE_BYTES``.
 """
 
 from __future__ import annotations
@@ -51,10 +54,13 @@ import tomllib
 
 from ..errors import OrchestratorError
 
-__all__ = ["EXPERIMENT_KEYS", "Design", "DesignError", "grid_points", "read_design", "sample_points"]
+__all__ = ["EXPERIMENT_KEYS", "MAX_POINTS", "MAX_TABLE_BYTES", "Design", "DesignError", "grid_points",
+           "read_design", "sample_points"]
 
 # Names besides component.variable that a design may vary.
 EXPERIMENT_KEYS = ("stop_time", "step")
+MAX_POINTS = 100_000  # runs of one design: about 3 h of 0.1 s runs on a 1000-core cluster
+MAX_TABLE_BYTES = 64 << 20
 PLOT_KINDS = ("heatmap", "scatter", "histogram")
 _TOP_KEYS = {
     "description",
@@ -142,6 +148,8 @@ def _axis(where: str, spec: object) -> list[float]:
         num = spec["num"]
         if isinstance(num, bool) or not isinstance(num, int) or num < 1:
             raise DesignError(f"{where}: num must be a positive integer (got {num!r})")
+        if num > MAX_POINTS:
+            raise DesignError(f"{where}: num = {num} is more than a design may have in all ({MAX_POINTS})")
         start, stop = _number(f"{where}.start", spec["start"]), _number(f"{where}.stop", spec["stop"])
         return [float(v) for v in np.linspace(start, stop, num)]
     if isinstance(spec, list) and spec:
@@ -157,6 +165,10 @@ def _read_table(where: str, path: Path) -> tuple[list[str], list[tuple[float, ..
     import pyarrow.types as pat
 
     try:
+        size = path.stat().st_size
+        if size > MAX_TABLE_BYTES:
+            raise DesignError(f"{where}: {path} has {size} bytes, more than a table of points may have "
+                              f"({MAX_TABLE_BYTES}; a design has at most {MAX_POINTS} points)")
         table = pyarrow.parquet.read_table(path) if path.suffix == ".parquet" else pyarrow.csv.read_csv(path)
     except (OSError, ValueError) as exc:  # pyarrow.ArrowInvalid is a ValueError
         raise DesignError(f"{where}: cannot read {path}: {str(exc).splitlines()[0]}") from exc
@@ -196,6 +208,21 @@ def _load(path: Path) -> dict:
     return data
 
 
+def _count(path: Path, data: Mapping[str, object]) -> None:
+    """DesignError when the grid and sample would make more than ``MAX_POINTS`` points, counted from
+    their sizes before anything is made (a table's rows are counted once read)."""
+    total = 1
+    grid = data.get("grid", {})
+    for spec in (grid.values() if isinstance(grid, Mapping) else ()):
+        num = spec.get("num") if isinstance(spec, Mapping) else len(spec) if isinstance(spec, list) else 1
+        total *= num if isinstance(num, int) and num > 0 else 1
+    sample = data.get("sample")
+    n = sample.get("n") if isinstance(sample, Mapping) else None
+    total *= n if isinstance(n, int) and n > 0 else 1
+    if total > MAX_POINTS:
+        raise DesignError(f"{path}: {total} points, more than a design may have ({MAX_POINTS}); split it")
+
+
 def read_design(path: str | os.PathLike) -> Design:
     """Read a TOML (``.toml``) or JSON (``.json``) design; raises DesignError naming file and key."""
     path = Path(path)
@@ -210,6 +237,7 @@ def read_design(path: str | os.PathLike) -> Design:
     grid = data.get("grid", {})
     if not isinstance(grid, dict):
         raise DesignError(f"{path}: [grid] must be a table of name = values")
+    _count(path, data)
     if grid:
         axes = {name: _axis(f"{path}: grid '{name}'", spec) for name, spec in grid.items()}
         parts.append((list(axes), grid_points(axes)))
@@ -224,6 +252,8 @@ def read_design(path: str | os.PathLike) -> Design:
             raise DesignError(f"{where}: method must be 'lhs' or 'random' (got {method!r})")
         if isinstance(n, bool) or not isinstance(n, int) or n < 1:
             raise DesignError(f"{where}: n must be a positive integer (got {n!r})")
+        if n > MAX_POINTS:
+            raise DesignError(f"{where}: n = {n} is more than a design may have in all ({MAX_POINTS})")
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
             raise DesignError(
                 f"{where}: seed must be a non-negative integer, so the sample is reproducible (got {seed!r})"
@@ -248,6 +278,9 @@ def read_design(path: str | os.PathLike) -> Design:
             raise DesignError(f'{path}: [table] must give file = "points.csv" (or .parquet)')
         parts.append(_read_table(f"{path}: [table]", path.parent / table["file"]))
 
+    total = math.prod(len(rows) for _, rows in parts)
+    if total > MAX_POINTS:
+        raise DesignError(f"{path}: {total} points, more than a design may have ({MAX_POINTS}); split it")
     columns: list[str] = []
     for names, _ in parts:
         for name in names:

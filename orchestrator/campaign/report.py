@@ -11,6 +11,10 @@ Plot kinds (keys of a ``[[plots]]`` entry):
 * ``scatter``: ``x`` (parameter), ``metric``; optional ``facet`` (one series per value), ``log``.
 * ``histogram``: ``metric``; optional ``facet``, ``bins`` (outlines, one per group).
 
+A run that finished but whose metric is NaN has it *undefined* (e.g. the error after a fault that
+comes after the horizon), which is not a failure: legends and the summary count failed, infinite
+and undefined runs apart, and a panel with no value to draw says why.
+
 Without ``[[plots]]`` every metric gets a histogram. Campaigns over several scenarios are split by
 scenario as well. ``labels`` in the campaign metadata (``[labels."controller.mode"] "0" = "..."``)
 name the values of a column in titles.
@@ -29,7 +33,7 @@ import numpy as np
 
 from .table import read_table
 
-__all__ = ["SUMMARY_NAME", "colour_norm", "write_report"]
+__all__ = ["SUMMARY_NAME", "colour_norm", "outcomes", "write_report"]
 
 SUMMARY_NAME = "summary.md"
 WORST_COUNT = 5
@@ -142,19 +146,51 @@ def _heatmap(ax, spec: Mapping, rows: Sequence[Row], norm, title: str):  # -> th
     return mesh, len(failed), len(infinite)
 
 
+def outcomes(rows: Sequence[Row], metric: str) -> dict[str, int]:
+    """How many of ``rows`` have a finite ``metric`` (``shown``), failed or timed out (``failed``),
+    finished with it infinite (``infinite``: e.g. never settled) or undefined (``undefined``: NaN,
+    e.g. after a fault beyond the horizon)."""
+    counts = dict.fromkeys(("shown", "failed", "infinite", "undefined"), 0)
+    for r in rows:
+        v = _value(r, metric)
+        key = ("failed" if r["status"] != "ok" else "undefined" if math.isnan(v) else
+               "infinite" if math.isinf(v) else "shown")
+        counts[key] += 1
+    return counts
+
+
+def _not_shown(counts: Mapping[str, int]) -> str:
+    """``3 failed, 40 undefined``: the runs a panel cannot draw, by why ('' when none)."""
+    return ", ".join(f"{counts[k]} {k}" for k in ("failed", "infinite", "undefined") if counts[k])
+
+
+def _empty_note(ax, metric: str, counts: Mapping[str, int]) -> None:
+    """A panel with nothing to draw says why, in its middle."""
+    why = _not_shown(counts) or "no runs"
+    hint = " (an event after the horizon?)" if counts["undefined"] else ""
+    ax.text(0.5, 0.5, f"no finite {metric}: {why}{hint}", ha="center", va="center", transform=ax.transAxes,
+            fontsize="small", wrap=True)
+
+
 def _scatter(ax, spec: Mapping, panels: list[tuple[str, list[Row]]]) -> None:
     x, metric = spec["x"], spec["metric"]
+    total = dict.fromkeys(("shown", "failed", "infinite", "undefined"), 0)
     for title, rows in panels:
         ok = [r for r in rows if r["status"] == "ok" and math.isfinite(_value(r, metric))]
+        counts = outcomes(rows, metric)
+        total = {k: total[k] + counts[k] for k in total}
+        missing = _not_shown(counts)
         ax.plot(
             [_value(r, x) for r in ok],
             [_value(r, metric) for r in ok],
             ".",
             alpha=0.7,
-            label=f"{title or 'runs'} ({len(rows) - len(ok)} failed/infinite)",
+            label=f"{title or 'runs'} ({len(ok)}" + (f" shown; {missing})" if missing else ")"),
         )
-    if spec.get("log"):
+    if spec.get("log") and total["shown"]:
         ax.set_yscale("log")
+    if not total["shown"]:
+        _empty_note(ax, metric, total)
     ax.set_xlabel(x)
     ax.set_ylabel(metric)
     ax.legend(fontsize="x-small")
@@ -162,16 +198,22 @@ def _scatter(ax, spec: Mapping, panels: list[tuple[str, list[Row]]]) -> None:
 
 def _histogram(ax, spec: Mapping, panels: list[tuple[str, list[Row]]]) -> None:
     metric = spec["metric"]
+    total = dict.fromkeys(("shown", "failed", "infinite", "undefined"), 0)
     for title, rows in panels:
         values = [_value(r, metric) for r in rows if r["status"] == "ok"]
         values = [v for v in values if math.isfinite(v)]
+        counts = outcomes(rows, metric)
+        total = {k: total[k] + counts[k] for k in total}
+        missing = _not_shown(counts)
         if values:  # outlines, not filled bars: no group hides another
             ax.hist(
                 values, bins=int(spec.get("bins", 30)), histtype="step", linewidth=1.5,
-                label=f"{title or 'runs'} ({len(values)})",
+                label=f"{title or 'runs'} ({len(values)}" + (f" shown; {missing})" if missing else ")"),
             )
     ax.set_xlabel(metric)
     ax.set_ylabel("runs")
+    if not total["shown"]:
+        _empty_note(ax, metric, total)
     if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize="x-small")
 
@@ -291,18 +333,26 @@ def _summary(rows: Sequence[Row], meta: Mapping, figures: Sequence[tuple[str, st
         lines += [
             "## Metrics over the finished runs",
             "",
-            "| metric | min | median | max | infinite |",
-            "|---|---|---|---|---|",
+            "| metric | min | median | max | infinite | undefined |",
+            "|---|---|---|---|---|---|",
         ]
         for m in finite_metrics:
             values = np.array([_value(r, m) for r in rows if r["status"] == "ok"])
+            undefined = int(np.isnan(values).sum())
             values = values[~np.isnan(values)]
             ok = values[np.isfinite(values)]
             lines.append(
                 f"| {m} | {ok.min():.4g} | {np.median(ok):.4g} | {ok.max():.4g} | "
-                f"{int(np.isinf(values).sum())} |"
+                f"{int(np.isinf(values).sum())} | {undefined} |"
             )
         lines.append("")
+    finished = sum(r["status"] == "ok" for r in rows)
+    never = [m for m in metrics if m not in finite_metrics and finished
+             and all(math.isnan(_value(r, m)) for r in rows if r["status"] == "ok")]
+    if never:
+        lines += [f"Undefined (NaN) in every one of the {finished} finished runs, not failed: "
+                  + ", ".join(f"`{m}`" for m in never)
+                  + " (a metric after an event that comes after the horizon has no value).", ""]
     worst_by = list(dict.fromkeys(str(p["metric"]) for p in meta.get("plots", []) if p.get("metric")))
     worst_by = [m for m in worst_by if m in metrics] or finite_metrics[:1]
     for m in worst_by:

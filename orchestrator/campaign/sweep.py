@@ -15,8 +15,10 @@ import json
 import logging
 import os
 import signal
+import socket
 import sys
 import time
+import warnings
 import zipfile
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -25,7 +27,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, cast
 
 from .. import DEFAULT_STEP, MASTERS, open_system
-from ..errors import OrchestratorError, ScenarioError, UsageError
+from ..errors import OrchestratorError, OutputError, ScenarioError, ScenarioWarning, UsageError, option
 from ..ssp import DEFAULT_LIMITS, Limits
 from .design import EXPERIMENT_KEYS, Design, read_design
 from .table import CSV_NAME, Journal, read_rows
@@ -35,7 +37,8 @@ if TYPE_CHECKING:
     import numpy as np
     from distributed import Client
 
-__all__ = ["SCHEDULER_ENV", "CampaignInterrupted", "CampaignSummary", "connect", "plan", "sweep"]
+__all__ = ["SCHEDULER_ENV", "CampaignInterrupted", "CampaignSummary", "check_address", "connect",
+           "late_events", "plan", "sweep"]
 
 SCHEDULER_ENV = "ORCHESTRATE_SCHEDULER"
 DASHBOARD = "127.0.0.1:0"  # the embedded cluster's dashboard: this host only (it lists every task)
@@ -151,6 +154,49 @@ def plan(
     return archives, specs
 
 
+def check_address(scheduler: str | None, dashboard: str) -> None:
+    """Before anything runs: UsageError for a scheduler address Dask cannot parse (``tcp://HOST:PORT``)
+    or a dashboard address that is not HOST:PORT with a host this machine resolves (distributed
+    gave a traceback for either, after the campaign had been planned)."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    address = scheduler or os.environ.get(SCHEDULER_ENV) or None
+    if address:
+        where = option("scheduler") if scheduler else f"${SCHEDULER_ENV}"
+        try:
+            scheme, location = parse_address(address)
+            if scheme in ("tcp", "tls"):
+                parse_host_port(location)
+        except (ValueError, TypeError) as exc:
+            raise UsageError(f"{where} {address!r}: not a Dask scheduler address such as tcp://HOST:PORT "
+                             f"({exc})") from None
+        return
+    host, sep, port = dashboard.rpartition(":")
+    if not sep or not port.isdigit() or int(port) > 65535:
+        raise UsageError(f"{option('dashboard')} {dashboard!r}: expected HOST:PORT (PORT 0 for a free one)")
+    try:
+        socket.getaddrinfo(host or None, int(port), type=socket.SOCK_STREAM)
+    except (OSError, UnicodeError) as exc:
+        raise UsageError(f"{option('dashboard')} {dashboard!r}: cannot resolve {host!r} "
+                         f"({getattr(exc, 'strerror', None) or exc})") from None
+
+
+def late_events(specs: Sequence[RunSpec], metrics: Metrics | None) -> list[str]:
+    """What a ScenarioWarning says of runs that stop before an event of ``metrics.events`` (e.g. a
+    fault time after the horizon: the metrics after the fault are then undefined, not failed)."""
+    found = []
+    for event, names in (metrics.events.items() if metrics is not None else ()):
+        at = {s.index: float(cast(float, s.overrides[event])) for s in specs if event in s.overrides}
+        late = [s for s in specs if s.index in at and at[s.index] >= s.stop_time]
+        if late:
+            times = [at[s.index] for s in late]
+            stops = ", ".join(f"{t:g}" for t in sorted({s.stop_time for s in late})[:3])
+            found.append(f"{len(late)} of {len(specs)} runs stop (t = {stops} s) "
+                         f"at or before their {event} ({min(times):g} .. {max(times):g} s): "
+                         f"{', '.join(names)} will be undefined (NaN) for them; a later stop time covers it")
+    return found
+
+
 @contextmanager
 def connect(
     scheduler: str | None = None,
@@ -171,7 +217,7 @@ def connect(
     if address:
         try:
             client = Client(address, timeout="20s")
-        except (OSError, TimeoutError) as exc:
+        except (OSError, TimeoutError, ValueError) as exc:
             raise OrchestratorError(f"cannot connect to the Dask scheduler at {address}: {exc}") from exc
         try:
             yield client
@@ -179,13 +225,17 @@ def connect(
             client.close()
         return
     n = workers or os.cpu_count() or 1
-    cluster = LocalCluster(
-        n_workers=n,
-        threads_per_worker=1,
-        processes=processes,
-        dashboard_address=dashboard,  # localhost, a free port: several campaigns may run at once
-        silence_logs=logging.ERROR,
-    )
+    try:
+        cluster = LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=processes,
+            dashboard_address=dashboard,  # localhost, a free port: several campaigns may run at once
+            silence_logs=logging.ERROR,
+        )
+    except (OSError, RuntimeError, ValueError) as exc:  # a port taken, no process could start, ...
+        raise OrchestratorError(f"cannot start the embedded Dask cluster (dashboard {dashboard}): "
+                                f"{' '.join(str(exc).split())}") from exc
     client = Client(cluster)
     try:
         if processes:
@@ -313,9 +363,15 @@ def sweep(
     archives reach the workers and are unpacked there within ``limits``, as by ``run``."""
     started = time.perf_counter()
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"{option('out')} {out}: not a folder (the campaign writes runs.csv, runs.parquet "
+                         "and campaign.json into it)")
+    check_address(scheduler, dashboard)
     if not isinstance(design, Design):
         design = read_design(design)
     archives, specs = plan(scenarios, design, timeout=timeout, keep_every=keep_every, limits=limits)
+    for message in late_events(specs, metrics):
+        warnings.warn(message, ScenarioWarning, stacklevel=2)
     params = [c for c in design.columns if c not in EXPERIMENT_KEYS]
     names = list(metrics.names) if metrics is not None else []
     columns = [
@@ -344,8 +400,11 @@ def sweep(
     }
     kept = _resume(out, columns, specs, resume, force)
     journal = Journal(out, columns, meta)
-    journal.start(kept)
-    (out / META_NAME).write_text(json.dumps(meta, indent=2, default=str) + "\n", encoding="utf-8")
+    try:
+        journal.start(kept)
+        (out / META_NAME).write_text(json.dumps(meta, indent=2, default=str) + "\n", encoding="utf-8")
+    except OSError as exc:
+        raise OutputError(f"{exc.filename or out}: {exc.strerror or exc}") from exc
     done = {r["run_id"] for r in kept}
     todo = [s for s in specs if s.run_id not in done]
     counts = {OK: 0, FAILED: 0, TIMEOUT: 0}

@@ -28,11 +28,14 @@ class Metrics:
     be importable on the workers (a module-level function), e.g. the paper's tracking metrics that
     ``orchestrator.experiments.campaigns`` plugs in. ``partial``: the names that keep their meaning
     on the rows a failed run computed before it stopped (e.g. a peak so far); a failed run's row
-    gets those, computed on its partial result, and no other."""
+    gets those, computed on its partial result, and no other. ``events``: parameters that are times
+    within a run (e.g. a fault time), each with the metrics it defines: a run that stops before its
+    event leaves them undefined (NaN), which the sweep warns of before anything runs."""
 
     names: tuple[str, ...]
     function: Callable[[np.ndarray, Mapping[str, object]], Mapping[str, float]]
     partial: tuple[str, ...] = ()
+    events: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

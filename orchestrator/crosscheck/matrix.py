@@ -8,8 +8,10 @@ A cell (tool x scenario) is red when any check fails:
   back from the tool after the run), and the plant's initial state ``x1_0``, ``x2_0`` shows up as
   ``plant.x1``, ``plant.x2`` at t0;
 * **stop time**: the tool reported no failure and recorded the stop time of the DefaultExperiment;
-* **plant.y**: max |plant.y - ours| in the first second and after it within the tool's stated
-  tolerances, where "ours" is ``orchestrate run`` with the master of the tool's semantics
+* **plant.y** (or the ``signals`` chosen: ``orchestrate crosscheck --signal``; for a scenario
+  without ``plant.y``, every output it declares): max |signal - ours| in the first second and
+  after it within the tool's stated tolerances, where "ours" is ``orchestrate run`` with the
+  master of the tool's semantics
   (``jacobi`` for a delayed master, ``gauss-seidel`` for a delay-free one), compared at the
   communication points both recorded. A non-finite sample counts as an infinite difference. The
   first second is tight: that is where a different coupling (one step of delay or not) shows
@@ -27,7 +29,7 @@ import math
 import shutil
 import tempfile
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -38,7 +40,7 @@ from ..errors import SimulationError
 from .tools import AMPLIFIED, Scenario, Tolerance, Tool, ToolRun
 
 __all__ = ["AFTER", "AMPLIFIED", "COLUMN", "Cell", "Check", "Deviation", "Tolerance", "evaluate", "deviation",
-           "parameter_check", "run_matrix", "write_csv", "write_markdown"]
+           "parameter_check", "run_matrix", "signals_of", "write_csv", "write_markdown"]
 
 COLUMN = "plant.y"
 AFTER = 1.0  # s: the stiff start (|v(0)| up to 15 218) is over; tolerances differ before and after
@@ -48,23 +50,27 @@ PARAMETER_ATOL = 1e-6
 
 @dataclass(frozen=True)
 class Check:
-    """One check of a cell: ``ok`` and a short text of what was found."""
+    """One check of a cell: ``ok`` and a short text of what was found; ``key``: which column of the
+    matrix it fills (``loads``, ``parameters``, ``stop``, ``until``, ``after``)."""
 
     name: str
     ok: bool
     detail: str
+    key: str = ""
 
 
 @dataclass(frozen=True)
 class Deviation:
     """max |theirs - ours| of one column at the communication points both recorded: over the run
-    (``max``, at time ``at``), before ``AFTER`` (``until``) and from it on (``after``)."""
+    (``max``, at time ``at``), before ``AFTER`` (``until``) and from it on (``after``); ``column``:
+    which (of several compared, the one of the largest difference)."""
 
     max: float
     at: float
     until: float
     after: float
     compared: int
+    column: str = COLUMN
 
 
 @dataclass
@@ -111,14 +117,30 @@ def deviation(theirs: np.ndarray, ours: np.ndarray, start: float, step: float, c
     k_ours = np.rint((ours["time"] - start) / step).astype(np.int64)
     _, i, j = np.intersect1d(k_theirs, k_ours, assume_unique=False, return_indices=True)
     if not len(i):
-        return Deviation(math.inf, math.nan, math.inf, math.inf, 0)
+        return Deviation(math.inf, math.nan, math.inf, math.inf, 0, column)
     d = np.abs(theirs[column][i] - ours[column][j])
     d = np.where(np.isfinite(d), d, np.inf)
     t = ours["time"][j]
     early, late = d[t < after], d[t >= after]
     worst = int(np.argmax(d))
     return Deviation(float(d[worst]), float(t[worst]), float(early.max()) if len(early) else 0.0,
-                     float(late.max()) if len(late) else 0.0, len(i))
+                     float(late.max()) if len(late) else 0.0, len(i), column)
+
+
+def signals_of(scenario: Scenario, chosen: Sequence[str] = ()) -> tuple[str, ...]:
+    """The columns compared: ``chosen`` (ValueError naming one the scenario does not output), else
+    ``plant.y`` when the scenario outputs it (this project's scenarios), else every output."""
+    if chosen:
+        unknown = [c for c in chosen if c not in scenario.outputs]
+        if unknown:
+            raise ValueError(f"{scenario.path}: no output {', '.join(unknown)} (outputs: "
+                             f"{', '.join(scenario.outputs) or 'none'})")
+        return tuple(chosen)
+    return (COLUMN,) if COLUMN in scenario.outputs else scenario.outputs
+
+
+def _label(signals: Sequence[str]) -> str:
+    return signals[0] if len(signals) == 1 else f"{len(signals)} outputs"
 
 
 def parameter_check(scenario: Scenario, result: np.ndarray, read_back: dict[str, float] | None) -> Check:
@@ -148,36 +170,45 @@ def parameter_check(scenario: Scenario, result: np.ndarray, read_back: dict[str,
             detail.append(f"{state}(t0) = {float(expected):g}")
     if problems:
         shown = "; ".join(problems[:3]) + (f"; and {len(problems) - 3} more" if len(problems) > 3 else "")
-        return Check("parameters", False, shown)
-    return Check("parameters", True, ", ".join(detail) or "nothing to check")
+        return Check("parameters", False, shown, "parameters")
+    return Check("parameters", True, ", ".join(detail) or "nothing to check", "parameters")
 
 
-def evaluate(tool: Tool, scenario: Scenario, run: ToolRun, ours: np.ndarray, unchanged: bool = True) -> Cell:
+def evaluate(tool: Tool, scenario: Scenario, run: ToolRun, ours: np.ndarray, unchanged: bool = True,
+             signals: Sequence[str] = (COLUMN,)) -> Cell:
     """The checks of one tool's run against our result of the same semantics; ``unchanged``: the
-    archive's bytes were the same after the run."""
+    archive's bytes were the same after the run; ``signals``: the columns compared (each must be
+    recorded; the tool's tolerance applies to each)."""
     tolerance = tool.tolerance
     cell = Cell(tool.key, tool.title, scenario.name, tool.delayed, reference_master(tool.delayed),
                 wall=run.wall, tolerance=tolerance, notes=list(run.notes))
     result = run.result
     loads = len(result) > 0 and unchanged
     detail = "initial point recorded" if len(result) else (run.error or "no samples")
-    cell.checks.append(Check("loads", loads, detail if unchanged else "the tool modified the archive"))
+    cell.checks.append(Check("loads", loads, detail if unchanged else "the tool modified the archive",
+                             "loads"))
     if not loads:
         return cell
     cell.checks.append(parameter_check(scenario, result, run.parameters))
     t_end = float(result["time"][-1])
     reached = run.error is None and t_end >= scenario.stop - scenario.step / 2
     failure = f"; {run.error}" if run.error else ""
-    cell.checks.append(Check("stop time", reached, f"t = {t_end:g} s{failure}"))
-    if COLUMN not in (result.dtype.names or ()):
-        cell.checks.append(Check(COLUMN, False, f"{COLUMN} not recorded"))
+    cell.checks.append(Check("stop time", reached, f"t = {t_end:g} s{failure}", "stop"))
+    label = _label(signals)
+    missing = [c for c in signals if c not in (result.dtype.names or ())]
+    if missing:
+        cell.checks.append(Check(label, False, f"{', '.join(missing)} not recorded", "until"))
         return cell
-    dev = deviation(result, ours, scenario.start, scenario.step)
-    cell.deviation = dev
-    cell.checks.append(Check(f"{COLUMN} until {AFTER:g} s", dev.until <= tolerance.until,
-                             f"{dev.until:.2g} (tolerance {tolerance.until:g})"))
-    cell.checks.append(Check(f"{COLUMN} after {AFTER:g} s", dev.after <= tolerance.after,
-                             f"{dev.after:.2g}, max at t = {dev.at:g} s (tolerance {tolerance.after:g})"))
+    deviations = [deviation(result, ours, scenario.start, scenario.step, c) for c in signals]
+    until = max(deviations, key=lambda d: d.until)
+    after = max(deviations, key=lambda d: d.after)
+    cell.deviation = dev = replace(max(deviations, key=lambda d: d.max), until=until.until, after=after.after)
+    which = (lambda d: f" ({d.column})") if len(signals) > 1 else (lambda d: "")
+    cell.checks.append(Check(f"{label} until {AFTER:g} s", dev.until <= tolerance.until,
+                             f"{dev.until:.2g}{which(until)} (tolerance {tolerance.until:g})", "until"))
+    cell.checks.append(Check(f"{label} after {AFTER:g} s", dev.after <= tolerance.after,
+                             f"{dev.after:.2g}{which(after)}, max at t = {dev.at:g} s (tolerance "
+                             f"{tolerance.after:g})", "after"))
     return cell
 
 
@@ -218,13 +249,15 @@ class OurMaster(Tool):
 
 
 def run_matrix(scenarios: Sequence[Scenario], tools: Sequence[Tool],
-               progress: Callable[[str], None] | None = None) -> list[Cell]:
-    """Run every tool on every scenario once (our two masters first: they are the references)."""
+               progress: Callable[[str], None] | None = None, signals: Sequence[str] = ()) -> list[Cell]:
+    """Run every tool on every scenario once (our two masters first: they are the references),
+    comparing ``signals`` (:func:`signals_of`)."""
     masters = {m: OurMaster(m) for m in ("gauss-seidel", "jacobi")}
     cells = []
     total = len(scenarios) * (len(tools) + len(masters))
     done = 0
     for scenario in scenarios:
+        compared = signals_of(scenario, signals)
         ours: dict[str, np.ndarray] = {}
         for tool in [*masters.values(), *tools]:
             done += 1
@@ -245,7 +278,7 @@ def run_matrix(scenarios: Sequence[Scenario], tools: Sequence[Tool],
                 if isinstance(tool, OurMaster):
                     ours[tool.master] = run.result
                 cell = evaluate(tool, scenario, run, ours[reference_master(tool.delayed)],
-                                unchanged=_digest(scenario.path) == before)
+                                unchanged=_digest(scenario.path) == before, signals=compared)
             cell.fmi, cell.tool_fmi = ", ".join(scenario.fmi_versions), ", ".join(tool.fmi_versions)
             cells.append(cell)
             if progress is not None:
@@ -273,9 +306,10 @@ def write_markdown(cells: Iterable[Cell], path: Path, tools: Sequence[Tool]) -> 
              "Every built scenario (`build/ssp/<name>.ssp`, unchanged: its own step, stop time and "
              "parameter sets) in every tool, written by `orchestrate crosscheck`. A cell is red when the "
              "archive does not load, a parameter of its `.ssv` files is not applied, the run stops before "
-             f"the stop time, or max |{COLUMN} - ours| exceeds the tool's tolerance, in the first "
-             f"{AFTER:g} s or after; \"ours\" is `orchestrate run` with the master of the tool's semantics. "
-             f"Cells: status, wall time, max |delta {COLUMN}| until {AFTER:g} s / after. Beside each "
+             f"the stop time, or max |signal - ours| exceeds the tool's tolerance, in the first "
+             f"{AFTER:g} s or after; \"ours\" is `orchestrate run` with the master of the tool's semantics, "
+             f"and the signal `{COLUMN}` (`--signal` chooses others; a scenario without it: every output). "
+             f"Cells: status, wall time, max |delta signal| until {AFTER:g} s / after. Beside each "
              "scenario the FMI version of its FMUs; beside each tool the FMI versions it runs (a tool is "
              "not run on FMUs of another version: \"not supported\", not red).", "",
              "| tool | master | FMI | " + " | ".join(f"`{s}` (FMI {fmi[s]})" for s in scenarios) + " |",
@@ -299,22 +333,22 @@ def write_markdown(cells: Iterable[Cell], path: Path, tools: Sequence[Tool]) -> 
                 row.append(f"{mark} {c.wall:.1f} s{dev}")
         lines.append("| " + " | ".join(row) + " |")
     lines += ["", "## Details", "",
-              f"| tool | scenario | status | loads | parameters | stop time | {COLUMN} until {AFTER:g} s | "
-              f"{COLUMN} after {AFTER:g} s | notes |", "|---|---|---|---|---|---|---|---|---|"]
+              f"| tool | scenario | status | loads | parameters | stop time | signal until {AFTER:g} s | "
+              f"signal after {AFTER:g} s | notes |", "|---|---|---|---|---|---|---|---|---|"]
     for c in cells:
         if c.missing or c.unsupported:
             why = c.missing or c.unsupported
             lines.append(f"| {c.title} | `{c.scenario}` | {c.status} | | | | | | {why} |")
             continue
-        checks = {k.name.split(" ")[0] if not k.name.startswith(COLUMN) else k.name: k for k in c.checks}
+        checks = {k.key: k for k in c.checks}
 
         def show(name: str, checks: dict[str, Check] = checks) -> str:
             k = checks.get(name)
             return "" if k is None else (k.detail if k.ok else f"**{k.detail}**")
 
         lines.append(f"| {c.title} | `{c.scenario}` | {'🟥 red' if c.red else '🟩 ok'} | {show('loads')} | "
-                     f"{show('parameters')} | {show('stop')} | {show(f'{COLUMN} until {AFTER:g} s')} | "
-                     f"{show(f'{COLUMN} after {AFTER:g} s')} | {'; '.join(c.notes)} |")
+                     f"{show('parameters')} | {show('stop')} | {show('until')} | "
+                     f"{show('after')} | {'; '.join(c.notes)} |")
     lines += ["", "## Tolerances", "", f"| tool | compared with | until {AFTER:g} s | after | why |",
               "|---|---|---|---|---|"]
     for tool in tools:
@@ -328,7 +362,7 @@ def write_markdown(cells: Iterable[Cell], path: Path, tools: Sequence[Tool]) -> 
 
 CSV_FIELDS = ("tool", "scenario", "master", "reference", "status", "loads", "parameters", "stop_time",
               "wall_s", "dy_max", "dy_max_at_s", "dy_until_1s", "dy_after_1s", "tol_until_1s", "tol_after_1s",
-              "failures", "notes", "fmi", "tool_fmi")
+              "failures", "notes", "fmi", "tool_fmi", "dy_max_signal")
 
 
 def write_csv(cells: Iterable[Cell], path: Path) -> Path:
@@ -338,7 +372,7 @@ def write_csv(cells: Iterable[Cell], path: Path) -> Path:
         writer = csv.writer(f)
         writer.writerow(CSV_FIELDS)
         for c in cells:
-            ok = {k.name.split(" ")[0]: k.ok for k in c.checks}
+            ok = {k.key: k.ok for k in c.checks}
             d, t = c.deviation, c.tolerance
             writer.writerow([
                 c.tool, c.scenario, "delayed" if c.delayed else "delay-free", c.reference, c.status,
@@ -348,5 +382,5 @@ def write_csv(cells: Iterable[Cell], path: Path) -> Path:
                 "" if t is None else repr(t.until), "" if t is None else repr(t.after),
                 "; ".join(f"{k.name}: {k.detail}" for k in c.checks if not k.ok)
                 or (c.missing or c.unsupported or ""),
-                "; ".join(c.notes), c.fmi, c.tool_fmi])
+                "; ".join(c.notes), c.fmi, c.tool_fmi, "" if d is None else d.column])
     return path

@@ -71,7 +71,10 @@ TRACKING_NAMES = (
 )
 # What a failed run's row keeps, computed on the rows before the failure.
 PARTIAL = ("peak_v", "peak_uf", "max_error", "time_reached")
-TRACKING = Metrics(names=TRACKING_NAMES, function=tracking_row, partial=PARTIAL)
+# The fault time defines the metrics after the fault: a run that stops before it has none.
+AFTER_FAULT = ("mae_after_fault", "max_error_after_fault")
+TRACKING = Metrics(names=TRACKING_NAMES, function=tracking_row, partial=PARTIAL,
+                   events={"actuator.t_fault": AFTER_FAULT})
 
 
 def register(sub: argparse._SubParsersAction) -> None:

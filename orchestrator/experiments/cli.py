@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import cast
 
-from ..cli import add_command
-from ..errors import ScenarioError, UsageError
+from fmu_src.build import BuildError
+
+from ..cli import add_command, quiet, warn
+from ..errors import OrchestratorError, ScenarioError, UsageError
 from ..provenance import read_provenance, summary
 from ..results import read_result
 from . import report
@@ -20,13 +21,16 @@ __all__ = ["register"]
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the experiments' subcommands to ``orchestrate``."""
-    p = add_command(sub, "build", _build, help="build the FMUs and pack the scenarios into .ssp archives")
+    p = add_command(sub, "build", _build, help="build the FMUs and pack the scenarios into .ssp archives",
+                    quiet=True)
     p.add_argument("scenarios", nargs="*", metavar="NAME", help="scenarios to pack (default: all)")
     p.add_argument("--sources", type=Path, default=SCENARIO_DIR,
                    help="scenario sources (default: the project's ssp/, or its installed copy)")
-    p.add_argument("--dest", type=Path, default=Path("build"), help="output folder (default: ./build/)")
+    p.add_argument("-o", "--output", "--dest", dest="dest", type=Path, default=Path("build"),
+                   help="output folder (default: ./build/)")
 
-    p = add_command(sub, "metrics", _metrics, help="tracking metrics of result files (SPEC section 4)")
+    p = add_command(sub, "metrics", _metrics, help="tracking metrics of result files (SPEC section 4)",
+                    quiet=True)
     p.add_argument("results", nargs="+", type=Path, metavar="RESULT.csv")
     p.add_argument("--band", type=float, default=0.05, help="settling band on |y - yd| (default 0.05)")
     p.add_argument("--signal", default="plant.y", metavar="COLUMN", help="the output y (default plant.y)")
@@ -34,8 +38,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="the reference yd it tracks (default reference.yd)")
 
     p = add_command(sub, "report", _report, help="the paper's examples by co-simulation, as a report",
-                    description=report.__doc__.split("\n\n")[0])
-    p.add_argument("--out", type=Path, default=report.DEFAULT_OUT,
+                    description=report.__doc__.split("\n\n")[0], quiet=True)
+    p.add_argument("-o", "--output", "--out", dest="out", type=Path, default=report.DEFAULT_OUT,
                    help=f"output folder ({report.DEFAULT_OUT}/)")
     p.add_argument("--stop-time", type=float, metavar="T", help="horizon of the four runs (the SSD's)")
     p.add_argument("--study-horizon", type=float, default=report.STUDY_HORIZON, metavar="T",
@@ -50,8 +54,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _build(args: argparse.Namespace) -> int:
     if not args.scenarios and not list(args.sources.glob("*/SystemStructure.ssd")):
         raise UsageError(f"no scenarios found in {args.sources}/")
-    for target in build_scenarios(args.scenarios, args.dest, args.sources).values():
-        print(target)
+    try:
+        targets = build_scenarios(args.scenarios, args.dest, args.sources)
+    except BuildError as error:  # a compiler or source missing: what, not a traceback
+        raise OrchestratorError(f"build: {error}") from None
+    for target in targets.values():
+        if not quiet():
+            print(target)
     return 0
 
 
@@ -73,20 +82,29 @@ def _metrics(args: argparse.Namespace) -> int:
                                  data["actuator.uf"] if "actuator.uf" in names else None, band=args.band)
         except ValueError as exc:
             raise ScenarioError(f"{path}: {exc}") from exc
-        rows.append((path.stem, m))
-        notes.append(f"{path.stem}: {summary(record)}")
+        label = _label(path, args.results)
+        rows.append((label, m))
+        notes.append(f"{label}: {summary(record)}")
         if record is not None and record.get("status") != "complete":
             span = f"{record.get('start_time')} .. {record.get('stop_time')} s"
-            print(f"orchestrate: warning: {path}: partial result ({record.get('status')} at t = "
-                  f"{record.get('last_time')} s of {span}): the metrics cover only the rows written",
-                  file=sys.stderr)
+            warn(f"{path}: partial result ({record.get('status')} at t = {record.get('last_time')} s of "
+                 f"{span}): the metrics cover only the rows written")
         elif record is not None and float(data["time"][-1]) < float(cast("float | str", record["stop_time"])):
-            print(f"orchestrate: warning: {path}: ends at t = {data['time'][-1]:g} s, before the run's stop "
-                  f"time {record['stop_time']} s: the metrics cover only the rows written", file=sys.stderr)
+            warn(f"{path}: ends at t = {data['time'][-1]:g} s, before the run's stop time "
+                 f"{record['stop_time']} s: the metrics cover only the rows written")
     print(format_table(rows))
-    print()
-    print("\n".join(notes))
+    if not quiet():
+        print()
+        print("\n".join(notes))
     return 0
+
+
+def _label(path: Path, paths: list[Path]) -> str:
+    """A result's row name: its stem, unless another result shares it (p.csv, p.parquet, p.mat were
+    three rows called p): then its file name, or its whole path when that is shared too."""
+    if sum(p.stem == path.stem for p in paths) == 1:
+        return path.stem
+    return path.name if sum(p.name == path.name for p in paths) == 1 else str(path)
 
 
 def _check_grid(path: Path, record: dict | None) -> None:
@@ -104,6 +122,8 @@ def _check_grid(path: Path, record: dict | None) -> None:
 def _report(args: argparse.Namespace) -> int:
     if args.processes < 1:
         raise UsageError("--processes must be at least 1")
-    print(report.write_report(args.out, args.stop_time, args.study_values, args.study_horizon,
-                              args.processes, args.campaigns))
+    written = report.write_report(args.out, args.stop_time, args.study_values, args.study_horizon,
+                                  args.processes, args.campaigns)
+    if not quiet():
+        print(written)
     return 0

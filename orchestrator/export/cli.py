@@ -7,11 +7,11 @@ import sys
 
 from .. import MASTERS
 from ..cli import (
-    _overrides,
     _scenario_arguments,
     add_command,
     archive_limits,
     fmu_dirs,
+    parse_overrides,
     resolve_scenario,
     scenario_checks,
 )
@@ -40,7 +40,7 @@ exit status: 0 written, 1 scenario error, 2 usage error.
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``export`` to ``orchestrate``."""
     p = add_command(sub, "export", _export, help="export a scenario as one FMU (for tools without SSP)",
-                    description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+                    quiet=True, description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     _scenario_arguments(p)
     p.add_argument("-o", "--output", required=True, metavar="NAME.fmu", help="the FMU to write")
     p.add_argument("--fmi", choices=FMI_VERSIONS, default="2", help="FMI version of the FMU (default 2)")
@@ -58,7 +58,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _export(args: argparse.Namespace) -> int:
-    overrides = _overrides(args.set)
+    overrides = parse_overrides(args.set)
     scenario = resolve_scenario(args.scenario)
     stale = scenario_checks(scenario)
     if stale and not args.allow_stale:
@@ -74,6 +74,7 @@ def _export(args: argparse.Namespace) -> int:
         return 1
     kinds = {k: sum(e.kind == k for e in exposed) for k in ("input", "output", "parameter")}
     size = path.stat().st_size / 1e6
-    print(f"{path}: {kinds['output']} outputs, {kinds['input']} inputs, {kinds['parameter']} parameters, "
-          f"{size:.1f} MB")
+    if not args.quiet:
+        print(f"{path}: {kinds['output']} outputs, {kinds['input']} inputs, {kinds['parameter']} parameters, "
+              f"{size:.1f} MB")
     return 0

@@ -22,6 +22,7 @@ from fmpy.model_description import ModelVariable
 
 from fmu_src.build import BuildError
 from fmu_src.container import compile_container
+from fmu_src.licences import CONTAINER_DEPENDENCIES, documentation, generation_tool
 
 from .. import open_system
 from ..errors import ScenarioError, UsageError
@@ -37,7 +38,7 @@ __all__ = ["FMI_VERSIONS", "export"]
 FMI_VERSIONS = ("2", "3")
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 GUID_NAMESPACE = uuid.UUID("0d6c7e0e-8a55-4f0b-9d7e-3c1f0a6b2e41")
-GENERATOR = "orchestrate export (fixed-time-cosim)"
+GENERATOR = generation_tool("orchestrate export")
 
 
 def model_identifier(output: Path) -> str:
@@ -249,6 +250,9 @@ def export(scenario: str | os.PathLike, output: str | os.PathLike, *, fmi: str =
             entries[f"binaries/{platform}/{identifier}.so"] = compile_container()
         except BuildError as exc:
             raise ScenarioError(f"cannot build the container runtime: {exc}") from exc
+        entries |= documentation((), external=CONTAINER_DEPENDENCIES,
+                                 note="The FMUs under resources/fmus/<name>/ keep their own licences in "
+                                 "resources/fmus/<name>/documentation/licenses/.")
         digest = hashlib.sha256(plan.text("").encode())
         for name in sorted(entries):
             digest.update(name.encode() + b"\0" + hashlib.sha256(entries[name]).digest())

@@ -332,7 +332,7 @@ def _serve(conn: multiprocessing.connection.Connection, settings: Settings) -> N
     try:
         while (case := conn.recv()) is not None:
             conn.send(check_case(case, settings))
-    except KeyboardInterrupt:  # SIGTERM to the process group: the parent says so, once
+    except (KeyboardInterrupt, EOFError):  # SIGTERM to the group, or the parent gone: it says so
         return
 
 
@@ -344,13 +344,7 @@ class _Worker:
         self.conn, child = context.Pipe()
         self.process = context.Process(target=_serve, args=(child, settings), daemon=True,
                                        name=f"regress worker {number}")
-        # SIGINT blocked while the worker starts: a Ctrl-C while it imports waits for _serve to
-        # ignore it, instead of a traceback from the worker; the parent gets its own at once after
-        held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-        try:
-            self.process.start()
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, held)
+        self.process.start()
         child.close()
         self.index: int | None = None
         self.started = 0.0
@@ -459,7 +453,14 @@ def _run_isolated(cases: Sequence[Case], jobs: int, settings: Settings,
         workers[:] = [w for w in workers if w.process.is_alive() or w.index is not None]
         while pending and len(workers) < jobs:
             started += 1
-            workers.append(_Worker(context, settings, started))
+            # SIGINT blocked while a worker starts and until the caller knows it: a Ctrl-C during
+            # its imports waits for _serve to ignore it (no traceback from the worker), and the
+            # parent, which gets its own at once after, ends every worker it started
+            held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+            try:
+                workers.append(_Worker(context, settings, started))
+            finally:
+                signal.pthread_sigmask(signal.SIG_SETMASK, held)
         for worker in workers:
             if worker.index is None and pending:
                 worker.give(*pending.pop(0))

@@ -1,0 +1,404 @@
+/* A hostile FMI host: makes the calls real hosts and careless users make (FMI 2.0 or 3.0
+   Co-Simulation), each scenario in a child process of its own, so that a crash is seen as one.
+
+   usage: fmu_hostile_host FMU_DIR VERSION IDENTIFIER TOKEN IN OUT PAR SCENARIO...
+
+   FMU_DIR is the unpacked FMU, VERSION 2 or 3, IDENTIFIER its modelIdentifier, TOKEN its GUID or
+   instantiation token; IN, OUT and PAR are value references of a Real (Float64) input, output and
+   fixed parameter (-1: the FMU has none; its scenarios are skipped). For each SCENARIO the child
+   prints one line
+
+       SCENARIO name status=S instance=I messages=M nullcat=N extra=X | first message
+
+   (S: the status of the call under test, -2 if skipped, I: 1 if the instance under test exists, M: messages the
+   FMU logged, N: of them with a NULL category, X: a figure of the scenario) and the parent prints
+   "EXIT name code" or "EXIT name signal N" when the child ends. Scenarios: see SCENARIOS below.
+   Linux and POSIX only (dlopen, fork, pthread), like the test that runs it (tests/test_fmu_hostile.py). */
+
+#define _GNU_SOURCE
+#include <dlfcn.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+typedef void *component;
+typedef struct {
+    void (*logger)(void *, const char *, int, const char *, const char *, ...);
+    void *(*allocateMemory)(size_t, size_t);
+    void (*freeMemory)(void *);
+    void *stepFinished;
+    void *componentEnvironment;
+} callbacks2;
+
+static int version;
+static void *library;
+static char dir[4096], token[256], resources[4200];
+static int in_vr, out_vr, par_vr;
+static int messages, null_categories;
+static char first[512];
+
+/* ---- the host's loggers: count, keep the first message of status warning or worse ---------- */
+
+static void note(int status, const char *category, const char *text) {
+    messages++;
+    if (!category) null_categories++;
+    if (status >= 1 && !first[0]) {
+        snprintf(first, sizeof first, "%s", text ? text : "(NULL message)");
+        for (char *p = first; *p; p++)
+            if (*p == '\n') *p = ' ';
+    }
+}
+
+static void logger2(void *env, const char *name, int status, const char *category, const char *message, ...) {
+    (void)env, (void)name;
+    char text[2048] = "";
+    if (message) {
+        va_list args;
+        va_start(args, message);
+        vsnprintf(text, sizeof text, message, args);
+        va_end(args);
+    }
+    note(status, category, message ? text : NULL);
+}
+
+static void logger3(void *env, int status, const char *category, const char *message) {
+    (void)env;
+    note(status, category, message);
+}
+
+static callbacks2 functions = {logger2, calloc, free, NULL, NULL};
+static callbacks2 no_logger = {NULL, calloc, free, NULL, NULL};
+
+/* ---- the FMI calls, for either version ------------------------------------------------------- */
+
+static void *fn(const char *name) {
+    void *f = dlsym(library, name);
+    if (!f) {
+        printf("dlsym %s failed\n", name);
+        exit(2);
+    }
+    return f;
+}
+
+enum { OK, WARNING, DISCARD, ERROR, FATAL };
+enum { LOGGER, NO_LOGGER, NO_FUNCTIONS };
+
+static component instantiate(const char *name, const char *where, const char *guid, int how) {
+    if (version == 2) {
+        component (*f)(const char *, int, const char *, const char *, const callbacks2 *, int, int) =
+            fn("fmi2Instantiate");
+        return f(name, 1, guid, where, how == LOGGER ? &functions : how == NO_LOGGER ? &no_logger : NULL, 0, 1);
+    }
+    component (*f)(const char *, const char *, const char *, bool, bool, bool, bool, const uint32_t *, size_t,
+                   void *, void *, void *) = fn("fmi3InstantiateCoSimulation");
+    return f(name, guid, where, false, true, false, false, NULL, 0, NULL, how == LOGGER ? (void *)logger3 : NULL,
+             NULL);
+}
+
+static component fresh(const char *name) { return instantiate(name, resources, token, LOGGER); }
+
+static int initialize(component c) {
+    if (version == 2) {
+        int (*setup)(component, int, double, double, int, double) = fn("fmi2SetupExperiment");
+        int (*enter)(component) = fn("fmi2EnterInitializationMode");
+        int (*exit_)(component) = fn("fmi2ExitInitializationMode");
+        int s = setup(c, 0, 0.0, 0.0, 0, 0.0);
+        if (s > WARNING) return s;
+        s = enter(c);
+        return s > WARNING ? s : exit_(c);
+    }
+    int (*enter)(component, bool, double, double, bool, double) = fn("fmi3EnterInitializationMode");
+    int (*exit_)(component) = fn("fmi3ExitInitializationMode");
+    int s = enter(c, false, 0.0, 0.0, false, 0.0);
+    return s > WARNING ? s : exit_(c);
+}
+
+static int step(component c, double t, double h) {
+    if (version == 2) {
+        int (*f)(component, double, double, int) = fn("fmi2DoStep");
+        return f(c, t, h, 1);
+    }
+    int (*f)(component, double, double, bool, bool *, bool *, bool *, double *) = fn("fmi3DoStep");
+    bool event, terminate, early;
+    double last;
+    return f(c, t, h, true, &event, &terminate, &early, &last);
+}
+
+static int get_real(component c, unsigned vr, double *value) {
+    int (*f)(component, const unsigned *, size_t, double *, size_t) =
+        fn(version == 2 ? "fmi2GetReal" : "fmi3GetFloat64");
+    return f(c, &vr, 1, value, 1); /* FMI 2.0's fmi2GetReal ignores the fifth argument */
+}
+
+static int set_real(component c, unsigned vr, double value) {
+    int (*f)(component, const unsigned *, size_t, const double *, size_t) =
+        fn(version == 2 ? "fmi2SetReal" : "fmi3SetFloat64");
+    return f(c, &vr, 1, &value, 1);
+}
+
+static int call(component c, const char *name2, const char *name3) {
+    int (*f)(component) = fn(version == 2 ? name2 : name3);
+    return f(c);
+}
+
+static void free_instance(component c) {
+    void (*f)(component) = fn(version == 2 ? "fmi2FreeInstance" : "fmi3FreeInstance");
+    f(c);
+}
+
+static int worst(int a, int b) { return a > b ? a : b; }
+
+/* A short run: initialize, 10 steps, read the output; its worst status. */
+static int run(component c) {
+    int s = initialize(c);
+    for (int k = 0; k < 10 && s <= WARNING; k++) s = worst(s, step(c, k * 1e-3, 1e-3));
+    double y;
+    if (out_vr >= 0 && s <= WARNING) s = worst(s, get_real(c, (unsigned)out_vr, &y));
+    return s;
+}
+
+/* ---- scenarios ---------------------------------------------------------------------------------- */
+
+struct result {
+    int status;
+    int instance;
+    double extra;
+};
+
+/* Instantiation with the resource location `where` (the call under test: the short run after it). */
+static struct result with_resources(const char *where) {
+    component c = instantiate("r", where, token, LOGGER);
+    struct result r = {c ? run(c) : ERROR, c != NULL, 0};
+    if (c) free_instance(c);
+    return r;
+}
+
+static struct result instantiate_only(const char *where, const char *guid, int how) {
+    component c = instantiate("g", where, guid, how);
+    struct result r = {c ? OK : ERROR, c != NULL, 0};
+    if (c) free_instance(c);
+    return r;
+}
+
+/* An initialized instance, then `f` makes the call under test. */
+static struct result initialized(int (*f)(component)) {
+    component c = fresh("s");
+    if (!c) return (struct result){ERROR, 0, 0};
+    int s = initialize(c);
+    struct result r = {s <= WARNING ? f(c) : s, 1, 0};
+    free_instance(c);
+    return r;
+}
+
+static int step_nan(component c) { return step(c, 0.0, NAN); }
+static int step_negative(component c) { return step(c, 0.0, -1e-3); }
+static int step_zero(component c) { return step(c, 0.0, 0.0); }
+static int step_infinite(component c) { return step(c, 0.0, INFINITY); }
+static int get_unknown(component c) {
+    double v;
+    return get_real(c, 99999, &v);
+}
+static int set_output(component c) { return set_real(c, (unsigned)out_vr, 1.0); }
+static int set_output_twice(component c) { return worst(set_output(c), set_output(c)); }
+static int set_fixed_after_init(component c) { return set_real(c, (unsigned)par_vr, 1.0); }
+static int step_after_terminate(component c) {
+    call(c, "fmi2Terminate", "fmi3Terminate");
+    return step(c, 0.0, 1e-3);
+}
+/* After an error (an unknown value reference) every later call but a getter, reset and free is
+   refused; a second failing call must not crash (before: it did, after a fatal). */
+static int after_error(component c) {
+    get_unknown(c);
+    int s = step(c, 0.0, 1e-3);
+    get_unknown(c);
+    return s;
+}
+/* fmi2Reset after an error: the instance runs again. */
+static int reset_after_error(component c) {
+    get_unknown(c);
+    int s = call(c, "fmi2Reset", "fmi3Reset");
+    return s > WARNING ? s : run(c);
+}
+
+/* The model itself fails: a NaN parameter makes its exit_initialization_mode raise (pythonfmu:
+   fatal). The call under test is the step after it; then a second failing call and the free. */
+static struct result model_fails(void) {
+    component c = fresh("f");
+    if (!c) return (struct result){ERROR, 0, 0};
+    set_real(c, (unsigned)par_vr, NAN);
+    int s = initialize(c);
+    int after = step(c, 0.0, 1e-3);
+    get_unknown(c);
+    free_instance(c);
+    return (struct result){after, 1, s};
+}
+
+static struct result before_init(int get) {
+    component c = fresh("b");
+    if (!c) return (struct result){ERROR, 0, 0};
+    double v;
+    int s = get ? get_real(c, (unsigned)out_vr, &v) : step(c, 0.0, 1e-3);
+    free_instance(c);
+    return (struct result){s, 1, 0};
+}
+
+static long resident_bytes(void) {
+    FILE *f = fopen("/proc/self/statm", "r");
+    long pages = 0, resident = 0;
+    if (f) {
+        if (fscanf(f, "%ld %ld", &pages, &resident) != 2) resident = 0;
+        fclose(f);
+    }
+    return resident * sysconf(_SC_PAGESIZE);
+}
+
+/* Memory kept per instantiate/free cycle (extra: bytes per cycle over `n` cycles after 200, which
+   fill the caches of Python and the allocator). */
+static struct result cycles(int n) {
+    int s = OK;
+    long start = 0;
+    for (int k = -200; k < n && s == OK; k++) {
+        if (k == 0) start = resident_bytes();
+        component c = fresh("cycle");
+        if (!c) s = ERROR;
+        else free_instance(c);
+    }
+    return (struct result){s, 1, (double)(resident_bytes() - start) / n};
+}
+
+/* 50 instances alive at once, each initialized and stepped. */
+static struct result fifty(void) {
+    component c[50];
+    int s = OK, made = 0;
+    for (int k = 0; k < 50; k++) {
+        char name[16];
+        snprintf(name, sizeof name, "i%d", k);
+        if ((c[k] = fresh(name))) made++;
+        else s = ERROR;
+    }
+    for (int k = 0; k < 50; k++)
+        if (c[k]) s = worst(s, run(c[k]));
+    for (int k = 0; k < 50; k++)
+        if (c[k]) free_instance(c[k]);
+    return (struct result){s, made == 50, made};
+}
+
+/* Two threads stepping two instances at once; extra: 1 if both end with the output a lone
+   instance gives. */
+struct job {
+    component c;
+    int status;
+    double y;
+};
+
+static void *stepping(void *arg) {
+    struct job *j = arg;
+    j->status = initialize(j->c);
+    for (int k = 0; k < 300 && j->status <= WARNING; k++) {
+        if (in_vr >= 0) set_real(j->c, (unsigned)in_vr, 0.1 * sin(k * 1e-2));
+        j->status = worst(j->status, step(j->c, k * 1e-3, 1e-3));
+    }
+    if (j->status <= WARNING) j->status = worst(j->status, get_real(j->c, (unsigned)out_vr, &j->y));
+    return NULL;
+}
+
+static struct result two_threads(void) {
+    struct job alone = {fresh("alone"), 0, 0}, a = {fresh("a"), 0, 0}, b = {fresh("b"), 0, 0};
+    if (!alone.c || !a.c || !b.c) return (struct result){ERROR, 0, 0};
+    stepping(&alone);
+    pthread_t ta, tb;
+    pthread_create(&ta, NULL, stepping, &a);
+    pthread_create(&tb, NULL, stepping, &b);
+    pthread_join(ta, NULL);
+    pthread_join(tb, NULL);
+    free_instance(alone.c), free_instance(a.c), free_instance(b.c);
+    int same = a.y == alone.y && b.y == alone.y;
+    return (struct result){worst(alone.status, worst(a.status, b.status)), 1, same};
+}
+
+static struct result scenario(const char *name) {
+    const struct result skipped = {-2, 0, 0}; /* the FMU has no variable the scenario needs */
+    if ((par_vr < 0 && (!strcmp(name, "set-fixed-after-init") || !strcmp(name, "model-fails"))) ||
+        (out_vr < 0 && !strncmp(name, "set-output", 10)))
+        return skipped;
+    char missing[4300];
+    snprintf(missing, sizeof missing, version == 2 ? "file://%s/no-such-folder" : "%s/no-such-folder/", dir);
+    if (!strcmp(name, "ok")) return with_resources(resources);
+    if (!strcmp(name, "resources-missing")) return with_resources(missing);
+    if (!strcmp(name, "resources-empty")) return with_resources("");
+    if (!strcmp(name, "resources-null")) return with_resources(NULL);
+    if (!strcmp(name, "resources-not-a-file-uri")) return with_resources("http://example.org/resources");
+    if (!strcmp(name, "guid-wrong")) return instantiate_only(resources, "{00000000-0000-0000-0000-000000000000}", LOGGER);
+    if (!strcmp(name, "guid-null")) return instantiate_only(resources, NULL, LOGGER);
+    if (!strcmp(name, "no-logger")) {
+        component c = instantiate("n", resources, token, NO_LOGGER);
+        struct result r = {c ? get_unknown(c) : ERROR, c != NULL, 0};
+        if (c) free_instance(c);
+        return r;
+    }
+    if (!strcmp(name, "no-callbacks")) return instantiate_only(resources, token, NO_FUNCTIONS);
+    if (!strcmp(name, "step-before-init")) return before_init(0);
+    if (!strcmp(name, "get-before-init")) return before_init(1);
+    if (!strcmp(name, "step-nan")) return initialized(step_nan);
+    if (!strcmp(name, "step-negative")) return initialized(step_negative);
+    if (!strcmp(name, "step-zero")) return initialized(step_zero);
+    if (!strcmp(name, "step-infinite")) return initialized(step_infinite);
+    if (!strcmp(name, "unknown-vr")) return initialized(get_unknown);
+    if (!strcmp(name, "set-output")) return initialized(set_output);
+    if (!strcmp(name, "set-output-twice")) return initialized(set_output_twice);
+    if (!strcmp(name, "set-fixed-after-init")) return initialized(set_fixed_after_init);
+    if (!strcmp(name, "step-after-terminate")) return initialized(step_after_terminate);
+    if (!strcmp(name, "after-error")) return initialized(after_error);
+    if (!strcmp(name, "reset-after-error")) return initialized(reset_after_error);
+    if (!strcmp(name, "model-fails")) return model_fails();
+    if (!strcmp(name, "fifty")) return fifty();
+    if (!strcmp(name, "two-threads")) return two_threads();
+    if (!strncmp(name, "cycles", 6)) return cycles(name[6] == '=' ? atoi(name + 7) : 1000);
+    printf("unknown scenario %s\n", name);
+    exit(2);
+}
+
+int main(int argc, char **argv) {
+    if (argc < 9) {
+        fprintf(stderr, "usage: %s FMU_DIR VERSION IDENTIFIER TOKEN IN OUT PAR SCENARIO...\n", argv[0]);
+        return 2;
+    }
+    snprintf(dir, sizeof dir, "%s", argv[1]);
+    version = atoi(argv[2]);
+    snprintf(token, sizeof token, "%s", argv[4]);
+    in_vr = atoi(argv[5]), out_vr = atoi(argv[6]), par_vr = atoi(argv[7]);
+    char binary[4400];
+    snprintf(binary, sizeof binary, "%s/binaries/%s/%s.so", dir, version == 2 ? "linux64" : "x86_64-linux", argv[3]);
+    snprintf(resources, sizeof resources, version == 2 ? "file://%s/resources" : "%s/resources/", dir);
+    library = dlopen(binary, RTLD_NOW | RTLD_LOCAL);
+    if (!library) {
+        printf("dlopen failed: %s\n", dlerror());
+        return 2;
+    }
+    component warm = fresh("warm-up"); /* Python started once: every child inherits it */
+    if (warm) free_instance(warm);
+    messages = null_categories = 0, first[0] = '\0';
+    for (int k = 8; k < argc; k++) {
+        fflush(stdout);
+        pid_t child = fork();
+        if (child == 0) {
+            struct result r = scenario(argv[k]);
+            printf("SCENARIO %s status=%d instance=%d messages=%d nullcat=%d extra=%g | %s\n", argv[k], r.status,
+                   r.instance, messages, null_categories, r.extra, first);
+            fflush(stdout);
+            _exit(0);
+        }
+        int how = 0;
+        waitpid(child, &how, 0);
+        if (WIFSIGNALED(how)) printf("EXIT %s signal %d\n", argv[k], WTERMSIG(how));
+        else printf("EXIT %s %d\n", argv[k], WEXITSTATUS(how));
+    }
+    return 0;
+}
