@@ -138,7 +138,7 @@ def test_the_plant_fmu_fails_fast_on_a_diverging_run(fmus: dict, caplog: pytest.
         result = simulate_fmu(fmus["Example1Plant"], stop_time=0.01, output_interval=1e-3,
                               start_values={"uf": 1.07e7, "x1_0": -10.0, "x2_0": -10.0})
     assert len(result) <= 2
-    assert "step budget of 50000 integrator steps" in caplog.text or "state_limit 10000" in caplog.text
+    assert "step budget of 50000 integrator steps" in caplog.text or "state_limit 1e+06" in caplog.text
     caplog.clear()
     with caplog.at_level(logging.ERROR, logger="fixed_time_cosim.fmu"):
         result = simulate_fmu(fmus["Example1Plant"], stop_time=1.0, output_interval=1e-3,
@@ -158,10 +158,11 @@ def test_the_plant_fmu_names_the_rate_bound(fmus: dict, caplog: pytest.LogCaptur
 
     from fmpy import simulate_fmu
 
-    start = {"uf": 1.07e7, "x1_0": -10.0, "x2_0": -10.0}
+    start = {"uf": 1.07e7, "x1_0": -10.0, "x2_0": -10.0, "state_limit": 1e4}
     with caplog.at_level(logging.ERROR, logger="fixed_time_cosim.fmu"):
         result = simulate_fmu(fmus["Example1Plant"], stop_time=0.01, output_interval=1e-3, start_values=start)
-    assert "would carry x2 beyond the plant's state_limit 10000 within 0.001 s" in caplog.text
+    assert "would carry x2 from -10 to 3" in caplog.text
+    assert "beyond the plant's state_limit 10000, within 0.001 s" in caplog.text
     assert "step rejected (fmi2Discard)" in caplog.text
     assert np.all(result["time"] == 0.0) and np.all(result["x2"] == -10.0)  # no step was taken
     caplog.clear()
@@ -208,8 +209,8 @@ def test_a_held_input_that_drives_the_state_out_ends_at_the_first_evaluation() -
     start, so x2 moves by more than 1e4 = state_limit within h = 1 ms at that rate: the rate bound
     (rate_horizon 1) ends the step on the first evaluation, naming x2 and state_limit."""
     rhs = Counted(example1_rhs)
-    with pytest.raises(StateLimitError, match=r"dx2/dt = 3\.0\d+e\+07 at t = 0\.0 would carry x2 beyond the "
-                       r"plant's state_limit 10000 within 0\.001 s") as raised:
+    with pytest.raises(StateLimitError, match=r"dx2/dt = 3\.0\d+e\+07 at t = 0\.0 would carry x2 from -10 to "
+                       r"3\d{4}\.?\d*, beyond the plant's state_limit 10000, within 0\.001 s") as raised:
         dopri_hold_step(rhs, 0.0, (-10.0, -10.0, 0.0), 1.07e7, 1e-3, 1e-10, 1e-12, 0.0, 1e4, MAX_STEPS, 20.0,
                         1.0)
     assert rhs.calls == 1 and "rate_horizon" in str(raised.value)
@@ -217,7 +218,7 @@ def test_a_held_input_that_drives_the_state_out_ends_at_the_first_evaluation() -
     # the same with RK4, and x1's bound is y_limit: x1' = (2 + sin x1) x2 >= 1 * 1e4 at x2 = 1e4,
     # y_limit 5 passed within 1 ms at that rate (1e4 * 1e-3 = 10 > 5)
     rhs = Counted(example1_rhs)
-    with pytest.raises(StateLimitError, match=r"dx1/dt = .* would carry x1 beyond the plant's y_limit 5 "):
+    with pytest.raises(StateLimitError, match=r"dx1/dt = .* would carry x1 from 1 to .*, beyond the plant's y_limit 5,"):
         hold_step(rhs, 0.0, (1.0, 1e4, 0.0), 0.0, 1e-3, 2.5e-5, 1e6, 5.0, 1.0)
     assert rhs.calls == 1
 
