@@ -156,7 +156,7 @@ study-fixed-time: build
 check-fail-fast: build
 	$(PY) -m orchestrator.experiments.escape_check --mode 0 --discretization 1
 	$(PY) -m orchestrator.experiments.escape_check --mode 0 --discretization 0
-	$(PY) -m orchestrator.experiments.escape_check --mode 1 --discretization 0
+	$(PY) -m orchestrator.experiments.escape_check --mode 1 --discretization 0 --horizon 2
 
 ## report: results/report/report.md with the paper's figures, tables and the settling study
 report: build

@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 import pytest
+from fmu_helpers import compiled_extension
 
 from controller.params import EXPLICIT, FINITE_TIME, FIXED_TIME, SEMI_IMPLICIT
 from fmu_src.models.examples import EXAMPLE1
@@ -23,8 +24,6 @@ from orchestrator import RunOptions, run
 from orchestrator.experiments.campaigns import BAND
 from orchestrator.experiments.escape_check import grid, reference_outcome, sampled_outcome
 from orchestrator.experiments.metrics import settling_time
-
-from fmu_helpers import compiled_extension
 
 # The states of the issue: the continuous loop settles them in 0.05-0.08 s, main's plants ended
 # them at t = 0 (x1 of Example 1 overshoots to 22-31 on the way).
