@@ -334,7 +334,7 @@ def test_each_map_panel_has_its_own_colour_scale(tmp_path) -> None:
     from matplotlib import pyplot as plt
 
     fast = [Cell(x, y, "settled", 0.04 + 0.02 * (x + y), 1.0, 2.0) for x in range(4) for y in range(4)]
-    slow = [Cell(x, y, "settled", 0.5 + 0.25 * (x + y), 1e3 * 10 ** x, 2.0) for x in range(4) for y in range(4)]
+    slow = [Cell(x, y, "settled", 0.5 + 0.25 * (x + y), 1e3 * 10**x, 2.0) for x in range(4) for y in range(4)]
     b = [Cell(x, y, "diverged" if x else "never", math.inf, 1.0, 0.0) for x in (0.0, 1.0) for y in (0.0, 1.0)]
     created = []
     original = plt.Figure.colorbar
