@@ -23,7 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["GRID_RTOL", "TrackingMetrics", "format_table", "held_integral", "settling_time", "tracking_metrics"]
+__all__ = [
+    "GRID_RTOL", "TrackingMetrics", "format_table", "held_integral", "settling_time", "tracking_metrics",
+]
 
 # Largest allowed deviation of any sample step from the mean step, relative to the mean step.
 GRID_RTOL = 1e-6
