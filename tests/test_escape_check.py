@@ -10,6 +10,7 @@ fmi2Discard (the rate bound or y_limit 20), and 49 (Example 1) and 245 (pendulum
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -33,6 +34,13 @@ IDS = [f"{n}:{a:g},{b:g}" for n, (a, b) in ISSUE_STATES]
 SCENARIOS = {1: "example1_smooth", 2: "pendulum_smooth"}  # semi-implicit fixed-time law, no fault before 2 s
 
 
+@functools.cache
+def _reference(number: int, x0: tuple[float, float]):
+    """The continuous loop without bounds over 0.2 s (Example 1 from x2(0) ~ 1e4: about 10 s of CPU,
+    the solver resolving sin(x1^2 x2^2); computed once per state)."""
+    return reference_outcome(number, x0, FIXED_TIME, horizon=0.2)
+
+
 @pytest.fixture(scope="module")
 def dopri(tmp_path_factory: pytest.TempPathFactory):
     """_dopri.c compiled as the FMU build compiles it (the plants' own step, fast)."""
@@ -51,7 +59,7 @@ def test_the_issues_states_settle_in_the_fmus_as_in_the_reference(built, number,
     error = rows["plant.y"] - np.array([reference_signal(t, EXAMPLE1.reference if number == 1 else
                                                          _pendulum_reference())[0] for t in rows["time"]])
     cosim = settling_time(rows["time"], error, BAND)
-    reference = reference_outcome(number, x0, FIXED_TIME, horizon=0.2)
+    reference = _reference(number, x0)
     assert reference.outcome == "settled"
     assert cosim == pytest.approx(reference.settling, abs=2e-3)
 
@@ -66,18 +74,19 @@ def _pendulum_reference():
 def test_no_false_divergence_on_the_wide_grid(dopri, number) -> None:
     """The semi-implicit fixed-time loop (the smooth scenarios' law) with the plants' own step and
     default bounds from every state of the 21 x 21 grid over |x1(0)| <= 20, |x2(0)| <= 1e4: none
-    ends on a bound (main: 49 and 245 did), and every one settles within 0.1 s; at the grid's
-    corners and at the issue's states its settling time is the continuous reference's (no bound)
-    within 2 ms."""
+    ends on a bound, and every one settles within 0.1 s; at the issue's states on the grid and the
+    pendulum's corners (Example 1: at (10, 9000); its reference from a corner costs 20 s of CPU) its settling time is the
+    continuous reference's (no bound) within 2 ms. About 75 s of CPU for Example 1 (its integrator
+    resolves sin(x1^2 x2^2) at rtol 1e-10 in the first milliseconds), 8 s for the pendulum."""
     outcomes = {x0: sampled_outcome(number, x0, FIXED_TIME, SEMI_IMPLICIT, 0.15, compiled=dopri)
                 for x0 in grid(21)}
     diverged = {x0: o.reason for x0, o in outcomes.items() if o.outcome == "diverged"}
     assert not diverged
     assert max(o.settling for o in outcomes.values()) <= 0.1
-    checked = [(20.0, 1e4), (-20.0, -1e4), (20.0, -1e4), (-20.0, 1e4)]
+    checked = [(20.0, 1e4), (-20.0, -1e4), (20.0, -1e4), (-20.0, 1e4)] if number == 2 else [(10.0, 9000.0)]
     checked += [x0 for n, x0 in ISSUE_STATES if n == number and x0 in outcomes]
     for x0 in checked:
-        reference = reference_outcome(number, x0, FIXED_TIME, horizon=0.15)
+        reference = _reference(number, x0)
         assert reference.outcome == "settled", x0
         assert outcomes[x0].settling == pytest.approx(reference.settling, abs=2e-3), x0
 
