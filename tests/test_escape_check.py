@@ -4,8 +4,9 @@ divergence), and still end a finite escape.
 Oracles: the continuous closed loop of the paper without any bound (``solve_ivp`` of
 :mod:`orchestrator.experiments.closed_loop`'s right-hand side, :func:`reference_outcome`), and the
 plant FMUs themselves. On main 5287c35 every state of :data:`ISSUE_STATES` ended at t = 0 with
-fmi2Discard (the rate bound or y_limit 20), and 49 (Example 1) and 245 (pendulum) of the wide grid's
-441 states ended as diverged.
+fmi2Discard (the rate bound, y_limit 20 or the step budget), and on the wide grid 290 (Example 1)
+and 110 (pendulum) of 441 states that the loop without bounds settles ended as diverged
+(``make check-fail-fast`` in a checkout of main da039de).
 """
 
 from __future__ import annotations
@@ -75,9 +76,10 @@ def test_no_false_divergence_on_the_wide_grid(dopri, number) -> None:
     """The semi-implicit fixed-time loop (the smooth scenarios' law) with the plants' own step and
     default bounds from every state of the 21 x 21 grid over |x1(0)| <= 20, |x2(0)| <= 1e4: none
     ends on a bound, and every one settles within 0.1 s; at the issue's states on the grid and the
-    pendulum's corners (Example 1: at (10, 9000); its reference from a corner costs 20 s of CPU) its settling time is the
-    continuous reference's (no bound) within 2 ms. About 75 s of CPU for Example 1 (its integrator
-    resolves sin(x1^2 x2^2) at rtol 1e-10 in the first milliseconds), 8 s for the pendulum."""
+    pendulum's corners (Example 1: at (10, 9000); its reference from a corner costs 20 s of CPU)
+    its settling time is the continuous reference's (no bound) within 2 ms. About 75 s of CPU for
+    Example 1 (its integrator resolves sin(x1^2 x2^2) at rtol 1e-10 in the first milliseconds), 8 s
+    for the pendulum."""
     outcomes = {x0: sampled_outcome(number, x0, FIXED_TIME, SEMI_IMPLICIT, 0.15, compiled=dopri)
                 for x0 in grid(21)}
     diverged = {x0: o.reason for x0, o in outcomes.items() if o.outcome == "diverged"}
