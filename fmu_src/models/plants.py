@@ -371,7 +371,8 @@ def dopri_hold_step(
             t, y1, y2, y3 = t_new, n1, n2, n3
             k11, k12, k13 = k71, k72, k73  # first same as last
             if carried_beyond((y1, y2, y3), (k11, k12, k13), reach, x1_limit, limit):
-                raise StateLimitError(escape_rate((y1, y2, y3), (k11, k12, k13), t, reach, limit, y_limit, names))
+                raise StateLimitError(
+                    escape_rate((y1, y2, y3), (k11, k12, k13), t, reach, limit, y_limit, names))
             dt = proposal
             grow = _FAC_MAX
         else:
