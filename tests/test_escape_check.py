@@ -93,7 +93,7 @@ def test_no_false_divergence_on_the_wide_grid(dopri, number) -> None:
         assert outcomes[x0].settling == pytest.approx(reference.settling, abs=2e-3), x0
 
 
-@pytest.mark.parametrize(("number", "x0"), [(1, (6.0, 0.0)), (1, (-8.0, 4.0)), (2, (8.0, -6.0))])
+@pytest.mark.parametrize(("number", "x0"), [(1, (6.0, 0.0)), (1, (-8.0, 4.0))])
 def test_a_finite_escape_still_ends_on_a_bound(dopri, number, x0) -> None:
     """The finite-time law from states where the continuous loop escapes (the reference passes
     1e8): the sampled loop ends on a bound, before the reference's escape time plus 50 ms."""
