@@ -15,7 +15,7 @@ BYTECODE := build/.bytecode
 SOURCES := $(shell find controller fmu_src ssp -type f -not -path '*/__pycache__/*' -not -name '*.pyc' \
                      -not -name '.*' 2>/dev/null)
 
-.PHONY: run test unit build lint docs docs-figure browser windows-tools windows-matrix runtime-pins hostile executors crosscheck conformance table study study-fixed-time report baselines bench clean
+.PHONY: run test unit build lint docs docs-figure browser windows-tools windows-matrix runtime-pins hostile executors crosscheck conformance table study study-fixed-time check-fail-fast research report baselines bench clean
 
 # pip's console script 'orchestrate' is then replaced by orchestrator/launcher.c, which holds SIGINT and
 # SIGTERM from its first instruction until the package's handlers are in (issue 20). Compiled to a
@@ -181,6 +181,19 @@ CONTINUOUS ?= 21
 study-fixed-time: build
 	$(PY) -m orchestrator.experiments.fixed_time_study --states $(STATES) --continuous-states $(CONTINUOUS) \
 	  --docs docs/fixed-time-study
+
+## check-fail-fast: the plants' fail-fast bounds against the unbounded continuous loop over
+## |x1(0)| <= 20, |x2(0)| <= 1e4 (21 x 21, both examples; issue 37): false divergences, CPU per
+## diverging run, for the semi-implicit and explicit fixed-time law and the finite-time law
+check-fail-fast: build
+	$(PY) -m orchestrator.experiments.escape_check --mode 0 --discretization 1
+	$(PY) -m orchestrator.experiments.escape_check --mode 0 --discretization 0
+	$(PY) -m orchestrator.experiments.escape_check --mode 1 --discretization 0 --horizon 2
+
+## research: the research-question campaigns of issue 37 (Remark 6's gains, with control effort):
+## tables in results/campaigns/gains_*/, the generated page docs/research/index.md
+research: build
+	$(PY) -m orchestrator.experiments.research
 
 ## report: results/report/report.md with the paper's figures, tables and the settling study
 report: build

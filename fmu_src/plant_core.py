@@ -141,8 +141,8 @@ def declare_integrator(slave: Fmi2Slave) -> None:
         slave,
         "rate_horizon",
         parameter,
-        "Rate bound, in communication steps h: a derivative that would carry a state beyond its bound "
-        "(x1: y_limit, x2 and z: state_limit) within rate_horizon * h (|dx/dt| * rate_horizon * h above "
+        "Rate bound, in communication steps h: a state that its derivative would carry beyond its bound "
+        "(x1: y_limit, x2 and z: state_limit) within rate_horizon * h (|x + dx/dt * rate_horizon * h| above "
         "it, at the step's start or at an accepted point inside it) ends the step with fmi2Discard "
         "(fail fast on a held input that drives the state out of range); 0: no rate bound",
         minimum=0.0,

@@ -128,8 +128,8 @@ def test_an_escaping_output_stops_at_y_limit() -> None:
 @pytest.mark.system
 def test_the_plant_fmu_fails_fast_on_a_diverging_run(fmus: dict, caplog: pytest.LogCaptureFixture) -> None:
     """The explicit fixed-time law's first sample from (-10, -10), 1.07e7, held on the Example 1 FMU:
-    the first doStep ends in fmi2Discard after at most max_steps integrator steps (the message says
-    which bound), not after the old 100 000; a finite escape of the output ends at y_limit."""
+    a doStep within the first few ends in fmi2Discard (the message says which bound); a finite
+    escape of the output ends at y_limit."""
     import logging
 
     from fmpy import simulate_fmu
@@ -137,8 +137,12 @@ def test_the_plant_fmu_fails_fast_on_a_diverging_run(fmus: dict, caplog: pytest.
     with caplog.at_level(logging.ERROR, logger="fixed_time_cosim.fmu"):
         result = simulate_fmu(fmus["Example1Plant"], stop_time=0.01, output_interval=1e-3,
                               start_values={"uf": 1.07e7, "x1_0": -10.0, "x2_0": -10.0})
-    assert len(result) <= 2
-    assert "step budget of 50000 integrator steps" in caplog.text or "state_limit 10000" in caplog.text
+    # issue 37: with the wider bounds (state_limit 1e6, the rate bound on the moved state) the held
+    # control carries x2 by 3e4 per step, so the run ends a few steps in, not at the first
+    assert len(result) <= 4
+    assert "step rejected (fmi2Discard)" in caplog.text
+    bounds = ("state_limit 1e+06", "y_limit 100", "step budget of 2000000")
+    assert any(bound in caplog.text for bound in bounds)
     caplog.clear()
     with caplog.at_level(logging.ERROR, logger="fixed_time_cosim.fmu"):
         result = simulate_fmu(fmus["Example1Plant"], stop_time=1.0, output_interval=1e-3,
@@ -158,10 +162,11 @@ def test_the_plant_fmu_names_the_rate_bound(fmus: dict, caplog: pytest.LogCaptur
 
     from fmpy import simulate_fmu
 
-    start = {"uf": 1.07e7, "x1_0": -10.0, "x2_0": -10.0}
+    start = {"uf": 1.07e7, "x1_0": -10.0, "x2_0": -10.0, "state_limit": 1e4}
     with caplog.at_level(logging.ERROR, logger="fixed_time_cosim.fmu"):
         result = simulate_fmu(fmus["Example1Plant"], stop_time=0.01, output_interval=1e-3, start_values=start)
-    assert "would carry x2 beyond the plant's state_limit 10000 within 0.001 s" in caplog.text
+    assert "would carry x2 from -10 to 3" in caplog.text
+    assert "beyond the plant's state_limit 10000, within 0.001 s" in caplog.text
     assert "step rejected (fmi2Discard)" in caplog.text
     assert np.all(result["time"] == 0.0) and np.all(result["x2"] == -10.0)  # no step was taken
     caplog.clear()
@@ -208,8 +213,8 @@ def test_a_held_input_that_drives_the_state_out_ends_at_the_first_evaluation() -
     start, so x2 moves by more than 1e4 = state_limit within h = 1 ms at that rate: the rate bound
     (rate_horizon 1) ends the step on the first evaluation, naming x2 and state_limit."""
     rhs = Counted(example1_rhs)
-    with pytest.raises(StateLimitError, match=r"dx2/dt = 3\.0\d+e\+07 at t = 0\.0 would carry x2 beyond the "
-                       r"plant's state_limit 10000 within 0\.001 s") as raised:
+    with pytest.raises(StateLimitError, match=r"dx2/dt = 3\.0\d+e\+07 at t = 0\.0 would carry x2 from -10 to "
+                       r"3\d{4}\.?\d*, beyond the plant's state_limit 10000, within 0\.001 s") as raised:
         dopri_hold_step(rhs, 0.0, (-10.0, -10.0, 0.0), 1.07e7, 1e-3, 1e-10, 1e-12, 0.0, 1e4, MAX_STEPS, 20.0,
                         1.0)
     assert rhs.calls == 1 and "rate_horizon" in str(raised.value)
@@ -217,7 +222,8 @@ def test_a_held_input_that_drives_the_state_out_ends_at_the_first_evaluation() -
     # the same with RK4, and x1's bound is y_limit: x1' = (2 + sin x1) x2 >= 1 * 1e4 at x2 = 1e4,
     # y_limit 5 passed within 1 ms at that rate (1e4 * 1e-3 = 10 > 5)
     rhs = Counted(example1_rhs)
-    with pytest.raises(StateLimitError, match=r"dx1/dt = .* would carry x1 beyond the plant's y_limit 5 "):
+    with pytest.raises(StateLimitError,
+                       match=r"dx1/dt = .* would carry x1 from 1 to .*, beyond the plant's y_limit 5,"):
         hold_step(rhs, 0.0, (1.0, 1e4, 0.0), 0.0, 1e-3, 2.5e-5, 1e6, 5.0, 1.0)
     assert rhs.calls == 1
 
@@ -298,8 +304,13 @@ def test_table_shows_the_bound_and_where_it_is_exceeded() -> None:
     text = study_table({(1, "fixed-time", "a"): slow, (1, "fixed-time", "b"): fast,
                         (1, "finite-time", "a"): fast}, {1: bound})
     lines = text.splitlines()
-    assert "| 12 | **no**: 13 s |" in lines[2]
-    assert "| 12 | yes |" in lines[3]
+    assert "| 12 | **no**: 13 s, 1 of 1 settled |" in lines[2]
+    assert "| 12 | yes, 1 of 1 settled |" in lines[3]
+    assert "(settled runs only)" in lines[0]
+    # issue 37: a row where most runs diverge says how few runs the verdict covers
+    mostly_diverged = fast + [Cell(1.0, 0.0, "diverged", math.inf, 1e7, 0.0)] * 3
+    row = study_table({(1, "fixed-time", "c"): mostly_diverged}, {1: bound}).splitlines()[2]
+    assert row.endswith("| yes, 1 of 4 settled |")
     assert "none (k = 0)" in lines[4]
 
 
@@ -317,14 +328,17 @@ def test_colour_scale_has_no_impossible_values() -> None:
     assert limits([0.0, 10.0, 1e7, math.inf, math.nan], log=True) == (10.0, 1e7)
 
 
-def test_maps_share_one_colour_scale(tmp_path) -> None:
-    """Two panels with different ranges: one colour bar spanning both (the figure has one)."""
+def test_each_map_panel_has_its_own_colour_scale(tmp_path) -> None:
+    """Issue 37: panels of 0.04-0.1 s beside one of 0.5-2 s each span their own colour map, one
+    colour bar per panel (main: one shared power-law bar, the fast panel all one dark blue); a
+    panel of peaks gets a log scale over its own values."""
     import matplotlib
 
     matplotlib.use("Agg")
     from matplotlib import pyplot as plt
 
-    a = [Cell(x, y, "settled", 0.1 + x, 1.0, 2.0) for x in (0.0, 1.0) for y in (0.0, 1.0)]
+    fast = [Cell(x, y, "settled", 0.04 + 0.02 * (x + y), 1.0, 2.0) for x in range(4) for y in range(4)]
+    slow = [Cell(x, y, "settled", 0.5 + 0.25 * (x + y), 1e3 * 10**x, 2.0) for x in range(4) for y in range(4)]
     b = [Cell(x, y, "diverged" if x else "never", math.inf, 1.0, 0.0) for x in (0.0, 1.0) for y in (0.0, 1.0)]
     created = []
     original = plt.Figure.colorbar
@@ -335,10 +349,14 @@ def test_maps_share_one_colour_scale(tmp_path) -> None:
 
     plt.Figure.colorbar = spy  # type: ignore[method-assign]
     try:
-        draw_maps([("a", a), ("b", b)], "settling", "s", tmp_path / "m.png")
+        draw_maps([("fast", fast), ("slow", slow), ("b", b)], "settling", "s", tmp_path / "m.png")
+        draw_maps([("slow", slow)], "peak_v", "peak", tmp_path / "p.png", log=True)
     finally:
         plt.Figure.colorbar = original  # type: ignore[method-assign]
-    assert len(created) == 1 and (created[0].vmin, created[0].vmax) == (0.0, pytest.approx(1.1))
+    assert len(created) == 4
+    assert (created[0].vmin, created[0].vmax) == (pytest.approx(0.04), pytest.approx(0.16))
+    assert (created[1].vmin, created[1].vmax) == (pytest.approx(0.5), pytest.approx(2.0))
+    assert type(created[3]).__name__ == "LogNorm" and (created[3].vmin, created[3].vmax) == (1e3, 1e6)
     assert (tmp_path / "m.png").stat().st_size > 0
 
 

@@ -128,5 +128,20 @@ def test_format_table() -> None:
     assert len(lines) == 4
     assert lines[0].startswith("| case | RAE | MSE | RMSE | MAE |")
     assert lines[1].count("|") == lines[0].count("|")
-    assert lines[2] == "| Example 1, fixed-time | 0.1375 | 0.0027 | 0.0517 | 0.0209 | 1.250 | 772.9 | 771.0 |"
-    assert lines[3] == r"| a \| b | 0.5 | 0.00015 | 0.0122 | 0.01 | never | - | - |"
+    assert lines[2] == ("| Example 1, fixed-time | 0.1375 | 0.0027 | 0.0517 | 0.0209 | 1.250 | 772.9 | 771.0 "
+                        "| - | - | - |")
+    assert lines[3] == r"| a \| b | 0.5 | 0.00015 | 0.0122 | 0.01 | never | - | - | - | - | - |"
+
+
+def test_control_effort_is_the_integral_of_the_held_signal() -> None:
+    """Issue 37: the integrals of |v|, v^2 and |uf| of a signal held between samples, against the
+    closed form: v = -2 on [0, 0.5), 4 on [0.5, 1) (the last sample covers no time), so int |v| =
+    1 + 2 = 3, int v^2 = 2 + 8 = 10; uf = 3 e^(-t) sampled every 1e-4 s: int |uf| -> 3 (1 - e^-1)
+    within the step's first-order error."""
+    t = np.array([0.0, 0.5, 1.0])
+    m = tracking_metrics(t, t, t, v=[-2.0, 4.0, 1e9], uf=[1.0, 1.0, 1.0])
+    assert (m.effort_v, m.energy_v, m.effort_uf) == (3.0, 10.0, 1.0)
+    fine = np.linspace(0.0, 1.0, 10001)
+    m = tracking_metrics(fine, fine, fine, v=0 * fine, uf=3.0 * np.exp(-fine))
+    assert m.effort_uf == pytest.approx(3.0 * (1.0 - math.exp(-1.0)), rel=1e-4)
+    assert m.effort_v == 0.0 and tracking_metrics(t, t, t).effort_v is None

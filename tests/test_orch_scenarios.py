@@ -93,9 +93,10 @@ def test_jacobi_equals_libcosim_example1(built):
     assert worst <= 1e-12
 
 
-def pendulum_at(step: str, built: Path, tmp_path: Path) -> Path:
+def pendulum_at(step: str, built: Path, tmp_path: Path, state_limit: float | None = None) -> Path:
     """The shipped pendulum scenario with its communication step replaced by ``step`` (both tool
-    annotations), packed into ``tmp_path``."""
+    annotations) and, if given, the plant's ``state_limit`` set in its parameter file, packed into
+    ``tmp_path``."""
     from orchestrator.ssp import pack_ssp
 
     folder = tmp_path / f"pendulum_{step}"
@@ -104,6 +105,10 @@ def pendulum_at(step: str, built: Path, tmp_path: Path) -> Path:
     text = ssd.read_text()
     assert text.count('"0.0005"') == 2, "the shipped pendulum step moved: update this test"
     ssd.write_text(text.replace('"0.0005"', f'"{step}"'))
+    if state_limit is not None:  # read by every tool that reads the scenario's parameters
+        ssv = folder / "plant.ssv"
+        entry = f'<ssv:Parameter name="state_limit"><ssv:Real value="{state_limit!r}"/></ssv:Parameter>'
+        ssv.write_text(ssv.read_text().replace("</ssv:Parameters>", entry + "</ssv:Parameters>"))
     fmus = {p.name: p for p in (built / "fmus").glob("*.fmu")}
     names = ("Reference.fmu", "FixedTimeController.fmu", "Actuator.fmu", "PendulumPlant.fmu")
     return pack_ssp(folder, {n: fmus[n] for n in names}, tmp_path / f"pendulum_{step}.ssp")
@@ -113,9 +118,9 @@ def test_jacobi_and_libcosim_fail_alike_on_the_pendulum_at_1_ms(built, tmp_path)
     """Why the pendulum ships with a 0.5 ms step: at 1 ms the two steps of coupling delay of a
     delayed master make its stiff start (|v| ~ 15000) diverge within 30 ms; both tools stop at
     the same step with the same trajectory up to there, while the delay-free master runs it. The
-    plant's state_limit (1e4) ends the run when x2 passes it, at 28 ms (before it, the non-finite
-    state at 31 ms)."""
-    ssp = pendulum_at("0.001", built, tmp_path)
+    plant's state_limit, set to 1e4 (the default before issue 37 widened it to 1e6), ends the run
+    when x2 passes it, at 28 ms (before it, the non-finite state at 31 ms)."""
+    ssp = pendulum_at("0.001", built, tmp_path, state_limit=1e4)
     expected = r"^plant: fmi2DoStep returned fmi2Discard at t=0\.028 s"
     with pytest.raises(SimulationError, match=expected) as ours:
         orchestrator.run(ssp, RunOptions(stop_time=0.1, master="jacobi"))

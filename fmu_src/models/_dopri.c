@@ -22,7 +22,8 @@
    c2 = d2, c3 = M L, c4 = g / L + B / M, as plants.pendulum_rhs_for binds them (c5, c6 unused);
    kind 2: the manipulator (models/manipulator.py) with c1 = M, c2 = N, c3 = B, c4 = L, c5 = R,
    c6 = K_B, as manipulator.manipulator_rhs_for binds them.
-   Returns (status, t, a, b, c, next_step, accepted, rejected); plants.native_hold_step turns
+   Returns (status, t, a, b, c, next_step, accepted, rejected, k1, k2, k3), k the rate at a RATE
+   status (zeros otherwise); plants.native_hold_step turns
    a status other than OK into the Python code's exception and message. Built against the
    stable ABI (Py_LIMITED_API) so that one binary loads in any CPython 3.8 or later: the FMU's
    own runtime, or the host's Python when the host runs one. */
@@ -84,15 +85,24 @@ static void rhs(struct plant *p, double t, double x1, double x2, double z, doubl
 static double py_max(double a, double b) { return b > a ? b : a; }
 static double py_min(double a, double b) { return b < a ? b : a; }
 
-/* Whether the rate bound ends the step (plants.dopri_hold_step's `reach > 0.0 and (...)`). */
-static int too_fast(const double *k, double reach, double x1_limit, double limit) {
-    return reach > 0.0 && (fabs(k[0]) * reach > x1_limit || fabs(k[1]) * reach > limit ||
-                           fabs(k[2]) * reach > limit);
+/* Whether the rate bound ends the step (plants.carried_beyond): the state moved on at rate k for
+   reach seconds beyond its bound. */
+static int too_fast(double y1, double y2, double y3, const double *k, double reach, double x1_limit,
+                    double limit) {
+    return reach > 0.0 && (fabs(y1 + k[0] * reach) > x1_limit || fabs(y2 + k[1] * reach) > limit ||
+                           fabs(y3 + k[2] * reach) > limit);
+}
+
+/* (status, t, state a b c, next step, accepted, rejected, rate k): k only for RATE (else zeros). */
+static PyObject *result_rate(int status, double t, double a, double b, double c, double next,
+                             long long accepted, long long rejected, const double *k) {
+    return Py_BuildValue("(idddddLLddd)", status, t, a, b, c, next, accepted, rejected, k[0], k[1], k[2]);
 }
 
 static PyObject *result(int status, double t, double a, double b, double c, double next, long long accepted,
                         long long rejected) {
-    return Py_BuildValue("(idddddLL)", status, t, a, b, c, next, accepted, rejected);
+    static const double none[3] = {0.0, 0.0, 0.0};
+    return result_rate(status, t, a, b, c, next, accepted, rejected, none);
 }
 
 static PyObject *hold_step(PyObject *self, PyObject *args) {
@@ -114,7 +124,7 @@ static PyObject *hold_step(PyObject *self, PyObject *args) {
     if (p.domain) return result(DOMAIN, t, 0.0, 0.0, 0.0, 0.0, 0, 0);
     double reach = rate_horizon * h;
     double x1_limit = py_min(limit, y_limit);
-    if (too_fast(k1, reach, x1_limit, limit)) return result(RATE, t, k1[0], k1[1], k1[2], 0.0, 0, 0);
+    if (too_fast(y1, y2, y3, k1, reach, x1_limit, limit)) return result_rate(RATE, t, y1, y2, y3, 0.0, 0, 0, k1);
     double dt = first_step > 0.0 ? py_min(first_step, h) : h;
     long long accepted = 0, rejected = 0;
     double grow = FAC_MAX;
@@ -172,7 +182,8 @@ static PyObject *hold_step(PyObject *self, PyObject *args) {
             k1[0] = k7[0]; /* first same as last */
             k1[1] = k7[1];
             k1[2] = k7[2];
-            if (too_fast(k1, reach, x1_limit, limit)) return result(RATE, t, k1[0], k1[1], k1[2], 0.0, 0, 0);
+            if (too_fast(y1, y2, y3, k1, reach, x1_limit, limit))
+                return result_rate(RATE, t, y1, y2, y3, 0.0, 0, 0, k1);
             dt = proposal;
             grow = FAC_MAX;
         } else {

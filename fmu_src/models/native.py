@@ -86,14 +86,14 @@ def native_hold_step(
     and the same exceptions (requires :data:`COMPILED`)."""
     if _dopri is None:
         raise RuntimeError("the compiled integrator _dopri is not built (it is built into the plant FMUs)")
-    status, at, a, b, c, next_step, accepted, rejected = _dopri.hold_step(
+    status, at, a, b, c, next_step, accepted, rejected, *rate = _dopri.hold_step(
         plant.kind, *plant.constants, t, *state, uf, h, rtol, atol, first_step, limit, max_steps, y_limit,
         rate_horizon,
     )
     if status == _OK:
         return AdaptiveStep((a, b, c), next_step, accepted, rejected)
     if status == _RATE:
-        raise StateLimitError(escape_rate((a, b, c), at, rate_horizon * h, limit, y_limit, plant.names))
+        raise StateLimitError(escape_rate((a, b, c), rate, at, rate_horizon * h, limit, y_limit, plant.names))
     if status == _BEYOND:
         raise beyond_limit((a, b, c), at, limit, y_limit)
     if status == _BUDGET:

@@ -36,6 +36,7 @@ __all__ = [
     "beyond_limit",
     "budget_spent",
     "dopri_hold_step",
+    "carried_beyond",
     "escape_rate",
     "example1_rhs",
     "hold_step",
@@ -130,8 +131,8 @@ def hold_step(
     for i in range(substeps):
         ti = t + i * dt
         a1, a2, a3 = rhs(ti, (x1, x2, z), uf)
-        if reach > 0.0 and (abs(a1) * reach > x1_limit or abs(a2) * reach > limit or abs(a3) * reach > limit):
-            raise StateLimitError(escape_rate((a1, a2, a3), ti, reach, limit, y_limit, names))
+        if carried_beyond((x1, x2, z), (a1, a2, a3), reach, x1_limit, limit):
+            raise StateLimitError(escape_rate((x1, x2, z), (a1, a2, a3), ti, reach, limit, y_limit, names))
         b1, b2, b3 = rhs(ti + 0.5 * dt, (x1 + 0.5 * dt * a1, x2 + 0.5 * dt * a2, z + 0.5 * dt * a3), uf)
         c1, c2, c3 = rhs(ti + 0.5 * dt, (x1 + 0.5 * dt * b1, x2 + 0.5 * dt * b2, z + 0.5 * dt * b3), uf)
         d1, d2, d3 = rhs(ti + dt, (x1 + dt * c1, x2 + dt * c2, z + dt * c3), uf)
@@ -183,9 +184,21 @@ _SAFETY, _FAC_MIN, _FAC_MAX = 0.9, 0.2, 10.0
 # of the study that settle stay at or below 0.26 of their bounds at the points checked: Example 1
 # at 0.11 (|dx1/dt| h = 2.3 against y_limit 20, semi-implicit from (10, -9)), the pendulum at 0.26
 # (|dx2/dt| h = 2.6e3 against state_limit 1e4, semi-implicit from (-10, -10), |uf| 5.1e6 at 0.5 ms).
-Y_LIMIT = 20.0
-STATE_LIMIT = 1e4
-MAX_STEPS = 50_000
+#
+# Issue 37: those bounds ended settling runs from beyond the study's box as "diverged" (false
+# divergences): the rate bound compared |dx/dt| h with a bound on the state's size (the first
+# control from x2(0) = 8000 brings x2 back to 0 at 2e7 per second: |dx2/dt| h = 1e4 > 1e4), and
+# the fixed-time law overshoots y_limit 20 from x1(0) = 10, x2(0) = 9500 (to 31). The rate bound
+# now moves the state on at its rate (:func:`carried_beyond`), and the bounds sit above every state
+# the closed loop reaches while it settles from |x1(0)| <= 20, |x2(0)| <= 1e4 (21 x 21 grid, both
+# examples, semi-implicit fixed-time law, no bound: |x1| <= 31.6, |x2| <= 10 090, |z| <= 2.6;
+# ``make check-fail-fast``), with a margin of 3 (x1) and 100 (x2, z). A finite escape passes them
+# within milliseconds of passing the old ones (x1 grows like 1 / (t_escape - t)). The step budget
+# ended settling runs too: the first millisecond from (-20, -1e4) needs more than 500 000 steps
+# (0.5 sin(x1^2 x2^2) oscillates at about 1e13 rad/s there); 2 000 000 compiled steps cost 0.7 s.
+Y_LIMIT = 100.0
+STATE_LIMIT = 1e6
+MAX_STEPS = 2_000_000
 RATE_HORIZON = 1.0
 
 
@@ -193,19 +206,34 @@ class StateLimitError(ValueError):
     """The plant's state left its range of validity (|x1|, |x2| or |z| above the limit)."""
 
 
-def escape_rate(rate: State, t: float, reach: float, limit: float, y_limit: float,
-                names: Sequence[str] = STATE_NAMES) -> str:
-    """Why a step ends on the rate bound: the first component of ``rate`` (dx/dt) that, held over
-    ``reach`` seconds, moves its state further than its bound (x1: ``y_limit`` or ``limit``, the
-    smaller; x2, z: ``limit``); ``names``: the plant's names of the three states."""
+def carried_beyond(state: Sequence[float], rate: Sequence[float], reach: float, x1_limit: float,
+                   limit: float) -> bool:
+    """The rate bound: whether the state, moved on at its present rate for ``reach`` seconds,
+    would be beyond its bound (x1: ``x1_limit``; x2, z: ``limit``); never when ``reach`` is 0.
+
+    The state itself counts, not only the rate: a large rate that brings a large state back (the
+    first control of a settling run from x2(0) = 8000) is no escape; comparing the rate alone
+    with the bound (before issue 37) ended such runs at t = 0."""
+    return reach > 0.0 and (
+        abs(state[0] + rate[0] * reach) > x1_limit
+        or abs(state[1] + rate[1] * reach) > limit
+        or abs(state[2] + rate[2] * reach) > limit
+    )
+
+
+def escape_rate(state: Sequence[float], rate: Sequence[float], t: float, reach: float, limit: float,
+                y_limit: float, names: Sequence[str] = STATE_NAMES) -> str:
+    """Why a step ends on the rate bound (:func:`carried_beyond`): the first state that ``rate``
+    (dx/dt), held over ``reach`` seconds, carries beyond its bound (x1: ``y_limit`` or ``limit``,
+    the smaller; x2, z: ``limit``); ``names``: the plant's names of the three states."""
     x1_bound = ("y_limit", y_limit) if y_limit <= limit else ("state_limit", limit)
     bounds = (x1_bound, ("state_limit", limit), ("state_limit", limit))
-    i = next((i for i in range(3) if abs(rate[i]) * reach > bounds[i][1]), 0)
+    i = next((i for i in range(3) if abs(state[i] + rate[i] * reach) > bounds[i][1]), 0)
     name, bound = bounds[i]
     return (
-        f"d{names[i]}/dt = {rate[i]:.6g} at t = {t!r} would carry {names[i]} beyond the plant's "
-        f"{name} {bound:g} within {reach:g} s (|d{names[i]}/dt| * rate_horizon * h > {name}: "
-        "left its range of validity)"
+        f"d{names[i]}/dt = {rate[i]:.6g} at t = {t!r} would carry {names[i]} from {state[i]:.6g} to "
+        f"{state[i] + rate[i] * reach:.6g}, beyond the plant's {name} {bound:g}, within {reach:g} s "
+        f"(abs({names[i]} + d{names[i]}/dt * rate_horizon * h) > {name}: leaving its range of validity)"
     )
 
 
@@ -286,8 +314,8 @@ def dopri_hold_step(
     k11, k12, k13 = rhs(t, (y1, y2, y3), uf)
     reach = rate_horizon * h
     x1_limit = min(limit, y_limit)
-    if reach > 0.0 and (abs(k11) * reach > x1_limit or abs(k12) * reach > limit or abs(k13) * reach > limit):
-        raise StateLimitError(escape_rate((k11, k12, k13), t, reach, limit, y_limit, names))
+    if carried_beyond((y1, y2, y3), (k11, k12, k13), reach, x1_limit, limit):
+        raise StateLimitError(escape_rate((y1, y2, y3), (k11, k12, k13), t, reach, limit, y_limit, names))
     dt = min(first_step, h) if first_step > 0.0 else h
     accepted = rejected = 0
     grow = _FAC_MAX
@@ -342,10 +370,9 @@ def dopri_hold_step(
                 raise budget_spent(max_steps, t_new, accepted, rejected)
             t, y1, y2, y3 = t_new, n1, n2, n3
             k11, k12, k13 = k71, k72, k73  # first same as last
-            if reach > 0.0 and (
-                abs(k11) * reach > x1_limit or abs(k12) * reach > limit or abs(k13) * reach > limit
-            ):
-                raise StateLimitError(escape_rate((k11, k12, k13), t, reach, limit, y_limit, names))
+            if carried_beyond((y1, y2, y3), (k11, k12, k13), reach, x1_limit, limit):
+                raise StateLimitError(
+                    escape_rate((y1, y2, y3), (k11, k12, k13), t, reach, limit, y_limit, names))
             dt = proposal
             grow = _FAC_MAX
         else:

@@ -46,7 +46,9 @@ def tracking_row(result: np.ndarray, params: Mapping[str, object]) -> dict[str, 
     if t.size < 2:
         return row
     m = tracking_metrics(t, y, yd, result["controller.v"], result["actuator.uf"], band=BAND)
-    row.update(rae=m.rae, mse=m.mse, rmse=m.rmse, mae=m.mae, settling_time=m.settling_time)
+    assert m.effort_v is not None and m.energy_v is not None and m.effort_uf is not None  # v, uf given
+    row.update(rae=m.rae, mse=m.mse, rmse=m.rmse, mae=m.mae, settling_time=m.settling_time,
+               effort_v=m.effort_v, energy_v=m.energy_v, effort_uf=m.effort_uf)
     if "actuator.t_fault" in params:
         after = error[t >= float(cast("float | str", params["actuator.t_fault"]))]
         if after.size:
@@ -63,6 +65,9 @@ TRACKING_NAMES = (
     "settling_time",
     "peak_v",
     "peak_uf",
+    "effort_v",
+    "energy_v",
+    "effort_uf",
     "max_error",
     "final_error",
     "mae_after_fault",

@@ -52,9 +52,11 @@ __all__ = [
     "MapSpec",
     "cap_binds",
     "cells_from_rows",
+    "holds_cell",
     "continuous_cell",
     "draw_maps",
     "main",
+    "panel_norm",
     "study_bounds",
     "study_table",
     "summarize",
@@ -71,7 +73,8 @@ LAWS = {FIXED_TIME: "fixed-time", FINITE_TIME: "finite-time"}
 SAMPLINGS = ("explicit", "semi-implicit", "continuous")
 DEFAULT_OUT = Path("results") / "study-fixed-time"
 # the figures committed under docs/ beside the table (the README shows them)
-DOC_FIGURES = ("example1_settling.png", "pendulum_settling.png", "example1_saturation.png")
+DOC_FIGURES = ("example1_settling.png", "pendulum_settling.png", "example1_saturation.png",
+               "pendulum_saturation.png")
 
 
 @dataclass(frozen=True)
@@ -212,6 +215,19 @@ def _g(value: float, digits: int = 3) -> str:
     return f"{value:.{digits}g}"
 
 
+HOLDS_HEADER = "max settling <= T_m (settled runs only)"
+
+
+def holds_cell(s: Summary, bound: FixedTimeBound | None) -> str:
+    """Whether the worst settling time is within T_m, saying over how many runs: the bound is a
+    claim about runs that settle, so a row where most runs diverge says how few it covers."""
+    if bound is None or math.isnan(s.settling_max):
+        return "-"
+    settled = s.runs - s.diverged - s.never
+    verdict = "yes" if s.settling_max <= bound.t_m else f"**no**: {s.settling_max:.3g} s"
+    return f"{verdict}, {settled} of {s.runs} settled"
+
+
 def study_table(
     configurations: Mapping[tuple[int, str, str], Sequence[Cell]], bounds: Mapping[int, FixedTimeBound]
 ) -> str:
@@ -219,16 +235,14 @@ def study_table(
     median / max and, for the fixed-time law, T_m of eq. (83) (Phi = 0.5) beside the worst time."""
     lines = [
         "| example | law | sampling | runs | diverged | never settled | settling median / max (s) "
-        "| peak abs(v) median / max | T_m (83), Phi = 0.5 (s) | max settling <= T_m |",
+        f"| peak abs(v) median / max | T_m (83), Phi = 0.5 (s) | {HOLDS_HEADER} |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for (number, law, sampling), cells in configurations.items():
         s = summarize(cells)
         bound = bounds[number] if law == "fixed-time" else None
         t_m = f"{bound.t_m:.3g}" if bound else "none (k = 0)"
-        holds = "-" if bound is None or math.isnan(s.settling_max) else (
-            "yes" if s.settling_max <= bound.t_m else f"**no**: {s.settling_max:.3g} s"
-        )
+        holds = holds_cell(s, bound)
         lines.append(
             f"| {number} | {law} | {sampling} | {s.runs} | {s.diverged} | {s.never} | "
             f"{_g(s.settling_median)} / {_g(s.settling_max)} | {_g(s.peak_v_median)} / {_g(s.peak_v_max)} | "
@@ -262,6 +276,22 @@ def _grid(cells: Sequence[Cell], value: str) -> tuple[list[float], list[float], 
     return xs, ys, grid
 
 
+def panel_norm(grid: np.ndarray, log: bool):  # -> matplotlib Normalize
+    """One panel's colour scale over its own finite values: logarithmic (``log``, peaks), else linear
+    from its smallest to its largest value, so a panel whose values lie within 0.04-0.1 s spans the
+    whole colour map (a panel with no value: :func:`colour_norm`'s default)."""
+    from matplotlib.colors import Normalize
+
+    values = [float(v) for v in grid.ravel() if math.isfinite(v)]
+    if log or not values:
+        return colour_norm(values, log)
+    low, high = min(values), max(values)
+    if high > low:
+        return Normalize(low, high)
+    pad = 0.5 * abs(low or 1.0)
+    return Normalize(low - pad, high + pad)
+
+
 def draw_maps(
     panels: Sequence[tuple[str, Sequence[Cell]]],
     value: str,
@@ -272,32 +302,27 @@ def draw_maps(
     title: str = "",
     caps: Mapping[str, Sequence[tuple[float, float]]] | None = None,
 ) -> None:
-    """Heat maps of ``value`` over the initial states, one panel per configuration, one shared colour
-    scale; diverged states in red with an x, never-settled states grey with an o, the cap region
-    (``caps[title]``: states) outlined; the legend below the panels, outside the data."""
+    """Heat maps of ``value`` over the initial states, one panel per configuration, each with its own
+    colour scale and colour bar (issue 37: one shared scale rendered every fixed-time panel, 0.04-0.1 s
+    beside the finite-time law's 2 s, in one colour); diverged states in red with an x,
+    never-settled states grey with an o, the cap region (``caps[title]``: states) outlined; the
+    legend below the panels, outside the data."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.colors import PowerNorm
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch, Rectangle
 
-    values = [
-        getattr(c, value) for _, cells in panels for c in cells if c.outcome == "settled" or value == "peak_v"
-    ]
-    shared = colour_norm(values, log)  # one scale for every panel, no impossible values
-    # settling times: a square-root scale from 0 shows both 0.03 s and 1.5 s apart, and 0 itself
-    norm = shared if log else PowerNorm(0.5, shared.vmin, shared.vmax)
     columns = min(3, len(panels))
     rows = math.ceil(len(panels) / columns)
     fig, axes = plt.subplots(
         rows, columns, figsize=(4.3 * columns + 1.2, 3.7 * rows + 0.9), squeeze=False, layout="constrained"
     )
-    mesh = None
     counts = {"diverged": 0, "never": 0, "cap": 0}
     for ax, (name, cells) in zip(axes.flat, panels, strict=False):
         xs, ys, grid = _grid(cells, value)
+        norm = panel_norm(grid, log)
         dx = (xs[1] - xs[0]) if len(xs) > 1 else 1.0
         dy = (ys[1] - ys[0]) if len(ys) > 1 else 1.0
         mesh = ax.pcolormesh(xs, ys, np.ma.masked_invalid(grid), shading="nearest", cmap="viridis", norm=norm)
@@ -319,10 +344,9 @@ def draw_maps(
         ax.set_title(name, fontsize="small")
         ax.set_xlabel("x1(0)")
         ax.set_ylabel("x2(0)")
+        fig.colorbar(mesh, ax=ax, label=label, shrink=0.9, extend="neither")
     for ax in list(axes.flat)[len(panels):]:
         ax.set_visible(False)
-    assert mesh is not None  # at least one panel
-    fig.colorbar(mesh, ax=axes.ravel().tolist(), label=label, shrink=0.9, extend="neither")
     handles = []
     if counts["diverged"]:
         handles.append(

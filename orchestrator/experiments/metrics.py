@@ -8,7 +8,10 @@ With ``e = y - yd`` sampled at ``t_0 < t_1 < ... < t_N`` (uniform step):
 * settling time: the first sample time ``t_j`` such that ``|e_k| <= band`` for every ``k >= j``.
   If ``|e|`` never leaves the band it is ``t_0``; if the last sample is outside the band the run
   never settles and it is ``math.inf``;
-* peak ``|v|`` and peak ``|uf|`` when those signals are given (``None`` otherwise).
+* peak ``|v|`` and peak ``|uf|`` when those signals are given (``None`` otherwise);
+* control effort (issue 37) when they are given: the integrals of ``|v|``, ``v^2`` and ``|uf|``
+  over the run, of the signals as a sampled controller applies them (held from each sample to the
+  next: ``sum |v_k| (t_(k+1) - t_k)``, exact for the zero-order hold, no quadrature error).
 """
 
 from __future__ import annotations
@@ -20,7 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["GRID_RTOL", "TrackingMetrics", "format_table", "settling_time", "tracking_metrics"]
+__all__ = [
+    "GRID_RTOL", "TrackingMetrics", "format_table", "held_integral", "settling_time", "tracking_metrics",
+]
 
 # Largest allowed deviation of any sample step from the mean step, relative to the mean step.
 GRID_RTOL = 1e-6
@@ -37,6 +42,15 @@ class TrackingMetrics:
     settling_time: float
     peak_v: float | None = None
     peak_uf: float | None = None
+    effort_v: float | None = None  # integral of |v| dt
+    energy_v: float | None = None  # integral of v^2 dt
+    effort_uf: float | None = None  # integral of |uf| dt
+
+
+def held_integral(t: np.ndarray, values: np.ndarray) -> float:
+    """The integral over [t_0, t_N] of a signal held at ``values[k]`` over [t_k, t_(k+1)) (the last
+    sample, applied at t_N, covers no time)."""
+    return float(np.sum(values[:-1] * np.diff(t)))
 
 
 def _signal(name: str, values: ArrayLike, length: int) -> np.ndarray:
@@ -99,10 +113,9 @@ def tracking_metrics(
     sum_e2 = float(np.sum(error * error))
     sum_y2 = float(np.sum(y * y))
     mse = sum_e2 / t.size
-    peaks = [
-        None if signal is None else float(np.max(np.abs(_signal(name, signal, t.size))))
-        for name, signal in (("v", v), ("uf", uf))
-    ]
+    v_abs, uf_abs = (None if signal is None else np.abs(_signal(name, signal, t.size))
+                     for name, signal in (("v", v), ("uf", uf)))
+    peaks = [None if a is None else float(np.max(a)) for a in (v_abs, uf_abs)]
     return TrackingMetrics(
         rae=math.sqrt(sum_e2 / sum_y2) if sum_y2 > 0.0 else math.nan,
         mse=mse,
@@ -111,6 +124,9 @@ def tracking_metrics(
         settling_time=settling_time(t, error, band),
         peak_v=peaks[0],
         peak_uf=peaks[1],
+        effort_v=None if v_abs is None else held_integral(t, v_abs),
+        energy_v=None if v_abs is None else held_integral(t, v_abs * v_abs),
+        effort_uf=None if uf_abs is None else held_integral(t, uf_abs),
     )
 
 
@@ -125,8 +141,9 @@ def _cell(value: float | None, spec: str) -> str:
 def format_table(rows: Sequence[tuple[str, TrackingMetrics]]) -> str:
     """A Markdown table with one row per ``(name, metrics)``; ``-`` marks a signal not given."""
     lines = [
-        "| case | RAE | MSE | RMSE | MAE | settling time (s) | peak abs(v) | peak abs(uf) |",
-        "|---|---|---|---|---|---|---|---|",
+        "| case | RAE | MSE | RMSE | MAE | settling time (s) | peak abs(v) | peak abs(uf) "
+        "| int abs(v) dt | int v^2 dt | int abs(uf) dt |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, m in rows:
         cells = [
@@ -138,6 +155,9 @@ def format_table(rows: Sequence[tuple[str, TrackingMetrics]]) -> str:
             _cell(m.settling_time, ".3f"),
             _cell(m.peak_v, ".1f"),
             _cell(m.peak_uf, ".1f"),
+            _cell(m.effort_v, ".4g"),
+            _cell(m.energy_v, ".4g"),
+            _cell(m.effort_uf, ".4g"),
         ]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
