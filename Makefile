@@ -15,7 +15,7 @@ BYTECODE := build/.bytecode
 SOURCES := $(shell find controller fmu_src ssp -type f -not -path '*/__pycache__/*' -not -name '*.pyc' \
                      -not -name '.*' 2>/dev/null)
 
-.PHONY: run test unit build lint docs docs-figure browser windows-tools windows-matrix runtime-pins hostile executors crosscheck conformance table study study-fixed-time check-fail-fast research report baselines bench clean
+.PHONY: run test unit build lint docs docs-figure browser windows-tools windows-matrix runtime-pins hostile executors crosscheck crosscheck-all conformance table study study-fixed-time check-fail-fast research report baselines bench clean
 
 # pip's console script 'orchestrate' is then replaced by orchestrator/launcher.c, which holds SIGINT and
 # SIGTERM from its first instruction until the package's handlers are in (issue 20). Compiled to a
@@ -181,6 +181,11 @@ CONTINUOUS ?= 21
 study-fixed-time: build
 	$(PY) -m orchestrator.experiments.fixed_time_study --states $(STATES) --continuous-states $(CONTINUOUS) \
 	  --docs docs/fixed-time-study
+
+## crosscheck-all: the cross-check system test over every scenario and FMI 3.0 twin in every tool
+## (make test runs one scenario of each plant and one twin; about 12 minutes)
+crosscheck-all: build
+	CROSSCHECK_ALL=1 $(PY) -m pytest -q tests/test_crosscheck_system.py
 
 ## check-fail-fast: the plants' fail-fast bounds against the unbounded continuous loop over
 ## |x1(0)| <= 20, |x2(0)| <= 1e4 (21 x 21, both examples; issue 37): false divergences, CPU per

@@ -202,7 +202,7 @@ def test_layout_and_setup_errors_are_one_line_each(ramp_fmu: Path, tmp_path: Pat
 def test_a_run_over_its_timeout_fails_its_scenario(ramp_fmu: Path, tmp_path: Path,
                                                    capsys: pytest.CaptureFixture) -> None:
     suite = tmp_path / "regression"
-    slow = ramp(suite, "slow", ramp_fmu, 1, stop=1000.0, step=1e-4)  # 1e7 steps: minutes
+    slow = ramp(suite, "slow", ramp_fmu, 1, stop=1e4, step=1e-4)  # 1e8 steps: > 1 s in C too
     (suite / "baselines").mkdir()
     (suite / "baselines" / "slow.csv").write_text("time,ramp.x\n0,0\n1000,1000\n")
     assert main(["regress", str(slow), "--timeout", "1"]) == 1
@@ -217,7 +217,7 @@ def test_ctrl_c_ends_the_workers_and_writes_the_reports(ramp_fmu: Path, tmp_path
     traceback, no worker left, and the JUnit XML says which scenarios did not run."""
     suite = tmp_path / "regression"
     for name in ("slow1", "slow2", "slow3"):
-        ramp(suite, name, ramp_fmu, 1, stop=1000.0, step=1e-4)
+        ramp(suite, name, ramp_fmu, 1, stop=1e4, step=1e-4)  # 1e8 steps: > 1 s in C too
         (suite / "baselines").mkdir(exist_ok=True)
         (suite / "baselines" / f"{name}.csv").write_text("time,ramp.x\n0,0\n1000,1000\n")
     junit = tmp_path / "junit.xml"
