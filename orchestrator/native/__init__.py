@@ -37,7 +37,8 @@ __all__ = ["FLAGS", "SOURCES", "Failure", "NativeError", "Stepper", "compile_lib
 HERE = Path(__file__).resolve().parent
 HEADERS = HERE / "fmi"
 SOURCES = {"executor": ("executor.c", "core.c", "plan.c", "platform.c"),
-           "container": ("container.c", "container_fmi2.c", "container_fmi3.c", "core.c", "plan.c", "platform.c")}
+           "container": ("container.c", "container_fmi2.c", "container_fmi3.c", "core.c", "plan.c",
+                         "platform.c")}
 # No debug info, build id or symbols, so the bytes depend only on source, compiler and flags; no
 # contraction of a * b + c into a fused multiply-add, so a connection's factor * value + offset
 # rounds as Python's does in the engine's master; symbols bound inside the library, so an embedded
@@ -92,7 +93,7 @@ def _mingw() -> tuple[str, str]:
     path = shutil.which(name)
     if not path:
         raise NativeError(f"no mingw-w64 cross compiler ({name}) to build the container's binaries/win64: "
-                          "install it (Debian: apt-get install gcc-mingw-w64-x86-64, or 'make windows-tools')")
+                          "install it (apt-get install gcc-mingw-w64-x86-64, or 'make windows-tools')")
     try:
         version = subprocess.run([path, "--version"], capture_output=True, text=True, check=True)
     except (OSError, subprocess.CalledProcessError) as exc:
