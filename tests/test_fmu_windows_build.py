@@ -8,9 +8,11 @@ from __future__ import annotations
 
 import hashlib
 import io
+import os
 import re
 import shutil
 import subprocess
+import sys
 import tarfile
 import zipfile
 from pathlib import Path
@@ -162,3 +164,17 @@ def test_an_exported_scenario_carries_win64(built: Path, tmp_path: Path) -> None
             names = set(archive.namelist())
         assert f"binaries/{platform}/Example1_{fmi}.dll" in names
         assert any(re.match(r"resources/fmus/[^/]+/binaries/win64/python/python311\.dll$", n) for n in names)
+
+
+def test_export_without_mingw_is_one_line(built: Path, tmp_path: Path) -> None:
+    """No mingw-w64 (``$MINGW_CC`` names no program): ``orchestrate export`` says so in one line,
+    naming the compiler, and writes no FMU."""
+    target = tmp_path / "Example1.fmu"
+    env = {**os.environ, "MINGW_CC": "no-such-mingw-gcc"}
+    scenario = built / "ssp" / "example1.ssp"
+    command = [sys.executable, "-m", "orchestrator", "export", str(scenario), "-o", str(target)]
+    done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=600)
+    assert done.returncode == 1, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "no mingw-w64 cross compiler (no-such-mingw-gcc)" in lines[0], done.stderr
+    assert not target.exists()

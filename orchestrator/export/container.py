@@ -1,8 +1,9 @@
 """``orchestrate export``: a scenario as one FMI 2.0 (or 3.0) Co-Simulation FMU.
 
 The archive holds ``modelDescription.xml`` (the exposed variables ``<component>.<variable>``, the
-scenario's DefaultExperiment and step), ``binaries/linux64/<id>.so`` (the container runtime,
-``orchestrator/native/container.c`` on the engine's C core), ``resources/container.plan`` (the
+scenario's DefaultExperiment and step), ``binaries/linux64/<id>.so`` and ``binaries/win64/<id>.dll``
+(FMI 3.0: ``x86_64-linux``, ``x86_64-windows``; the container runtime, ``orchestrator/native/container.c``
+on the engine's C core, the DLL cross-compiled with mingw-w64), ``resources/container.plan`` (the
 engine's plan, :mod:`.plan`) and each distinct FMU of the scenario (FMI 2.0 or 3.0 Co-Simulation)
 unpacked under ``resources/fmus/<name>/``. Rebuilding from the same scenario and options
 gives the same bytes; the GUID is a digest of them.
@@ -250,6 +251,8 @@ def export(scenario: str | os.PathLike, output: str | os.PathLike, *, fmi: str =
         try:
             platform = "x86_64-linux" if fmi == "3" else "linux64"  # FMI 3.0's platform tuple
             entries[f"binaries/{platform}/{identifier}.so"] = container_library()
+            platform = "x86_64-windows" if fmi == "3" else "win64"
+            entries[f"binaries/{platform}/{identifier}.dll"] = container_library(windows=True)
         except NativeError as exc:
             raise ScenarioError(f"cannot build the container runtime: {exc}") from exc
         entries |= documentation((), external=CONTAINER_DEPENDENCIES,

@@ -36,8 +36,9 @@ __all__ = ["FLAGS", "SOURCES", "Failure", "NativeError", "Stepper", "compile_lib
 
 HERE = Path(__file__).resolve().parent
 HEADERS = HERE / "fmi"
-SOURCES = {"executor": ("executor.c", "core.c", "plan.c"),
-           "container": ("container.c", "container_fmi2.c", "container_fmi3.c", "core.c", "plan.c")}
+SOURCES = {"executor": ("executor.c", "core.c", "plan.c", "platform.c"),
+           "container": ("container.c", "container_fmi2.c", "container_fmi3.c", "core.c", "plan.c",
+                         "platform.c")}
 # No debug info, build id or symbols, so the bytes depend only on source, compiler and flags; no
 # contraction of a * b + c into a fused multiply-add, so a connection's factor * value + offset
 # rounds as Python's does in the engine's master; symbols bound inside the library, so an embedded
@@ -47,6 +48,15 @@ FLAGS = tuple(
     "-Wno-format-truncation -Wl,--build-id=none -s -Wl,-Bsymbolic".split()
 )
 LIBS = ("-ldl", "-lm")
+# The container for 64-bit Windows (binaries/win64/<id>.dll): mingw-w64, linked against the system's
+# KERNEL32 and msvcrt.dll only, no time stamp in the PE header (the bytes depend only on sources,
+# compiler and flags, as the FMUs' shim's are), no fused multiply-add (as FLAGS). Only the functions
+# marked __declspec(dllexport) (the fmi2* and fmi3*) are exported.
+MINGW = "x86_64-w64-mingw32-gcc"
+MINGW_FLAGS = tuple(
+    "-std=c11 -O2 -shared -g0 -Wall -Wextra -Wno-format-truncation -ffp-contract=off -static-libgcc -s "
+    "-Wl,--no-insert-timestamp".split()
+)
 FUNCTIONS = ("fmi2DoStep", "fmi2GetReal", "fmi2SetReal")  # what a step of the executor calls, by code
 WHY = 4096
 
@@ -76,6 +86,21 @@ def _compiler() -> tuple[str, str]:
                       "e.g. apt-get install gcc")
 
 
+def _mingw() -> tuple[str, str]:
+    """The mingw-w64 cross compiler for 64-bit Windows (``$MINGW_CC``, else x86_64-w64-mingw32-gcc)
+    and its version."""
+    name = os.environ.get("MINGW_CC") or MINGW
+    path = shutil.which(name)
+    if not path:
+        raise NativeError(f"no mingw-w64 cross compiler ({name}) to build the container's binaries/win64: "
+                          "install it (apt-get install gcc-mingw-w64-x86-64, or 'make windows-tools')")
+    try:
+        version = subprocess.run([path, "--version"], capture_output=True, text=True, check=True)
+    except (OSError, subprocess.CalledProcessError) as exc:
+        raise NativeError(f"the mingw-w64 cross compiler {path} does not run: {exc}") from exc
+    return path, version.stdout.partition("\n")[0]
+
+
 @functools.cache
 def _scratch() -> Path:
     """A folder of this process for libraries when there is no cache folder (removed at exit)."""
@@ -85,28 +110,32 @@ def _scratch() -> Path:
 
 
 @functools.cache
-def compile_library(kind: str) -> Path:
+def compile_library(kind: str, windows: bool = False) -> Path:
     """The compiled library ``kind`` (``executor`` or ``container``): from the cache folder, or
     compiled now (written under a temporary name and renamed; into a folder of this process when
-    the cache's disk cannot hold it). NativeError when it cannot be built."""
-    compiler, version = _compiler()
-    digest = hashlib.sha256("\0".join([*FLAGS, *LIBS, version]).encode())
+    the cache's disk cannot hold it). ``windows``: a DLL for 64-bit Windows, cross-compiled with
+    mingw-w64. NativeError when it cannot be built."""
+    compiler, version = _mingw() if windows else _compiler()
+    flags, libs = (MINGW_FLAGS, ()) if windows else (FLAGS, LIBS)
+    digest = hashlib.sha256("\0".join([*flags, *libs, version]).encode())
     for source in sorted({*SOURCES[kind], *(p.name for p in HERE.glob("*.h"))}):
         digest.update(source.encode() + b"\0" + (HERE / source).read_bytes())
     for header in sorted(HEADERS.glob("*.h")):
         digest.update(header.name.encode() + b"\0" + header.read_bytes())
-    name = f"{kind}-{digest.hexdigest()[:24]}.so"
+    name = f"{kind}-{digest.hexdigest()[:24]}.{'dll' if windows else 'so'}"
+    command = [compiler, *flags, f"-I{HERE}", f"-I{HEADERS}", *(str(HERE / s) for s in SOURCES[kind]), *libs]
     cache = cache_folder()
     if cache is not None:
         try:
-            return _build(kind, compiler, cache.parent / "native", name)
+            return _build(kind, command, cache.parent / "native", name)
         except NativeError:  # a full or read-only cache disk: this process's own folder will do
             pass
-    return _build(kind, compiler, _scratch(), name)
+    return _build(kind, command, _scratch(), name)
 
 
-def _build(kind: str, compiler: str, folder: Path, name: str) -> Path:
-    """``folder/name``, compiled now unless it is there. NativeError when it cannot be built."""
+def _build(kind: str, command: list[str], folder: Path, name: str) -> Path:
+    """``folder/name``, compiled now by ``command`` (``-o`` added) unless it is there. NativeError when
+    it cannot be built."""
     target = folder / name
     if target.is_file():
         return target
@@ -114,20 +143,20 @@ def _build(kind: str, compiler: str, folder: Path, name: str) -> Path:
         folder.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(dir=folder, prefix=".build-") as tmp:
             built = Path(tmp) / target.name
-            command = [compiler, *FLAGS, f"-I{HERE}", f"-I{HEADERS}", "-o", str(built),
-                       *(str(HERE / s) for s in SOURCES[kind]), *LIBS]
-            result = subprocess.run(command, capture_output=True, text=True)
+            result = subprocess.run([*command, "-o", str(built)], capture_output=True, text=True)
             if result.returncode != 0:
-                raise NativeError(f"{HERE}: {compiler} failed:\n{result.stderr.strip()}")
+                raise NativeError(f"{HERE}: {command[0]} failed:\n{result.stderr.strip()}")
             os.replace(built, target)
     except OSError as exc:
         raise NativeError(f"cannot write the compiled {kind} into {folder}: {exc}") from exc
     return target
 
 
-def container_library() -> bytes:
-    """The exported container's runtime (``binaries/<platform>/<id>.so``: FMI 2.0 and 3.0 APIs)."""
-    return compile_library("container").read_bytes()
+def container_library(windows: bool = False) -> bytes:
+    """The exported container's runtime (``binaries/<platform>/<id>.so``: FMI 2.0 and 3.0 APIs);
+    ``windows``: ``binaries/win64/<id>.dll`` (FMI 3.0: ``x86_64-windows``), cross-compiled with
+    mingw-w64."""
+    return compile_library("container", windows).read_bytes()
 
 
 @functools.cache

@@ -2,7 +2,7 @@
 
    The container is this shared library, a plan (resources/container.plan) and the scenario's
    FMUs unpacked under resources/fmus/<folder>/. It carries no interpreter of its own: each
-   embedded FMU (FMI 2.0 or 3.0 Co-Simulation) is loaded with dlopen as any C host would load it,
+   embedded FMU (FMI 2.0 or 3.0 Co-Simulation) is loaded (platform.c) as any C host would load it,
    so the project's FMUs start their own bundled Python through their shim (one interpreter per
    process, whatever the number of FMUs) or use the host's.
 
@@ -22,14 +22,13 @@
      always (t0 + k h) / 1e9, never the host's sum. Inputs the host sets are passed on at once;
      with gauss-seidel, outputs that depend on them are propagated again before they are read. */
 
-#define _GNU_SOURCE
-#include <dlfcn.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "container.h"
+#include "platform.h"
 
 /* ---- messages -------------------------------------------------------------------------------- */
 
@@ -113,11 +112,20 @@ fmi2Status failed(struct container *x) {
 /* The core's result as the container's status. */
 /* ---- loading the embedded FMUs ------------------------------------------------------------- */
 
+/* The embedded FMUs' binaries: this library's platform (FMI 2.0 name, FMI 3.0 tuple) and suffix. */
+#ifdef _WIN32 /* cross-compiled with mingw-w64 */
+#define PLATFORM2 "win64"
+#define PLATFORM3 "x86_64-windows"
+#define SUFFIX ".dll"
+#else
+#define PLATFORM2 "linux64"
+#define PLATFORM3 "x86_64-linux"
+#define SUFFIX ".so"
+#endif
+
 /* The container's resources folder: ../../resources from this library (binaries/<platform>/X.so). */
 static int own_resources(char *out, size_t size) {
-    Dl_info self;
-    if (!dladdr((void *)&own_resources, &self) || !self.dli_fname) return -1;
-    snprintf(out, size, "%s", self.dli_fname);
+    if (ftc_library_file((const void *)&own_resources, out, size) != 0) return -1;
     for (int up = 0; up < 3; up++) {
         char *slash = strrchr(out, '/');
         if (!slash) return -1;
@@ -129,12 +137,13 @@ static int own_resources(char *out, size_t size) {
     return 0;
 }
 
-/* file:// URI of a path, percent-encoding what is not unreserved or '/'. */
+/* file:// URI of a path, percent-encoding what is not unreserved or '/' (Windows: C:/x is
+   file:///C:/x, the drive's colon kept). */
 static void file_uri(const char *path, char *out, size_t size) {
-    size_t j = (size_t)snprintf(out, size, "file://");
+    size_t j = (size_t)snprintf(out, size, "file://%s", path[0] == '/' ? "" : "/");
     for (const unsigned char *p = (const unsigned char *)path; *p && j + 4 < size; p++) {
         if ((*p >= 'a' && *p <= 'z') || (*p >= 'A' && *p <= 'Z') || (*p >= '0' && *p <= '9') ||
-            strchr("/-._~", *p))
+            strchr("/-._~", *p) || (*p == ':' && p == (const unsigned char *)path + 1))
             out[j++] = (char)*p;
         else
             j += (size_t)snprintf(out + j, size - j, "%%%02X", *p);
@@ -160,11 +169,11 @@ static void *instantiate(struct container *x, size_t i) {
 static int load_component(struct container *x, size_t i, char *why, size_t size) {
     const struct part *c = &x->plan.components[i];
     char path[2 * TEXT], reason[TEXT];
-    snprintf(path, sizeof path, "%s/fmus/%s/binaries/%s/%s.so", x->resources, c->folder,
-             c->version == 3 ? "x86_64-linux" : "linux64", c->identifier);
-    x->libraries[i] = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    snprintf(path, sizeof path, "%s/fmus/%s/binaries/%s/%s" SUFFIX, x->resources, c->folder,
+             c->version == 3 ? PLATFORM3 : PLATFORM2, c->identifier);
+    x->libraries[i] = ftc_library_open(path);
     if (!x->libraries[i]) {
-        snprintf(why, size, "%s: cannot load %s: %s", c->name, path, dlerror());
+        snprintf(why, size, "%s: cannot load %s: %s", c->name, path, ftc_library_error(reason, sizeof reason));
         return -1;
     }
     if (fmu_bind(&x->core.fmus[i], x->libraries[i], c->version, 1, reason, sizeof reason) != 0) {
@@ -246,7 +255,7 @@ struct container *create(struct container *x, const char *function, const char *
     x->inner.componentEnvironment = x;
     char why[2 * TEXT];
     if (own_resources(x->resources, sizeof x->resources) != 0) {
-        say(x, fmi2Error, "%s: cannot find the container's own file (dladdr failed)", function);
+        say(x, fmi2Error, "%s: cannot find the container's own file (its loader does not say)", function);
         free(x);
         return NULL;
     }

@@ -15,8 +15,8 @@
 
 #define _GNU_SOURCE
 #include "core.h"
+#include "platform.h"
 
-#include <dlfcn.h>
 #include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -78,7 +78,7 @@ int fmu_bind(struct fmu *f, void *library, int version, int lifecycle, char *why
     f->version = version;
     for (size_t j = 0; j < n; j++) {
         if (symbols[j].lifecycle && !lifecycle) continue;
-        void *found = dlsym(library, symbols[j].name);
+        void *found = ftc_library_symbol(library, symbols[j].name);
         if (!found) {
             snprintf(why, size, "the FMU's library has no %s (FMI %d.0 Co-Simulation)", symbols[j].name, version);
             return -1;

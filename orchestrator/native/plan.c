@@ -18,6 +18,7 @@
 
 #define _GNU_SOURCE
 #include "plan.h"
+#include "platform.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -284,8 +285,10 @@ int plan_read(const char *text, const char *label, struct plan *p, char *why, si
         snprintf(why, size, "%s: out of memory", label);
         return -1;
     }
-    char *rest = copy;
-    for (char *line = strsep(&rest, "\n"); line && !r.error; line = strsep(&rest, "\n")) {
+    /* line by line (strsep's splitting, which Windows' C runtime lacks) */
+    for (char *line = copy, *end; line && !r.error; line = end ? end + 1 : NULL) {
+        end = strchr(line, '\n');
+        if (end) *end = '\0';
         r.number++;
         record(&r, p, line);
     }
@@ -303,13 +306,24 @@ int plan_read(const char *text, const char *label, struct plan *p, char *why, si
 
 int plan_load(const char *path, struct plan *p, char *why, size_t size) {
     memset(p, 0, sizeof *p);
-    FILE *file = fopen(path, "rb");
+    FILE *file = ftc_fopen(path, "rb");
     char *text = NULL;
-    size_t length = 0;
-    FILE *buffer = file ? open_memstream(&text, &length) : NULL;
-    int ok = buffer != NULL;
-    for (int c; ok && (c = fgetc(file)) != EOF;) ok = fputc(c, buffer) != EOF;
-    if (buffer) fclose(buffer);
+    size_t length = 0, capacity = 0;
+    int ok = file != NULL;
+    /* the whole file, NUL-terminated, in a buffer doubled as it fills (no open_memstream on Windows) */
+    for (size_t n = 1; ok && n > 0; length += n) {
+        if (length + 1 >= capacity) {
+            char *grown = realloc(text, capacity = capacity ? 2 * capacity : 1 << 16);
+            if (!grown) {
+                ok = 0;
+                break;
+            }
+            text = grown;
+        }
+        n = fread(text + length, 1, capacity - length - 1, file);
+        if (n == 0 && ferror(file)) ok = 0;
+    }
+    if (text) text[length] = '\0';
     if (file) fclose(file);
     if (!ok || !text) {
         free(text);
