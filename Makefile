@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 # One-command set-up: every target creates .venv and installs the pinned project itself.
 PYTHON ?= python3
 VENV   := .venv

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Build hook (the metadata is in pyproject.toml): the scenario sources and campaign designs of
 the checkout's top-level ``ssp/`` ship inside the wheel as ``orchestrator/experiments/ssp/``, so
 that an installed ``orchestrate build`` has them (an editable install reads ``ssp/`` in place)."""

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Campaign throughput: runs per minute with 1 and 2 workers on the embedded Dask cluster, 2 workers
 as threads of one process, and 2 workers behind an external ``dask scheduler``; and the per-run
 overhead of the campaign layer against a bare ``orchestrator.run`` measured in this process.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Cost of one communication step of the controller: ``output(x, yd)`` + ``advance(x, yd, h=1e-3)``.
 
 ``python benchmarks/controller_step.py`` prints, for n = 2 and Example 1 gains, the median over

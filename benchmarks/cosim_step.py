@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Cost of one communication step of a co-simulation, before and after the FMU speed-ups of issue 10,
 split per FMU call, and the same archives run by libcosim, all in one run.
 

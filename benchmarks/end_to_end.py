@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """End to end, as a user runs it: ``orchestrate run`` against libcosim on the same archive.
 
     python benchmarks/end_to_end.py [--scenarios example1 pendulum] [--repeat 5] [--stop-time 30]

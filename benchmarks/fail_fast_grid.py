@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """What the runs of a campaign over initial states cost, by outcome: the grid of
 ``ssp/campaigns/fail_fast_grid.toml`` (Example 1 without fault, x1(0), x2(0) in [-10, 10]^2, both
 laws, 2 s), one run after the other in this process.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Cost of one communication step of each FMU, in microseconds: in a C host and from fmpy.
 
 * **C host** (``benchmarks/fmu_step_host.c``, compiled here with ``cc``): per step fmi2SetReal of the

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* A timing host for benchmarks/fmu_step.py: one FMI 2.0 Co-Simulation FMU stepped as a C/C++ master
    steps it (libcosim, OMSimulator), with nothing of the host's own in the timed loop: per
    communication step fmi2SetReal of the inputs, fmi2GetReal of the outputs, fmi2DoStep. So the time

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The same FMUs used many times: N copies of a scenario's loop in one system, against libcosim.
 
     python benchmarks/many_copies.py [--scenario example1] [--copies 1 16] [--repeat 3]

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """What ``orchestrate build`` costs after editing one model file, against a cold build.
 
     python benchmarks/rebuild.py [--files fmu_src/models/plants.py fmu_src/models/actuator.py]

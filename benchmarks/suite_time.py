@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Wall time of the set-up and of the test suite on fresh clones of two revisions, measured back to
 back in one run (issue 14: the restructured suite against the one before it).
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* _law: the controller's law and its RK4 step over one communication step, compiled.
 
    Owns: the arithmetic of controller/law.py (_law: evaluate and derivative) and of

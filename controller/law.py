@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The backstepping law of SPEC section 1: virtual controls, actual control, adaptive laws.
 
 Pure functions of (state, inputs, parameters). The state is ``[r, eta_hat_1, ..., eta_hat_n]``;

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The law's step compiled (``_law.c`` beside this module): the same arithmetic as the Python
 reference (:func:`controller.law.evaluate`, :func:`controller.law.derivative`,
 :func:`controller.stepping.rk4_step`), giving the same bits, the same exceptions and messages.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The controller of :mod:`controller.stepping` specialised to a plant of order n = 2, in scalars.
 
 The general-n path (:func:`controller.law.evaluate` building :class:`~controller.law.ControlTerms`,

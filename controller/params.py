@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Design parameters of the adaptive fixed-time controller (SPEC section 1), validated once."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Gaussian RBF network basis of the paper (eq. 24) and the fast form of P^T P the law uses."""
 
 from __future__ import annotations

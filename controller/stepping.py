@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """A stepping interface for a sampled controller: the shape an FMU wraps.
 
 At a communication point the caller reads ``output(x, yd)``; then ``advance(x, yd, h)``

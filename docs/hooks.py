@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """MkDocs hook: pages generated from the code at build time, so they cannot drift from it.
 
 ``reference/cli.md`` is every ``orchestrate`` subcommand's ``--help`` as argparse prints it, and

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The controller FMU around your own plant, in a plain fmpy loop (no SSP, no orchestrator).
 
 The plant here is not the paper's: a mass-spring-damper driven by a force u,

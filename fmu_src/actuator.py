@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """FMU ``Actuator``: saturation (SPEC 10), input dead-zone and actuator fault between controller
 and plant (SPEC 2).
 

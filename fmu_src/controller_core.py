@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """What every controller FMU shares, for a plant of order n = 1..4: its variables, their defaults and
 checks, the law behind the outputs and the step. Functions, not a base class (see
 :mod:`fmu_src.fmu_support`); one script per order declares ``class FixedTimeController<n>(Fmi2Slave)``

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """FMU ``Example1Plant``: the paper's Example 1 (eq. 85) with unmodeled dynamics z.
 
 States advance in do_step with the input uf held over the step; outputs are the states at the

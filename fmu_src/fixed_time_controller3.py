@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """FMU ``FixedTimeController3``: the adaptive fixed-time (or finite-time) NN controller of the paper
 for a plant of order n = 3; its variables, law and step are
 :mod:`fmu_src.controller_core`'s (pythonfmu loads one class per script).

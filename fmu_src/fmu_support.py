@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Shared behaviour of the project's pythonfmu slaves, bundled into every FMU.
 
 pythonfmu 0.7 writes neither units nor output dependencies, keeps the very object returned by

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """FMU ``ManipulatorPlant``: a single-link robot manipulator driven by a brush DC motor (Dawson,
 Carroll and Schneider 1994; :mod:`fmu_src.models.manipulator`), the third-order plant of the
 ``manipulator`` scenario: link angle x1 = q, velocity x2 = q', motor current x3 = I, input uf the

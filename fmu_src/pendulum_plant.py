@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """FMU ``PendulumPlant``: the paper's Example 2 (eq. 99), a pendulum with unmodeled dynamics z
 and the disturbances d1 sin t (on x1') and d2 cos t (on x2').
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """What every plant FMU shares: three states (x1, x2 and z, or the plant's own third) in
 ``slave.state``, advanced over a
 communication step with the input held, by the integrator the parameter ``method`` selects

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """FMU ``Reference``: yd = amplitude sin(omega t + phase) + offset with its first four derivatives
 (a controller for a plant of order n takes yd and n of them).
 

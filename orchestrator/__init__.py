@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """fmpy-based SSP co-simulation orchestrator: ``orchestrator.run(scenario, RunOptions(...))`` or
 ``orchestrate`` (also ``python -m orchestrator``).
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """``python -m orchestrator``: the ``orchestrate`` command, for a shell where it is not on the PATH."""
 
 import sys

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The first thing ``orchestrate`` runs (imported before anything else of the package): SIGINT or
 SIGTERM while the interpreter imports numpy, fmpy, lxml ... (about a second) ends the command at once
 with one line and the shell's status (130, 143), not a traceback (SIGINT) or a silent death

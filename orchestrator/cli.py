@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The ``orchestrate`` command: the engine's own subcommands (run, validate, plot) and those of every
 application (experiments, crosscheck, campaigns, ...), which register themselves.
 

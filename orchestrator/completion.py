@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Shell completion of ``orchestrate`` (bash, zsh, fish), by argcomplete.
 
 argcomplete completes from the command's own argparse parser, so subcommands, options and their

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """How ``orchestrate`` fails: a bad set-up, a failure while a scenario runs, or a usage mistake.
 
 Every error derives from :class:`OrchestratorError`, whose ``exit_status`` is what the command

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Writing a file so that readers and concurrent writers never see half of it.
 
 Every file the engine and its applications write whole (a provenance sidecar, a baseline, a

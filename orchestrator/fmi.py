@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """FMI 2.0 and 3.0 co-simulation instances as the masters use them: extracted, instantiated, their
 hot functions bound once, every failure turned into a :class:`~orchestrator.errors.SimulationError`.
 

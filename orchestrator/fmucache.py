@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Unpacked FMUs, kept between runs: an FMU is unpacked once per content digest and reused.
 
 Unpacking is the largest part of starting a short run: an FMU that carries its own runtime holds

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Result formats and output selection: what ``--output`` (by its extension), ``--output-variables``,
 ``--output-interval`` and ``--no-inputs`` make of the CSV the master streams.
 

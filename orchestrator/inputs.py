@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Input time series (``--input-file``): a CSV that drives inputs no connection feeds.
 
 FMPy's convention: a ``time`` column, then one column per input, named ``<component>.<input>``

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """What a scenario holds, as ``fmpy info`` and ``cosim inspect`` show it (``orchestrate inspect``).
 
 Components (FMU file, FMI version, model, generation tool), every input, output and parameter with

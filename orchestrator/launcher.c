@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* The `orchestrate` command (issue 20): installed by `make` over pip's console script in
  * .venv/bin/. It holds SIGINT and SIGTERM from its first instruction until Python has the
  * package's handlers, so a signal at any moment of the start-up ends the command with one line and

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Where a scenario is, however it was named: a ``.ssp`` file, a folder holding
 ``SystemStructure.ssd``, or the name of a built scenario (``build/ssp/NAME.ssp``), and where a
 scenario source folder takes the FMUs it does not hold. The command line and the Python API

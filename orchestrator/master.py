@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Master algorithms: fixed communication step on the exact grid ``t_k = t0 + k*h``.
 
 Time is an integer count of nanoseconds (as in libcosim) and converted to seconds once per

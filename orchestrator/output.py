@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The one owner of a run's output file, as libcosim's file observer owns its files: the file's name,
 format and selection are checked once, before anything runs; when the run starts it writes the
 provenance (status ``running``) and names the CSV the recorder streams to (the result itself, or

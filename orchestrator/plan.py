@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The one plan of a run: what every executor does with a validated System, computed once.
 
 :func:`make_plan` lays out the value buffer (``time``, the inputs, the outputs: the recorded row),

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The figure of one result, as people read it (``orchestrate run`` / ``orchestrate plot``).
 
 The engine's default figure knows no scenario: one panel per component with the signals it

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Provenance of a result: the sidecar ``<result>.json`` written beside every result file.
 
 A result alone does not say what produced it. The sidecar records the scenario and its SHA-256

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """What a run is asked to do (:class:`RunOptions`) and what it gives back (:class:`RunResult`).
 
 SciPy's ``solve_ivp`` shape: one frozen options object instead of a long list of keywords, and one

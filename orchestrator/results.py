@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Results: rows streamed to CSV as the run goes, and kept in memory (every row, or a bounded
 preview for plotting when ``keep`` is False, so that memory does not grow with the run length).
 

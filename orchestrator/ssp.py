@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """SSP 1.0 scenarios as one object model: frozen dataclasses read from and written to SSD/SSV
 files (a ``.ssp`` archive or a folder holding ``SystemStructure.ssd``).
 

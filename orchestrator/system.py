@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The co-simulation system: components, connections and parameters, validated on construction.
 
 ``System`` joins what the SSD says with what each FMU's modelDescription.xml says, collects every

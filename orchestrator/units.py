@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Units of values and connectors: SSP 1.0 ``ssc:Unit`` / SSV ``unit`` / FMI 2.0 ``UnitDefinitions``.
 
 A unit is what FMI 2.0 and SSP 1.0 both define: exponents of the SI base units (kg, m, s, A, K,

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Every check that can be made before a simulation, without simulating: ``orchestrate validate``.
 
 One code path for ``run`` and ``validate``: :func:`check_scenario` unpacks the archive (unsafe

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Regenerate the scenario sources in ssp/<scenario>/ (SSD + one .ssv per component).
 
     python ssp/generate.py

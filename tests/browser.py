@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Headless Chromium (Debian's ``chromium`` package) driven over the DevTools protocol through a
 pipe, as Playwright drives it: ``--remote-debugging-pipe`` reads commands on file descriptor 3 and
 writes replies and events on 4, each message JSON ended by a NUL byte. No package is needed besides

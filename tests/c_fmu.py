@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """A tiny FMI 2.0 Co-Simulation FMU written in C and compiled in the test (``cc``), for tests that
 need many cheap steps or an Integer parameter: ``Ramp`` has an Integer parameter ``n`` (start 1)
 and an output ``x`` with x(t) = n * t (Euler: x += n h each step, exact for a constant rate);

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Fixtures shared by the system tests: everything is built once per test process (xdist: once
 per worker) and shared read-only."""
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* Minimal FMI 2.0 co-simulation host without Python, as a C/C++ importer loads an FMU: dlopen the
    extracted FMU's binary, instantiate, set real variables, step, print real variables.
 

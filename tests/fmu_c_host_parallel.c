@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* FMI 2.0 host without Python that instantiates several FMUs at the same moment, one thread each
    (as a parallel master may): checks that the FMUs' shims start Python once, not concurrently.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Helpers for the FMU tests: drive one FMU directly through fmpy's FMI 2.0 API (exact input
 values and step times, state get/set). The FMUs come from the session fixture ``fmus``."""
 

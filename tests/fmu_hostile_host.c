@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* A hostile FMI host: makes the calls real hosts and careless users make (FMI 2.0 or 3.0
    Co-Simulation), each scenario in a child process of its own, so that a crash is seen as one.
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* A C host for FMI 2.0 and FMI 3.0 Co-Simulation FMUs, for Windows (cross-compiled with mingw-w64,
    run under wine in the tests; console or GUI subsystem) and Linux alike: the same source on both
    gives the same calls, so the two platforms' outputs can be compared line by line.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Running tests/fmu_hostile_host.c on an FMU: unpack, pick the value references it needs from the
 model description (read with fmpy), run the scenarios, parse their lines."""
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Helpers for the orchestrator tests: build small pythonfmu FMUs and SSP scenarios around them."""
 
 from __future__ import annotations

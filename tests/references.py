@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The monolithic reference runs (30 s, solve_ivp at rtol 1e-10) that several tests compare with,
 each computed once per test process. The tests of one example share the xdist group
 ``monolithic-references-<number>`` (``pytest -n 2 --dist loadgroup``, :func:`group`): one worker

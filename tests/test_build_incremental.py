@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The build reuses what it built from the same inputs (issue 34): before, touching one model file
 rebuilt every FMU, its FMI 3.0 variant and every archive (21.7 s CPU, as a cold build).
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Campaigns end to end (issue 9): ``orchestrate sweep`` on the embedded Dask cluster and through a
 real external ``dask scheduler`` with two ``dask worker`` processes, a failing variant kept as a row,
 a timeout, resume, and Ctrl-C keeping every finished row.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Campaigns that survive their cluster (issue 20, item 5), on a real ``dask scheduler`` and real
 ``dask worker`` processes on localhost, killed with SIGKILL in the middle of a campaign.
 

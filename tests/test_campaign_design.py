@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Campaign designs (orchestrator.campaign.design): grids, ranges with counts, random and Latin
 hypercube samples, explicit tables, and one-line errors for bad files.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Headline findings of the shipped campaigns (orchestrator.experiments.campaigns) on hand-made
 tables whose answers are counted by hand: which initial states diverge, never settle or settle, the
 largest square of states that all settle, and the worst fault."""

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The monolithic reference simulation: initial control, tracking, modes and sampling."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The semi-implicit discretization of the law (issue 11) against closed forms.
 
 Oracles: the paper's explicit law (``controller.law`` with ``discretization`` explicit, eq. 37/68),

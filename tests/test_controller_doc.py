@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """documentation/index.html of the controller FMUs (issue 35): present in every controller FMU (and
 FMI 2.0's _main.html leading to it), every variable of the FMU's own model description in it with its
 start value, and its worked example, a plant that is not the paper's, runs as printed and tracks."""

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The law of SPEC section 1 against closed forms and a direct transcription written here.
 
 The oracles below are transcribed from the SPEC, not from controller/law.py: n = 1 uses explicit

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """n = 2 stays the FMU of before issue 35, bit for bit, on every shipped scenario of the paper's examples.
 
 Before issue 35 the FixedTimeController FMU ran controller.order2.Order2Controller (unchanged since) in

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The law's compiled step (controller/_law.c, controller.native.CompiledLaw) against the Python
 reference (controller.law, controller.stepping.rk4_step through controller.native.ReferenceLaw), a
 second implementation of the same arithmetic: the same bits of every result and the same exception

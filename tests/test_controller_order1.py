@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """FixedTimeController1 (plant order n = 1) around the integrator x' = u, against the analytic behaviour
 of the closed loop. With yd = 0 and the NN term out of play (kappa_1 = 1e-12, eta_hat_1(0) = 0, so
 eta_hat_1 stays below 1e-12) the law is v = -k sig(x)^(2 alpha - 1) - q sig(x)^(2 beta - 1), here with

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The n = 2 scalar path (controller.order2, what the controller FMU ran before issue 35) against the
 general-n library path (controller.law.evaluate, controller.stepping.AdaptiveController), its
 independent oracle: the same law at random states, inputs and gains, and the same states over many

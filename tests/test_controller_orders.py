@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The controller FMUs for plant orders 1..4 (issue 35): each one against the controller library of the
 same order (controller.stepping.AdaptiveController, the Python reference) on the same input sequence,
 bit for bit; and what does not fit is refused with one line: an order without an FMU, a scenario that

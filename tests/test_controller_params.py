@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Every design constraint of SPEC section 1 is rejected with the parameter, its value and the range."""
 
 from __future__ import annotations

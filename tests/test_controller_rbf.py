@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """RBF basis (eq. 24) against hand-computed values, and the fast P^T P against the basis."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The RK4 stepping interface against closed forms and solve_ivp, with the inputs held.
 
 Measured on the reference machine (max over the states of |RK4 - solve_ivp| / |solve_ivp|, solve_ivp

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The co-simulated closed loop against the monolithic reference of the controller library.
 
 The orchestrator's default master samples the controller and actuator at t_k and holds them over

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Unit tests of the conformance matrix's logic (orchestrate crosscheck) on hand-made signals: the
 alignment and difference of two results, each check of a cell and when a cell is red, the
 result-file helpers of the adapters, and the written matrix. The tools themselves run in

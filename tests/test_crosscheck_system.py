@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Tool neutrality (issue 8): every built scenario runs unchanged (same archive, its own step, stop
 time and parameter sets) in both of our masters and in every installed SSP tool -- libcosim, Ecos
 (ecospy and its ``ecos`` program), OMSimulator (program and Python package) -- through the matrix

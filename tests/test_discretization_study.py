@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The chattering measures of the discretization study (orchestrator.experiments.discretization) on
 signals whose answers are known by hand."""
 

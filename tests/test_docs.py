@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The documentation: the README is a short front page whose links resolve, and the MkDocs site
 builds with warnings as errors (a broken link, a page missing from the navigation, a docstring
 mkdocstrings cannot read all fail it), its generated pages matching the code."""

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The engine's fast tier: ``System`` and both masters on in-memory model descriptions and fake
 instances (no FMU is built, extracted or loaded).
 

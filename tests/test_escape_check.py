@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Issue 37, item 1: the plants' fail-fast bounds end no run that the closed loop settles (no false
 divergence), and still end a finite escape.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Every example in examples/ runs as a user would run it, and shows what it promises.
 
 The oracles are independent of the code under test: the controller's tracking promise on a plant

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """One plan, three executors (issue 34): the Python master, the compiled executor and the exported
 container step the engine's one Plan and give the same rows, bit for bit.
 

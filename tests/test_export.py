@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """``orchestrate export``: shipped scenarios as one FMU, run by hosts nobody here wrote (fmusim and
 the FMU Compliance Checker on a colleague's machine with no Python, FMPy's ``simulate_fmu``) and
 checked against ``orchestrate run`` of the same scenario (the oracle: the engine's master),

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Whole-file writes (``orchestrator.files``): concurrent writers of one target and failed writes.
 
 The oracle is the file system: after any number of concurrent complete writes the target holds

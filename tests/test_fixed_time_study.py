@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Pieces of the fixed-time study (issue 24): the paper's bound (83) against its formula worked by
 hand, the actuator's saturation against its definition (SPEC section 10), the plants' fail-fast
 bounds on a diverging step (issue 20), and the study's table and figure helpers."""

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """fmu_src.toolchain.build: reproducible archives, deterministic GUIDs, requirements, bundling checks."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The FMUs in a host without Python: a minimal C importer (tests/fmu_c_host.c) dlopens each FMU's
 binaries/linux64/<model>.so, as C/C++ tools do, on a colleague's machine (tests/colleague.py: every
 Python of this machine hidden, ``env -i PATH=/usr/bin:/bin``; only ``env -i`` where the kernel

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The five FMUs on a colleague's machine that has no Python at all (tests/colleague.py), in hosts
 nobody here wrote: the Reference FMUs' fmusim, the FMU Compliance Checker (FMI Library) and
 OMSimulator's program; and in fmpy under a second Python version. Each result is compared with the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The FixedTimeController FMU against the controller library (controller.stepping) on the same
 input sequence: outputs read before each doStep and states after it agree to 1e-12."""
 

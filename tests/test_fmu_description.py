@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The model descriptions: validity, the interface contract of SPEC section 5, descriptions,
 units, DefaultExperiment and the ModelStructure dependencies pythonfmu does not write itself."""
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The shim's direct calls (fmu_src/toolchain/shim/fmi2_shim.c, "Direct calls") against pythonfmu's own
 path, which FTC_FMU_DIRECT=0 restores: the oracle is the same FMU driven through pythonfmu.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """An FMU never crashes its host (issue 30): tests/fmu_hostile_host.c makes the calls real hosts and
 careless users make, each scenario in a child process, on all ten FMUs (FMI 2.0 and 3.0) and an
 exported container, also under valgrind. Oracles: the FMI standard's state tables as the Modelica

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Invalid parameters are rejected at fmi2ExitInitializationMode, never turned into NaN.
 
 pythonfmu turns the raised exception into fmi2Fatal (its binary has no other way to fail an FMI

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Every FMU and exported container may be redistributed: it carries the project's licence
 beside the third-party ones, the FMI entry point ``documentation/licenses/license.txt`` naming
 every licence file, an honest ``generationTool``, and ``documentation/externalDependencies.txt``

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The plant FMUs' integrator parameters: ``method`` (0 Dormand-Prince 5(4) with ``rtol``/``atol``,
 the default; 1 RK4 with sub-steps of at most ``max_step``, also chosen when only ``max_step`` is
 set), checked against solve_ivp (DOP853, rtol 1e-10) on the stiff first 20 ms of Example 1."""

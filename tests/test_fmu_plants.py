@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Plant FMUs against scipy's solve_ivp (DOP853, rtol 1e-10) on 30 s at h = 1 ms, with the huge
 initial controls SPEC section 6 announces (|uf| ~ 770 for Example 1, ~15000 for the pendulum).
 

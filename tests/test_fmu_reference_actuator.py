@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Reference and Actuator FMUs against the formulas of SPEC sections 2 and 5, through
 fmpy.simulate_fmu, fmpy's FMI API and libcosim."""
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The FMUs' runtime builds on any machine (issue 30): fetched from Debian's archive by URL without
 apt-get or dpkg-deb, as root and as a user; a pin Debian dropped, or no network, is one line naming
 what to do; the pins move to the newest bookworm(-security) versions with one command; and the FMUs'

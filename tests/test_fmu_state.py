@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """fmi2GetFMUstate / fmi2SetFMUstate restore everything (states, held inputs, time): a step
 repeated from a restored state reproduces the first one bit for bit, also on a second restore."""
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """fmu_support's get/set (value reference -> attribute, outputs refreshed once per change), on the
 slave classes in this process: what pythonfmu's binary calls for fmi2Get/SetReal/Integer."""
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """All five FMUs in one process (one shared interpreter and module cache): a closed loop driven
 through fmpy's FMI API against an independent monolithic oracle, a libcosim run of the same
 loop, and two builds of one FMU from different sources that must not see each other's modules."""

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The FMUs on Windows: every FMU's binaries/win64 (FMI 3.0: x86_64-windows) run under wine64 in a
 fresh prefix with no Python, as a Windows colleague receives them, unpacked in a folder with spaces
 and non-ASCII characters, and compared with the Linux binaries of the same FMU driven by the same

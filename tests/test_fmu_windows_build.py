@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """What binaries/win64 (FMI 3.0: x86_64-windows) holds, checked without running it (that is
 tests/test_fmu_windows.py, under wine): every FMU and exported scenario carries it; python.org's
 files and the MSVC runtime unmodified and signature-checked; the DLLs import nothing the FMU or

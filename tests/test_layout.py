@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The allowed import graph of the project's packages (developers' guide, issue 14).
 
 Lower layers never import higher ones: ``controller`` (the law) imports nothing of ours,

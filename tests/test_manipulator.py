@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The third-order plant of issue 35: the single-link manipulator driven by a brush DC motor (Dawson,
 Carroll and Schneider 1994) and its closed loop.
 

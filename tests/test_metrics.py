@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Tracking metrics (SPEC section 4) on hand-made signals with known values."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Shared plant/actuator/reference math against independent transcriptions of SPEC sections 2-3."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """A newcomer's frictions (issue 22): each test failed before its fix.
 
 Oracles: the commands' own exit status and output, the files a fake ``orchestrate build`` leaves,

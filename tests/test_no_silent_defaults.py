@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """metrics and compare on any grid and any scenario, and results other tools wrote (issue 22).
 
 Each test failed before its fix. Oracles: hand-made signals with known deviations (a constant

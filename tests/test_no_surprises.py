@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Issue 36: no wrong verdicts, no surprises. One test (or a few) per item of the issue, each
 failing on main 5287c35 (items 1 and 7, compare and baseline, are issue 38's).
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Bounded extraction of hostile archives: only the SSD and what it references are extracted, and
 the archive and every FMU in it stay within :class:`orchestrator.ssp.Limits` (refused in one line
 naming the member, the limit and the option that raises it).

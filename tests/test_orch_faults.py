@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Faults at run time, each through ``orchestrate run`` in its own process, as a user meets them.
 
 A small pythonfmu FMU (tests/fmus/Faulty.py) fails on purpose at its k-th step: it raises, its

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """SSP scenarios with FMI 3.0 components: the FMI 3.0 twin of every shipped scenario
 (build/ssp/<name>_fmi3.ssp, the same SSD with the FMUs' FMI 3.0 variants), a mixed scenario, and
 third-party FMI 3.0 FMUs (the Modelica Reference FMUs), each against an independent oracle: the FMI

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The cache of unpacked FMUs and remembered digests (orchestrator.fmucache, issue 21).
 
 Oracles: hashlib over the bytes (digests), the FMU's own members (what an entry holds), and a run

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Issue 12 part 5: result formats by extension (CSV, Parquet, MAT) and output selection.
 
 Oracles: a CSV written by hand (values known), pyarrow's and scipy's readers, and the MAT file

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Fuzzing the readers: mutated SSD and SSV files (elements and attributes dropped, duplicated and
 renamed; numbers like ``nan``, ``1e400``, ``-0``; empty strings; unicode names) must either run or be
 refused with one line per problem, never a traceback, a crash or a hang.

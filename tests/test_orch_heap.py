@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Heap stress: many short runs of the project's FMUs under glibc's heap checks, each in its own
 process, none may abort.
 

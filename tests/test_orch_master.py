@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Masters on a loop with a closed-form answer: x' = k x through an integrator (explicit Euler per
 step, no feedthrough) and a gain (direct feedthrough).
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Long runs: the results are streamed, so the resident size of ``orchestrate run`` does not grow
 with the run length (it held every row before: 182 MB for 300 s of example1).
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """A scenario of a user's own, with no file of the paper: two Modelica Reference FMUs (VanDerPol
 into Feedthrough through a linear transformation), and the loop of tests/orch_helpers.py.
 

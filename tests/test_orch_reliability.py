@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Reliability, second pass (issue 20): the reproducers of the attack, one test per finding, each of
 which failed on the main branch of 2026-11-26 (the line it gave there is quoted).
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """``orchestrator.run`` returns a RunResult, and every run error carries one (issue 22).
 
 Oracles: the loop x' = k x of tests/orch_helpers.py, which gauss-seidel solves as

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The project's scenarios with the real FMUs: build, run every scenario, compare the masters with
 each other and with libcosim on the same archives."""
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Reading SSP scenarios: schema validity of what we write, the parts fmpy's reader drops, and
 hostile or broken archives (each a clear ScenarioError naming the file, user files untouched)."""
 

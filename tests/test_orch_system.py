@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """System validation: every inconsistency between SSD and FMUs is reported at once, naming the SSD,
 component and connector; propagation order and algebraic loops from ModelStructure dependencies."""
 

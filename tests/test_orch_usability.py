@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Issue 12: mistakes that used to pass silently with exit 0 now fail or warn.
 
 Each test reproduces one silent case of the issue and checks the one-line error or warning.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """``orchestrate validate``: every check before a simulation, every problem at once.
 
 Broken scenarios are made with a known number of faults, one per stage (schema, parameter file,

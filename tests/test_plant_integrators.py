@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The plants' Dormand-Prince 5(4) integrator (fmu_src.models.plants.dopri_hold_step) on its own:
 an analytic solution, its order of convergence, step rejection, tolerance proportionality, the
 step size carried across communication steps, and failure. Oracles: closed forms and solve_ivp."""

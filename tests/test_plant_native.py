@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The plants' compiled Dormand-Prince step (fmu_src/models/_dopri.c, fmu_src.models.native)
 against the Python reference (fmu_src.models.plants.dopri_hold_step), a second implementation of
 the same algorithm: the same bits of every result and the same exception and message, on

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """A user's project regressed as their CI would: the sample project tests/sample_project (three
 scenarios, one of them two Modelica Reference FMUs, i.e. third party) run with the commands of the
 CI templates docs/ci/github-actions.yml and docs/ci/gitlab-ci.yml, verbatim: clean, then with a

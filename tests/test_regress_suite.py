@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """orchestrate regress and baseline on suites of small real FMUs: the C Ramp FMU of tests/c_fmu.py,
 whose output is x(t) = n t exactly (the oracle of every baseline and excursion here), and one that
 crashes its process on purpose; the layout's errors; the JUnit XML against Jenkins' schema; the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """compare's own behaviour on hand-made CSVs: tubes, times and sizes of excursions, missing columns,
 exit codes, tolerance files; and the shape of the stored baselines."""
 

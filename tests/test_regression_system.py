@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """System tests of the regression: every scenario against its stored baseline (full 30 s), and one
 perturbation at a time must be flagged with the stored tolerances while an unchanged rerun passes.
 

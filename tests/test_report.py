@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Smoke test of the report: short horizons into tmp_path, every file written, four metric rows."""
 
 from __future__ import annotations

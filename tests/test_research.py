@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Issue 37, item 3: the research-question page is generated from the campaigns' tables.
 
 Oracles: hand-computed medians of a small table, and the committed generated page itself (every

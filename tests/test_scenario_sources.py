@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The committed scenario sources are exactly what ``ssp/generate.py`` writes from the examples'
 data (``fmu_src/models/examples.py``): edit the data and regenerate, never the XML alone."""
 

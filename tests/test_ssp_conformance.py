@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """SSPs other tools wrote run here as those tools run them (issue 32): the conformance set of
 ``tests/ssp_conformance/`` (copies of OMSimulator's and libcosim's own SSP test files).
 

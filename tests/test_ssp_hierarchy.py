@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Nested systems, system-level parameter bindings and SSP parameter mappings (issue 32), on small
 pythonfmu gains (``y = k u``) whose values follow by hand from the SSD: connections through system
 connectors compose their LinearTransformations, bindings apply in SSP 1.0's precedence (a system's

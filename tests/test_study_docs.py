@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Issue 37, item 2: the study's and the campaigns' pages copy no number by hand.
 
 The oracle is the generated table ``docs/fixed-time-study/study.md`` (``make study-fixed-time``

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The package as PyPI would serve it: an sdist and a wheel built from the checkout (the wheel
 from the sdist, so the sdist is complete), clean under ``twine check``, installed into a fresh
 virtual environment outside the checkout, where an empty folder builds the FMUs, runs a shipped

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Run your own SSP built from the Modelica Reference FMUs with ``orchestrate``, and check it.
 
     python examples/reference_fmus/run.py [REFERENCE_FMUS_FOLDER] [OUT_FOLDER]

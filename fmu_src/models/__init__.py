@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The paper's models as pure math, no FMI: reference signal, actuator (dead-zone and fault),
 the two plants with their integrators, and the two examples' data.
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* _dopri: the plants' Dormand-Prince 5(4) step over one communication step, compiled.
 
    The same algorithm as fmu_src/models/plants.py:dopri_hold_step, operation for operation, so

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Actuator: saturation (beyond the paper, SPEC section 10), input dead-zone (eq. 2-6), then the
 actuator fault (eq. 86-87, 100-101)."""
 

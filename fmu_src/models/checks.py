@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Parameter checks shared by the models: every violation named with its value."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The paper's two examples in one place (SPEC section 3): plant, initial state, reference,
 actuator and controller gains; and :data:`MANIPULATOR`, a third-order plant from the literature
 under the same actuator (issue 35). The scenario sources (``ssp/generate.py``), the monolithic

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """A third-order plant from the literature: a single-link robot manipulator driven by a brush DC
 motor, written from its source paper.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The plants' Dormand-Prince step compiled (``_dopri.c`` beside this module): the same
 algorithm as :func:`~fmu_src.models.plants.dopri_hold_step`, giving the same bits, the same
 exceptions and messages, about 11 times faster (0.36 us per integrator step of Example 1

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The paper's plants (SPEC section 3) and their integrators over a communication step.
 
 Plant states are ordered ``(x1, x2, z)``; right-hand sides take ``(t, state, uf)``. Pure Python

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Reference trajectory yd(t) = A sin(omega t + phase) + offset and its derivatives (SPEC section 2)."""
 
 from __future__ import annotations

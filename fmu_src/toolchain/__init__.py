@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The packaging toolchain: what turns the FMU scripts of ``fmu_src/`` into self-contained FMUs.
 
 ``build`` (pythonfmu, then the shim, the bundled runtime and the normalized archive), ``fmi3``

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Build the project's FMUs with pythonfmu, reproducibly and safe to load side by side.
 
 All pythonfmu FMUs in one process share one interpreter and one module cache, and each FMU's

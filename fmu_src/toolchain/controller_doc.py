@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The controller FMUs' own documentation, ``documentation/index.html`` (the FMI 3.0 entry point; FMI
 2.0's ``documentation/_main.html`` leads to it), written by the build from the FMU's model
 description, so that it cannot drift from the FMU: every variable with its description, start value,

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The FMI 3.0 Co-Simulation variant of a built FMI 2.0 FMU: same model code, runtime and pythonfmu
 binary, with the FMI 3.0 layer of the shim (``shim/fmi3_shim.c``) in front.
 

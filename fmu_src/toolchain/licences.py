@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """What every FMU and exported container says about its licences and its external dependencies.
 
 The FMI standard (3.0, section 2.5; 2.0.3 as a "should") puts licences under

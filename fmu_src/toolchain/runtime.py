@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The CPython runtime every FMU carries, so that it runs where no Python is installed.
 
 Source: Debian 12 (bookworm) binary packages, pinned by version and SHA-256 in

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The Windows part of the runtime every FMU carries: python.org's embeddable CPython 3.11 and the
 MSVC runtime, so that ``binaries/win64`` runs where no Python is installed, as ``binaries/linux64``.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Campaigns: many variants of a scenario run on Dask, one tidy table of results.
 
 ``sweep(scenarios, read_design(path), out)`` (or ``orchestrate sweep``) runs every point of a

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Subcommands ``orchestrate sweep`` and ``orchestrate campaign-report``.
 
 An application that knows which metrics a campaign should compute registers them through

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Campaign designs: which parameters vary and how, read from a TOML or JSON file.
 
 A design names parameters as ``--set`` does (``component.variable``), plus ``stop_time`` and

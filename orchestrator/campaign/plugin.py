@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The worker plugin that ships the scenario archives to each Dask worker once (imported only when
 a campaign runs: distributed is slow to import)."""
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The campaign report: the figures a design asks for (``[[plots]]``) and a Markdown summary that
 names the worst runs and every failure.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Run a campaign on Dask: every variant of a design on one or more scenarios, one task per run.
 
 By default an embedded ``distributed.LocalCluster`` with one worker process per core and one

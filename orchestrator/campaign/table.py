@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The campaign table: one row per run, appended to ``runs.csv`` as each run finishes (so Ctrl-C or a
 crash keeps every finished row), then rewritten in design order as ``runs.csv`` and ``runs.parquet``.
 

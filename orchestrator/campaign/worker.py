@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """What runs inside a Dask worker: every task simulates one variant in the scenario folder that
 :class:`~orchestrator.campaign.plugin.ScenarioPlugin` unpacked once per worker, and returns one
 table row -- a failure or a timeout is a row too, never an exception."""

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Cross-checks: the same ``.ssp`` archives in other SSP tools (libcosim, Ecos, OMSimulator) and a
 conformance matrix against our masters (``orchestrate crosscheck``).
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """``orchestrate crosscheck``: the conformance matrix of the built scenarios in every SSP tool."""
 
 from __future__ import annotations

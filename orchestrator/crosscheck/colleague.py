@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """A colleague's machine on this one, for the FMUs' hosts: a private mount namespace in which every
 Python of the machine (interpreters, libpython, standard libraries, site-packages, virtual environments, the
 build's unpacked runtime) is covered by an empty tmpfs or an empty file, entered with

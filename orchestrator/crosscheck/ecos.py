@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Ecos (github.com/Ecos-platform/ecos, wheel ``ecospy`` 0.7.2): its Python API in this process and
 its command-line program ``ecos`` from the same wheel.
 

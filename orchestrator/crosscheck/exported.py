@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The scenario exported as one FMU (``orchestrate export``) in hosts that read FMUs but no SSP:
 fmusim (Reference FMUs) and the FMU Compliance Checker (FMI Library) on a colleague's machine with
 no Python (``colleague.py``), and FMPy's ``simulate_fmu`` in this process.

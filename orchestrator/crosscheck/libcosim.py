@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """libcosim through libcosimpy: runs a ``.ssp`` in this process and returns results shaped like ours.
 
 libcosim's fixed-step algorithm delays every connection by one communication step (our ``jacobi``

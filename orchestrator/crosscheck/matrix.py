@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The conformance matrix: every scenario in every tool, checked against our master of the same
 semantics, written as Markdown and CSV.
 

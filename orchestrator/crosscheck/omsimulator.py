@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """OMSimulator 3 (OpenModelica), prebuilt outside the repository: its command-line program and its
 Python package.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """What every tool adapter shares: the scenario as the archive states it, the run a tool returns,
 and the adapter interface.
 

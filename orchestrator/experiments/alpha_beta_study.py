@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Choose alpha and beta by experiment (SPEC section 6): run both examples over a grid.
 
 ``python -m orchestrator.experiments.alpha_beta_study`` prints, for every (alpha, beta), the RMSE, MAE,

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The stale-build rule of this project, plugged into ``orchestrate run``/``validate`` through the
 entry-point group ``orchestrate.checks`` (:func:`orchestrator.cli.scenario_checks`).
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The paper's tracking metrics as campaign columns, and ``orchestrate sweep`` registered with them.
 
 Every run of a campaign gets SPEC section 4's metrics over its whole horizon (RAE, MSE, RMSE, MAE,

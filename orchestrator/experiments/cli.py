@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Subcommands of the paper's experiments: build, metrics, report."""
 
 from __future__ import annotations

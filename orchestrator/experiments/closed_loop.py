@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Monolithic closed-loop reference simulation of the paper's examples (and of the manipulator,
 :data:`~fmu_src.models.examples.MANIPULATOR`, the order-3 loop of issue 35).
 

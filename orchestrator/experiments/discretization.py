@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Chattering of the sampled controller: explicit sampling (the paper's law, held) against the
 semi-implicit discretization (``controller.params.Discretization``) and the continuous law.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """False divergence of the plants' fail-fast bounds, measured (issue 37).
 
 The plant FMUs end a step with fmi2Discard when their state leaves its range of validity

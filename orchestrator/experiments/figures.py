@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The paper's tracking figure, plugged into ``orchestrate run``/``plot`` through the entry-point
 group ``orchestrate.figures`` (:mod:`orchestrator.plots`).
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The paper's settling-time bound, eq. (83), computed from the gains (SPEC section 10).
 
 Theorem 1 ends with ``V' <= -c V^alpha - c_hat V^beta + x_0`` (eq. 81) and Lemma 2 (eq. 14, with

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The fixed-time claim, measured (issue 24): settling maps over [-10, 10]^2 beside the paper's bound.
 
 ``python -m orchestrator.experiments.fixed_time_study`` (``make study-fixed-time``) runs, for both

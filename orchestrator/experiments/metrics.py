@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Tracking metrics of SPEC section 4 (the paper's eq. 94-97) on a uniform sample grid.
 
 With ``e = y - yd`` sampled at ``t_0 < t_1 < ... < t_N`` (uniform step):

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The paper's examples by co-simulation: figures, the metrics beside Tables 1-2, and the
 fixed-time claim measured (settling time over a grid of initial states).
 

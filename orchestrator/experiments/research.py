@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The research questions a reader of the paper asks next (issue 37), as shipped campaigns.
 
 ``python -m orchestrator.experiments.research`` (``make research``) runs the campaign designs of

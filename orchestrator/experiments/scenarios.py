@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The project's scenarios: build the five FMUs and pack each ``ssp/<name>/`` source folder into
 ``<dest>/ssp/<name>.ssp``, validated against the FMUs (what ``orchestrate build`` does)."""
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """``orchestrate export``: a whole SSP scenario as one Co-Simulation FMU (FMI 2.0 or 3.0), for the
 tools that take one FMU and no SSP (Simulink, Modelica tools' FMU import, fmusim, FMPy's
 ``simulate_fmu``).

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """``orchestrate export SCENARIO -o NAME.fmu``: the subcommand."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """``orchestrate export``: a scenario as one FMI 2.0 (or 3.0) Co-Simulation FMU.
 
 The archive holds ``modelDescription.xml`` (the exposed variables ``<component>.<variable>``, the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The container's plan: the engine's own :class:`~orchestrator.plan.Plan` of the validated System
 (:func:`orchestrator.plan.make_plan`: layout, start values, grid, schedule), with the container's
 variables added as ``exposed`` records for ``orchestrator/native/container.c`` to serve.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The engine's C code: the plan reader and core (``plan.c``, ``core.c``) built as the compiled
 executor (``executor.c``, which ``orchestrate run`` steps by default) and as the exported container's
 runtime (``container.c`` with its FMI 2.0 and 3.0 APIs ``container_fmi2.c`` and ``container_fmi3.c``,

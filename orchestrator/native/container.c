@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* FMI 2.0 and 3.0 Co-Simulation container: a whole SSP scenario as one FMU (`orchestrate export`).
 
    The container is this shared library, a plan (resources/container.plan) and the scenario's

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* The scenario container's state, shared by its parts: container.c (the plan read, the embedded FMUs
    loaded and instantiated, messages, the host's inputs), container_fmi2.c (the FMI 2.0 API) and
    container_fmi3.c (the FMI 3.0 API, mapped onto the FMI 2.0 functions). The FMI types come from the

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* The scenario container's FMI 2.0 Co-Simulation API (container.h): each function checks the
    container's state, then calls the core (core.c) or serves the container's own variables. */
 

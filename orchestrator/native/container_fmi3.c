@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* The scenario container's FMI 3.0 Co-Simulation API (container.h). */
 
 #include <stdio.h>

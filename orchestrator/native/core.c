@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* The core of the C executors (see core.h): the plan's steps on embedded FMI 2.0 and 3.0 FMUs,
    the same calls with the same arguments in the same order as orchestrator/master.py:
 

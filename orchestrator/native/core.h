@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* The core of the C executors: an embedded FMU's functions (FMI 2.0 or 3.0 Co-Simulation) and the
    plan's steps on them, making the same calls with the same arguments in the same order as the
    engine's Python master (orchestrator/master.py). Failures are data (struct failure), which the

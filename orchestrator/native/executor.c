@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* The compiled executor: the core (core.c) as a library the engine calls through ctypes
    (orchestrator/native/__init__.py). Python instantiates and initializes the FMUs (fmpy, the FMU
    cache, the message log) and binds each instance here; then it hands over blocks of steps: this

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* The plan reader: the text orchestrator/plan.py writes (Plan.text), one record per line,
    space-separated tokens; reals as C99 hexadecimal floats (exact), strings "=" and percent-encoded.
 

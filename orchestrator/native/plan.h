@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* The plan of a run as the C executors hold it (read by plan.c from the text that
    orchestrator/plan.py writes: Plan.text). Indices only: every batch is a contiguous slice of the
    value buffer [time, inputs..., outputs...]. */

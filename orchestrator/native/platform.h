@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* The engine's C portability layer: every call to the operating system the container and the core
    make (loading an embedded FMU's library, finding a symbol, the last loader error, finding the
    container's own file, opening the plan) goes through these few functions, so container.c, core.c

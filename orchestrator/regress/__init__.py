@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Co-simulation regression: scenarios run against stored baselines inside tubes, as a CI step.
 
 ``orchestrate regress PATH...`` runs a suite of scenarios (each with its baseline and tolerances

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Subcommands of the regression application: ``regress`` (a suite of scenarios against their
 baselines, with JUnit XML and an HTML report), ``baseline`` (write and review baselines) and
 ``compare`` (one result file against one baseline)."""

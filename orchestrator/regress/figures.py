@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Figures of signal checks: the baseline, its tube and the result, then the deviation from the
 baseline with the tube around zero, so that a reviewer sees where and by how much a signal left it."""
 

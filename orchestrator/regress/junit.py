@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """JUnit XML of a regression suite, the test-result format CI services show (GitHub Actions through
 a reporter action, GitLab's ``artifacts:reports:junit``, Jenkins, Azure Pipelines).
 

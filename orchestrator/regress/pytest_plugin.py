@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """pytest plugin (entry point ``pytest11``): ``pytest --ssp-regress PATH`` makes each scenario of a
 regression suite one pytest item, so that a project's own pytest run, its ``-k`` selection, its
 ``-n`` workers (pytest-xdist) and its ``--junitxml`` include them.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The HTML report of a regression suite or of a baseline review: one self-contained file (figures
 inline as PNG data, no file or network fetched) that a reviewer opens from a CI artifact.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Baseline updates as a reviewer sees them: what each new run moves (by how much, beyond which
 tube), one line per signal, and new baselines written only for what the user accepts.
 

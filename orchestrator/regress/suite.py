@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """A regression suite: scenarios found in folders, each with its baseline and tolerances beside it,
 run in parallel processes and compared with their baselines.
 

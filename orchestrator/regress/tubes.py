@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Tubes: every signal of a baseline checked against a result on the baseline's time grid.
 
 The tube is that of the FMI cross-check practice (:func:`fmpy.util.validate_signal`): a band of

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Test FMU that fails on purpose at its ``k``-th ``do_step`` (1-based), for the fault tests.
 
 ``y`` counts the steps taken (no input needed: its value in row j is j, an exact oracle).

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Test FMU: y = k * u, direct feedthrough computed when read."""
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Test FMU: x' = u by explicit Euler over each step; x does not depend on u at the same instant.
 
 ``fail_at`` makes ``do_step`` return False (fmi2Discard) from that time on, to test failure handling.

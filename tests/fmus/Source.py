@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Test FMU: y = amplitude * sin(omega * t), no inputs."""
 
 import math

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """The SSP conformance set: SSPs that other tools wrote, run by orchestrate and compared with the
 values those tools print and with OMSimulator 3 and libcosim where they run the file.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Run one SSP in OMSimulator 3's Python package and print the values asked for, as one line
 ``RESULT {json}`` (a child process of the conformance tests: a crash of OMSimulator ends only it).
 

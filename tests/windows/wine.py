@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: BSD-2-Clause
 """Windows under wine64 for the tests: a fresh prefix (a Windows colleague's machine: no Python),
 the C plan host cross-compiled (console and GUI subsystem) and built for Linux, plans of FMUs
 unpacked where a Windows user keeps them (a folder with spaces and non-ASCII characters), and the

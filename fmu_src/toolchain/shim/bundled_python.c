@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* The FMUs' bundled CPython as a command, for the build only (fmu_src/toolchain/runtime.py, Runtime.run):
 
        bundled_python LIBPYTHON FALLBACK_DIR [python arguments...]

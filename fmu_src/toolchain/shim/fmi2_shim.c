@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* FMI 2.0 Co-Simulation shim in front of pythonfmu's binary: the FMU runs in any FMI host, with or
    without Python on the machine.
 

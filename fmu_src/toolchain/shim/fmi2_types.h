@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* FMI 2.0 types and the shim's list of FMI 2.0 functions, shared by fmi2_shim.c and fmi3_shim.c
    (the FMI 3.0 layer calls the FMI 2.0 functions of the same shared object). */
 

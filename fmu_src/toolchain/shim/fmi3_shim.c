@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* FMI 3.0 Co-Simulation layer on the FMI 2.0 shim: the same pythonfmu slave, runtime and direct
    calls, behind the FMI 3.0 functions.
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* The guard's knowledge of its FMU (guard.h): the model description, read without an XML library
    (the file is the build's own: fmu_src/toolchain/build.py and fmu_src/toolchain/fmi3.py write it), and the
    resources folder. */

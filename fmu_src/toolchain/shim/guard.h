@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* What the shim's guard knows of its FMU (guard.c): the model description's instantiation token
    and variables, read once from the unpacked FMU the shim's own file sits in, and where the
    FMU's resources are. Shared by the FMI 2.0 and 3.0 layers. */

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* The shim's portability layer (platform.h): POSIX and Windows. */
 
 #ifndef _WIN32

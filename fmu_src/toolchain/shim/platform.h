@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* The shim's portability layer: every call to the operating system (loading libraries, finding
    the shim's own file, locks, file tests, opening files) goes through these few functions, so
    that the FMI code has no branch per platform. Two branches here (platform.c): POSIX (Linux,

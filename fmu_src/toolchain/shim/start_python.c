@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* Starts the CPython runtime the FMU carries, isolated from the host: compiled against the headers
    of exactly that runtime (fmu_src/toolchain/runtime.py pins both), so the PyPreConfig/PyConfig layouts match.
 

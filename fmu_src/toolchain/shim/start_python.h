@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* Start-up of the FMU's own CPython runtime (start_python.c). */
 #ifndef FTC_START_PYTHON_H
 #define FTC_START_PYTHON_H

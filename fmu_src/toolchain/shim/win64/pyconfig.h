@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-2-Clause */
 /* pyconfig.h for compiling against CPython 3.11's headers (Debian's libpython3.11-dev, whose own
    pyconfig.h describes Linux) for 64-bit Windows with mingw-w64: the configuration python.org's
    python311.dll was built with, as far as a header reads it (sizes of the LLP64 model, 16-bit
