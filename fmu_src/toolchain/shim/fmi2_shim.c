@@ -274,11 +274,22 @@ static int load(void) {
 
     char path[TEXT + 300];
     snprintf(path, sizeof path, "%s/%s%s", dir, model, INNER_SUFFIX);
+#ifdef _WIN32
+    int first = !ftc_library_loaded(path); /* else a former load of this folder kept its files */
+#endif
     inner = ftc_library_open(path, 0);
     if (!inner) {
         snprintf(failure, TEXT, "%s: cannot load pythonfmu's binary %s: %s", model, path, ftc_library_error(path));
         return -1;
     }
+#ifdef _WIN32
+    if (first) {
+        char runtime[TEXT + 16];
+        snprintf(runtime, sizeof runtime, "%s/%s", dir, RUNTIME_DIR);
+        ftc_keep_files(dir);
+        ftc_keep_files(runtime);
+    }
+#endif
     inner_fmi2Instantiate = (fmi2Component(*)(fmi2String, fmi2Type, fmi2String, fmi2String,
                                                const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean))
         ftc_library_symbol(inner, "fmi2Instantiate");

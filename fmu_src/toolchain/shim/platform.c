@@ -193,6 +193,25 @@ void ftc_file_unlock(int lock) {
     CloseHandle(file);
 }
 
+void ftc_keep_files(const char *dir) {
+    wchar_t folder[FTC_PLATFORM_TEXT], pattern[FTC_PLATFORM_TEXT], file[FTC_PLATFORM_TEXT];
+    if (!wide(dir, folder, FTC_PLATFORM_TEXT) || _snwprintf(pattern, FTC_PLATFORM_TEXT, L"%ls/*", folder) < 0) return;
+    WIN32_FIND_DATAW found;
+    HANDLE search = FindFirstFileW(pattern, &found);
+    if (search == INVALID_HANDLE_VALUE) return;
+    do {
+        const wchar_t *dot = wcsrchr(found.cFileName, L'.');
+        if ((found.dwFileAttributes & FILE_ATTRIBUTE_DIRECTORY) || !dot ||
+            (_wcsicmp(dot, L".dll") != 0 && _wcsicmp(dot, L".pyd") != 0) ||
+            _snwprintf(file, FTC_PLATFORM_TEXT, L"%ls/%ls", folder, found.cFileName) < 0)
+            continue;
+        /* kept open on purpose: the handle lives as long as the module it guards */
+        CreateFileW(file, GENERIC_READ, FILE_SHARE_READ | FILE_SHARE_WRITE, NULL, OPEN_EXISTING,
+                    FILE_ATTRIBUTE_NORMAL, NULL);
+    } while (FindNextFileW(search, &found));
+    FindClose(search);
+}
+
 static int is_ascii(const char *text) {
     for (; *text; text++)
         if ((unsigned char)*text > 127) return 0;

@@ -44,6 +44,17 @@ FILE *ftc_fopen(const char *path, const char *mode);
 int ftc_file_lock(const char *path);
 void ftc_file_unlock(int lock);
 
+#ifdef _WIN32
+/* The DLLs (*.dll, *.pyd) of folder `dir` are opened for reading without
+   FILE_SHARE_DELETE, and the handles kept for the life of the process, so that their files cannot
+   be deleted while the process may still hold them loaded. Windows itself refuses to delete a
+   loaded image; wine 8 does not, and then gives a new file that reuses the inode of a deleted
+   one the stale module instead (a host that unpacks FMU after FMU into temporary folders and
+   deletes them got msvcp140.dll of the first FMU for the second's pythonfmu binary). The shim
+   never unloads what it loads, so its files are kept, once per folder and process. */
+void ftc_keep_files(const char *dir);
+#endif
+
 /* Windows only: a path the host's C runtime and pythonfmu's binary read alike (pythonfmu reads
    resources/slavemodule.txt with a narrow std::ifstream, in the ANSI code page, and gives the
    same bytes to Python as UTF-8): `path` itself when it is ASCII, else its short 8.3 form;
