@@ -4,6 +4,7 @@ per worker) and shared read-only."""
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pytest
@@ -16,9 +17,14 @@ REPO = Path(__file__).resolve().parent.parent
 
 @pytest.fixture(scope="session")
 def built(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """``orchestrate build`` into a temporary folder: the five FMUs under fmus/, every scenario of
-    ssp/ under ssp/<name>.ssp."""
+    """``orchestrate build`` into a temporary folder: the FMUs under fmus/, every scenario of
+    ssp/ under ssp/<name>.ssp. The folder starts as a copy of the checkout's build/ where there is
+    one (``make test`` makes it first): the build then redoes only what its sources changed, as it
+    does for a user (a cold build in an empty folder is tests/test_wheel.py's)."""
     dest = tmp_path_factory.mktemp("build")
+    for part in ("fmus", "fmus3", "ssp"):
+        if (REPO / "build" / part).is_dir():
+            shutil.copytree(REPO / "build" / part, dest / part)
     assert main(["build", "--sources", str(REPO / "ssp"), "--dest", str(dest)]) == 0
     return dest
 

@@ -283,9 +283,9 @@ def test_baseline_builds_nothing(tmp_path: Path) -> None:
     for source in (project / "ssp" / "example1").iterdir():
         os.utime(source, (now, now))
     os.utime(project / "build" / "ssp" / "example1.ssp", (now - 3600, now - 3600))
-    script = ("import sys\nimport fmu_src.toolchain.build as builder\ncalls = []\nreal = builder.build_all\n"
+    script = ("import sys\nimport fmu_src.toolchain.build as builder\ncalls = []\nreal = builder.build_fmu\n"
               "def watched(*args, **kwargs):\n    calls.append(args)\n    return real(*args, **kwargs)\n"
-              "builder.build_all = watched\nfrom orchestrator.cli import main\n"
+              "builder.build_fmu = watched\nfrom orchestrator.cli import main\n"
               "try:\n    status = main(sys.argv[1:])\nexcept SystemExit as exc:\n    status = exc.code\n"
               "assert not calls, 'the FMUs were built'\nsys.exit(status)\n")
     done = subprocess.run([sys.executable, "-c", script, "baseline", "example1", "--baselines", "out"],

@@ -74,7 +74,7 @@ def test_installed_wheel_builds_runs_and_exports_in_an_empty_folder(dist: Path, 
            "LANG": "C.UTF-8", **({"CC": os.environ["CC"]} if "CC" in os.environ else {})}
     work = tmp_path / "work"
     work.mkdir()
-    out = _run(["orchestrate", "build"], cwd=work, env=env)
+    out = _run(["orchestrate", "build", "pendulum", "example1"], cwd=work, env=env)
     assert "build/ssp/pendulum.ssp" in out
     _run(["orchestrate", "run", "pendulum", "--stop-time", "0.5", "--no-plot", "--quiet"], cwd=work, env=env)
     rows = (work / "results" / "pendulum.csv").read_text().splitlines()

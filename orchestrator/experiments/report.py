@@ -189,7 +189,7 @@ def write_report(out: str | os.PathLike = DEFAULT_OUT, stop_time: float | None =
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="report-") as work:
-        archives = build_scenarios([*CASES.values(), *SMOOTH.values(), STUDY_SCENARIO], work)
+        archives = build_scenarios([*CASES.values(), *SMOOTH.values(), STUDY_SCENARIO], work, fmi3=False)
         results = run_cases(archives, stop_time, processes)
         with ProcessPoolExecutor(processes) as pool:
             smooth = dict(zip(SMOOTH, pool.map(_run_case, [(archives[s], stop_time, {})

@@ -40,15 +40,24 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
     """Build the FMUs into ``dest/fmus`` and their FMI 3.0 variants into ``dest/fmus3``, pack
     ``sources/<name>/`` (default: all) into ``dest/ssp/<name>.ssp`` and its FMI 3.0 twin (the same
     SSD and parameter files, the FMI 3.0 FMUs) into ``dest/ssp/<name>_fmi3.ssp``, each validated
-    against its FMUs (``fmi3=False``: no FMI 3.0 variants and twins); returns name -> archive."""
-    from fmu_src.toolchain.build import build_all
+    against its FMUs (``fmi3=False``: no FMI 3.0 variants and twins); returns name -> archive.
+    Every FMU of the project is built when ``names`` is empty, else only those the named
+    scenarios use (a report of four scenarios builds four FMUs, not nine)."""
+    from fmu_src.toolchain.build import FMU_SCRIPTS, build_fmu
     from fmu_src.toolchain.fmi3 import build_fmu3
 
     dest, sources = Path(dest), Path(sources)
-    names = list(names) if names else all_scenarios(sources)
+    models = list(FMU_SCRIPTS)
+    if names:
+        names = list(names)
+        used = {Path(c).stem for name in names if (sources / name / SSD_NAME).is_file()
+                for c in component_sources(sources / name)}
+        models = [m for m in models if m in used]
+    else:
+        names = all_scenarios(sources)
     if not names:
         raise ScenarioError(f"no scenarios found in {sources}/")
-    fmus2 = {p.name: p for p in build_all(dest / "fmus")}
+    fmus2 = {p.name: p for p in (build_fmu(model, dest / "fmus") for model in models)}
     variants = [(fmus2, "")]
     if fmi3:
         fmus3 = {name: build_fmu3(path, dest / "fmus3") for name, path in fmus2.items()}
@@ -69,8 +78,11 @@ def _pack(name: str, sources: Path, fmus: dict[str, Path], target: Path) -> Path
     needed = {}
     for component in component_sources(folder):
         if component not in fmus:
+            from fmu_src.toolchain.build import FMU_SCRIPTS
+
             raise ScenarioError(f"{folder / SSD_NAME}: FMU '{component}' is not built by "
-                                f"fmu_src.toolchain.build (built: {', '.join(sorted(fmus))})")
+                                f"fmu_src.toolchain.build (it builds: "
+                                f"{', '.join(sorted(m + '.fmu' for m in FMU_SCRIPTS))})")
         needed[component] = fmus[component]
     from fmu_src.toolchain.build import inputs_key, record_inputs, up_to_date
 
