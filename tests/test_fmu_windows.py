@@ -204,7 +204,7 @@ def fmpy_case(wine: Wine, python: Path, jobs: list[tuple[str, Path, float, float
     # fmpy deletes each FMU's folder after its run: as on Windows, the files of the modules the
     # process still holds must stay (wine 8 deletes them otherwise, and then hands a later FMU's
     # binary that reuses the inode the stale module: CI's run failed so)
-    kept = {p.parents[2].name for p in wine.drive_c.glob("users/*/Temp/*/binaries/win64/*_pythonfmu.dll")
+    kept = {p.parents[2].name for p in wine.drive_c.glob("users/*/Temp/*/binaries/*/*_pythonfmu.dll")
             if (p.parent / "python" / "msvcp140.dll").is_file()}
     assert len(kept) == sum("exported" not in name for name, *_ in jobs)
     windows = json.loads(out.read_text(encoding="utf-8"))
