@@ -196,8 +196,9 @@ check-fail-fast: build
 	$(PY) -m orchestrator.experiments.escape_check --mode 0 --discretization 0
 	$(PY) -m orchestrator.experiments.escape_check --mode 1 --discretization 0 --horizon 2
 
-## research: the research-question campaigns of issue 37 (Remark 6's gains, with control effort):
-## tables in results/campaigns/gains_*/, the generated page docs/research/index.md
+## research: the research-question campaigns of issue 37 (Remark 6's gains with control effort,
+## recovery after the fault, the eta_hat estimates, the NN term on/off; eq. 84): tables in
+## results/campaigns/<design>/, the generated page docs/research/index.md (about 15 min on 2 cores)
 research: build
 	$(PY) -m orchestrator.experiments.research
 

@@ -36,11 +36,11 @@
 #include <stdint.h>
 
 #define MAX_ORDER 4
-#define HEADER 11 /* doubles before the per-step gains, see law_constants in native.py */
+#define HEADER 12 /* doubles before the per-step gains, see law_constants in native.py */
 
 /* A parameter set, pointing into the packed constants. */
 typedef struct {
-    int n, semi, m; /* plant order, semi-implicit law, RBF neurons */
+    int n, semi, m, nn; /* plant order, semi-implicit law, RBF neurons, NN term in zeta_i (0: off) */
     double p_alpha, p_beta, a_bar, gamma_gain, gamma_power, d_r, scale, bh;
     const double *k, *q, *two_a2, *kappa, *leak; /* n each: k_eff, q, 2 a^2, kappa, rho + rho_bar */
     const double *two_mu;                         /* m: 2 mu_j */
@@ -178,7 +178,8 @@ static int virtual_control(const Law *law, int i, double z, double weight, doubl
         double a = fabs(z);
         if (alpha_power.error) return raise_power(alpha_power.error);
         if (beta_power.error) return raise_power(beta_power.error);
-        double phi = law->k[i] * alpha_power.value + law->q[i] * beta_power.value + eta * a * weight;
+        double phi = law->nn ? law->k[i] * alpha_power.value + law->q[i] * beta_power.value + eta * a * weight
+                             : law->k[i] * alpha_power.value + law->q[i] * beta_power.value;
         if (z == 0.0) {
             *zeta = 0.0;
         } else {
@@ -191,7 +192,8 @@ static int virtual_control(const Law *law, int i, double z, double weight, doubl
         double sig_alpha = copysign(alpha_power.value, z);
         if (beta_power.error) return raise_power(beta_power.error);
         double sig_beta = copysign(beta_power.value, z);
-        *zeta = -law->k[i] * sig_alpha - law->q[i] * sig_beta - eta * z * weight;
+        *zeta = law->nn ? -law->k[i] * sig_alpha - law->q[i] * sig_beta - eta * z * weight
+                        : -law->k[i] * sig_alpha - law->q[i] * sig_beta;
     } else {
         *zeta = 0.0;
     }
@@ -257,6 +259,7 @@ static int unpack(PyObject *constants, Law *law) {
     law->d_r = c[8];
     law->scale = c[9];
     law->bh = c[10];
+    law->nn = c[11] != 0.0;
     const double *at = c + HEADER;
     law->k = at;
     law->q = at + n;

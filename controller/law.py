@@ -102,6 +102,7 @@ def _law(
     p_beta = 2.0 * p.beta - 1.0
     k = p.k_effective
     semi = p.discretization == SEMI_IMPLICIT
+    nn = p.nn_term
     bh = p.b_max * p.sample_time
     # X_1 = [x1, yd, yd', r]; X_{i+1} adds x_{i+1}, eta_hat_i and yd^(i+1).
     s1 = x[0] + yd[0] + yd[1] + r
@@ -124,9 +125,12 @@ def _law(
             zeta = 0.0
         elif semi:
             a = abs(z)
-            zeta = semi_implicit_feedback(z, k[i] * a**p_alpha + p.q[i] * a**p_beta + eta[i] * a * weight, bh)
+            phi = k[i] * a**p_alpha + p.q[i] * a**p_beta + eta[i] * a * weight if nn else (
+                k[i] * a**p_alpha + p.q[i] * a**p_beta)
+            zeta = semi_implicit_feedback(z, phi, bh)
         elif z != 0.0:  # eq. 37/54/68; zeta = 0 at z = 0 (sig(0) = 0), as a positive zero
-            zeta = -k[i] * sig(z, p_alpha) - p.q[i] * sig(z, p_beta) - eta[i] * z * weight
+            zeta = -k[i] * sig(z, p_alpha) - p.q[i] * sig(z, p_beta) - eta[i] * z * weight if nn else (
+                -k[i] * sig(z, p_alpha) - p.q[i] * sig(z, p_beta))
         else:
             zeta = 0.0
         rates.append(p.kappa[i] * z * z * weight - (p.rho[i] + p.rho_bar[i]) * eta[i])  # eq. 38

@@ -61,7 +61,7 @@ class Law(Protocol):
 
 def law_constants(p: ControllerParameters) -> bytes:
     """The constants of ``p`` packed for ``_law.c`` (doubles: n, semi-implicit, neurons, 2 alpha - 1,
-    2 beta - 1, a_bar, gamma_gain, gamma_power, d_r, -2 / tau^2, b_max h; then k_eff, q, 2 a^2,
+    2 beta - 1, a_bar, gamma_gain, gamma_power, d_r, -2 / tau^2, b_max h, NN term on; then k_eff, q, 2 a^2,
     kappa, rho + rho_bar per step; 2 mu_j; (dim_i mu_j) mu_j per step), each computed by the
     expression the Python law uses, so with the same value. ValueError for an order outside 1..4."""
     n = p.n
@@ -69,7 +69,7 @@ def law_constants(p: ControllerParameters) -> bytes:
         raise ValueError(f"the compiled law is built for plant orders n = 1..{MAX_ORDER} (got n = {n})")
     values = [float(n), 1.0 if p.discretization == SEMI_IMPLICIT else 0.0, float(len(p.centers)),
               2.0 * p.alpha - 1.0, 2.0 * p.beta - 1.0, p.a_bar, p.gamma_gain, p.gamma_power, p.d_r,
-              -2.0 / (p.width * p.width), p.b_max * p.sample_time]
+              -2.0 / (p.width * p.width), p.b_max * p.sample_time, 1.0 if p.nn_term else 0.0]
     values += [*p.k_effective, *p.q, *(2.0 * a * a for a in p.a), *p.kappa]
     values += [rho + bar for rho, bar in zip(p.rho, p.rho_bar, strict=True)]
     values += [2.0 * mu for mu in p.centers]

@@ -67,6 +67,7 @@ def _kernels_for(params: ControllerParameters) -> tuple[Callable[..., Held], Cal
     d1, d2, d3, d4, d5, d6, d7 = (d for _, d in neurons2) if seven else (0.0,) * 7
     exp, copysign = math.exp, math.copysign
     semi = params.discretization == SEMI_IMPLICIT  # controller.law.semi_implicit_feedback, inlined
+    nn = params.nn_term  # False: the NN term left out of zeta1 and v (issue 37's ablation)
     bh = params.b_max * params.sample_time
 
     def held(x1: float, x2: float, yd: float, yd1: float, yd2: float) -> Held:
@@ -124,10 +125,10 @@ def _kernels_for(params: ControllerParameters) -> tuple[Callable[..., Held], Cal
         weight1 = ptp1 / two_a2_1
         if z1 != 0.0:
             if semi:
-                phi = gains1 + eta1 * a * weight1
+                phi = gains1 + eta1 * a * weight1 if nn else gains1
                 zeta1 = -copysign(layer1 if layer1 < phi else phi, z1)  # min(phi, a / bh)
             else:
-                zeta1 = gains1 - eta1 * z1 * weight1
+                zeta1 = gains1 - eta1 * z1 * weight1 if nn else gains1
         else:
             zeta1 = 0.0
         z2 = x2 - zeta1
@@ -142,10 +143,13 @@ def _kernels_for(params: ControllerParameters) -> tuple[Callable[..., Held], Cal
         if z2 != 0.0:
             a = abs(z2)
             if semi:
-                phi = k2 * a**p_alpha + q2 * a**p_beta + eta2 * a * weight2
+                phi = k2 * a**p_alpha + q2 * a**p_beta + eta2 * a * weight2 if nn else (
+                    k2 * a**p_alpha + q2 * a**p_beta)
                 v = -copysign(a / bh if a / bh < phi else phi, z2)  # min(phi, a / bh)
-            else:
+            elif nn:
                 v = -k2 * copysign(a**p_alpha, z2) - q2 * copysign(a**p_beta, z2) - eta2 * z2 * weight2
+            else:
+                v = -k2 * copysign(a**p_alpha, z2) - q2 * copysign(a**p_beta, z2)
         else:
             v = 0.0
         return (v, inputs[6], z2, zeta1, ptp1, ptp2, dr, deta1, deta2)

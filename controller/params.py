@@ -147,6 +147,9 @@ class ControllerParameters:
     ``discretization``, ``sample_time`` (s) and ``b_max`` (the bound b_M of the plant's input
     gains, the paper's Assumption 3) select how a sampled controller evaluates the law
     (:class:`Discretization`); the last two are used, and checked, only when it is semi-implicit.
+    ``nn_term`` False switches the NN term eta_hat_i z_i P_i^T P_i / (2 a_i^2) out of every zeta_i
+    (an ablation, issue 37; the estimates still adapt, eq. 38, and act nowhere); True is the
+    paper's law, bit for bit.
     """
 
     k: tuple[float, ...]
@@ -169,6 +172,7 @@ class ControllerParameters:
     discretization: Discretization = EXPLICIT
     sample_time: float = 1e-3
     b_max: float = 1.0
+    nn_term: bool = True
 
     def __post_init__(self) -> None:
         per_step = ("k", "q", "a", "kappa", "rho", "rho_bar")
@@ -190,6 +194,11 @@ class ControllerParameters:
             object.__setattr__(self, "discretization", Discretization.parse(self.discretization))
         except ValueError:
             problems.append(_choices(Discretization, self.discretization))
+        if isinstance(self.nn_term, (bool, int)) and self.nn_term in (0, 1):
+            object.__setattr__(self, "nn_term", bool(self.nn_term))
+        else:
+            problems.append(Problem("nn_term", None,
+                                    f"{{name}} must be 1 (on) or 0 (off) (got {self.nn_term!r})"))
         n = len(self.q)
         if n < 1:
             problems.append(Problem("q", None, "{name} must have at least one entry (plant order n >= 1)"))

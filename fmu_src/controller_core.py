@@ -14,7 +14,7 @@ The variables of order n, in this order (value references are a contract; n = 2 
 before issue 35, variable for variable): inputs x1..xn, yd, yd_dot, ..., (the n-th derivative);
 outputs v, z1..zn, zeta1..zeta(n-1), eta1_hat..etan_hat, r; parameters k1..kn, q1..qn, a1..an,
 kappa1..kappan, rho1..rhon, rho_bar1..rho_barn, alpha, beta, mode, a_bar, gamma_gain, gamma_power,
-d_r, r0, eta1_0..etan_0, mu1..mu7, tau, substeps, discretization, sample_time, b_max.
+d_r, r0, eta1_0..etan_0, mu1..mu7, tau, substeps, discretization, sample_time, b_max, nn_term.
 """
 
 from __future__ import annotations
@@ -155,6 +155,7 @@ def _defaults(slave: Fmi2Slave, n: int) -> None:
     slave.discretization = 0
     slave.sample_time = 1e-3
     slave.b_max = 1.0
+    slave.nn_term = 1
     slave._order = n
     slave._step_unchecked = False  # semi-implicit, and no step-size warning logged yet
     for name in output_names(n):  # written by refresh_controller_outputs
@@ -222,6 +223,10 @@ def _declare_parameters(slave: Fmi2Slave, n: int) -> None:
             "step)", unit="s", minimum=0.0)
     declare(slave, "b_max", PARAMETER, "Upper bound b_M of the plant's input gains g_i (paper's "
             "Assumption 3), used by the semi-implicit law", minimum=0.0)
+    # Added last (issue 37), likewise.
+    declare(slave, "nn_term", PARAMETER, "NN term eta_hat_i z_i P_i^T P_i / (2 a_i^2) in every zeta_i: "
+            "1 = on (the paper's law), 0 = off (the ablation; eta_hat still adapts)", integer=True, minimum=0,
+            maximum=1)
 
 
 # The parameters of ControllerParameters these FMUs name otherwise (their per-step gains are k1, k2 ...).
@@ -260,6 +265,7 @@ def _parameters(slave: Fmi2Slave) -> ControllerParameters:
             discretization=cast(Discretization, slave.discretization),  # likewise
             sample_time=slave.sample_time,
             b_max=slave.b_max,
+            nn_term=cast(bool, slave.nn_term),  # an int; ControllerParameters checks it
         )
     except ParameterError as error:
         problems.extend(p.render(_fmu_name) for p in error.problems)

@@ -94,13 +94,14 @@ def second_order_transcription(state, x, yd, p: ControllerParameters):
     P1 = np.array(rbf_basis(X1, p.centers, p.width))
     ptp1 = float(P1 @ P1)
     z1 = x1 - yd0
-    zeta1 = -k[0] * power(z1, a1) - p.q[0] * power(z1, a2) - eta1 * z1 * ptp1 / (2 * p.a[0] ** 2)
+    nn = 1.0 if p.nn_term else 0.0  # issue 37's switch: the NN term of each zeta_i in or out
+    zeta1 = -k[0] * power(z1, a1) - p.q[0] * power(z1, a2) - nn * eta1 * z1 * ptp1 / (2 * p.a[0] ** 2)
 
     X2 = np.array([x1, x2, eta1, yd0, yd1, yd2, r])
     P2 = np.array(rbf_basis(X2, p.centers, p.width))
     ptp2 = float(P2 @ P2)
     z2 = x2 - zeta1
-    zeta2 = -k[1] * power(z2, a1) - p.q[1] * power(z2, a2) - eta2 * z2 * ptp2 / (2 * p.a[1] ** 2)
+    zeta2 = -k[1] * power(z2, a1) - p.q[1] * power(z2, a2) - nn * eta2 * z2 * ptp2 / (2 * p.a[1] ** 2)
 
     r_dot = -p.a_bar * r + p.gamma_gain * x1**4 + p.d_r
     eta1_dot = p.kappa[0] * z1**2 * ptp1 / (2 * p.a[0] ** 2) - (p.rho[0] + p.rho_bar[0]) * eta1
@@ -117,8 +118,11 @@ def random_points(seed: int, count: int = 25):
 
 @pytest.mark.parametrize("example", [EXAMPLE1, EXAMPLE2], ids=["example1", "example2"])
 @pytest.mark.parametrize("mode", ["fixed-time", "finite-time"])
-def test_second_order_against_transcription(example, mode: str) -> None:
-    params = example.controller.with_changes(mode=mode, alpha=1.3, beta=0.8)
+@pytest.mark.parametrize("nn_term", [True, False], ids=["nn-on", "nn-off"])
+def test_second_order_against_transcription(example, mode: str, nn_term: bool) -> None:
+    """Issue 37: with the NN term off, zeta_i loses eta_hat_i z_i P_i^T P_i / (2 a_i^2) and nothing
+    else (the estimates still adapt, eq. 38, on the z_2 of the law without it)."""
+    params = example.controller.with_changes(mode=mode, alpha=1.3, beta=0.8, nn_term=nn_term)
     points = [([0.0, 0.0, 0.0], [0.5, 0.5], [0.0, 0.5, 0.0])] + list(random_points(7))
     for state, x, yd in points:
         v, z, zeta, ptp, derivative = second_order_transcription(state, x, yd, params)
@@ -159,3 +163,10 @@ def test_finite_time_first_step_differs_by_exactly_the_k_term() -> None:
         z1 = x[0] - yd[0]
         difference = evaluate(state, x, yd, fixed).zeta[0] - evaluate(state, x, yd, finite).zeta[0]
         assert difference == pytest.approx(-25.0 * power(z1, 2 * fixed.alpha - 1), rel=1e-12, abs=1e-14)
+
+
+def test_nn_term_switch_accepts_zero_and_one_only() -> None:
+    assert EXAMPLE1.controller.nn_term is True
+    assert EXAMPLE1.controller.with_changes(nn_term=0).nn_term is False
+    with pytest.raises(ValueError, match=r"nn_term must be 1 \(on\) or 0 \(off\) \(got 2\)"):
+        EXAMPLE1.controller.with_changes(nn_term=2)

@@ -48,6 +48,7 @@ def parameters(draw: st.DrawFn) -> ControllerParameters:
         eta0=(draw(positive), draw(positive)), centers=tuple(centers), width=draw(st.floats(0.5, 4.0)),
         discretization=draw(st.sampled_from([EXPLICIT, SEMI_IMPLICIT])),
         sample_time=draw(st.floats(1e-4, 1e-2)), b_max=draw(st.floats(0.2, 5.0)),
+        nn_term=draw(st.booleans()),  # issue 37's ablation switch, both ways
     )
 
 

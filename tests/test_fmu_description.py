@@ -36,7 +36,7 @@ def controller_parameters(n: int) -> dict[str, tuple[float, str | None]]:
     out |= {"alpha": (1.5, None), "beta": (0.75, None), "mode": (0, None), "a_bar": (1.0, "1/s"),
             "gamma_gain": (2.5, None), "gamma_power": (4.0, None), "d_r": (0.625, None), "r0": (0.0, None),
             "tau": (2.0, None), "substeps": (1, None), "discretization": (0, None),
-            "sample_time": (1e-3, "s"), "b_max": (1.0, None)}
+            "sample_time": (1e-3, "s"), "b_max": (1.0, None), "nn_term": (1, None)}
     out |= {f"eta{i}_0": (0.0, None) for i in range(1, n + 1)}
     out |= {f"mu{j}": (c, None) for j, c in enumerate((-1.5, -1, -0.5, 0, 0.5, 1, 1.5), start=1)}
     return out
@@ -70,7 +70,7 @@ CONTROLLER_PARAMETERS = (
     [f"{g}{i}" for g in ("k", "q", "a", "kappa", "rho", "rho_bar") for i in (1, 2)]
     + ["alpha", "beta", "mode", "a_bar", "gamma_gain", "gamma_power", "d_r", "r0", "eta1_0", "eta2_0"]
     + [f"mu{j}" for j in range(1, 8)]
-    + ["tau", "substeps", "discretization", "sample_time", "b_max"]
+    + ["tau", "substeps", "discretization", "sample_time", "b_max", "nn_term"]
 )
 PARAMETERS = {  # model -> parameter -> (default, unit)
     "Reference": {
@@ -107,6 +107,7 @@ PARAMETERS = {  # model -> parameter -> (default, unit)
         "discretization": (0, None),
         "sample_time": (1e-3, "s"),
         "b_max": (1.0, None),
+        "nn_term": (1, None),
         **{f"mu{j}": (c, None) for j, c in enumerate((-1.5, -1, -0.5, 0, 0.5, 1, 1.5), start=1)},
     },
     "Actuator": {
@@ -248,9 +249,11 @@ def test_parameter_defaults_and_units(fmus: dict, model: str) -> None:
     if model == "ManipulatorPlant":
         assert (variables["x1"].unit, variables["x3"].unit, variables["uf"].unit) == ("rad", "A", "V")
     if model in ORDERS:
-        assert {variables[n].type for n in ("mode", "substeps", "discretization")} == {"Integer"}
-        # issue 11's parameters were added last: the value references of the others do not move
-        assert [v.name for v in md.modelVariables][-3:] == ["discretization", "sample_time", "b_max"]
+        assert {variables[n].type for n in ("mode", "substeps", "discretization", "nn_term")} == {"Integer"}
+        # issue 11's parameters, then issue 37's, were added last: the value references of the others
+        # do not move
+        last = ["discretization", "sample_time", "b_max", "nn_term"]
+        assert [v.name for v in md.modelVariables][-4:] == last
     # every unit used is defined, with SI base-unit exponents
     used = {v.unit for v in md.modelVariables if v.unit}
     defined = {u.name: u.baseUnit for u in md.unitDefinitions}

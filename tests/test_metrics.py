@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from orchestrator.experiments.metrics import TrackingMetrics, format_table, tracking_metrics
+from orchestrator.experiments.metrics import TrackingMetrics, format_table, recovery_time, tracking_metrics
 
 
 def periodic_grid(periods: int = 3, samples: int = 3000) -> np.ndarray:
@@ -146,3 +146,26 @@ def test_control_effort_is_the_integral_of_the_held_signal() -> None:
     m = tracking_metrics(fine, fine, fine, v=0 * fine, uf=3.0 * np.exp(-fine))
     assert m.effort_uf == pytest.approx(3.0 * (1.0 - math.exp(-1.0)), rel=1e-4)
     assert m.effort_v == 0.0 and tracking_metrics(t, t, t).effort_v is None
+
+
+def test_recovery_time_of_an_exponential_decay() -> None:
+    """Issue 37: |e| = 0.01 |sin(40 t)| before the fault (band: 0.01, its peak in the last second),
+    A exp(-(t - t_f) / tau) after it: back inside the band at t_f + tau ln(A / 0.01), to within one
+    sample (the first sample at or after that instant)."""
+    h, t_f, tau, amplitude = 1e-3, 4.0005, 0.3, 2.0
+    t = np.arange(0, 12001) * h
+    e = np.where(t < t_f, 0.01 * np.sin(40.0 * t), amplitude * np.exp(-(t - t_f) / tau))
+    exact = tau * math.log(amplitude / 0.01)  # 1.5895 s
+    measured = recovery_time(t, e, t_f, window=1.0)
+    assert exact <= measured < exact + h
+
+
+def test_recovery_time_never_and_at_once() -> None:
+    t = np.arange(0, 3001) * 1e-3
+    step = np.where(t < 1.0, 0.01, 0.02)  # never back inside 0.01: inf (not an error)
+    assert recovery_time(t, step, 1.0) == math.inf
+    assert recovery_time(t, 0.01 * np.cos(t), 1.0) == 0.0  # |e| shrinks: never leaves its band
+    with pytest.raises(ValueError, match="no sample at or after"):
+        recovery_time(t, step, 4.0)
+    with pytest.raises(ValueError, match="pre-fault window"):
+        recovery_time(t, step, 0.0)

@@ -61,3 +61,16 @@ def test_the_campaigns_page_copies_no_count() -> None:
     text = (DOCS / "campaigns.md").read_text(encoding="utf-8")
     assert not re.findall(r"\d+ (?:of \d+|states) (?:states )?(?:diverge|settle)", text)
     assert "333 of 441" not in text and "109 states" not in text
+
+
+def test_every_figure_the_study_ships_is_in_the_docs() -> None:
+    """Issue 37: the pendulum saturation figure, the only one with the never-settled states, was
+    named in the study's code (DOC_FIGURES) but not in docs/: each is committed, linked from the
+    generated table page, and the saturation ones from the study page."""
+    from orchestrator.experiments.fixed_time_study import DOC_FIGURES
+
+    study, index = STUDY.read_text(encoding="utf-8"), INDEX.read_text(encoding="utf-8")
+    for name in DOC_FIGURES:
+        assert (STUDY.parent / name).is_file(), name
+        assert f"![{name}]({name})" in study, name
+    assert all(f"]({name})" in index for name in DOC_FIGURES if "saturation" in name)

@@ -62,6 +62,10 @@ PARAMETERS = {
               "law; a larger value is a bound too and makes its one-sample correction gentler",
               "Assumption 3",
               "> 0 (semi-implicit only)"),
+    "nn_term": ("1: the NN term eta_hat_i z_i P_i^T P_i / (2 a_i^2) in every zeta_i (the paper's law); "
+                "0: left out, an ablation (not in the paper; eta_hat still adapts and is an output)",
+                "(37), (54), (68)",
+                "0 or 1"),
 }
 PARAMETER_COLUMNS = ["parameter", "type", "default", "unit", "meaning", "equation", "allowed",
                      "declared range"]

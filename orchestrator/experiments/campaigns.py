@@ -6,6 +6,11 @@ settling time in the 0.05 band, peak |v|, peak |uf|), the largest and the final 
 the run's parameters name ``actuator.t_fault`` (varied or fixed in the design), MAE and the
 largest |y - yd| from the fault on (NaN when the fault lies beyond the run), and the time reached.
 A failed run keeps its peaks, largest error and the time it reached (:data:`PARTIAL`).
+
+:data:`RESEARCH` (the research questions of issue 37, ``make research``) adds the recovery time
+after the fault (:func:`~orchestrator.experiments.metrics.recovery_time`, pre-fault window
+:data:`RECOVERY_WINDOW`) and the adaptive estimates' statistics per step i: the largest
+``eta_hat_i``, its final value and its change over the last :data:`RECOVERY_WINDOW` of the run.
 """
 
 from __future__ import annotations
@@ -19,10 +24,10 @@ import numpy as np
 
 from ..campaign import Metrics
 from ..campaign import cli as campaign_cli
-from .metrics import tracking_metrics
+from .metrics import pre_fault_band, recovery_time, tracking_metrics
 
-__all__ = ["BAND", "PARTIAL", "TRACKING", "TRACKING_NAMES", "claim_headlines", "fault_headlines", "register",
-           "tracking_row"]
+__all__ = ["BAND", "ESTIMATES", "PARTIAL", "RECOVERY_WINDOW", "RESEARCH", "TRACKING", "TRACKING_NAMES",
+           "claim_headlines", "fault_headlines", "register", "research_row", "tracking_row"]
 
 BAND = 0.05
 
@@ -81,6 +86,43 @@ PARTIAL = ("peak_v", "peak_uf", "max_error", "time_reached")
 AFTER_FAULT = ("mae_after_fault", "max_error_after_fault")
 TRACKING = Metrics(names=TRACKING_NAMES, function=tracking_row, partial=PARTIAL,
                    events={"actuator.t_fault": AFTER_FAULT})
+
+# The pre-fault window of the recovery time, and the final window of the estimates' change (s).
+RECOVERY_WINDOW = 1.0
+# The estimates' statistics for the steps of the study's plants (n = 2): NaN where a step is missing.
+ESTIMATES = tuple(f"eta{i}_{what}" for what in ("max", "final", "change") for i in (1, 2))
+
+
+def research_row(result: np.ndarray, params: Mapping[str, object]) -> dict[str, float]:
+    """:func:`tracking_row` with ``recovery_time`` and its pre-fault band ``recovery_band`` (when
+    ``actuator.t_fault`` lies inside the run, one window after its start) and, per step i = 1, 2,
+    ``eta<i>_max``, ``eta<i>_final`` and
+    ``eta<i>_change`` = eta_hat_i(T) - eta_hat_i(T - RECOVERY_WINDOW) (NaN for a shorter run)."""
+    row = tracking_row(result, params)
+    row.update(dict.fromkeys(("recovery_time", "recovery_band", *ESTIMATES), math.nan))
+    t = result["time"]
+    if "actuator.t_fault" in params:
+        t_fault = float(cast("float | str", params["actuator.t_fault"]))
+        if t[0] <= t_fault - RECOVERY_WINDOW and t[-1] >= t_fault:
+            error = result["plant.y"] - result["reference.yd"]
+            row["recovery_time"] = recovery_time(t, error, t_fault, RECOVERY_WINDOW)
+            row["recovery_band"] = pre_fault_band(t, error, t_fault, RECOVERY_WINDOW)
+    for i in (1, 2):
+        name = f"controller.eta{i}_hat"
+        if name not in (result.dtype.names or ()):
+            continue
+        eta = result[name]
+        row[f"eta{i}_max"] = float(np.max(eta))
+        row[f"eta{i}_final"] = float(eta[-1])
+        if t[-1] - t[0] >= RECOVERY_WINDOW:
+            row[f"eta{i}_change"] = float(eta[-1] - np.interp(t[-1] - RECOVERY_WINDOW, t, eta))
+    return row
+
+
+RESEARCH = Metrics(names=(*TRACKING_NAMES, "recovery_time", "recovery_band", *ESTIMATES),
+                   function=research_row,
+                   partial=(*PARTIAL, "eta1_max", "eta2_max"),
+                   events={"actuator.t_fault": (*AFTER_FAULT, "recovery_time", "recovery_band")})
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -12,7 +12,13 @@ With ``e = y - yd`` sampled at ``t_0 < t_1 < ... < t_N`` (uniform step):
 * peak ``|v|`` and peak ``|uf|`` when those signals are given (``None`` otherwise);
 * control effort (issue 37) when they are given: the integrals of ``|v|``, ``v^2`` and ``|uf|``
   over the run, of the signals as a sampled controller applies them (held from each sample to the
-  next: ``sum |v_k| (t_(k+1) - t_k)``, exact for the zero-order hold, no quadrature error).
+  next: ``sum |v_k| (t_(k+1) - t_k)``, exact for the zero-order hold, no quadrature error);
+* recovery after a fault at ``t_fault`` (issue 37, :func:`recovery_time`): the pre-fault band is
+  the largest ``|e|`` over the window ``t_fault - window <= t < t_fault``; the recovery time is the
+  settling time into that band of the samples from ``t_fault`` on, measured from ``t_fault``:
+  ``t_j - t_fault`` for the first sample ``t_j >= t_fault`` after which ``|e| <= band`` holds to the
+  end (0 if ``|e|`` never leaves the band), ``math.inf`` if the last sample is outside it (the error
+  has not returned within the run: "never", which is an answer, not a failed run).
 """
 
 from __future__ import annotations
@@ -25,7 +31,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 __all__ = [
-    "GRID_RTOL", "TrackingMetrics", "format_table", "held_integral", "settling_time", "tracking_metrics",
+    "GRID_RTOL", "TrackingMetrics", "format_table", "held_integral", "pre_fault_band", "recovery_time",
+    "settling_time",
+    "tracking_metrics",
 ]
 
 # Largest allowed deviation of any sample step from the mean step, relative to the mean step.
@@ -86,6 +94,37 @@ def settling_time(t: np.ndarray, error: np.ndarray, band: float) -> float:
         return float(t[0])
     last = int(outside[-1])
     return float(t[last + 1]) if last + 1 < t.size else math.inf
+
+
+def pre_fault_band(t: ArrayLike, error: ArrayLike, t_fault: float, window: float = 1.0) -> float:
+    """The largest ``|error|`` over ``t_fault - window <= t < t_fault``: the band :func:`recovery_time`
+    measures the return into. ``ValueError`` if the window holds no sample or is not positive."""
+    t = np.asarray(t, dtype=float)
+    if not (math.isfinite(window) and window > 0.0):
+        raise ValueError(f"window must satisfy window > 0 (got {window!r})")
+    before = (t >= t_fault - window) & (t < t_fault)
+    if not before.any():
+        raise ValueError(f"no sample in the pre-fault window [{t_fault - window!r}, {t_fault!r})")
+    return float(np.max(np.abs(np.asarray(error, dtype=float)[before])))
+
+
+def recovery_time(t: ArrayLike, error: ArrayLike, t_fault: float, window: float = 1.0) -> float:
+    """Time after ``t_fault`` until ``|error|`` is back inside its pre-fault band for good.
+
+    The band is :func:`pre_fault_band` (module docstring); the result is 0 if ``|error|`` never
+    leaves it from ``t_fault`` on and ``math.inf`` if the last sample is outside it. ``ValueError``
+    if the window holds no sample or no sample lies at or after ``t_fault`` (the band or the
+    recovery would be undefined), or for a window that is not positive.
+    """
+    t = np.asarray(t, dtype=float)
+    band = pre_fault_band(t, error, t_fault, window)
+    after = t >= t_fault
+    if not after.any():
+        raise ValueError(f"no sample at or after t_fault = {t_fault!r} (the run ends at {t[-1]!r})")
+    e = np.abs(np.asarray(error, dtype=float)[after])
+    if np.all(e <= band):
+        return 0.0
+    return settling_time(t[after], e, band) - t_fault
 
 
 def tracking_metrics(

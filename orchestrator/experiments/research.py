@@ -5,9 +5,11 @@
 :data:`QUESTIONS` through ``orchestrate sweep``'s engine (``--report-only``: from the tables an
 earlier run left) and writes ``docs/research/index.md``: per design the table of its runs (every
 number generated from ``runs.parquet``), a one-line answer computed from them, and its figures.
-Today: Remark 6, the gains k_i, q_i, rho_i and a_i, each halved and doubled around the paper's
-values, with the control effort (integrals of |v|, v^2, |uf|) beside settling time, peak |v| and
-tracking error.
+Remark 6, the gains k_i, q_i, rho_i and a_i, each halved and doubled around the paper's values,
+with the control effort (integrals of |v|, v^2, |uf|) beside settling time, peak |v| and tracking
+error; then the questions of :data:`FINDINGS` (recovery after the fault, the adaptive estimates,
+the NN term's contribution), summarised by :mod:`orchestrator.experiments.findings` from runs with
+the metrics of :data:`~orchestrator.experiments.campaigns.RESEARCH`; and the text of :data:`EQ84`.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from __future__ import annotations
 import argparse
 import shutil
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -24,9 +26,11 @@ import numpy as np
 
 from ..campaign import read_design, read_table, sweep
 from ..campaign.report import write_report
-from .campaigns import TRACKING
+from . import findings
+from .campaigns import RESEARCH, TRACKING
 
-__all__ = ["QUESTIONS", "Question", "answer", "main", "run_table", "write_page"]
+__all__ = ["EQ84", "FINDINGS", "QUESTIONS", "Finding", "Question", "answer", "main", "run_table",
+           "write_page"]
 
 CAMPAIGNS = Path("ssp") / "campaigns"
 DEFAULT_OUT = Path("results") / "campaigns"
@@ -52,6 +56,59 @@ QUESTIONS = tuple(
              (f"controller.{g}1", f"controller.{g}2"))
     for g in ("k", "q", "rho", "a")
 )
+
+
+@dataclass(frozen=True)
+class Finding:
+    """A research question summarised over its campaign: the design, its scenarios, what the
+    page says of its definitions (``note``) and the summary (tables, answer) of its rows."""
+
+    title: str
+    design: str
+    scenarios: tuple[str, ...]
+    note: str
+    summary: Callable[[Sequence[Mapping[str, Any]]], findings.Summary]
+    figures: bool = True  # False: the design's figures are shown with another question
+
+
+FINDINGS = (
+    Finding("Recovery after the fault", "fault_recovery", ("example1", "pendulum"),
+            "The fault-tolerance campaign's 40 faults (`fault_tolerance.toml`'s Latin hypercube) on both "
+            "examples and both laws, 12 s. **Recovery time**: the time after t_fault until abs(y - yd) is "
+            "back inside its pre-fault band for good; the band is the largest abs(y - yd) over the second "
+            "before t_fault (`orchestrator/experiments/metrics.py`, `recovery_time`). A run whose error "
+            "is still outside the band at its end is *never back* (within the horizon): an answer, not a "
+            "failed run. Zero: the error never left the band.", findings.recovery),
+    Finding("The adaptive estimates eta_hat", "estimates", ("example1_smooth", "pendulum_smooth"),
+            "The controller FMUs output eta1_hat and eta2_hat (unchanged since issue 35). Over the study's "
+            "initial states on an 11 x 11 grid (every other state of its 21 x 21 grid), both laws, "
+            "explicit sampling, 4 s: the largest estimate of each run, its final value and its change "
+            "over the run's last second (eta_hat(4 s) - eta_hat(3 s)). Runs that diverge are left out "
+            "(counted as runs minus ok).", findings.estimates),
+    Finding("The NN term's contribution", "nn_term", ("example1_smooth", "pendulum_smooth"),
+            "The fixed-time law with its NN term eta_hat_i z_i P_i^T P_i / (2 a_i^2) switched out of every "
+            "zeta_i (controller parameter `nn_term` = 0; the estimates still adapt) against the paper's "
+            "law (`nn_term` = 1, bit for bit the law of before), explicit sampling, from the study's "
+            "initial states on an 11 x 11 grid (every other state of its 21 x 21 grid), 3 s. Settling: "
+            "the 0.05 band. Paired table: per initial state, the two runs compared.", findings.nn_term),
+)
+EQ84 = Finding(
+    "Eq. (84), the bound on the tracking error", "nn_term", ("example1_smooth", "pendulum_smooth"),
+    "Eq. (84) reads abs(y - yd) <= 2 (x_0 / ((1 - Phi) c))^(1 / (2 alpha)) with x_0 = b_0 + c_0 (eq. 79). "
+    "It cannot be evaluated for the paper's examples: b_0 (eq. 77) sums, per step j, "
+    "(o_j + rho_tilde_j) eta_j^2 / (2 kappa_j) with eta_j = norm(W_j*)^2 / b_m (the ideal NN weights, "
+    "never given), epsilon_j^2 / 2 (the NN approximation error bound, never given), l_j and sigma_j "
+    "(Lemma 6 constants of the unknown bounds psi_j1, psi_j2 of Assumption 5), b_j(t) (from the ISpS "
+    "gains of Assumption 6) and d_j*^2 / 2 (disturbance bounds), plus b_m beta_bar^2 / 2 and "
+    "b_m L_bar^2 / 2 (bounds of the fault's beta(t) and L(t); L(t) = L_gain x2 cos^2 x1 + L_bias "
+    "is bounded only once x2 is) and d / kappa_0 (Assumption 6's d and a kappa_0 the law never uses); "
+    "c_0 is \"assumed\" to bound a term on the set abs(z_1) < 0.8814 nu with nu never chosen. Every one "
+    "of those terms is non-negative, so what the paper does give is a lower bound of x_0: "
+    "sum a_j^2 / 2 + (1 - alpha) alpha^(1 - alpha) + (1 - beta) beta^(1 - beta) "
+    "(`orchestrator/experiments/findings.py`, `eq84`), with c of eq. (77) as the study's T_m uses it "
+    "(b_m = m_bar = 1) and c <= a_bar for any b_m, m_bar. The bound of eq. (84) is at least the values "
+    "below, against the largest final error of the full law's settled runs of the NN term campaign "
+    "above.", findings.eq84, figures=False)
 
 
 def run_table(rows: Sequence[Mapping[str, Any]], question: Question) -> str:
@@ -87,7 +144,17 @@ def answer(rows: Sequence[Mapping[str, Any]], question: Question) -> str:
     return "; ".join(parts) + " (medians over the other gain)."
 
 
-def write_page(tables: Mapping[Question, Sequence[Mapping[str, Any]]], out: Path, docs: Path,
+def _figures(design: str, out: Path, docs: Path) -> list[str]:
+    """The design's report figures copied into ``docs`` as Markdown images."""
+    parts = []
+    for figure in sorted((out / design / "report").glob("*.png")):
+        name = f"{design}_{figure.name}"
+        shutil.copyfile(figure, docs / name)
+        parts.append(f"![{design}: {figure.stem}]({name})")
+    return parts
+
+
+def write_page(tables: Mapping[Question | Finding, Sequence[Mapping[str, Any]]], out: Path, docs: Path,
                seconds: float | None) -> str:
     """``docs/index.md`` (the tables, answers and figures) with the figures copied from ``out``."""
     docs.mkdir(parents=True, exist_ok=True)
@@ -98,15 +165,20 @@ def write_page(tables: Mapping[Question, Sequence[Mapping[str, Any]]], out: Path
     if seconds is not None:
         parts.append(f"Wall time of the campaigns and this page: {seconds:.0f} s.")
     for question, rows in tables.items():
-        figures = sorted((out / question.design / "report").glob("*.png"))
-        parts += [f"## {question.title}",
-                  f"Design `ssp/campaigns/{question.design}.toml`, scenario `{question.scenario}`, "
-                  f"{len(rows)} runs, {sum(r['status'] == 'ok' for r in rows)} ok.",
-                  f"**Answer.** {answer(rows, question)}", run_table(rows, question)]
-        for figure in figures:
-            name = f"{question.design}_{figure.name}"
-            shutil.copyfile(figure, docs / name)
-            parts.append(f"![{question.design}: {figure.stem}]({name})")
+        if isinstance(question, Finding):
+            summary_tables, line = question.summary(rows)
+            parts += [f"## {question.title}",
+                      f"Design `ssp/campaigns/{question.design}.toml`, scenarios "
+                      + ", ".join(f"`{s}`" for s in question.scenarios)
+                      + f", {len(rows)} runs, {sum(r['status'] == 'ok' for r in rows)} ok. {question.note}",
+                      f"**Answer.** {line}", *summary_tables]
+        else:
+            parts += [f"## {question.title}",
+                      f"Design `ssp/campaigns/{question.design}.toml`, scenario `{question.scenario}`, "
+                      f"{len(rows)} runs, {sum(r['status'] == 'ok' for r in rows)} ok.",
+                      f"**Answer.** {answer(rows, question)}", run_table(rows, question)]
+        if not isinstance(question, Finding) or question.figures:
+            parts += _figures(question.design, out, docs)
     text = "\n\n".join(parts) + "\n"
     (docs / "index.md").write_text(text, encoding="utf-8")
     return text
@@ -123,12 +195,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--report-only", action="store_true", help="from the tables of an earlier run")
     args = parser.parse_args(argv)
     started = time.perf_counter()
-    tables = {}
-    for question in QUESTIONS:
+    tables: dict[Question | Finding, list[dict[str, Any]]] = {}
+    everything: tuple[Question | Finding, ...] = (*QUESTIONS, *FINDINGS, EQ84)
+    for question in everything:
         folder = args.out / question.design
-        if not args.report_only:
-            summary = sweep([args.build / "ssp" / f"{question.scenario}.ssp"],
-                            read_design(CAMPAIGNS / f"{question.design}.toml"), folder, metrics=TRACKING,
+        if not args.report_only and not any(q.design == question.design for q in tables):
+            scenarios, metrics = ((question.scenario,), TRACKING) if isinstance(question, Question) else (
+                question.scenarios, RESEARCH)
+            summary = sweep([args.build / "ssp" / f"{s}.ssp" for s in scenarios],
+                            read_design(CAMPAIGNS / f"{question.design}.toml"), folder, metrics=metrics,
                             workers=args.workers, force=True)
             write_report(summary.parquet, folder / "report")
         tables[question] = read_table(folder / "runs.parquet")[0]
