@@ -184,7 +184,7 @@ study-fixed-time: build
 	  --docs docs/fixed-time-study
 
 ## crosscheck-all: the cross-check system test over every scenario and FMI 3.0 twin in every tool
-## (make test runs one scenario of each plant and one twin; about 12 minutes)
+## (make test runs example1, manipulator and one FMI 3.0 twin; all of them take about 12 minutes)
 crosscheck-all: build
 	CROSSCHECK_ALL=1 $(PY) -m pytest -q tests/test_crosscheck_system.py
 
