@@ -198,7 +198,7 @@ check-fail-fast: build
 
 ## research: the research-question campaigns of issue 37 (Remark 6's gains with control effort,
 ## recovery after the fault, the eta_hat estimates, the NN term on/off; eq. 84): tables in
-## results/campaigns/<design>/, the generated page docs/research/index.md (about 15 min on 2 cores)
+## results/campaigns/<design>/, the generated page docs/research/index.md (492 s on 2 quiet cores)
 research: build
 	$(PY) -m orchestrator.experiments.research
 
