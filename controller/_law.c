@@ -9,11 +9,12 @@
 
    Same bits: every expression is evaluated in the order Python evaluates it (left to right, no
    reassociation: built without -ffast-math and with -ffp-contract=off, so no fused multiply-add);
-   exp and pow are the C library's, which Python's math.exp and float ** call too; min follows
-   Python's builtin (the first argument unless the second is strictly smaller), which matters for
-   nan. Python's float ** and math.exp raise where C returns inf: py_pow and py_exp below repeat
-   CPython's special cases and errno rules (Objects/floatobject.c float_pow, Modules/mathmodule.c
-   math_1), and an evaluation raises the first error at the point where the Python code would.
+   exp and pow are fmath.h's, which controller/fmath.py repeats in Python (same bits on every
+   platform, unlike the C library's); min follows Python's builtin (the first argument unless the
+   second is strictly smaller), which matters for nan. fmath.exp and fmath.power raise where C
+   returns inf: py_pow and py_exp below repeat their special cases (those of CPython's float_pow,
+   Objects/floatobject.c, and math_1, Modules/mathmodule.c), and an evaluation raises the first
+   error at the point where the Python code would.
 
    Why compiled: the law costs about 1.5 us per RK4 stage in Python, four stages per communication
    step; a controller FMU spends its step there. What depends on the held inputs alone (|x1|^gamma,
@@ -31,9 +32,10 @@
 
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
-#include <errno.h>
 #include <math.h>
 #include <stdint.h>
+
+#include "fmath.h"
 
 #define MAX_ORDER 4
 #define HEADER 12 /* doubles before the per-step gains, see law_constants in native.py */
@@ -48,27 +50,26 @@ typedef struct {
 } Law;
 
 /* A power computed ahead of its use: its value, and the error Python raises when it computes it
-   (0: none; an errno value; NEGATIVE_ZERO_POWER: 0 raised to a negative power). */
+   (0: none; OVERFLOWED: OverflowError; NEGATIVE_ZERO_POWER: 0 raised to a negative power). */
 typedef struct {
     double value;
     int error;
 } Power;
 
-enum { NEGATIVE_ZERO_POWER = -1 };
+enum { OVERFLOWED = 1, NEGATIVE_ZERO_POWER = 2 };
 
 static int raise_power(int error) {
     if (error == NEGATIVE_ZERO_POWER) {
         PyErr_SetString(PyExc_ZeroDivisionError, "0.0 cannot be raised to a negative power");
     } else {
-        errno = error;
-        PyErr_SetFromErrno(error == ERANGE ? PyExc_OverflowError : PyExc_ValueError);
+        PyErr_SetString(PyExc_OverflowError, "math range error");
     }
     return -1;
 }
 
 static int is_odd_integer(double x) { return fmod(fabs(x), 2.0) == 1.0; }
 
-/* iv ** iw as CPython's float_pow computes it, for iv >= 0 or nan (the law raises |z| and |x1|). */
+/* fmath.power(iv, iw) (CPython's float_pow on fmath's pow), for iv >= 0 or nan (the law raises |z|, |x1|). */
 static Power py_pow(double iv, double iw) {
     Power out = {0.0, 0};
     if (iw == 0.0) {
@@ -91,35 +92,16 @@ static Power py_pow(double iv, double iw) {
     } else if (iv == 1.0) {
         out.value = 1.0;
     } else {
-        errno = 0;
-        out.value = pow(iv, iw);
-        if (errno == 0) { /* Py_ADJUST_ERANGE1 */
-            if (isinf(out.value)) errno = ERANGE;
-        } else if (errno == ERANGE && out.value == 0.0) {
-            errno = 0;
-        }
-        out.error = errno;
+        out.value = ftc_pow(iv, iw);
+        if (isinf(out.value)) out.error = OVERFLOWED;
     }
     return out;
 }
 
-/* math.exp(x) into *out; -1 with Python's exception where math.exp raises. */
+/* fmath.exp(x) into *out; -1 with its OverflowError where the result overflows. */
 static int py_exp(double x, double *out) {
-    errno = 0;
-    double r = exp(x);
-    if (isnan(r) && !isnan(x)) {
-        PyErr_SetString(PyExc_ValueError, "math domain error");
-        return -1;
-    }
+    double r = ftc_exp(x);
     if (isinf(r) && isfinite(x)) {
-        PyErr_SetString(PyExc_OverflowError, "math range error");
-        return -1;
-    }
-    if (isfinite(r) && errno == EDOM) {
-        PyErr_SetString(PyExc_ValueError, "math domain error");
-        return -1;
-    }
-    if (isfinite(r) && errno == ERANGE && fabs(r) >= 1.5) {
         PyErr_SetString(PyExc_OverflowError, "math range error");
         return -1;
     }

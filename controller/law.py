@@ -12,6 +12,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from .fmath import power
 from .params import SEMI_IMPLICIT, ControllerParameters
 from .rbf import rbf_energy
 
@@ -22,7 +23,7 @@ __all__ = [
 
 def sig(z: float, p: float) -> float:
     """sig(z)^p = sign(z) |z|^p."""
-    return math.copysign(abs(z) ** p, z) if z != 0.0 else 0.0
+    return math.copysign(power(abs(z), p), z) if z != 0.0 else 0.0
 
 
 def semi_implicit_feedback(z: float, phi: float, bh: float) -> float:
@@ -111,7 +112,7 @@ def _law(
     z_list: list[float] = []
     zeta_list: list[float] = []
     ptp_list: list[float] = []
-    rates = [-p.a_bar * r + p.gamma_gain * abs(x[0]) ** p.gamma_power + p.d_r]  # eq. 20
+    rates = [-p.a_bar * r + p.gamma_gain * power(abs(x[0]), p.gamma_power) + p.d_r]  # eq. 20
     previous = yd[0]
     for i in range(n):
         if i > 0:
@@ -125,8 +126,8 @@ def _law(
             zeta = 0.0
         elif semi:
             a = abs(z)
-            phi = k[i] * a**p_alpha + p.q[i] * a**p_beta + eta[i] * a * weight if nn else (
-                k[i] * a**p_alpha + p.q[i] * a**p_beta)
+            phi = k[i] * power(a, p_alpha) + p.q[i] * power(a, p_beta) + eta[i] * a * weight if nn else (
+                k[i] * power(a, p_alpha) + p.q[i] * power(a, p_beta))
             zeta = semi_implicit_feedback(z, phi, bh)
         elif z != 0.0:  # eq. 37/54/68; zeta = 0 at z = 0 (sig(0) = 0), as a positive zero
             zeta = -k[i] * sig(z, p_alpha) - p.q[i] * sig(z, p_beta) - eta[i] * z * weight if nn else (

@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 
+from .fmath import exp, power
 from .law import ControlTerms
 from .params import SEMI_IMPLICIT, ControllerParameters
 
@@ -65,7 +66,7 @@ def _kernels_for(params: ControllerParameters) -> tuple[Callable[..., Held], Cal
     m1, m2, m3, m4, m5, m6, m7 = (m for m, _ in neurons1) if seven else (0.0,) * 7
     c1, c2, c3, c4, c5, c6, c7 = (c for _, c in neurons1) if seven else (0.0,) * 7
     d1, d2, d3, d4, d5, d6, d7 = (d for _, d in neurons2) if seven else (0.0,) * 7
-    exp, copysign = math.exp, math.copysign
+    copysign = math.copysign
     semi = params.discretization == SEMI_IMPLICIT  # controller.law.semi_implicit_feedback, inlined
     nn = params.nn_term  # False: the NN term left out of zeta1 and v (issue 37's ablation)
     bh = params.b_max * params.sample_time
@@ -76,13 +77,13 @@ def _kernels_for(params: ControllerParameters) -> tuple[Callable[..., Held], Cal
         z1 = x1 - yd
         a = abs(z1)
         if semi:  # phi's first two terms and the boundary layer |z1| / (b h)
-            gains1 = k1 * a**p_alpha + q1 * a**p_beta
+            gains1 = k1 * power(a, p_alpha) + q1 * power(a, p_beta)
             layer1 = a / bh
         else:  # zeta1's first two terms; b h is not validated (nor used) by the explicit law
-            gains1 = -k1 * copysign(a**p_alpha, z1) - q1 * copysign(a**p_beta, z1)
+            gains1 = -k1 * copysign(power(a, p_alpha), z1) - q1 * copysign(power(a, p_beta), z1)
             layer1 = 0.0
         return (x1 + yd + yd1, x1 * x1 + yd * yd + yd1 * yd1, x2, x2 * x2, yd2, yd2 * yd2, z1, a, gains1,
-                layer1, kappa1 * z1 * z1, gamma_gain * abs(x1) ** gamma_power)
+                layer1, kappa1 * z1 * z1, gamma_gain * power(abs(x1), gamma_power))
 
     def rates(r: float, eta1: float, eta2: float, inputs: Held) -> Rates:
         """(zeta1, z2, weight2, ptp1, ptp2, r', eta1', eta2') at states (r, eta1, eta2)."""
@@ -143,13 +144,14 @@ def _kernels_for(params: ControllerParameters) -> tuple[Callable[..., Held], Cal
         if z2 != 0.0:
             a = abs(z2)
             if semi:
-                phi = k2 * a**p_alpha + q2 * a**p_beta + eta2 * a * weight2 if nn else (
-                    k2 * a**p_alpha + q2 * a**p_beta)
+                phi = k2 * power(a, p_alpha) + q2 * power(a, p_beta) + eta2 * a * weight2 if nn else (
+                    k2 * power(a, p_alpha) + q2 * power(a, p_beta))
                 v = -copysign(a / bh if a / bh < phi else phi, z2)  # min(phi, a / bh)
             elif nn:
-                v = -k2 * copysign(a**p_alpha, z2) - q2 * copysign(a**p_beta, z2) - eta2 * z2 * weight2
+                v = (-k2 * copysign(power(a, p_alpha), z2) - q2 * copysign(power(a, p_beta), z2)
+                     - eta2 * z2 * weight2)
             else:
-                v = -k2 * copysign(a**p_alpha, z2) - q2 * copysign(a**p_beta, z2)
+                v = -k2 * copysign(power(a, p_alpha), z2) - q2 * copysign(power(a, p_beta), z2)
         else:
             v = 0.0
         return (v, inputs[6], z2, zeta1, ptp1, ptp2, dr, deta1, deta2)

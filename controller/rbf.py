@@ -3,8 +3,9 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
+
+from .fmath import exp
 
 __all__ = ["rbf_basis", "rbf_energy"]
 
@@ -13,7 +14,7 @@ def rbf_basis(X: Sequence[float], centers: Sequence[float], width: float) -> lis
     """Basis vector P(X): neuron j is exp(-||X - mu_j * ones||^2 / tau^2) (eq. 24).
 
     Plain floats: the controller FMU carries no third-party package (no NumPy)."""
-    return [math.exp(-sum((float(x) - mu) ** 2 for x in X) / width**2) for mu in centers]
+    return [exp(-sum((float(x) - mu) * (float(x) - mu) for x in X) / (width * width)) for mu in centers]
 
 
 def rbf_energy(s1: float, s2: float, dim: int, centers: Sequence[float], width: float) -> float:
@@ -23,7 +24,6 @@ def rbf_energy(s1: float, s2: float, dim: int, centers: Sequence[float], width: 
     law never needs the vector X itself: this is what keeps one controller step cheap.
     """
     scale = -2.0 / (width * width)
-    exp = math.exp
     total = 0.0
     for mu in centers:  # a plain loop: about twice as fast as sum() over a generator
         total += exp(scale * (s2 - 2.0 * mu * s1 + dim * mu * mu))

@@ -85,7 +85,10 @@ def test_a_third_party_import_is_refused(tmp_path: Path) -> None:
     """An FMU carries no third-party package: a bundled module importing NumPy is a build error."""
     root = source_copy(tmp_path)
     rbf = root / "controller" / "rbf.py"
-    rbf.write_text(rbf.read_text().replace("import math\n", "import math\n\nimport numpy\n", 1))
+    text = rbf.read_text()
+    anchor = "from collections.abc import Sequence\n"
+    rbf.write_text(text.replace(anchor, f"{anchor}\nimport numpy\n", 1))
+    assert rbf.read_text() != text
     with pytest.raises(BuildError, match=r"FixedTimeController imports numpy: an FMU carries no third-party"):
         build_fmu("FixedTimeController", tmp_path / "out", root=root)
 

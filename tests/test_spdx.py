@@ -7,6 +7,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 TAG = "SPDX-License-Identifier: BSD-2-Clause"
+# transcribed from musl (MIT), their licence beside them (controller/fmath-LICENSE.txt)
+MIT = {name: "controller/fmath-LICENSE.txt" for name in ("controller/fmath.py", "controller/fmath.h")}
 
 
 def _sources() -> list[str]:
@@ -20,7 +22,7 @@ def _sources() -> list[str]:
 def test_every_source_file_carries_the_spdx_line() -> None:
     sources = _sources()
     assert len(sources) > 100  # the project's own files, listed by git (a clean clone has .git)
-    missing = [n for n in sources if (ROOT / n).is_file()
+    missing = [n for n in sources if (ROOT / n).is_file() and n not in MIT
                and TAG not in "".join((ROOT / n).read_text().splitlines(True)[:3])]
     assert not missing, f"no '{TAG}' in the first three lines of: {', '.join(missing)}"
 
@@ -31,6 +33,15 @@ def test_the_vendored_fmi_headers_keep_their_own_licence() -> None:
     assert not [h.name for h in headers.glob("*.h") if TAG in h.read_text()]
 
 
+def test_the_musl_derived_files_say_mit_and_carry_its_notices() -> None:
+    for name, licence in MIT.items():
+        assert "SPDX-License-Identifier: MIT" in (ROOT / name).read_text().splitlines()[0]
+        text = (ROOT / licence).read_text()
+        assert "Copyright © 2005-2020 Rich Felker" in text and "Sun Microsystems" in text
+        assert "Sun Microsystems" in (ROOT / name).read_text()  # "provided that this notice is preserved"
+
+
 def test_the_licence_the_lines_name_is_the_projects() -> None:
     assert (ROOT / "LICENSE").read_text().startswith("BSD 2-Clause License")
-    assert 'license = "BSD-2-Clause"' in (ROOT / "pyproject.toml").read_text()
+    text = (ROOT / "pyproject.toml").read_text()
+    assert 'license = "BSD-2-Clause AND MIT"' in text and '"controller/fmath-LICENSE.txt"' in text

@@ -39,14 +39,15 @@ def test_wheel_and_sdist_carry_what_a_build_needs(dist: Path) -> None:
     needed = {"fmu_src/toolchain/shim/fmi2_shim.c", "fmu_src/toolchain/shim/fmi3_shim.c",
               "fmu_src/toolchain/shim/start_python.c",
               "orchestrator/native/container.c", "orchestrator/native/container_fmi3.c",
-              "orchestrator/native/container.h", "fmu_src/models/_dopri.c", "orchestrator/launcher.c",
+              "orchestrator/native/container.h", "fmu_src/models/_dopri.c", "controller/fmath.h",
+              "controller/fmath-LICENSE.txt", "orchestrator/launcher.c",
               "orchestrator/experiments/ssp/pendulum/SystemStructure.ssd",
               "orchestrator/experiments/ssp/campaigns/fault_tolerance.toml"}
     assert needed <= names, sorted(needed - names)
     assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
     info = next(n for n in names if n.endswith(".dist-info/METADATA"))
     metadata = zipfile.ZipFile(wheel).read(info).decode()
-    assert "License-Expression: BSD-2-Clause" in metadata
+    assert "License-Expression: BSD-2-Clause AND MIT" in metadata
     assert "Requires-Python: >=3.11" in metadata
     assert "Provides-Extra: pandas" in metadata
 

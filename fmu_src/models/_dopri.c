@@ -4,10 +4,11 @@
    The same algorithm as fmu_src/models/plants.py:dopri_hold_step, operation for operation, so
    that it gives the same bits: the plant's right-hand side and the step-size control are written
    in the order Python evaluates them (left to right, no reassociation: built without
-   -ffast-math and with -ffp-contract=off, so no fused multiply-add), sin, cos, pow and sqrt are
-   the C library's, which Python's math module and float ** call too, and min/max follow
+   -ffast-math and with -ffp-contract=off, so no fused multiply-add), sin, cos and pow are
+   controller/fmath.h's, which controller/fmath.py repeats in Python (same bits on every platform,
+   unlike the C library's), sqrt is IEEE's correctly rounded one (ftc_sqrt), and min/max follow
    Python's builtins (the first argument unless the second is strictly smaller/larger), which
-   matters for nan. Python's math.sin and math.cos raise ValueError on an infinite argument where
+   matters for nan. fmath.sin and fmath.cos raise ValueError on an infinite argument where
    C returns nan: such an evaluation marks the trial step as failed (err = inf), as the Python
    code's `except ValueError` does, and at the step's first evaluation it is reported as a math
    domain error.
@@ -33,6 +34,8 @@
 #include <Python.h>
 #include <math.h>
 
+#include "fmath.h"
+
 enum { OK = 0, RATE = 1, BEYOND = 2, BUDGET = 3, NO_STEP = 4, DOMAIN = 5 };
 enum { EXAMPLE1 = 0, PENDULUM = 1, MANIPULATOR = 2 };
 
@@ -57,12 +60,12 @@ struct plant {
 
 static double sin_(struct plant *p, double x) {
     if (isinf(x)) p->domain = 1;
-    return sin(x);
+    return ftc_sin(x);
 }
 
 static double cos_(struct plant *p, double x) {
     if (isinf(x)) p->domain = 1;
-    return cos(x);
+    return ftc_cos(x);
 }
 
 /* plants.example1_rhs, plants.pendulum_rhs_for and manipulator.manipulator_rhs_for, term by term. */
@@ -165,13 +168,13 @@ static PyObject *hold_step(PyObject *self, PyObject *args) {
             double s1 = e1 / (atol + rtol * py_max(fabs(y1), fabs(n1)));
             double s2 = e2 / (atol + rtol * py_max(fabs(y2), fabs(n2)));
             double s3 = e3 / (atol + rtol * py_max(fabs(y3), fabs(n3)));
-            err = sqrt((s1 * s1 + s2 * s2 + s3 * s3) / 3.0);
+            err = ftc_sqrt((s1 * s1 + s2 * s2 + s3 * s3) / 3.0);
         }
         if (err <= 1.0) { /* accepted (false for nan) */
             accepted += 1;
             if (fabs(n1) > y_limit || fabs(n1) > limit || fabs(n2) > limit || fabs(n3) > limit)
                 return result(BEYOND, t_new, n1, n2, n3, 0.0, accepted, rejected);
-            double fac = err > 0.0 ? py_min(grow, SAFETY * pow(err, -0.2)) : grow;
+            double fac = err > 0.0 ? py_min(grow, SAFETY * ftc_pow(err, -0.2)) : grow;
             double proposal = dt * py_max(FAC_MIN, fac);
             if (last) return result(OK, t_new, n1, n2, n3, py_max(proposal, wanted), accepted, rejected);
             if (accepted + rejected >= max_steps)
@@ -191,7 +194,7 @@ static PyObject *hold_step(PyObject *self, PyObject *args) {
             rejected += 1;
             if (dt <= 1e-12 * h) return result(NO_STEP, t, y1, y2, y3, 0.0, accepted, rejected);
             if (accepted + rejected >= max_steps) return result(BUDGET, t, y1, y2, y3, 0.0, accepted, rejected);
-            dt *= isfinite(err) ? py_max(FAC_MIN, SAFETY * pow(err, -0.2)) : FAC_MIN;
+            dt *= isfinite(err) ? py_max(FAC_MIN, SAFETY * ftc_pow(err, -0.2)) : FAC_MIN;
             grow = 1.0;
         }
     }

@@ -7,6 +7,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from controller.fmath import cos, exp
+
 from .checks import bound_problems, finite_problems
 
 __all__ = ["NO_LIMIT", "ActuatorParameters", "actuator_output", "actuator_problems", "dead_zone", "saturate"]
@@ -59,8 +61,8 @@ def actuator_output(
     u = dead_zone(v, p)
     if t < p.t_fault:
         return v, u
-    K = p.K_inf + p.K_amp * math.exp(-p.K_rate * t)
-    cos_x1 = math.cos(x1)
+    K = p.K_inf + p.K_amp * exp(-p.K_rate * t)
+    cos_x1 = cos(x1)
     L = p.L_gain * x2 * cos_x1 * cos_x1 + p.L_bias
     return K * u + L, u
 

@@ -36,6 +36,8 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from controller.fmath import sin
+
 from .checks import bound_problems, finite_problems
 from .plants import RightHandSide, State
 
@@ -94,7 +96,6 @@ def manipulator_rhs_for(p: ManipulatorParameters) -> RightHandSide:
     ``_dopri.c`` evaluates the same expressions)."""
     inertia, gravity, friction = manipulator_constants(p)
     inductance, resistance, back_emf = p.L, p.R, p.K_B
-    sin = math.sin
 
     def rhs(t: float, state: Sequence[float], uf: float) -> State:
         x1, x2, x3 = state

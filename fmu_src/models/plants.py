@@ -18,6 +18,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
+from controller.fmath import cos, power, sin
+
 from .checks import bound_problems, finite_problems
 
 __all__ = [
@@ -57,8 +59,8 @@ def example1_rhs(t: float, state: Sequence[float], uf: float) -> State:
     """Example 1 (eq. 85): the plant with unmodeled dynamics z."""
     x1, x2, z = state
     return (
-        (2.0 + math.sin(x1)) * x2 + 0.1 * math.sin(x1 * x2) + z * math.sin(x1 * x1),
-        (2.0 + math.cos(x1 * x2)) * uf + 0.5 * math.sin(x1 * x1 * x2 * x2) + x1 * x1 * z,
+        (2.0 + sin(x1)) * x2 + 0.1 * sin(x1 * x2) + z * sin(x1 * x1),
+        (2.0 + cos(x1 * x2)) * uf + 0.5 * sin(x1 * x1 * x2 * x2) + x1 * x1 * z,
         -z - x1 * x1 + 0.5,
     )
 
@@ -79,11 +81,11 @@ def pendulum_rhs(t: float, state: Sequence[float], uf: float, p: PendulumParamet
     """Example 2 (eq. 99): the pendulum with unmodeled dynamics z and disturbances."""
     x1, x2, z = state
     return (
-        x2 + z * x1 + p.d1 * math.sin(t),
+        x2 + z * x1 + p.d1 * sin(t),
         uf / (p.M * p.L)
-        - (p.g / p.L + p.B / p.M) * math.sin(x1 * x2)
-        + z * x2 * math.sin(x1)
-        + p.d2 * math.cos(t),
+        - (p.g / p.L + p.B / p.M) * sin(x1 * x2)
+        + z * x2 * sin(x1)
+        + p.d2 * cos(t),
         -2.0 * z + 0.25 * x1 * x1,
     )
 
@@ -92,7 +94,6 @@ def pendulum_rhs_for(p: PendulumParameters) -> RightHandSide:
     """:func:`pendulum_rhs` with the parameters bound as local constants (the FMU's hot path: no
     attribute lookups per evaluation; the same operations, so the same values)."""
     d1, d2, ml, damping = p.d1, p.d2, p.M * p.L, p.g / p.L + p.B / p.M
-    sin, cos = math.sin, math.cos
 
     def rhs(t: float, state: Sequence[float], uf: float) -> State:
         x1, x2, z = state
@@ -363,7 +364,7 @@ def dopri_hold_step(
             accepted += 1
             if abs(n1) > y_limit or abs(n1) > limit or abs(n2) > limit or abs(n3) > limit:
                 raise beyond_limit((n1, n2, n3), t_new, limit, y_limit)
-            fac = min(grow, _SAFETY * err**-0.2) if err > 0.0 else grow
+            fac = min(grow, _SAFETY * power(err, -0.2)) if err > 0.0 else grow
             proposal = dt * max(_FAC_MIN, fac)
             if last:
                 return AdaptiveStep((n1, n2, n3), max(proposal, wanted), accepted, rejected)
@@ -382,7 +383,7 @@ def dopri_hold_step(
                 raise no_step_size(rtol, atol, t, accepted, rejected)
             if accepted + rejected >= max_steps:
                 raise budget_spent(max_steps, t, accepted, rejected)
-            dt *= max(_FAC_MIN, _SAFETY * err**-0.2) if math.isfinite(err) else _FAC_MIN
+            dt *= max(_FAC_MIN, _SAFETY * power(err, -0.2)) if math.isfinite(err) else _FAC_MIN
             grow = 1.0
 
 

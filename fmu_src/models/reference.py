@@ -3,8 +3,9 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+
+from controller.fmath import cos, sin
 
 from .checks import finite_problems
 
@@ -24,7 +25,7 @@ class ReferenceParameters:
 def reference_signal(t: float, p: ReferenceParameters) -> tuple[float, float, float]:
     """yd, yd' and yd'' at time t."""
     angle = p.omega * t + p.phase
-    s, c = math.sin(angle), math.cos(angle)
+    s, c = sin(angle), cos(angle)
     return (
         p.amplitude * s + p.offset,
         p.amplitude * p.omega * c,
@@ -37,7 +38,7 @@ def reference_derivatives(t: float, p: ReferenceParameters) -> tuple[float, floa
     (yd^(j) = amplitude omega^j sin(omega t + phase + j pi / 2)); the first three as
     :func:`reference_signal` computes them (the same values)."""
     angle = p.omega * t + p.phase
-    s, c = math.sin(angle), math.cos(angle)
+    s, c = sin(angle), cos(angle)
     a, w = p.amplitude, p.omega
     return (a * s + p.offset, a * w * c, -a * w * w * s, -a * w * w * w * c, a * w * w * w * w * s)
 

@@ -106,18 +106,17 @@ MINGW_FLAGS = tuple(
 )
 WIN_PYCONFIG = Path("fmu_src", "toolchain", "shim", "win64", "pyconfig.h")  # relative to the source root
 # Windows extension modules: no C runtime of their own, python3.dll (stable ABI) and the Universal
-# C Runtime imported as python311.dll imports it: its math (what the math module calls) and errno
-# (where that math reports ERANGE/EDOM, read by controller/_law.c as float_pow reads it), and
-# memcpy from VCRUNTIME140.dll (shipped; python311.dll has loaded it before any extension).
+# C Runtime imported as python311.dll imports it: only its exact math (sqrt, fabs, floor, fmod;
+# controller/fmath.h gives exp, sin, cos and pow, the same bits as on Linux) and errno, and memcpy
+# from VCRUNTIME140.dll (shipped; python311.dll has loaded it before any extension).
 WIN_EXTENSION_FLAGS = tuple(
-    "-std=c11 -O2 -shared -g0 -Wall -Wextra -ffp-contract=off -fno-builtin-sin -fno-builtin-cos "
+    "-std=c11 -O2 -shared -g0 -Wall -Wextra -ffp-contract=off "
     "-DPy_LIMITED_API=0x03080000 -s -Wl,--no-insert-timestamp -Wl,--disable-auto-import "
     "-Wl,--disable-runtime-pseudo-reloc -nostdlib -Wl,-e,0".split()
 )
 WIN_EXTENSION_SUFFIX = ".pyd"
 WIN_IMPORTS = {
-    "api-ms-win-crt-math-l1-1-0.dll": ("sin", "cos", "pow", "sqrt", "exp", "log", "atan2", "hypot", "fabs",
-                                       "floor", "fmod"),
+    "api-ms-win-crt-math-l1-1-0.dll": ("sqrt", "fabs", "floor", "fmod"),
     "api-ms-win-crt-runtime-l1-1-0.dll": ("_errno",),
     "VCRUNTIME140.dll": ("memcpy", "memmove", "memset"),
 }
@@ -135,6 +134,11 @@ BUILD_CODE = ("build.py", "fmi3.py", "runtime.py", "runtime_pins.txt", "runtime_
 # multiply-add, so the compiled arithmetic rounds as Python's does (see fmu_src/models/_dopri.c).
 EXTENSIONS = {"fmu_src.models._dopri": Path("fmu_src", "models", "_dopri.c"),
               "controller._law": Path("controller", "_law.c")}
+# The headers every extension module's source includes (relative to the source root): fmath.h,
+# the elementary functions that give the same bits on every platform (controller/fmath.py).
+EXTENSION_HEADERS = (Path("controller", "fmath.h"),)
+FMATH_MODULE = "controller.fmath"  # musl's functions: an FMU that bundles them carries their licence
+FMATH_LICENSE = Path("controller", "fmath-LICENSE.txt")
 EXTENSION_SUFFIX = ".abi3.so"
 EXTENSION_FLAGS = (
     "-std=c11 -O2 -fPIC -shared -fvisibility=hidden -g0 -Wall -Wextra -ffp-contract=off "
@@ -335,23 +339,29 @@ def compile_shim(root: Path, runtime: Runtime, where: Path, sources: Sequence[st
     return _compile(work, runtime, flags, sources, SHIM_LIBS, root / SHIM_DIR)
 
 
-def compile_extension(source: Path, runtime: Runtime, where: Path) -> bytes:
-    """Compile the C extension module ``source`` for the stable ABI against the runtime's headers;
-    the bytes of its ``<name>.abi3.so``."""
-    work = where / f"ext_{source.stem}"
+def _extension_work(source: Path, work: Path, root: Path) -> None:
+    """``work`` made, holding ``source`` and :data:`EXTENSION_HEADERS` from ``root``."""
     work.mkdir(parents=True)
     shutil.copyfile(source, work / source.name)
+    for header in EXTENSION_HEADERS:
+        shutil.copyfile(root / header, work / header.name)
+
+
+def compile_extension(source: Path, runtime: Runtime, where: Path, root: Path = REPO_ROOT) -> bytes:
+    """Compile the C extension module ``source`` (with the headers of ``root``) for the stable ABI
+    against the runtime's headers; the bytes of its ``<name>.abi3.so``."""
+    work = where / f"ext_{source.stem}"
+    _extension_work(source, work, root)
     return _compile(work, runtime, EXTENSION_FLAGS, [source.name], ["-lm"], source)
 
 
 def compile_extension_win64(source: Path, runtime: Runtime, windows: runtime_win64.WinRuntime,
-                            where: Path) -> bytes:
+                            where: Path, root: Path = REPO_ROOT) -> bytes:
     """Compile the C extension module ``source`` for 64-bit Windows (stable ABI, python3.dll;
     its libm the Universal C Runtime's, as Python's math module on Windows); the bytes of its
     ``<name>.pyd``."""
     work = where / f"ext_win64_{source.stem}"
-    work.mkdir(parents=True)
-    shutil.copyfile(source, work / source.name)
+    _extension_work(source, work, root)
     tool = Path(mingw()).with_name(Path(mingw()).name.replace("gcc", "dlltool"))
     libraries = [str(windows.embed / "python3.dll"), "-L."]
     for number, (dll, symbols) in enumerate(WIN_IMPORTS.items()):  # an import library per DLL
@@ -630,7 +640,8 @@ def fmu_inputs(bundle: Bundle, root: Path = REPO_ROOT) -> str:
     """The digest of everything ``bundle``'s FMU is built from: a build whose inputs have not
     changed is reused (``make build`` after editing one model rebuilds the FMUs that bundle it)."""
     sources = [bundle.script, *(bundle.modules[n] for n in sorted(bundle.modules)),
-               *(bundle.extensions[n] for n in sorted(bundle.extensions))]
+               *(bundle.extensions[n] for n in sorted(bundle.extensions)),
+               *(root / h for h in EXTENSION_HEADERS if bundle.extensions)]
     names = " ".join([*sorted(bundle.modules), *sorted(bundle.extensions)])
     return inputs_key(bundle.model, names, *build_inputs(root), *sources)
 
@@ -652,9 +663,12 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT) -> Path:
         native = _runtime(bundle) | {f"binaries/linux64/{model}.so": shim}
         native[f"binaries/win64/{model}.dll"] = compile_shim(root, runtime, Path(tmp), windows=f"{model}.dll")
         native["documentation/licenses/pythonfmu-LICENSE.txt"] = _licence("pythonfmu")
-        extensions = {name: compile_extension(source, runtime, Path(tmp))
+        if FMATH_MODULE in bundle.modules:
+            native[f"documentation/licenses/{FMATH_LICENSE.name}"] = (root / FMATH_LICENSE).read_bytes()
+        extensions = {name: compile_extension(source, runtime, Path(tmp), root)
                       for name, source in bundle.extensions.items()}
-        extensions_win64 = {name: compile_extension_win64(source, runtime, _ensure_win_runtime(), Path(tmp))
+        windows = _ensure_win_runtime()
+        extensions_win64 = {name: compile_extension_win64(source, runtime, windows, Path(tmp), root)
                             for name, source in bundle.extensions.items()}
         native_digest = hashlib.sha256()
         for name in sorted(native):

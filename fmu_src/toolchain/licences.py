@@ -28,6 +28,8 @@ NOTICES = {
                       "BSD-2-Clause"),
     "pythonfmu-LICENSE.txt": ("pythonfmu 0.7.0: its binary (binaries/*/<model>_pythonfmu.*) and package",
                               "MIT"),
+    "fmath-LICENSE.txt": ("controller/fmath (exp, sin, cos, pow), transcribed from musl's src/math, which "
+                          "derives from Sun's fdlibm", "MIT"),
     "Python-LICENSE.txt": ("CPython 3.11: libpython and the standard library under binaries/*/python/",
                            "PSF-2.0"),
     "Python-debian-copyright.txt": ("Debian's packages of CPython 3.11 (copyright file)", "PSF-2.0"),
