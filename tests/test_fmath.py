@@ -13,11 +13,14 @@ import random
 import struct
 import subprocess
 import sys
+import zipfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from types import ModuleType
 
 import mpmath
 import pytest
+from fmu_helpers import compiled_extension
 
 from controller import fmath
 from fmu_src.toolchain.build import c_compiler
@@ -98,6 +101,29 @@ def test_python_and_c_give_the_same_bits(host: Path, f: str) -> None:
     differing = [(case, hex(a), hex(b)) for case, a, b in zip(cases, c, python_results(f, cases), strict=True)
                  if a != b]
     assert not differing, f"{len(differing)} of {len(cases)} differ, e.g. {differing[:3]}"
+
+
+@pytest.fixture(scope="module")
+def compiled(tmp_path_factory: pytest.TempPathFactory) -> ModuleType:
+    """controller/_fmath.c compiled as the FMU build compiles it (what fmath.py calls in an FMU)."""
+    return compiled_extension("controller._fmath", tmp_path_factory.mktemp("fmath_module"))
+
+
+@pytest.mark.parametrize("f", PYTHON)
+def test_the_compiled_module_gives_the_same_bits(compiled: ModuleType, f: str) -> None:
+    function = getattr(compiled, {"e": "exp", "s": "sin", "c": "cos", "p": "pow"}[f])
+    cases = arguments(f, 100_000, seed=5)
+    differing = [case for case, b in zip(cases, python_results(f, cases), strict=True)
+                 if bits(function(*case)) != b]
+    assert not differing, f"{len(differing)} of {len(cases)} differ, e.g. {differing[:3]}"
+
+
+def test_every_fmu_carries_the_compiled_functions(built: Path) -> None:
+    """Each FMU bundles controller.fmath (its models call it) and with it _fmath for both platforms."""
+    for fmu in sorted((built / "fmus").glob("*.fmu")):
+        names = zipfile.ZipFile(fmu).namelist()
+        for suffix in ("/controller/fmath.py", "/controller/_fmath.abi3.so", "/controller/_fmath.pyd"):
+            assert any(n.endswith(suffix) for n in names), (fmu.name, suffix)
 
 
 def ulps(ours: float, exact: mpmath.mpf) -> float:

@@ -133,7 +133,8 @@ BUILD_CODE = ("build.py", "fmi3.py", "runtime.py", "runtime_pins.txt", "runtime_
 # loads in the FMU's runtime and in a host's Python alike. -ffp-contract=off: no fused
 # multiply-add, so the compiled arithmetic rounds as Python's does (see fmu_src/models/_dopri.c).
 EXTENSIONS = {"fmu_src.models._dopri": Path("fmu_src", "models", "_dopri.c"),
-              "controller._law": Path("controller", "_law.c")}
+              "controller._law": Path("controller", "_law.c"),
+              "controller._fmath": Path("controller", "_fmath.c")}
 # The headers every extension module's source includes (relative to the source root): fmath.h,
 # the elementary functions that give the same bits on every platform (controller/fmath.py).
 EXTENSION_HEADERS = (Path("controller", "fmath.h"),)
