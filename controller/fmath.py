@@ -711,7 +711,7 @@ try:  # the compiled functions (controller/_fmath.c, built into every FMU): the 
 except ImportError:
     if __name__.startswith("_ftc_"):  # bundled in an FMU (fmu_src/toolchain/build.py names the package so)
         raise  # a built FMU carries it: without it the build is broken, not slower
-    _fmath = None  # the source tree: the Python transcriptions above
+    _fmath = None  # not built here (make build compiles it into a checkout): the Python transcriptions
 COMPILED = _fmath is not None
 _EXP, _SIN, _COS, _POW = ((_fmath.exp, _fmath.sin, _fmath.cos, _fmath.pow) if _fmath is not None
                           else (_exp, _sin, _cos, _pow))

@@ -117,13 +117,14 @@ def test_finite_escape_trajectory_is_the_references(compiled):
 
 
 def test_only_the_plants_bundle_the_extension():
+    """_dopri in the plants, _law in the controllers, controller/fmath's compiled functions in all."""
     for model in ("Example1Plant", "PendulumPlant", "ManipulatorPlant"):
-        assert set(collect_bundle(model).extensions) == {"fmu_src.models._dopri"}
+        assert set(collect_bundle(model).extensions) == {"fmu_src.models._dopri", "controller._fmath"}
     for model in ("Reference", "Actuator"):
-        assert collect_bundle(model).extensions == {}
+        assert set(collect_bundle(model).extensions) == {"controller._fmath"}
     for model in ("FixedTimeController", "FixedTimeController1", "FixedTimeController3",
                   "FixedTimeController4"):
-        assert set(collect_bundle(model).extensions) == {"controller._law"}
+        assert set(collect_bundle(model).extensions) == {"controller._law", "controller._fmath"}
 
 
 @pytest.mark.system

@@ -702,18 +702,40 @@ def build_all(dest: Path, root: Path = REPO_ROOT) -> list[Path]:
     return [build_fmu(model, dest, root) for model in FMU_SCRIPTS]
 
 
+def compile_in_place(name: str, root: Path = REPO_ROOT) -> Path:
+    """The extension module ``name`` (a key of :data:`EXTENSIONS`) compiled as the FMU build compiles
+    it, written beside its source (``<stem>.abi3.so``): the checkout's own Python imports it, as an
+    FMU imports its copy. Ignored by git (a built file)."""
+    source = root / EXTENSIONS[name]
+    target = source.with_name(source.stem + EXTENSION_SUFFIX)
+    with tempfile.TemporaryDirectory() as tmp:
+        binary = compile_extension(source, _ensure_runtime(), Path(tmp), root)
+    partial = target.with_name(target.name + ".part")
+    partial.write_bytes(binary)
+    partial.replace(target)  # a running Python never sees half a module
+    return target
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: build FMUs into a folder; prints one path per line."""
     parser = argparse.ArgumentParser(prog="python -m fmu_src.toolchain.build",
                                      description=__doc__.split("\n\n")[0])
-    parser.add_argument("dest", type=Path, help="output folder, e.g. build/fmus")
+    parser.add_argument("dest", type=Path, nargs="?", help="output folder, e.g. build/fmus")
     parser.add_argument(
         "--model", action="append", choices=list(FMU_SCRIPTS), help="build only these (repeatable)"
     )
     parser.add_argument("--fmi3", type=Path, metavar="DEST3",
                         help="also write each FMU's FMI 3.0 Co-Simulation variant there, e.g. build/fmus3")
+    parser.add_argument("--in-place", metavar="MODULE", choices=sorted(EXTENSIONS),
+                        help="instead, compile this extension module beside its source, for the checkout's "
+                             "own Python runs (controller._fmath: the monolithic reference simulations)")
     options = parser.parse_args(argv)
+    if options.in_place is None and options.dest is None:
+        parser.error("the output folder is required (or --in-place MODULE)")
     try:
+        if options.in_place is not None:
+            print(compile_in_place(options.in_place))
+            return 0
         paths = [build_fmu(model, options.dest) for model in options.model or FMU_SCRIPTS]
         if options.fmi3 is not None:
             from .fmi3 import build_fmu3  # it builds on this module
