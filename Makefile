@@ -14,7 +14,7 @@ BUILT  := build/.built
 BYTECODE := build/.bytecode
 # what 'orchestrate build' makes the FMUs and scenarios from: a build newer than all of them is reused
 SOURCES := $(shell find controller fmu_src ssp -type f -not -path '*/__pycache__/*' -not -name '*.pyc' \
-                     -not -name '.*' 2>/dev/null)
+                     -not -name '.*' -not -name '*.so' 2>/dev/null)
 
 .PHONY: run test unit build lint docs docs-figure browser windows-tools windows-matrix runtime-pins hostile executors crosscheck crosscheck-all conformance table study study-fixed-time check-fail-fast research report baselines bench clean
 
