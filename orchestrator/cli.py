@@ -387,6 +387,13 @@ def version_line() -> str:
             f"numpy {installed('numpy')}, Python {sys.version.split()[0]})")
 
 
+
+def _interrupt_text(exc: KeyboardInterrupt) -> str:
+    """What stopped the command: our own interruptions say it; Python's plain KeyboardInterrupt is
+    SIGINT, whatever its text (CPython rewrites it when it arrives inside a codec: "decoding with
+    'cp437' codec failed (KeyboardInterrupt: )", seen unpacking an SSP)."""
+    return "interrupted by SIGINT" if type(exc) is KeyboardInterrupt else str(exc) or "interrupted"
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``orchestrate``; returns the exit status."""
     main_thread = threading.current_thread() is threading.main_thread()
@@ -426,7 +433,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         finally:
             _quiet.on = False
     except KeyboardInterrupt as exc:
-        print(f"orchestrate: {str(exc) or 'interrupted by SIGINT'}", file=sys.stderr)
+        print(f"orchestrate: {_interrupt_text(exc)}", file=sys.stderr)
         return getattr(exc, "exit_status", 130)
     finally:
         if main_thread:
@@ -556,7 +563,7 @@ def _run(args: argparse.Namespace) -> int:
         print(f"{stopped} (plot: {plot})" if written else stopped, file=sys.stderr)
         return exc.exit_status
     except KeyboardInterrupt as exc:  # outside the stepping loop (Terminated: SIGTERM), nothing kept
-        print(f"orchestrate: {str(exc) or 'interrupted by SIGINT'}", file=sys.stderr)
+        print(f"orchestrate: {_interrupt_text(exc)}", file=sys.stderr)
         return getattr(exc, "exit_status", 130)
     except OSError as exc:  # OutputError: writing the results; else reading (a full TMPDIR, ...)
         what = "cannot write the results: " if isinstance(exc, OutputError) else ""

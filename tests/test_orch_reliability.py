@@ -660,3 +660,26 @@ def test_bad_plot_ratio_and_design_files_are_one_line(loop, tmp_path, capsys):
     design.write_bytes(b"\xff\xfe{}")
     assert main(["sweep", str(loop), "--design", str(design), "--out", str(tmp_path / "o")]) == 2
     assert "cannot read the design: not UTF-8 text" in capsys.readouterr().err
+
+
+def test_a_sigint_inside_a_codec_still_says_sigint():
+    """A fresh-clone run saw "orchestrate: decoding with 'cp437' codec failed (KeyboardInterrupt: )":
+    CPython rewrites a KeyboardInterrupt raised inside a codec (zipfile decodes names with cp437)."""
+    import codecs
+
+    from orchestrator.cli import _interrupt_text
+
+    def interrupt(data: bytes, errors: str = "strict") -> tuple[str, int]:
+        raise KeyboardInterrupt
+
+    def search(name: str) -> codecs.CodecInfo | None:
+        return codecs.CodecInfo(interrupt, interrupt, name=name) if name == "ftc_interrupting" else None
+
+    codecs.register(search)
+    try:
+        with pytest.raises(KeyboardInterrupt) as caught:
+            b"x".decode("ftc_interrupting")
+    finally:
+        codecs.unregister(search)
+    assert "codec failed" in str(caught.value)  # what the handler printed before
+    assert _interrupt_text(caught.value) == "interrupted by SIGINT"
