@@ -7,6 +7,7 @@ written again) and the rebuilt FMU's own bundled source (the edit is in it)."""
 
 from __future__ import annotations
 
+import os
 import shutil
 import zipfile
 from pathlib import Path
@@ -57,7 +58,7 @@ def test_an_fmu_is_rebuilt_only_when_what_it_bundles_changes(tmp_path: Path) -> 
                    if n.startswith("resources/ftc_reference_") and n.endswith(".py")]
         assert len(bundled) == 1 and b"# the reference's edit" in archive.read(bundled[0])
     # a damaged or missing record of the inputs: rebuilt, never trusted
-    (fmus / ".Reference.fmu.inputs").write_text("not a digest\n")
+    (fmus / ".Reference.fmu.inputs").write_text("not a record\n")
     assert written(build_fmu("Reference", fmus, root))[0][0] != after[0][0]
 
 
@@ -78,3 +79,41 @@ def test_an_archive_is_packed_again_only_when_its_files_change(built: Path, tmp_
     assert written(repacked) != before
     with zipfile.ZipFile(repacked) as archive:
         assert b"<!-- edited -->" in archive.read("plant.ssv")
+
+
+def test_a_run_is_stale_only_when_a_source_it_was_built_from_changed(tmp_path: Path, monkeypatch,
+                                                                       capsys) -> None:
+    """Issue 42: 'make run' failed on every fresh clone: the build compiled controller/_fmath.abi3.so
+    after the archives, and the stale check counted every file under controller/ (that .so too) by
+    its time; 'orchestrate build', as advised, found nothing to rebuild. Now one record of the
+    sources (fmu_src/toolchain/stamps.py) serves the build and the check: a build product or a
+    touched file is no change, an edited model is, and rebuilding as advised rebuilds only the FMU
+    that bundles it. A copy of the sources, built for linux64 without FMI 3.0 (what 'make run' builds)."""
+    from orchestrator.cli import main
+    from orchestrator.experiments.scenarios import build_scenarios
+
+    root = _source_copy(tmp_path / "src")
+    shutil.copytree(REPO_ROOT / "ssp" / "pendulum", root / "ssp" / "pendulum")
+    monkeypatch.chdir(root)
+
+    def build() -> dict[str, tuple[int, bytes]]:
+        build_scenarios(["pendulum"], "build", "ssp", fmi3=False, platforms=("linux64",), root=root)
+        return {p.name: written(p)[0] for p in sorted(Path("build", "fmus").glob("*.fmu"))}
+
+    first = build()
+    assert len(first) == 4
+    argv = ["run", "pendulum", "--stop-time", "0.01", "--quiet", "--no-plot", "--output", "r.csv"]
+    assert main(argv) == 0
+    (root / "controller" / "_fmath.abi3.so").write_bytes(b"a build product, newer than the archive")
+    for source in (root / "fmu_src" / "models").glob("*.py"):
+        os.utime(source)  # touched, not changed
+    assert main(argv) == 0
+    with (root / "fmu_src" / "models" / "plants.py").open("a") as plants:
+        plants.write("\n# a plant's edit\n")
+    capsys.readouterr()
+    assert main(argv) == 1
+    assert ("build/ssp/pendulum.ssp is stale: fmu_src/models/plants.py changed since it was built: "
+            "run 'orchestrate build pendulum'") in capsys.readouterr().err
+    again = build()  # as the message advises
+    assert main(argv) == 0
+    assert [name for name in first if again[name] != first[name]] == ["PendulumPlant.fmu"]

@@ -7,8 +7,6 @@ the SSD written here (no step annotation), the controller FMU's documented warni
 
 from __future__ import annotations
 
-import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -35,38 +33,6 @@ def test_python_m_orchestrator_is_the_orchestrate_command():
 def test_the_readme_says_how_to_reach_orchestrate_from_a_new_shell():
     readme = (ROOT / "README.md").read_text()
     assert "source .venv/bin/activate" in readme and "python -m orchestrator" in readme
-
-
-def test_make_build_reuses_an_up_to_date_build(tmp_path):
-    """Before: 'make run' ran 'orchestrate build' (12-14 s of FMU builds) every time. A copy of the
-    Makefile in a tree of fake sources, with an 'orchestrate' that only counts its calls."""
-    if shutil.which("make") is None:
-        pytest.skip("no make")
-    for name in ("Makefile", "pyproject.toml", "constraints.txt", "orchestrator/launcher.c"):  # the set-up's
-        (tmp_path / name).parent.mkdir(exist_ok=True)
-        shutil.copy(ROOT / name, tmp_path / name)
-    for source in ("controller/law.py", "fmu_src/toolchain/build.py", "ssp/loop/SystemStructure.ssd"):
-        (tmp_path / source).parent.mkdir(parents=True, exist_ok=True)
-        (tmp_path / source).write_text("source\n")
-    bin_ = tmp_path / ".venv" / "bin"
-    bin_.mkdir(parents=True)
-    (bin_ / "orchestrate").write_text('#!/bin/sh\necho "$@" >> calls.log\n')
-    (bin_ / "orchestrate").chmod(0o755)
-    (tmp_path / ".venv" / ".installed").touch()
-    for source in ("controller/_fmath.c", "controller/fmath.h"):  # controller/_fmath.abi3.so's, built already
-        (tmp_path / source).write_text("source\n")
-    (tmp_path / "controller" / "_fmath.abi3.so").touch()
-
-    def build() -> list[str]:
-        r = subprocess.run(["make", "build"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
-        assert r.returncode == 0, r.stderr
-        return (tmp_path / "calls.log").read_text().splitlines()
-
-    assert build() == ["build"]
-    assert build() == ["build"]  # up to date: not built again
-    later = (tmp_path / "build" / ".built").stat().st_mtime + 5
-    os.utime(tmp_path / "ssp" / "loop" / "SystemStructure.ssd", (later, later))  # a source edited
-    assert build() == ["build", "build"]
 
 
 @pytest.mark.system

@@ -36,7 +36,7 @@ from orchestrator import RunOptions
 from orchestrator.cli import _parser, main, plot_title
 from orchestrator.errors import ScenarioError, ScenarioWarning, UsageError, command_line
 from orchestrator.provenance import summary
-from orchestrator.ssp import NS, SSD_NAME, Experiment, ParameterSet, SystemStructure, pack_ssp, write_ssv
+from orchestrator.ssp import NS, SSD_NAME, Experiment, ParameterSet, SystemStructure, write_ssv
 from orchestrator.validate import timing
 
 H, K, X0 = 0.01, -2.0, 1.0
@@ -170,45 +170,43 @@ def test_an_unconnected_input_warns_on_run_and_validate_and_fails_with_strict(bu
 
 
 # -- part 2: stale builds -------------------------------------------------------------------------
-def _touch_later(path: Path, than: Path) -> None:
-    later = than.stat().st_mtime + 10
-    os.utime(path, (later, later))
-
-
 @pytest.mark.system
 def test_a_stale_build_is_refused_naming_the_changed_file(test_fmus, tmp_path, monkeypatch, capsys):
-    """Before: after editing ssp/NAME/X.ssv, 'orchestrate run NAME' ran the old build/ssp/NAME.ssp."""
+    """Before: after editing ssp/NAME/X.ssv, 'orchestrate run NAME' ran the old build/ssp/NAME.ssp.
+    Packed as 'orchestrate build' packs (its record of the sources, fmu_src/toolchain/stamps.py)."""
+    from orchestrator.experiments.scenarios import _pack
+
     monkeypatch.chdir(tmp_path)
     source = loop_scenario(Path("ssp") / "loop", test_fmus, stop=0.1, pack=False)
     for fmu in (source / "resources").glob("*.fmu"):  # as 'orchestrate build' lays them out
         (Path("build") / "fmus").mkdir(parents=True, exist_ok=True)
         fmu.rename(Path("build") / "fmus" / fmu.name)
     (source / "resources").rmdir()
-    archive = pack_ssp(source, {f.name: f for f in Path("build", "fmus").glob("*.fmu")},
-                       Path("build") / "ssp" / "loop.ssp")
-    _touch_later(archive, source / "gain.ssv")
+    fmus = {f.name: f for f in Path("build", "fmus").glob("*.fmu")}
+    archive = _pack("loop", Path("ssp"), fmus, Path("build") / "ssp" / "loop.ssp", root=tmp_path)
     argv = ["run", "loop", "--quiet", "--no-plot", "--output", "r.csv"]
     assert main(argv) == 0
-    _touch_later(source / "gain.ssv", archive)  # the user edits a parameter file after the build
+    os.utime(source / "gain.ssv")  # touched, the same bytes: no change (before: stale for ever)
+    assert main(argv) == 0
+    gain = source / "gain.ssv"
+    gain.write_text(gain.read_text().replace("</ssv:ParameterSet>", "<!-- edited --></ssv:ParameterSet>"))
     assert main(argv) == 1
     err = capsys.readouterr().err
-    assert err == (f"orchestrate: error: {archive} is older than {source / 'gain.ssv'} (changed after the "
-                   f"build): run 'orchestrate build' again, or run the source folder {source} (with the FMUs "
-                   "of build/fmus), or give --allow-stale\n")
+    assert err == (f"orchestrate: error: {archive} is stale: ssp/loop/gain.ssv changed since it was built: "
+                   "run 'orchestrate build loop' (it rebuilds what is stale; --force rebuilds everything), "
+                   "or give --allow-stale\n")
     assert main([*argv, "--allow-stale"]) == 0
+    (source / "extra.ssv").write_text("a file added to the scenario after the build\n")
+    _pack("loop", Path("ssp"), fmus, archive, root=tmp_path)
+    assert main(argv) == 0  # packed again: no longer stale
+    (source / "later.ssv").write_text("and another\n")
+    assert main(argv) == 1
+    assert "ssp/loop/later.ssv changed since it was built" in capsys.readouterr().err
     # the source folder runs directly with the built FMUs, and its edited values apply
     write_ssv(source / "gain.ssv", ParameterSet.of("gain.ssv", {"k": -1.0}), "gain")
     assert main(["run", str(source), "--quiet", "--no-plot", "--output", "s.csv"]) == 0
     x = read_csv("s.csv")["integrator.x"]
     np.testing.assert_allclose(x, X0 * (1 - H) ** np.arange(len(x)), rtol=1e-13)
-    # an FMU source edited after the build: both the archive and the source folder are stale
-    (tmp_path / "fmu_src").mkdir()
-    (tmp_path / "fmu_src" / "gain.py").write_text("# edited\n")
-    _touch_later(tmp_path / "fmu_src" / "gain.py", archive)
-    assert main(argv) == 1
-    assert f"is older than {Path('fmu_src') / 'gain.py'}" in capsys.readouterr().err
-    assert main(["run", str(source), "--quiet", "--no-plot", "--output", "s.csv"]) == 1
-    assert "build/fmus/" in capsys.readouterr().err
 
 
 # -- part 4: provenance ---------------------------------------------------------------------------

@@ -23,6 +23,7 @@ import pytest
 from c_fmu import CRASH, build_ramp, compiler, ramp_scenario
 from lxml import etree, html
 
+from fmu_src.toolchain import stamps
 from orchestrator.cli import main
 from orchestrator.regress import Tolerances, compare, thin
 from orchestrator.regress.junit import junit_xml
@@ -277,12 +278,11 @@ def test_baseline_builds_nothing(tmp_path: Path) -> None:
     refused with the way out, before anything runs. The FMU builder is watched (called through)."""
     project = tmp_path / "project"
     (project / "build" / "ssp").mkdir(parents=True)
-    (project / "build" / "ssp" / "example1.ssp").write_bytes(b"an archive older than its sources")
+    archive = project / "build" / "ssp" / "example1.ssp"
+    archive.write_bytes(b"an archive built from other sources")
     shutil.copytree(REPO / "ssp" / "example1", project / "ssp" / "example1")
-    now = time.time()
-    for source in (project / "ssp" / "example1").iterdir():
-        os.utime(source, (now, now))
-    os.utime(project / "build" / "ssp" / "example1.ssp", (now - 3600, now - 3600))
+    # its record (as 'orchestrate build' writes it) names a parameter file with other bytes than now
+    stamps.record(archive, "key", {"ssp/example1/plant.ssv": "0" * 64}, project)
     script = ("import sys\nimport fmu_src.toolchain.build as builder\ncalls = []\nreal = builder.build_fmu\n"
               "def watched(*args, **kwargs):\n    calls.append(args)\n    return real(*args, **kwargs)\n"
               "builder.build_fmu = watched\nfrom orchestrator.cli import main\n"
@@ -291,8 +291,8 @@ def test_baseline_builds_nothing(tmp_path: Path) -> None:
     done = subprocess.run([sys.executable, "-c", script, "baseline", "example1", "--baselines", "out"],
                           cwd=project, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2, done.stdout + done.stderr
-    assert "build/ssp/example1.ssp is older than ssp/example1/" in done.stderr
-    assert "run 'orchestrate build' again" in done.stderr
+    assert "build/ssp/example1.ssp is stale: ssp/example1/plant.ssv changed since it was built" in done.stderr
+    assert "run 'orchestrate build example1'" in done.stderr
     assert not (project / "out").exists() and "Traceback" not in done.stderr
 
 

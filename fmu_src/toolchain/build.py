@@ -55,7 +55,7 @@ from xml.etree import ElementTree
 import pythonfmu
 from pythonfmu import FmuBuilder
 
-from . import runtime_win64
+from . import runtime_win64, stamps
 from .controller_doc import controller_documentation
 from .licences import documentation, generation_tool
 from .runtime import (
@@ -67,8 +67,8 @@ from .runtime import (
     stdlib_closure,
 )
 
-__all__ = ["FMU_SCRIPTS", "BuildError", "build_all", "build_fmu", "build_inputs", "c_compiler",
-           "compile_extension", "inputs_key", "main", "record_inputs", "up_to_date"]
+__all__ = ["FMU_SCRIPTS", "PLATFORM_NAMES", "BuildError", "build_all", "build_fmu", "build_inputs",
+           "build_sources", "buildable_platforms", "c_compiler", "compile_extension", "fmu_sources", "main"]
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 LOCAL_PACKAGES = ("fmu_src", "controller")
@@ -122,6 +122,7 @@ WIN_IMPORTS = {
 }
 DESCRIPTION_COPY = "_modelDescription.xml"  # guard.h's DESCRIPTION_SUFFIX
 PLATFORMS = (("linux64", ".so"), ("win64", ".dll"))  # FMI 2.0 platform folders, binary suffix
+PLATFORM_NAMES = tuple(name for name, _ in PLATFORMS)
 # The bundled runtime as a command (for the build's bytecode and standard-library closure).
 LAUNCHER_SOURCE = "bundled_python.c"
 LAUNCHER_FLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra")
@@ -293,8 +294,12 @@ def mingw() -> str:
 
 @functools.cache
 def _mingw_version() -> str:
-    """The cross compiler's version (a new one rebuilds the FMUs, as a new system compiler does)."""
-    return subprocess.run([mingw(), "-dumpfullversion"], capture_output=True, text=True).stdout.strip()
+    """The cross compiler's version (a new one rebuilds the FMUs, as a new system compiler does);
+    'none' where there is none (only linux64 can then be built)."""
+    try:
+        return subprocess.run([mingw(), "-dumpfullversion"], capture_output=True, text=True).stdout.strip()
+    except BuildError:
+        return "none"
 
 
 def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequence[str],
@@ -314,10 +319,26 @@ def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequen
         includes = [f"-I{d}" for d in runtime.include_dirs]
     out = windows or "out.so"
     command = [compiler, *flags, *includes, "-o", out, *sources, *libraries]
+    # content-addressed: the same command on the same files gives the same bytes (the build is
+    # reproducible), so nine FMUs with one shim compile it once; paths are named relative to work
+    version = _mingw_version() if windows else c_compiler()[1]
+    inputs = sorted(p for p in work.rglob("*") if p.is_file())
+    here = Path(__file__).resolve().parent  # the build's code and the runtimes' pins
+    named = repr([str(c).replace(str(work), ".") for c in command])
+    key = stamps.digest(version, *(here / n for n in BUILD_CODE), named,
+                        *(f"{p.relative_to(work)}\0{stamps.file_digest(p)}" for p in inputs))
+    kept = runtime.root.parent / "objects" / key
+    if kept.is_file():
+        return kept.read_bytes()
     result = subprocess.run(command, cwd=work, capture_output=True, text=True)
     if result.returncode != 0:
         raise BuildError(f"{what}: {compiler} failed:\n{result.stderr.strip()}")
-    return (work / out).read_bytes()
+    binary = (work / out).read_bytes()
+    kept.parent.mkdir(parents=True, exist_ok=True)
+    partial = kept.with_name(f".{key}.{os.getpid()}")
+    partial.write_bytes(binary)
+    partial.replace(kept)
+    return binary
 
 
 def compile_shim(root: Path, runtime: Runtime, where: Path, sources: Sequence[str] = SHIM_SOURCES,
@@ -414,9 +435,9 @@ def bundled_python(runtime: Runtime, root: Path = REPO_ROOT) -> Path:
     return target
 
 
-def _runtime(bundle: Bundle) -> dict[str, bytes]:
-    """The runtime members of both platforms for ``bundle`` (standard-library closure of its
-    script and modules)."""
+def _runtime(bundle: Bundle, windows: bool) -> dict[str, bytes]:
+    """The runtime members of linux64 (and win64 with ``windows``) for ``bundle`` (standard-library
+    closure of its script and modules)."""
     runtime = _ensure_runtime()
     launcher = bundled_python(runtime)
     if bundle.third_party:
@@ -425,19 +446,20 @@ def _runtime(bundle: Bundle) -> dict[str, bytes]:
             "package (it must run where nothing is installed); use the standard library"
         )
     # the closure follows import lines only: the same imports give the same members (kept per key)
-    key = inputs_key("runtime members", *build_inputs(), repr(sorted(_imports(bundle))))
+    platforms = PLATFORM_NAMES if windows else ("linux64",)
+    key = stamps.digest("runtime members", *build_inputs(platforms=platforms), repr(sorted(_imports(bundle))))
     kept = runtime.root.parent / "members" / f"{key}.zip"
     if kept.is_file():
         with zipfile.ZipFile(kept) as archive:
             return {name: archive.read(name) for name in archive.namelist()}
-    windows = _ensure_win_runtime()
     with tempfile.TemporaryDirectory(prefix="ftc_closure_") as tmp:
         shutil.copytree(Path(pythonfmu.__file__).parent, Path(tmp) / "pythonfmu")
         try:
             path = [bundle.script.parent.parent, Path(tmp)]
             closure = stdlib_closure(runtime, launcher, [bundle.script], path)
             members = runtime_members(runtime, launcher, [bundle.script], path, closure)
-            members |= runtime_win64.runtime_members(windows, closure, runtime.stdlib)
+            if windows:
+                members |= runtime_win64.runtime_members(_ensure_win_runtime(), closure, runtime.stdlib)
         except RuntimeBundleError as error:
             raise BuildError(f"{bundle.model}: {error}") from error
     kept.parent.mkdir(parents=True, exist_ok=True)
@@ -546,15 +568,16 @@ def _normalized_description(xml: bytes, digest: str, model: str) -> bytes:
     return ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True) + b"\n"
 
 
-def _write_normalized(
-    raw_fmu: Path, target: Path, bundle: Bundle, digest: str, native: dict[str, bytes]
-) -> None:
-    """Copy the archive with the shim in front of pythonfmu's linux64 and win64 binaries, the
-    runtimes and the licences added, a deterministic description, fixed timestamps and sorted
-    entries."""
+def _write_normalized(raw_fmu: Path, target: Path, bundle: Bundle, digest: str, native: dict[str, bytes],
+                      platforms: Sequence[str]) -> None:
+    """Copy the archive with the shim in front of pythonfmu's binaries of ``platforms`` (the others
+    dropped), the runtimes and the licences added, a deterministic description, fixed timestamps
+    and sorted entries."""
     with zipfile.ZipFile(raw_fmu) as archive:
-        entries = {name: archive.read(name) for name in archive.namelist() if not name.endswith("/")}
-    for platform, suffix in PLATFORMS:
+        entries = {name: archive.read(name) for name in archive.namelist() if not name.endswith("/")
+                   and not (name.startswith("binaries/") and name.split("/")[1] not in platforms)}
+    chosen = [(platform, suffix) for platform, suffix in PLATFORMS if platform in platforms]
+    for platform, suffix in chosen:
         binary = f"binaries/{platform}/{bundle.model}{suffix}"
         if binary not in entries:
             raise BuildError(f"pythonfmu's archive for {bundle.model} has no {binary}")
@@ -569,7 +592,7 @@ def _write_normalized(
     except ValueError as error:
         raise BuildError(str(error)) from error
     # the shim's guard reads it beside the binary: hosts may unpack only binaries/ and resources/
-    for platform, _ in PLATFORMS:
+    for platform, _ in chosen:
         entries[f"binaries/{platform}/{bundle.model}{DESCRIPTION_COPY}"] = entries["modelDescription.xml"]
     entries.update(_bytecode(entries))
     write_archive(target, entries)
@@ -599,90 +622,102 @@ def write_archive(target: Path, entries: dict[str, bytes]) -> None:
             archive.writestr(info, entries[name])
 
 
-def inputs_key(*parts: str | bytes | Path) -> str:
-    """A digest of what a build step reads: texts, bytes, and files (name and bytes)."""
-    h = hashlib.sha256()
-    for part in parts:
-        data = (part.name.encode() + b"\0" + part.read_bytes()) if isinstance(part, Path) else \
-            part if isinstance(part, bytes) else part.encode()
-        h.update(hashlib.sha256(data).digest())
-    return h.hexdigest()
-
-
-def _stamp(target: Path) -> Path:
-    """Where the inputs ``target`` was built from are recorded (a hidden file beside it)."""
-    return target.with_name(f".{target.name}.inputs")
-
-
-def up_to_date(target: Path, key: str) -> bool:
-    """Whether ``target`` exists and was built from the inputs ``key`` (:func:`record_inputs`)."""
-    try:
-        return target.is_file() and _stamp(target).read_text(encoding="ascii").strip() == key
-    except (OSError, ValueError):
-        return False
-
-
-def record_inputs(target: Path, key: str) -> None:
-    """Record that ``target`` (just written) was built from the inputs ``key``."""
-    _stamp(target).write_text(key + "\n", encoding="ascii")
-
-
-def build_inputs(root: Path = REPO_ROOT) -> tuple[str | bytes | Path, ...]:
+def build_inputs(root: Path = REPO_ROOT, platforms: Sequence[str] = PLATFORM_NAMES) -> tuple[str | Path, ...]:
     """What every FMU of the build is made from besides its own sources: the build's code, the
-    runtime's pins, the shim's sources and flags, the compiler and pythonfmu."""
+    runtime's pins, the shim's sources and flags, the compilers and pythonfmu (the files among
+    them: :func:`build_sources`)."""
+    windows = ("win64" in platforms and (repr(MINGW_FLAGS), _mingw_version())) or ()
+    return (BUILD_FORMAT, pythonfmu.__version__, repr(sorted(BUILD_OPTIONS.items())), repr(SHIM_FLAGS),
+            repr(SHIM_LIBS), repr(EXTENSION_FLAGS), c_compiler()[1], *windows, *build_sources(root))
+
+
+def build_sources(root: Path = REPO_ROOT) -> list[Path]:
+    """The source files every FMU is built from besides its own: the build's code, the pins,
+    the shim (tracked files only: what a build product is made from)."""
     here = Path(__file__).resolve().parent
     shim = [root / SHIM_DIR / n for n in sorted({*SHIM_SOURCES, *SHIM_HEADERS, LAUNCHER_SOURCE})]
-    return (BUILD_FORMAT, pythonfmu.__version__, repr(sorted(BUILD_OPTIONS.items())), repr(SHIM_FLAGS),
-            repr(SHIM_LIBS), repr(EXTENSION_FLAGS), repr(MINGW_FLAGS), c_compiler()[1], _mingw_version(),
-            *(here / n for n in BUILD_CODE), *shim, root / WIN_PYCONFIG)
+    return [*(here / n for n in BUILD_CODE), *shim, root / WIN_PYCONFIG]
 
 
-def fmu_inputs(bundle: Bundle, root: Path = REPO_ROOT) -> str:
+def fmu_sources(bundle: Bundle, root: Path = REPO_ROOT) -> list[Path]:
+    """Every source file ``bundle``'s FMU is built from: its script, modules, extension sources
+    and headers, and :func:`build_sources`."""
+    return [bundle.script, *(bundle.modules[n] for n in sorted(bundle.modules)),
+            *(bundle.extensions[n] for n in sorted(bundle.extensions)),
+            *(root / h for h in EXTENSION_HEADERS if bundle.extensions), *build_sources(root)]
+
+
+def fmu_inputs(bundle: Bundle, root: Path = REPO_ROOT, platforms: Sequence[str] = PLATFORM_NAMES) -> str:
     """The digest of everything ``bundle``'s FMU is built from: a build whose inputs have not
     changed is reused (``make build`` after editing one model rebuilds the FMUs that bundle it)."""
-    sources = [bundle.script, *(bundle.modules[n] for n in sorted(bundle.modules)),
-               *(bundle.extensions[n] for n in sorted(bundle.extensions)),
-               *(root / h for h in EXTENSION_HEADERS if bundle.extensions)]
     names = " ".join([*sorted(bundle.modules), *sorted(bundle.extensions)])
-    return inputs_key(bundle.model, names, *build_inputs(root), *sources)
+    return stamps.digest(bundle.model, names, " ".join(platforms), *build_inputs(root, platforms),
+                         *fmu_sources(bundle, root))
 
 
-def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT) -> Path:
-    """Build one FMU into ``dest/<model>.fmu`` from the sources under ``root`` (reused when it
-    was built from the same inputs, :func:`fmu_inputs`)."""
+def buildable_platforms() -> tuple[tuple[str, ...], str]:
+    """The platforms this machine can build (linux64 always; win64 with mingw-w64 and osslsigncode)
+    and, where win64 cannot be built, one line saying why and how to get it."""
+    tools = (os.environ.get("MINGW_CC") or MINGW, "osslsigncode")
+    missing = [tool for tool in tools if not shutil.which(tool)]
+    if not missing:
+        return PLATFORM_NAMES, ""
+    return ("linux64",), (f"win64 skipped: no {' and no '.join(missing)} (Debian: apt-get install "
+                          "gcc-mingw-w64-x86-64 osslsigncode, or 'make windows-tools' as root); "
+                          "the FMUs carry linux64 only")
+
+
+def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT, platforms: Sequence[str] = PLATFORM_NAMES,
+              *, force: bool = False) -> Path:
+    """Build one FMU for ``platforms`` into ``dest/<model>.fmu`` from the sources under ``root``
+    (reused when it was built from the same inputs for at least these platforms, :func:`fmu_inputs`,
+    unless ``force``)."""
+    unknown = set(platforms) - set(PLATFORM_NAMES)
+    if unknown or not platforms:
+        raise BuildError(f"platforms {', '.join(sorted(unknown)) or '(none)'}: "
+                         f"choose from {', '.join(PLATFORM_NAMES)}")
+    platforms = tuple(p for p in PLATFORM_NAMES if p in platforms)
     bundle = collect_bundle(model, root)
     dest = Path(dest)
     dest.mkdir(parents=True, exist_ok=True)
     target = dest / f"{model}.fmu"
-    key = fmu_inputs(bundle, root)
-    if up_to_date(target, key):
-        return target
-    _stamp(target).unlink(missing_ok=True)
+    for wider in (PLATFORM_NAMES, platforms):  # an FMU built for more platforms serves as well
+        if not force and set(platforms) <= set(wider) and stamps.up_to_date(
+                target, fmu_inputs(bundle, root, wider), wider):
+            return target
+    key = fmu_inputs(bundle, root, platforms)
+    stamps.forget(target)
+    windows = "win64" in platforms
     with tempfile.TemporaryDirectory(prefix=f"ftc_build_{model}_") as tmp:
         runtime = _ensure_runtime()
-        shim = compile_shim(root, runtime, Path(tmp))
-        native = _runtime(bundle) | {f"binaries/linux64/{model}.so": shim}
-        native[f"binaries/win64/{model}.dll"] = compile_shim(root, runtime, Path(tmp), windows=f"{model}.dll")
+        native = _runtime(bundle, windows)
+        native[f"binaries/linux64/{model}.so"] = compile_shim(root, runtime, Path(tmp))
+        if windows:
+            dll = f"{model}.dll"
+            native[f"binaries/win64/{dll}"] = compile_shim(root, runtime, Path(tmp), windows=dll)
         native["documentation/licenses/pythonfmu-LICENSE.txt"] = _licence("pythonfmu")
         if FMATH_MODULE in bundle.modules:
             native[f"documentation/licenses/{FMATH_LICENSE.name}"] = (root / FMATH_LICENSE).read_bytes()
         extensions = {name: compile_extension(source, runtime, Path(tmp), root)
                       for name, source in bundle.extensions.items()}
-        windows = _ensure_win_runtime()
-        extensions_win64 = {name: compile_extension_win64(source, runtime, windows, Path(tmp), root)
-                            for name, source in bundle.extensions.items()}
+        extensions_win64 = {}
+        if windows:
+            win = _ensure_win_runtime()
+            extensions_win64 = {name: compile_extension_win64(source, runtime, win, Path(tmp), root)
+                                for name, source in bundle.extensions.items()}
         native_digest = hashlib.sha256()
         for name in sorted(native):
             native_digest.update(name.encode() + b"\0" + hashlib.sha256(native[name]).digest())
         for name in sorted(extensions):
             native_digest.update(name.encode() + b"\0" + hashlib.sha256(extensions[name]).digest())
-            native_digest.update(hashlib.sha256(extensions_win64[name]).digest())
+            if windows:
+                native_digest.update(hashlib.sha256(extensions_win64[name]).digest())
         digest = bundle.digest(native_digest.hexdigest())
         script, package_dir = _stage(bundle, digest, Path(tmp) / "stage")
         for name, binary in extensions.items():  # beside its importer: pythonfmu imports the script
             package_dir.joinpath(*name.split(".")).with_suffix(EXTENSION_SUFFIX).write_bytes(binary)
-            package_dir.joinpath(*name.split(".")).with_suffix(WIN_EXTENSION_SUFFIX).write_bytes(
-                extensions_win64[name])
+        for name, binary in extensions_win64.items():
+            package_dir.joinpath(*name.split(".")).with_suffix(WIN_EXTENSION_SUFFIX).write_bytes(binary)
         with _isolated_imports():
             try:
                 raw = FmuBuilder.build_FMU(
@@ -692,8 +727,8 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT) -> Path:
                 raise BuildError(
                     f"pythonfmu could not build {model} from {bundle.script}: {error}"
                 ) from error
-        _write_normalized(Path(raw), target, bundle, digest, native)
-    record_inputs(target, key)
+        _write_normalized(Path(raw), target, bundle, digest, native, platforms)
+    stamps.record(target, key, stamps.source_digests(fmu_sources(bundle, root), root), root, platforms)
     return target
 
 

@@ -34,6 +34,7 @@ import zipfile
 from pathlib import Path
 from xml.etree import ElementTree
 
+from . import stamps
 from .build import (
     DESCRIPTION_COPY,
     GUID_NAMESPACE,
@@ -45,9 +46,6 @@ from .build import (
     _ensure_runtime,
     build_inputs,
     compile_shim,
-    inputs_key,
-    record_inputs,
-    up_to_date,
     write_archive,
 )
 from .licences import generation_tool
@@ -194,15 +192,17 @@ def _type_definitions(types: ElementTree.Element, model: str) -> ElementTree.Ele
     return new
 
 
-def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT) -> Path:
-    """Write ``dest/<model>.fmu``, the FMI 3.0 variant of the built FMI 2.0 FMU ``fmu2`` (reused when
-    it was made from the same FMU by the same build)."""
+def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT, *, force: bool = False) -> Path:
+    """Write ``dest/<model>.fmu``, the FMI 3.0 variant of the built FMI 2.0 FMU ``fmu2`` for the
+    same platforms (reused when it was made from the same FMU by the same build, unless ``force``)."""
     dest = Path(dest)
     target = dest / fmu2.name
     sources = [root / SHIM_DIR / n for n in sorted(set(FMI3_SHIM_SOURCES) | set(SHIM_HEADERS))]
-    key = inputs_key("fmi3", Path(fmu2), *build_inputs(root), *sources)
-    if up_to_date(target, key):
+    platforms = stamps.recorded_platforms(fmu2)
+    key = stamps.digest("fmi3", Path(fmu2), *build_inputs(root, platforms), *sources)
+    if not force and stamps.up_to_date(target, key, platforms):
         return target
+    stamps.forget(target)
     with zipfile.ZipFile(fmu2) as archive:
         entries = {name: archive.read(name) for name in archive.namelist() if not name.endswith("/")}
     xml = entries.pop("modelDescription.xml", None)
@@ -235,5 +235,6 @@ def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT) -> Path:
         moved[f"{fmi3}{model}{DESCRIPTION_COPY}"] = moved["modelDescription.xml"]
     dest.mkdir(parents=True, exist_ok=True)
     write_archive(target, moved)
-    record_inputs(target, key)
+    stamps.record(target, key, stamps.recorded_sources(fmu2) | stamps.source_digests(sources, root), root,
+                  platforms)
     return target

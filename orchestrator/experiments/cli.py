@@ -4,10 +4,12 @@
 from __future__ import annotations
 
 import argparse
+import sys
+import time
 from pathlib import Path
 from typing import cast
 
-from fmu_src.toolchain.build import BuildError
+from fmu_src.toolchain.build import PLATFORM_NAMES, BuildError
 
 from ..cli import add_command, quiet, warn
 from ..errors import OrchestratorError, ScenarioError, UsageError
@@ -29,6 +31,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="scenario sources (default: the project's ssp/, or its installed copy)")
     p.add_argument("-o", "--output", "--dest", dest="dest", type=Path, default=Path("build"),
                    help="output folder (default: ./build/)")
+    p.add_argument("--force", action="store_true", help="rebuild everything, even what is up to date")
+    p.add_argument("--platform", action="append", dest="platforms", choices=PLATFORM_NAMES,
+                   help="build at least this platform (repeatable; default: every platform this machine "
+                        "can build: linux64, and win64 where mingw-w64 and osslsigncode are installed)")
+    p.add_argument("--no-fmi3", dest="fmi3", action="store_false",
+                   help="no FMI 3.0 variants of the FMUs and no <name>_fmi3.ssp twins")
 
     p = add_command(sub, "metrics", _metrics, help="tracking metrics of result files (SPEC section 4)",
                     quiet=True)
@@ -55,10 +63,24 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _build(args: argparse.Namespace) -> int:
     if not args.scenarios and not list(args.sources.glob("*/SystemStructure.ssd")):
         raise UsageError(f"no scenarios found in {args.sources}/")
-    try:
-        targets = build_scenarios(args.scenarios, args.dest, args.sources)
-    except BuildError as error:  # a compiler or source missing: what, not a traceback
-        raise OrchestratorError(f"build: {error}") from None
+    log = args.dest / "build.log"
+    args.dest.mkdir(parents=True, exist_ok=True)
+    with log.open("a", encoding="utf-8") as logged:
+        logged.write(f"--- orchestrate build {' '.join(args.scenarios) or '(all)'}, "
+                     f"{time.strftime('%Y-%m-%d %H:%M:%S')}\n")
+
+        def progress(line: str) -> None:  # a line per product, as it is done: on stderr and in the log
+            logged.write(line + "\n")
+            logged.flush()
+            if not quiet():
+                print(f"build: {line}", file=sys.stderr, flush=True)
+
+        try:
+            targets = build_scenarios(args.scenarios, args.dest, args.sources, fmi3=args.fmi3,
+                                      platforms=args.platforms, force=args.force, progress=progress)
+        except BuildError as error:  # a compiler or source missing: what, not a traceback
+            logged.write(f"error: {error}\n")
+            raise OrchestratorError(f"build: {error} (log: {log})") from None
     for target in targets.values():
         if not quiet():
             print(target)

@@ -5,7 +5,9 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable
+import time
+from collections.abc import Callable, Iterable, Sequence
+from functools import partial
 from pathlib import Path
 
 from lxml import etree
@@ -36,17 +38,30 @@ def component_sources(folder: Path) -> list[str]:
 
 
 def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
-                    sources: str | os.PathLike = SCENARIO_DIR, *, fmi3: bool = True) -> dict[str, Path]:
+                    sources: str | os.PathLike = SCENARIO_DIR, *, fmi3: bool = True,
+                    platforms: Sequence[str] | None = None, force: bool = False,
+                    progress: Callable[[str], None] | None = None,
+                    root: Path | None = None) -> dict[str, Path]:
     """Build the FMUs into ``dest/fmus`` and their FMI 3.0 variants into ``dest/fmus3``, pack
     ``sources/<name>/`` (default: all) into ``dest/ssp/<name>.ssp`` and its FMI 3.0 twin (the same
     SSD and parameter files, the FMI 3.0 FMUs) into ``dest/ssp/<name>_fmi3.ssp``, each validated
     against its FMUs (``fmi3=False``: no FMI 3.0 variants and twins); returns name -> archive.
     Every FMU of the project is built when ``names`` is empty, else only those the named
-    scenarios use (a report of four scenarios builds four FMUs, not nine)."""
-    from fmu_src.toolchain.build import FMU_SCRIPTS, build_fmu
+    scenarios use (a report of four scenarios builds four FMUs, not nine). ``platforms``: at
+    least these (default: all this machine can build); ``force``: rebuild what is up to date;
+    ``progress`` receives one line per product as it is done; ``root``: the FMUs' source tree
+    (default: this checkout's, or the installed package's)."""
+    from fmu_src.toolchain.build import FMU_SCRIPTS, REPO_ROOT, build_fmu, buildable_platforms
     from fmu_src.toolchain.fmi3 import build_fmu3
 
+    root = REPO_ROOT if root is None else root
+
+    say = progress or (lambda line: None)
     dest, sources = Path(dest), Path(sources)
+    if platforms is None:
+        platforms, note = buildable_platforms()
+        if note:
+            say(note)
     models = list(FMU_SCRIPTS)
     if names:
         names = list(names)
@@ -57,20 +72,40 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
         names = all_scenarios(sources)
     if not names:
         raise ScenarioError(f"no scenarios found in {sources}/")
-    fmus2 = {p.name: p for p in (build_fmu(model, dest / "fmus") for model in models)}
+    fmus2 = {}
+    for number, model in enumerate(models, 1):
+        what = f"[{number}/{len(models)}] {model}.fmu ({', '.join(platforms)})"
+        build = partial(build_fmu, model, dest / "fmus", root, platforms, force=force)
+        fmus2[f"{model}.fmu"] = _timed(say, what, build)
     variants = [(fmus2, "")]
     if fmi3:
-        fmus3 = {name: build_fmu3(path, dest / "fmus3") for name, path in fmus2.items()}
+        fmus3 = {name: _timed(say, f"[{number}/{len(fmus2)}] {name} (FMI 3.0)",
+                              partial(build_fmu3, path, dest / "fmus3", root, force=force))
+                 for number, (name, path) in enumerate(fmus2.items(), 1)}
         variants.append((fmus3, FMI3_SUFFIX))
     archives = {}
     for name in names:
         for fmus, suffix in variants:
-            archives[name + suffix] = _pack(name, sources, fmus, dest / "ssp" / f"{name}{suffix}.ssp")
+            target = dest / "ssp" / f"{name}{suffix}.ssp"
+            archives[name + suffix] = _pack(name, sources, fmus, target, force, root)
     return archives
 
 
-def _pack(name: str, sources: Path, fmus: dict[str, Path], target: Path) -> Path:
+def _timed(say: Callable[[str], None], what: str, build: Callable[[], Path]) -> Path:
+    """Run ``build`` (a product's build, which may find it up to date), saying what it did."""
+    started, clock = time.time(), time.perf_counter()
+    path = build()
+    built = path.stat().st_mtime >= started - 1
+    say(f"{what}: " + (f"built in {time.perf_counter() - clock:.1f} s" if built else "up to date"))
+    return path
+
+
+def _pack(name: str, sources: Path, fmus: dict[str, Path], target: Path, force: bool = False,
+          root: Path | None = None) -> Path:
     """Pack the scenario source folder ``sources/<name>`` with ``fmus`` into ``target``, validated."""
+    from fmu_src.toolchain import stamps
+    from fmu_src.toolchain.build import FMU_SCRIPTS, REPO_ROOT
+
     folder = sources / name
     if not (folder / SSD_NAME).is_file():
         known = ", ".join(all_scenarios(sources)) or "none"
@@ -78,28 +113,35 @@ def _pack(name: str, sources: Path, fmus: dict[str, Path], target: Path) -> Path
     needed = {}
     for component in component_sources(folder):
         if component not in fmus:
-            from fmu_src.toolchain.build import FMU_SCRIPTS
-
             raise ScenarioError(f"{folder / SSD_NAME}: FMU '{component}' is not built by "
                                 f"fmu_src.toolchain.build (it builds: "
                                 f"{', '.join(sorted(m + '.fmu' for m in FMU_SCRIPTS))})")
         needed[component] = fmus[component]
-    from fmu_src.toolchain.build import inputs_key, record_inputs, up_to_date
-
-    key = inputs_key(*_files(folder), *(f"{n}\0{sha256(p)}" for n, p in sorted(needed.items())),
-                     Path(ssp.__file__))
-    if up_to_date(target, key):  # packed from the same files already (and validated then)
+    files = _scenario_files(folder)
+    key = stamps.digest(*_named(folder, files), *(f"{n}\0{sha256(p)}" for n, p in sorted(needed.items())),
+                        Path(ssp.__file__))
+    if not force and stamps.up_to_date(target, key):  # packed from the same files (and validated then)
         return target
+    stamps.forget(target)
     target = pack_ssp(folder, needed, target)
     with open_system(target):  # validate the packed archive against the FMUs
         pass
-    record_inputs(target, key)
+    root = REPO_ROOT if root is None else root
+    recorded: dict[str, str] = stamps.source_digests([*files, Path(ssp.__file__)], root)
+    for fmu in needed.values():
+        recorded |= stamps.recorded_sources(fmu)
+    stamps.record(target, key, recorded, root)
     return target
 
 
-def _files(folder: Path) -> list[str | Path]:
-    """A scenario source folder's files, each named relative to it, in order (what a pack reads)."""
+def _scenario_files(folder: Path) -> list[Path]:
+    """A scenario source folder's files, in order (what a pack reads)."""
+    return sorted(p for p in folder.rglob("*") if p.is_file() and not p.name.startswith("."))
+
+
+def _named(folder: Path, files: list[Path]) -> list[str | Path]:
+    """Each file named relative to ``folder``, then the file (the digest's parts)."""
     found: list[str | Path] = []
-    for path in sorted(p for p in folder.rglob("*") if p.is_file() and not p.name.startswith(".")):
+    for path in files:
         found += [path.relative_to(folder).as_posix(), path]
     return found
