@@ -84,6 +84,5 @@ def check_site(site: Path) -> LinkCheck:
 
 if __name__ == "__main__":
     check = check_site(Path(sys.argv[1]))
-    print(*check.problems, sep="\n")
-    print(check.summary())
+    print(*check.problems, check.summary(), sep="\n")
     sys.exit(1 if check.problems else 0)
