@@ -1,7 +1,9 @@
 # SPDX-License-Identifier: BSD-2-Clause
 """A user's project regressed as their CI would: the sample project tests/sample_project (three
 scenarios, one of them two Modelica Reference FMUs, i.e. third party) run with the commands of the
-CI templates docs/ci/github-actions.yml and docs/ci/gitlab-ci.yml, verbatim: clean, then with a
+CI templates docs/ci/github-actions.yml and docs/ci/gitlab-ci.yml, verbatim, with the templates'
+variables: the install of the orchestrator into a fresh virtual environment from a git clone of
+this checkout (the templates' repository URL replaced by it), then the project clean, then with a
 fault shifted 1 s and a controller gain changed 5 %. Both changes must be caught, the third scenario
 must still pass; the JUnit XML is validated against the schema Jenkins reads; the HTML report is
 opened in headless Chromium (no console error, every link and figure resolves, and the screenshot
@@ -59,15 +61,37 @@ def template_commands(path: Path) -> list[str]:
     return [c.strip() for c in commands if c.strip()]
 
 
-def test_templates_install_the_orchestrator_then_run_it() -> None:
-    """The one command the sample run leaves out is the install of the orchestrator (the test runs
-    the installed one); every other command is an 'orchestrate' one that the test runs."""
+def template_variables(path: Path) -> dict[str, str]:
+    """The variables a CI template sets for every command: GitHub's workflow ``env``, GitLab's
+    ``variables``."""
+    data = yaml.safe_load(path.read_text())
+    variables = data.get("env" if "jobs" in data else "variables", {})
+    return {name: str(value) for name, value in variables.items()}
+
+
+def test_templates_install_the_orchestrator_from_its_repository_then_run_it() -> None:
+    """The orchestrator is not on PyPI (the templates installed a 'fixed-time-cosim==0.1.0' that
+    does not exist): both install it from a git URL the user sets, at a ref; every other command is
+    an 'orchestrate' one."""
     for path in TEMPLATES:
         commands = template_commands(path)
         installs = [c for c in commands if c.startswith("pip install")]
         assert installs == ['pip install "$ORCHESTRATOR_PACKAGE"'], path
         assert all(c.startswith("orchestrate ") for c in commands if c not in installs), commands
         assert any(c.startswith("orchestrate regress ") and "--junit-xml" in c for c in commands), path
+        package = template_variables(path)["ORCHESTRATOR_PACKAGE"]
+        assert re.fullmatch(r"git\+https://[^@\s]+/fixed-time-cosim\.git@[\w./-]+", package), package
+
+
+def from_this_checkout(variables: dict[str, str]) -> dict[str, str]:
+    """A template's variables with the orchestrator's git URL and ref replaced by this checkout's
+    path and its HEAD commit (a clone at that commit: what is not committed is not installed)."""
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True,
+                          check=True).stdout.strip()
+    package, count = re.subn(r"git\+https://[^@\s]+@[\w./-]+", f"git+{REPO.as_uri()}@{head}",
+                             variables["ORCHESTRATOR_PACKAGE"])
+    assert count == 1, variables
+    return {**variables, "ORCHESTRATOR_PACKAGE": package}
 
 
 def user_project(dest: Path, fmus: Path) -> Path:
@@ -83,9 +107,13 @@ def user_project(dest: Path, fmus: Path) -> Path:
     return dest
 
 
-def run(command: str, cwd: Path) -> subprocess.CompletedProcess:
-    """A template's command as a CI runner runs it: a shell in the project, 'orchestrate' on PATH."""
-    env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ['PATH']}", "CI": "true"}
+def run(command: str, cwd: Path, bindir: Path = BIN, variables: dict[str, str] | None = None
+        ) -> subprocess.CompletedProcess:
+    """A template's command as a CI runner runs it: a shell in the project with the template's
+    variables, ``bindir`` (its 'pip', 'python', 'orchestrate') first on PATH."""
+    env = {**os.environ, **(variables or {}), "CI": "true",
+           "PATH": f"{bindir}{os.pathsep}{os.environ['PATH']}"}
+    env.pop("VIRTUAL_ENV", None)
     env.pop("PYTEST_XDIST_WORKER", None)
     return subprocess.run(["bash", "-c", command], cwd=cwd, env=env, capture_output=True, text=True,
                           timeout=600)
@@ -101,9 +129,31 @@ def change(path: Path, parameter: str, old: str, new: str) -> None:
 
 
 @pytest.fixture(scope="module")
-def sample(tmp_path_factory: pytest.TempPathFactory, built: Path) -> dict:
-    """The templates' commands (each distinct one once) on the clean project, then after the fault
-    of example1_fault moved from t = 2 s to 3 s and the pendulum's gain k1 from 25 to 26.25 (+5 %)."""
+def installed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, str]]:
+    """Each template's install commands, with its variables, in a fresh virtual environment (the
+    runner's Python): pip clones this checkout and builds the package from the clone, its
+    dependencies pinned by constraints.txt as 'make' pins them. The environment's bin folder and
+    the variables the templates' commands run with."""
+    venv = tmp_path_factory.mktemp("ci") / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
+    variables = [from_this_checkout(template_variables(path)) for path in TEMPLATES]
+    assert all(v == variables[0] for v in variables), "the templates install different orchestrators"
+    pins = {"PIP_CONSTRAINT": str(REPO / "constraints.txt"), "PIP_PROGRESS_BAR": "off"}
+    for command in dict.fromkeys(c for path in TEMPLATES for c in template_commands(path)
+                                 if c.startswith("pip install")):
+        done = run(command, venv, venv / "bin", {**variables[0], **pins})
+        assert done.returncode == 0, f"{command}\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
+    where = run("python -c 'import orchestrator; print(orchestrator.__file__)'", venv, venv / "bin")
+    assert Path(where.stdout.strip()).is_relative_to(venv), where.stdout + where.stderr  # not the checkout
+    return venv / "bin", variables[0]
+
+
+@pytest.fixture(scope="module")
+def sample(tmp_path_factory: pytest.TempPathFactory, built: Path, installed: tuple[Path, dict[str, str]]
+           ) -> dict:
+    """The templates' commands (each distinct one once, the install done by ``installed``) on the
+    clean project, then after the fault of example1_fault moved from t = 2 s to 3 s and the
+    pendulum's gain k1 from 25 to 26.25 (+5 %)."""
     if not (REFERENCE_FMUS / "VanDerPol.fmu").is_file():
         pytest.skip(f"no Modelica Reference FMUs in {REFERENCE_FMUS}")
     project = user_project(tmp_path_factory.mktemp("user") / "project", built / "fmus")
@@ -111,12 +161,13 @@ def sample(tmp_path_factory: pytest.TempPathFactory, built: Path) -> dict:
                                   if not c.startswith("pip install")))
     baselines = {p.name: p.read_bytes() for p in (project / "regression" / "baselines").iterdir()}
     record: dict = {"project": project, "baselines": baselines}
+    bindir, variables = installed
     for state in ("clean", "changed"):
         if state == "changed":
             change(project / "regression" / "example1_fault" / "actuator.ssv", "t_fault", "2.0", "3.0")
             change(project / "regression" / "pendulum_start" / "controller.ssv", "k1", "25.0", "26.25")
         for command in commands:
-            done = run(command, project)
+            done = run(command, project, bindir, variables)
             record[state, shlex.split(command)[1]] = done
             if command.startswith("orchestrate regress "):
                 record[state, "junit"] = (project / "results" / "regression.xml").read_bytes()
