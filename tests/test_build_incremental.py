@@ -117,3 +117,30 @@ def test_a_run_is_stale_only_when_a_source_it_was_built_from_changed(tmp_path: P
     again = build()  # as the message advises
     assert main(argv) == 0
     assert [name for name in first if again[name] != first[name]] == ["PendulumPlant.fmu"]
+
+
+def test_without_mingw_the_fmus_are_built_for_linux64_saying_why(tmp_path: Path, monkeypatch) -> None:
+    """Issue 42: without mingw-w64 nothing was built, not even the Linux FMUs. Now the build makes
+    linux64 alone and says in one line what was skipped and how to get it; the FMU then runs."""
+    from fmu_src.toolchain.build import buildable_platforms
+    from orchestrator.experiments.scenarios import build_scenarios
+
+    monkeypatch.setenv("MINGW_CC", str(tmp_path / "no-such-x86_64-w64-mingw32-gcc"))
+    platforms, note = buildable_platforms()
+    assert platforms == ("linux64",)
+    assert note.startswith("win64 skipped: no ")
+    assert "apt-get install gcc-mingw-w64-x86-64 osslsigncode" in note
+    lines: list[str] = []
+    root = _source_copy(tmp_path / "src")
+    shutil.copytree(REPO_ROOT / "ssp" / "pendulum", root / "ssp" / "pendulum")
+    archives = build_scenarios(["pendulum"], tmp_path / "build", root / "ssp", fmi3=False,
+                               progress=lines.append, root=root)
+    assert lines[0] == note and len(lines) == 5  # the note, then a line per FMU
+    for fmu in (tmp_path / "build" / "fmus").glob("*.fmu"):
+        with zipfile.ZipFile(fmu) as archive:
+            platforms_inside = {n.split("/")[1] for n in archive.namelist() if n.startswith("binaries/")}
+        assert platforms_inside == {"linux64"}, fmu
+    from orchestrator import RunOptions, run
+
+    result = run(archives["pendulum"], RunOptions(stop_time=0.01))
+    assert result.count == 21

@@ -52,7 +52,7 @@ from wine import (  # noqa: E402
     unpack,
 )
 
-from fmu_src.toolchain.build import FMU_SCRIPTS
+from fmu_src.toolchain.build import FMU_SCRIPTS, buildable_platforms
 from orchestrator.export import export  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
@@ -63,8 +63,10 @@ FMPY_REQUIREMENTS = REPO / "tests" / "windows" / "fmpy-requirements.txt"
 FMPY_TARGET = REPO / "build" / "windows" / "fmpy"  # pip install --target of the Windows wheels
 STEPS, H = 200, 1e-3
 MODELS = tuple(FMU_SCRIPTS)  # the nine FMUs
+WIN64, NO_WIN64 = buildable_platforms()  # without mingw-w64 and osslsigncode the build makes linux64 only
 pytestmark = [pytest.mark.system, pytest.mark.xdist_group("wine"),
-              pytest.mark.skipif(missing() is not None, reason=missing() or "")]
+              pytest.mark.skipif(missing() is not None, reason=missing() or ""),
+              pytest.mark.skipif("win64" not in WIN64, reason=NO_WIN64)]
 
 results: dict[tuple[str, str], str] = {}  # (row, column) of the matrix -> cell
 scenario_results: dict[str, str] = {}
