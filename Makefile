@@ -29,7 +29,7 @@ $(STAMP): pyproject.toml constraints.txt $(LAUNCHER)
 	@command -v $(firstword $(CC)) >/dev/null || { echo "make: no C compiler '$(CC)' (needed for the orchestrate launcher and the FMUs): install gcc, or set CC" >&2; exit 1; }
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' 2>/dev/null || { echo "make: $(PYTHON) is $$($(PYTHON) --version 2>&1); the project needs Python 3.11 or newer: set PYTHON=/path/to/python3.11" >&2; exit 1; }
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip==25.3
+	$(PY) -m pip install --quiet --upgrade pip==26.3
 	$(PY) -m pip install --quiet -e . -c constraints.txt
 	$(CC) $(LAUNCHER_FLAGS) -o $(ORCH).new $(LAUNCHER) || { rm -f $(ORCH).new; exit 1; }
 	mv -f $(ORCH).new $(ORCH)
