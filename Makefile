@@ -33,6 +33,8 @@ $(STAMP): pyproject.toml constraints.txt $(LAUNCHER)
 	$(PY) -m pip install --quiet -e . -c constraints.txt
 	$(CC) $(LAUNCHER_FLAGS) -o $(ORCH).new $(LAUNCHER) || { rm -f $(ORCH).new; exit 1; }
 	mv -f $(ORCH).new $(ORCH)
+	@if [ -d .git ] && [ -z "$$(git config core.hooksPath)" ]; then \
+	  git config core.hooksPath .githooks && echo "git: commit subjects checked by .githooks/commit-msg (at most 72 characters)"; fi
 	rm -f $(DEV_STAMP)
 	touch $(STAMP)
 
