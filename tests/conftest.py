@@ -5,6 +5,8 @@ per worker) and shared read-only."""
 from __future__ import annotations
 
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -27,6 +29,17 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> Path:
             shutil.copytree(REPO / "build" / part, dest / part)
     assert main(["build", "--sources", str(REPO / "ssp"), "--dest", str(dest)]) == 0
     return dest
+
+
+@pytest.fixture(scope="session")
+def dist(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An sdist and a wheel of the checkout, as PyPI would serve them (the wheel built from the
+    sdist, so the sdist is complete)."""
+    out = tmp_path_factory.mktemp("dist")
+    proc = subprocess.run([sys.executable, "-m", "build", "--no-isolation", "--outdir", str(out), str(REPO)],
+                          cwd=out, capture_output=True, text=True, timeout=1200)
+    assert proc.returncode == 0, f"{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
+    return out
 
 
 @pytest.fixture(scope="session")

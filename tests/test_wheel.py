@@ -24,13 +24,6 @@ def _run(command: list[str], cwd: Path, env: dict[str, str] | None = None) -> st
     return proc.stdout
 
 
-@pytest.fixture(scope="module")
-def dist(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("dist")
-    _run([sys.executable, "-m", "build", "--no-isolation", "--outdir", str(out), str(REPO)], cwd=out)
-    return out
-
-
 @pytest.mark.system
 def test_wheel_and_sdist_carry_what_a_build_needs(dist: Path) -> None:
     _run([sys.executable, "-m", "twine", "check", "--strict", *map(str, dist.iterdir())], cwd=dist)
