@@ -318,21 +318,43 @@ def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequen
     else:
         includes = [f"-I{d}" for d in runtime.include_dirs]
     out = windows or "out.so"
-    command = [compiler, *flags, *includes, "-o", out, *sources, *libraries]
-    # content-addressed: the same command on the same files gives the same bytes (the build is
-    # reproducible), so nine FMUs with one shim compile it once; paths are named relative to work
     version = _mingw_version() if windows else c_compiler()[1]
-    inputs = sorted(p for p in work.rglob("*") if p.is_file())
+    # Content-addressed, in two steps: each source compiled to an object once for the same bytes
+    # of it and of the headers beside it (nine FMUs share one shim's objects), then linked into
+    # the named library; the build is reproducible, so a kept product is the one it would make.
+    header_files = sorted(p for p in work.rglob("*.h") if p.is_file())
     here = Path(__file__).resolve().parent  # the build's code and the runtimes' pins
-    named = repr([str(c).replace(str(work), ".") for c in command])
-    key = stamps.digest(version, *(here / n for n in BUILD_CODE), named,
-                        *(f"{p.relative_to(work)}\0{stamps.file_digest(p)}" for p in inputs))
+    common: list[str | Path] = [version, *(here / n for n in BUILD_CODE),
+                                *(f"{p.relative_to(work)}\0{stamps.file_digest(p)}" for p in header_files)]
+    objects = []
+    for source in sources:
+        command = [compiler, *flags, *includes, "-c", "-o", f"{source}.o", source]
+        objects.append(_kept(runtime, work, command, f"{source}.o", what,
+                             [*common, _relative(command, work), work / source]))
+    command = [compiler, *flags, "-o", out, *(f"{source}.o" for source in sources), *libraries]
+    for source, data in zip(sources, objects, strict=True):
+        (work / f"{source}.o").write_bytes(data)
+    return _kept(runtime, work, command, out, what,
+                 [*common, _relative(command, work), *(work / f"{source}.o" for source in sources),
+                  *(work / lib for lib in sorted(os.listdir(work)) if lib.endswith(".a"))])
+
+
+def _relative(command: Sequence[str], work: Path) -> str:
+    """A command with ``work`` named '.' (what the compiler makes does not depend on the folder)."""
+    return repr([str(part).replace(str(work), ".") for part in command])
+
+
+def _kept(runtime: Runtime, work: Path, command: list[str], out: str, what: Path,
+          inputs: Sequence[str | Path]) -> bytes:
+    """The bytes ``command`` (run in ``work``) writes to ``out``: kept in the runtime's cache under
+    the digest of ``inputs``, made where not kept yet."""
+    key = stamps.digest(*inputs)
     kept = runtime.root.parent / "objects" / key
     if kept.is_file():
         return kept.read_bytes()
     result = subprocess.run(command, cwd=work, capture_output=True, text=True)
     if result.returncode != 0:
-        raise BuildError(f"{what}: {compiler} failed:\n{result.stderr.strip()}")
+        raise BuildError(f"{what}: {command[0]} failed:\n{result.stderr.strip()}")
     binary = (work / out).read_bytes()
     kept.parent.mkdir(parents=True, exist_ok=True)
     partial = kept.with_name(f".{key}.{os.getpid()}")
