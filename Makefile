@@ -55,7 +55,7 @@ $(ALT_STAMP): constraints.txt
 # bits as the Python transcriptions (tests/test_fmath.py), about 10 times faster.
 FMATH := controller/_fmath.abi3.so
 $(FMATH): $(STAMP) controller/_fmath.c controller/fmath.h
-	$(PY) -m fmu_src.toolchain.build --in-place controller._fmath
+	$(PY) -m fmu_src.toolchain --in-place controller._fmath
 
 ## build: the nine FMUs (each with its own Python runtime for linux64 and, where mingw-w64 and
 ## osslsigncode are installed, win64; fetched once into build/runtime/) into build/fmus/, their

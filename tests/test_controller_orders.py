@@ -17,7 +17,7 @@ from fmu_helpers import open_slave
 from controller.params import ControllerParameters
 from controller.stepping import AdaptiveController
 from fmu_src.controller_core import controller_model
-from fmu_src.toolchain.build import main as build_main
+from fmu_src.toolchain.__main__ import main as build_main
 from orchestrator.cli import main as orchestrate
 
 REPO = Path(__file__).resolve().parent.parent

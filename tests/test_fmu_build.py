@@ -21,7 +21,8 @@ import pythonfmu
 from fmu_helpers import MODELS
 
 from fmu_src.toolchain import runtime
-from fmu_src.toolchain.build import CLASS_LINE, REPO_ROOT, BuildError, build_fmu, main
+from fmu_src.toolchain.__main__ import main
+from fmu_src.toolchain.build import CLASS_LINE, REPO_ROOT, BuildError, build_fmu
 
 pytestmark = pytest.mark.system
 

@@ -213,7 +213,7 @@ def test_a_second_builder_python_gives_the_same_bytes(built: Path, tmp_path: Pat
     if probe.returncode != 0:
         pytest.skip(f"{ALT_PYTHON} has no pythonfmu (make's .venv-alt installs it)")
     assert probe.stdout.strip() != str(sys.version_info[:2])
-    command = [str(ALT_PYTHON), "-m", "fmu_src.toolchain.build", str(tmp_path / "fmus"), "--model",
+    command = [str(ALT_PYTHON), "-m", "fmu_src.toolchain", str(tmp_path / "fmus"), "--model",
                "Actuator", "--fmi3", str(tmp_path / "fmus3")]
     result = subprocess.run(command, capture_output=True, text=True, cwd=REPO_ROOT, timeout=600,
                             env={"PATH": os.environ["PATH"], "PYTHONPATH": str(REPO_ROOT)})

@@ -13,6 +13,7 @@ inside a function counts too.
 from __future__ import annotations
 
 import ast
+import graphlib
 from pathlib import Path
 
 import pytest
@@ -94,3 +95,30 @@ def test_the_checker_catches_climbing_imports() -> None:
     assert violations("fmu_src.models.examples", False, "from controller.params import Mode\n") == []
     assert len(violations("fmu_src.plant_core", False, "from .toolchain.build import BuildError\n")) == 1
     assert violations("orchestrator.experiments.cli", False, "from ..cli import add_command\n") == []
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Module -> the modules of ours it imports (an import of a name inside a module is an import of
+    that module; of a package, its ``__init__``), function-level imports included."""
+    modules = {module_name(p): p for p in SOURCES}
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        targets = set()
+        for _, target in imports(name, path.name == "__init__.py", path.read_text(encoding="utf-8")):
+            while target and target not in modules:  # 'from pkg.mod import function' -> pkg.mod
+                target = target.rpartition(".")[0]
+            if target and target != name:
+                targets.add(target)
+        graph[name] = targets
+    return graph
+
+
+def test_no_module_imports_itself_round_a_circle() -> None:
+    """Issue 47: fmu_src/toolchain/build.py imported fmi3.py (its command line), which builds on
+    build.py. Oracle: the standard library's topological sorter, which names a circle it meets."""
+    try:
+        tuple(graphlib.TopologicalSorter(import_graph()).static_order())
+    except graphlib.CycleError as error:
+        pytest.fail(f"import circle: {' -> '.join(error.args[1])}")
+    with pytest.raises(graphlib.CycleError):  # the check sees a circle where there is one
+        tuple(graphlib.TopologicalSorter({"a": {"b"}, "b": {"a"}}).static_order())

@@ -27,13 +27,12 @@ Nothing of the build machine (no path) goes in. Rebuilding the same sources with
 compiler and runtime packages gives identical bytes, whichever Python (3.10 to 3.13) runs the
 build: the bytecode is compiled by the bundled runtime itself (``fmu_src/toolchain/shim/bundled_python.c``).
 
-Usage: ``python -m fmu_src.toolchain.build DEST [--model NAME]... [--fmi3 DEST3]`` (FMI 3.0
-variants: ``fmu_src.toolchain.fmi3``)
+Command line: ``python -m fmu_src.toolchain`` (``fmu_src/toolchain/__main__.py``; FMI 3.0
+variants: ``fmu_src.toolchain.fmi3``, built on this module).
 """
 
 from __future__ import annotations
 
-import argparse
 import ast
 import functools
 import hashlib
@@ -67,8 +66,9 @@ from .runtime import (
     stdlib_closure,
 )
 
-__all__ = ["FMU_SCRIPTS", "PLATFORM_NAMES", "BuildError", "build_all", "build_fmu", "build_inputs",
-           "build_sources", "buildable_platforms", "c_compiler", "compile_extension", "fmu_sources", "main"]
+__all__ = ["EXTENSIONS", "FMU_SCRIPTS", "PLATFORM_NAMES", "BuildError", "build_all", "build_fmu",
+           "build_inputs", "build_sources", "buildable_platforms", "c_compiler", "compile_extension",
+           "compile_in_place", "fmu_sources"]
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 LOCAL_PACKAGES = ("fmu_src", "controller")
@@ -771,40 +771,3 @@ def compile_in_place(name: str, root: Path = REPO_ROOT) -> Path:
     partial.write_bytes(binary)
     partial.replace(target)  # a running Python never sees half a module
     return target
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line: build FMUs into a folder; prints one path per line."""
-    parser = argparse.ArgumentParser(prog="python -m fmu_src.toolchain.build",
-                                     description=__doc__.split("\n\n")[0])
-    parser.add_argument("dest", type=Path, nargs="?", help="output folder, e.g. build/fmus")
-    parser.add_argument(
-        "--model", action="append", choices=list(FMU_SCRIPTS), help="build only these (repeatable)"
-    )
-    parser.add_argument("--fmi3", type=Path, metavar="DEST3",
-                        help="also write each FMU's FMI 3.0 Co-Simulation variant there, e.g. build/fmus3")
-    parser.add_argument("--in-place", metavar="MODULE", choices=sorted(EXTENSIONS),
-                        help="instead, compile this extension module beside its source, for the checkout's "
-                             "own Python runs (controller._fmath: the monolithic reference simulations)")
-    options = parser.parse_args(argv)
-    if options.in_place is None and options.dest is None:
-        parser.error("the output folder is required (or --in-place MODULE)")
-    try:
-        if options.in_place is not None:
-            print(compile_in_place(options.in_place))
-            return 0
-        paths = [build_fmu(model, options.dest) for model in options.model or FMU_SCRIPTS]
-        if options.fmi3 is not None:
-            from .fmi3 import build_fmu3  # it builds on this module
-
-            paths += [build_fmu3(path, options.fmi3) for path in list(paths)]
-    except BuildError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 1
-    for path in paths:
-        print(path)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
