@@ -68,7 +68,7 @@ from .runtime import (
 
 __all__ = ["EXTENSIONS", "FMU_SCRIPTS", "PLATFORM_NAMES", "BuildError", "build_all", "build_fmu",
            "build_inputs", "build_sources", "buildable_platforms", "c_compiler", "compile_extension",
-           "compile_in_place", "fmu_sources"]
+           "compile_in_place", "fmu_current", "fmu_sources"]
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 LOCAL_PACKAGES = ("fmu_src", "controller")
@@ -265,6 +265,7 @@ def collect_bundle(model: str, root: Path = REPO_ROOT) -> Bundle:
     return Bundle(model, script, modules, frozenset(third_party - ignored), extensions)
 
 
+@functools.cache
 def c_compiler() -> tuple[str, str]:
     """The system C compiler (``$CC``, else ``cc``, else ``gcc`` from PATH) and its version line."""
     for name in (os.environ.get("CC"), "cc", "gcc"):
@@ -689,24 +690,41 @@ def buildable_platforms() -> tuple[tuple[str, ...], str]:
                           "the FMUs carry linux64 only")
 
 
+def _platforms(platforms: Sequence[str]) -> tuple[str, ...]:
+    """``platforms`` checked and in the build's order."""
+    unknown = set(platforms) - set(PLATFORM_NAMES)
+    if unknown or not platforms:
+        raise BuildError(f"platforms {', '.join(sorted(unknown)) or '(none)'}: "
+                         f"choose from {', '.join(PLATFORM_NAMES)}")
+    return tuple(p for p in PLATFORM_NAMES if p in platforms)
+
+
+def fmu_current(model: str, dest: Path, root: Path = REPO_ROOT,
+                platforms: Sequence[str] = PLATFORM_NAMES) -> bool:
+    """Whether ``dest/<model>.fmu`` was built from the sources under ``root`` as they are now, for
+    at least ``platforms`` (an FMU built for more platforms serves as well)."""
+    platforms = _platforms(platforms)
+    target = Path(dest) / f"{model}.fmu"
+    if not target.is_file():
+        return False
+    bundle = collect_bundle(model, root)
+    return any(set(platforms) <= set(wider)
+               and stamps.up_to_date(target, fmu_inputs(bundle, root, wider), wider)
+               for wider in (PLATFORM_NAMES, platforms))
+
+
 def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT, platforms: Sequence[str] = PLATFORM_NAMES,
               *, force: bool = False) -> Path:
     """Build one FMU for ``platforms`` into ``dest/<model>.fmu`` from the sources under ``root``
     (reused when it was built from the same inputs for at least these platforms, :func:`fmu_inputs`,
     unless ``force``)."""
-    unknown = set(platforms) - set(PLATFORM_NAMES)
-    if unknown or not platforms:
-        raise BuildError(f"platforms {', '.join(sorted(unknown)) or '(none)'}: "
-                         f"choose from {', '.join(PLATFORM_NAMES)}")
-    platforms = tuple(p for p in PLATFORM_NAMES if p in platforms)
+    platforms = _platforms(platforms)
     bundle = collect_bundle(model, root)
     dest = Path(dest)
     dest.mkdir(parents=True, exist_ok=True)
     target = dest / f"{model}.fmu"
-    for wider in (PLATFORM_NAMES, platforms):  # an FMU built for more platforms serves as well
-        if not force and set(platforms) <= set(wider) and stamps.up_to_date(
-                target, fmu_inputs(bundle, root, wider), wider):
-            return target
+    if not force and fmu_current(model, dest, root, platforms):
+        return target
     key = fmu_inputs(bundle, root, platforms)
     stamps.forget(target)
     windows = "win64" in platforms

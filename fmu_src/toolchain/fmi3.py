@@ -50,7 +50,7 @@ from .build import (
 )
 from .licences import generation_tool
 
-__all__ = ["FMI3_PLATFORM", "FMI3_SHIM_SOURCES", "build_fmu3", "fmi3_model_description"]
+__all__ = ["FMI3_PLATFORM", "FMI3_SHIM_SOURCES", "build_fmu3", "fmi3_model_description", "fmu3_current"]
 
 FMI2_PLATFORM = "binaries/linux64/"
 FMI3_PLATFORM = "binaries/x86_64-linux/"
@@ -192,14 +192,29 @@ def _type_definitions(types: ElementTree.Element, model: str) -> ElementTree.Ele
     return new
 
 
+def _sources(root: Path) -> list[Path]:
+    return [root / SHIM_DIR / n for n in sorted(set(FMI3_SHIM_SOURCES) | set(SHIM_HEADERS))]
+
+
+def _key(fmu2: Path, root: Path) -> str:
+    """The digest of what the FMI 3.0 variant of ``fmu2`` is made from."""
+    platforms = stamps.recorded_platforms(fmu2)
+    return stamps.digest("fmi3", Path(fmu2), *build_inputs(root, platforms), *_sources(root))
+
+
+def fmu3_current(fmu2: Path, dest: Path, root: Path = REPO_ROOT) -> bool:
+    """Whether ``dest/<name>`` is the FMI 3.0 variant of ``fmu2`` as it is now."""
+    return stamps.up_to_date(Path(dest) / fmu2.name, _key(fmu2, root), stamps.recorded_platforms(fmu2))
+
+
 def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT, *, force: bool = False) -> Path:
     """Write ``dest/<model>.fmu``, the FMI 3.0 variant of the built FMI 2.0 FMU ``fmu2`` for the
     same platforms (reused when it was made from the same FMU by the same build, unless ``force``)."""
     dest = Path(dest)
     target = dest / fmu2.name
-    sources = [root / SHIM_DIR / n for n in sorted(set(FMI3_SHIM_SOURCES) | set(SHIM_HEADERS))]
+    sources = _sources(root)
     platforms = stamps.recorded_platforms(fmu2)
-    key = stamps.digest("fmi3", Path(fmu2), *build_inputs(root, platforms), *sources)
+    key = _key(fmu2, root)
     if not force and stamps.up_to_date(target, key, platforms):
         return target
     stamps.forget(target)

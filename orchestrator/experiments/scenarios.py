@@ -4,9 +4,11 @@
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import time
 from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from functools import partial
 from pathlib import Path
 
@@ -51,8 +53,8 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
     least these (default: all this machine can build); ``force``: rebuild what is up to date;
     ``progress`` receives one line per product as it is done; ``root``: the FMUs' source tree
     (default: this checkout's, or the installed package's)."""
-    from fmu_src.toolchain.build import FMU_SCRIPTS, REPO_ROOT, build_fmu, buildable_platforms
-    from fmu_src.toolchain.fmi3 import build_fmu3
+    from fmu_src.toolchain.build import FMU_SCRIPTS, REPO_ROOT, build_fmu, buildable_platforms, fmu_current
+    from fmu_src.toolchain.fmi3 import build_fmu3, fmu3_current
 
     root = REPO_ROOT if root is None else root
 
@@ -72,17 +74,21 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
         names = all_scenarios(sources)
     if not names:
         raise ScenarioError(f"no scenarios found in {sources}/")
-    fmus2 = {}
-    for number, model in enumerate(models, 1):
-        what = f"[{number}/{len(models)}] {model}.fmu ({', '.join(platforms)})"
-        build = partial(build_fmu, model, dest / "fmus", root, platforms, force=force)
-        fmus2[f"{model}.fmu"] = _timed(say, what, build)
+    on = ", ".join(platforms)
+    stale = [m for m in models if force or not fmu_current(m, dest / "fmus", root, platforms)]
+    _in_parallel({f"{m}.fmu ({on})": partial(build_fmu, m, dest / "fmus", root, platforms, force=force)
+                  for m in stale}, say)
+    if len(stale) < len(models):
+        say(f"{len(models) - len(stale)} of {len(models)} FMUs up to date")
+    fmus2 = {f"{m}.fmu": dest / "fmus" / f"{m}.fmu" for m in models}  # where build_fmu writes them
     variants = [(fmus2, "")]
     if fmi3:
-        fmus3 = {name: _timed(say, f"[{number}/{len(fmus2)}] {name} (FMI 3.0)",
-                              partial(build_fmu3, path, dest / "fmus3", root, force=force))
-                 for number, (name, path) in enumerate(fmus2.items(), 1)}
-        variants.append((fmus3, FMI3_SUFFIX))
+        stale3 = [n for n, p in fmus2.items() if force or not fmu3_current(p, dest / "fmus3", root)]
+        _in_parallel({f"{n} (FMI 3.0)": partial(build_fmu3, fmus2[n], dest / "fmus3", root, force=force)
+                      for n in stale3}, say)
+        if len(stale3) < len(fmus2):
+            say(f"{len(fmus2) - len(stale3)} of {len(fmus2)} FMI 3.0 variants up to date")
+        variants.append(({n: dest / "fmus3" / n for n in fmus2}, FMI3_SUFFIX))
     archives = {}
     for name in names:
         for fmus, suffix in variants:
@@ -91,13 +97,33 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
     return archives
 
 
-def _timed(say: Callable[[str], None], what: str, build: Callable[[], Path]) -> Path:
-    """Run ``build`` (a product's build, which may find it up to date), saying what it did."""
-    started, clock = time.time(), time.perf_counter()
-    path = build()
-    built = path.stat().st_mtime >= started - 1
-    say(f"{what}: " + (f"built in {time.perf_counter() - clock:.1f} s" if built else "up to date"))
-    return path
+def _in_parallel(builds: dict[str, Callable[[], Path]], say: Callable[[str], None]) -> None:
+    """Run ``builds`` (label -> a product's build) in as many processes as the machine has cores
+    (one build: in this process), saying each as it is done. The first failure is raised once
+    the builds under way have ended."""
+    if not builds:
+        return
+    workers = min(len(builds), os.cpu_count() or 1)
+    started = time.perf_counter()
+    if workers == 1:
+        for number, (label, build) in enumerate(builds.items(), 1):
+            build()
+            say(f"[{number}/{len(builds)}] {label}: built ({time.perf_counter() - started:.1f} s)")
+        return
+    _ensure_runtimes()  # once, before the workers that share them
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = {pool.submit(build): label for label, build in builds.items()}
+        for number, future in enumerate(as_completed(futures), 1):
+            future.result()
+            say(f"[{number}/{len(builds)}] {futures[future]}: built ({time.perf_counter() - started:.1f} s)")
+
+
+def _ensure_runtimes() -> None:
+    from fmu_src.toolchain.build import _ensure_runtime, _ensure_win_runtime, buildable_platforms
+
+    _ensure_runtime()
+    if "win64" in buildable_platforms()[0]:
+        _ensure_win_runtime()
 
 
 def _pack(name: str, sources: Path, fmus: dict[str, Path], target: Path, force: bool = False,
