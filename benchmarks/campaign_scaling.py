@@ -9,6 +9,12 @@ Throughput counts from the first task submitted to the last row written (cluster
 reported apart). Overhead per run, with 1 worker: run phase / runs minus the time each run spent
 inside ``orchestrator.run`` on the worker (both measured in the same minutes, so a load from other
 work on the machine cancels), and against the bare run measured here.
+
+Parallel efficiency, apart from the machine's load: the CPU the workers spent (user + system of
+the worker processes, read from this process's reaped children: workers' start-up and shut-down
+included) per run, and that CPU over the campaign's wall time times the workers (1.0: every
+worker busy all the time). On a loaded machine runs per minute fall, CPU per run does not: a
+regression shows in CPU per run; a busy machine shows in the efficiency alone.
 """
 
 from __future__ import annotations
@@ -16,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -90,6 +97,12 @@ def external_cluster(folder: Path, workers: int) -> Iterator[str]:
         log.close()
 
 
+def children_cpu() -> float:
+    """CPU seconds (user + system) of this process's children that have ended and been reaped."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenario", type=Path, help="default: build example1_no_fault into a temp folder")
@@ -124,7 +137,9 @@ def main() -> None:
             ("embedded, 2 worker processes", {"workers": 2}),
             ("embedded, 2 worker threads in one process", {"workers": 2, "processes": False}),
         ]
+        cpu: dict[str, float] = {}
         for label, options in cases:
+            before = children_cpu()
             try:
                 s = sweep(
                     [scenario],
@@ -138,16 +153,24 @@ def main() -> None:
                 print(f"{label}: failed ({type(exc).__name__}: {exc})")
                 continue
             results[label] = s
+            cpu[label] = children_cpu() - before
+        before = children_cpu()
         with external_cluster(tmp, 2) as address:
             results["external scheduler, 2 workers"] = sweep(
                 [scenario], design, tmp / "external", metrics=TRACKING, scheduler=address, progress=False
             )
+        cpu["external scheduler, 2 workers"] = children_cpu() - before
         for label, s in results.items():
             rate = 60 * args.runs / s.run_time
             print(
                 f"{label}: {rate:.1f} runs/min ({s.ok}/{s.total} ok; run phase {s.run_time:.1f} s, "
                 f"start-up and shut-down {s.wall_time - s.run_time:.1f} s)"
             )
+            if "threads" not in label:  # the threads run in this process: no child's CPU to read
+                workers = 1 if "1 worker" in label else 2
+                efficiency = cpu[label] / (s.wall_time * workers)
+                print(f"    workers' CPU {cpu[label] / args.runs:.3f} s per run; efficiency {efficiency:.2f} "
+                      f"(workers' CPU / (wall x {workers} workers))")
         one = results["embedded, 1 worker process"]
         rows, _ = read_table(one.parquet)
         in_worker = statistics.mean(r["wall_time"] for r in rows)
