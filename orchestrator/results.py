@@ -20,7 +20,9 @@ CSV. Every ``check_rows`` rows the new rows are checked to be finite.
 from __future__ import annotations
 
 import os
+import tempfile
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -28,7 +30,7 @@ import numpy as np
 from fmpy.util import read_csv
 
 from . import files
-from .errors import OutputError, UsageError
+from .errors import OrchestratorWarning, OutputError, UsageError
 from .formats import binary_copy_path, csv_rows, read_table, read_tool_csv
 
 __all__ = ["FLUSH_ROWS", "FLUSH_SECONDS", "PREVIEW_BUCKETS", "NonFiniteError", "Recorder", "ResultFileError",
@@ -152,7 +154,7 @@ class Recorder:
                 self._fd = os.open(path, os.O_WRONLY | os.O_CLOEXEC)
             else:
                 self.part = files.reserve(path)
-                self._fd = os.open(self.part, os.O_WRONLY | os.O_TRUNC | os.O_CLOEXEC)
+                self._fd = os.open(self.part, os.O_RDWR | os.O_TRUNC | os.O_CLOEXEC)  # read: _rescue
         except OSError as exc:
             self.failed = True
             raise OutputError(f"{path}: {exc.strerror or exc}") from exc
@@ -294,19 +296,53 @@ class Recorder:
         finally:
             fd, self._fd = self._fd, None
             if fd is not None:  # not given up by _append
-                try:
-                    self._close_binary(remove=False)
-                    os.close(fd)
-                except OSError as exc:
-                    self._discard()
-                    raise OutputError(f"{self.path}: {exc.strerror or exc}") from exc
-                if self.part is not None and self.path is not None and self.part != self.path:
-                    try:
-                        os.replace(self.part, self.path)
-                    except OSError as exc:  # the rows are whole in the temporary file: kept there
-                        self.failed = True  # the result's name holds none of them
-                        raise OutputError(f"{self.path}: {exc.strerror or exc}; the {self._committed[0]} "
-                                          f"rows written are kept in {self.part}") from exc
+                self._finish(fd)
+
+    def _finish(self, fd: int) -> None:
+        """Close the CSV ``fd`` and rename it onto the result's name. A temporary file that was
+        removed while it was written (``rm -r`` of the output folder: the writes went on into the
+        unlinked file) is first written again from ``fd``, beside the result, its folder made again."""
+        try:
+            self._close_binary(remove=False)
+            if self.part != self.path and os.fstat(fd).st_nlink == 0:
+                self._rescue(fd)
+        except OutputError:
+            raise  # the rows are kept where it says
+        except OSError as exc:
+            self._discard()
+            raise OutputError(f"{self.path}: {exc.strerror or exc}") from exc
+        finally:
+            os.close(fd)
+        if self.part is not None and self.path is not None and self.part != self.path:
+            try:
+                os.replace(self.part, self.path)
+            except OSError as exc:  # the rows are whole in the temporary file: kept there
+                self.failed = True  # the result's name holds none of them
+                raise OutputError(f"{self.path}: {exc.strerror or exc}; the {self._committed[0]} "
+                                  f"rows written are kept in {self.part}") from exc
+
+    def _rescue(self, fd: int) -> None:
+        """The CSV ``fd`` was removed while it was written: its rows copied into a new temporary file
+        beside the result (its folder made again; a warning says so), or, where that cannot be, into
+        a file of the temporary folder that the OutputError raised names."""
+        assert self.path is not None and self.part is not None
+        rows, folder = self._committed[0], not self.path.parent.is_dir()
+        what = (f"its folder {self.path.parent}" if folder
+                else f"the file it was streamed to ({self.part.name})")
+        try:
+            self.part = files.reserve(self.path)
+        except OSError as exc:
+            self.part = None
+            self.failed = True  # the result's name holds none of them
+            handle, kept = tempfile.mkstemp(prefix=f"{self.path.stem}-", suffix=self.path.suffix or ".csv")
+            with os.fdopen(handle, "wb") as target:
+                _copy(fd, target.fileno())
+            raise OutputError(f"{self.path}: {what} was removed during the run and cannot be made again "
+                              f"({exc.strerror or exc}); the {rows} rows written are kept in {kept}"
+                              ) from None
+        _copy(fd, os.open(self.part, os.O_WRONLY | os.O_CLOEXEC), close=True)
+        warnings.warn(f"{self.path}: {what} was removed during the run; made again, with all {rows} rows "
+                      "written", OrchestratorWarning, stacklevel=2)
 
     def result(self) -> np.ndarray:
         """The rows recorded so far as a structured array (``time`` first); keep=False: the preview."""
@@ -314,6 +350,18 @@ class Recorder:
         if self._preview is None:
             return structured(current.copy(), self.columns)
         return structured(self._preview.rows(current, len(self.columns)), self.columns)
+
+
+def _copy(source: int, target: int, close: bool = False) -> None:
+    """Copy the whole file ``source`` (from its start) to ``target`` (closed after when ``close``)."""
+    try:
+        offset = 0
+        while chunk := os.pread(source, 1 << 20, offset):
+            _write_all(target, chunk)
+            offset += len(chunk)
+    finally:
+        if close:
+            os.close(target)
 
 
 def _write_all(fd: int, data: bytes) -> None:
