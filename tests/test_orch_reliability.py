@@ -33,7 +33,7 @@ from orch_helpers import loop_scenario, write_zip, zip_members
 from orchestrator.cli import main
 from orchestrator.provenance import read_provenance
 from orchestrator.results import read_result
-from orchestrator.ssp import SSD_NAME
+from orchestrator.ssp import SSD_NAME, Connection, Experiment, SystemStructure, component, pack_ssp, write_ssd
 
 pytestmark = pytest.mark.system
 
@@ -706,18 +706,29 @@ def _interrupted_without_its_folder(ramp: Path, tmp_path: Path, replace: bool) -
     process = subprocess.Popen([str(ORCHESTRATE), "run", str(ramp), "--stop-time", "1e6", "--output",
                                 str(out / "r.csv"), "--no-plot"], stderr=subprocess.PIPE, text=True,
                                env={**os.environ, "TMPDIR": str(tmp)})
-    try:
+
+    def remove() -> None:
         _streaming(process, out)
         shutil.rmtree(out)
         if replace:
             out.write_text("not a folder\n")
+
+    stderr = _sigint_after(process, remove)
+    return process.returncode, stderr
+
+
+def _sigint_after(process: subprocess.Popen, moment: Callable[[], None]) -> str:
+    """A real SIGINT to ``process`` once ``moment()`` returns; its stderr once it has ended (killed
+    if the signal was lost)."""
+    try:
+        moment()
         process.send_signal(signal.SIGINT)
-        _, stderr = process.communicate(timeout=60)
+        _, stderr = process.communicate(timeout=120)
     finally:
         if process.poll() is None:
             process.kill()
             process.wait()
-    return process.returncode, stderr
+    return stderr
 
 
 def _streaming(process: subprocess.Popen, folder: Path) -> None:
@@ -787,3 +798,49 @@ def test_an_output_folder_that_cannot_be_made_again_keeps_the_rows_in_the_tempor
     assert where.parent == tmp_path / "tmp" and count > 1000
     _ramp_rows(where, count)
     assert out.read_text() == "not a folder\n"
+
+
+# -- Ctrl-C while many components are instantiated and initialized (issue 44) ---------------------------
+def _many_loops(test_fmus: dict[str, Path], folder: Path, copies: int) -> Path:
+    """``copies`` independent integrator-gain loops (``2 * copies`` components) in one scenario."""
+    components, connections = [], []
+    for i in range(copies):
+        components += [component(f"gain{i}", "Gain.fmu", [("u", "input", "Real"), ("y", "output", "Real")],
+                                 {"k": -2.0}),
+                       component(f"integrator{i}", "Integrator.fmu",
+                                 [("u", "input", "Real"), ("x", "output", "Real")], {"x0": 1.0})]
+        connections += [Connection.between(f"integrator{i}.x", f"gain{i}.u"),
+                        Connection.between(f"gain{i}.y", f"integrator{i}.u")]
+    write_ssd(folder, SystemStructure("loops", tuple(components), tuple(connections),
+                                      Experiment(0.0, 1e5, 0.01)))
+    fmus = {f"{n}.fmu": test_fmus[n] for n in ("Gain", "Integrator")}
+    return pack_ssp(folder, fmus, folder.with_suffix(".ssp"))
+
+
+@pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])
+def test_ctrl_c_while_200_components_start_stops_before_the_first_row(master, test_fmus, tmp_path):
+    """main: the masters only looked at a Ctrl-C between two steps, so one sent while 200
+    components were instantiated and initialized (jacobi: 200 sweeps of 200 FMUs) waited for all
+    of them and the first step (6 s here, 26 s on the machine of issue 44) and kept 2 rows. Now
+    set-up and initialization look at it between two components: a real SIGINT, sent as soon as
+    the run's temporary folder appears (set-up begins), ends the run before its first row."""
+    archive = _many_loops(test_fmus, tmp_path / "loops", 100)
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    csv = tmp_path / "r.csv"
+    process = subprocess.Popen([str(ORCHESTRATE), "run", str(archive), "--master", master, "--output",
+                                str(csv), "--no-plot"], stderr=subprocess.PIPE, text=True,
+                               env={**os.environ, "TMPDIR": str(tmp)})
+
+    def setting_up() -> None:
+        deadline = time.monotonic() + 120  # a bound, not a speed limit
+        while not list(tmp.glob("orchestrate-*")):
+            assert time.monotonic() < deadline and process.poll() is None
+            time.sleep(0.002)
+
+    stderr = _sigint_after(process, setting_up)
+    assert process.returncode == 130
+    assert one_line(stderr) == "orchestrate: interrupted by SIGINT at t=0.000 s (before the first row)"
+    record = read_provenance(csv)
+    assert record is not None and record["status"] == "interrupted" and record["rows"] == 0
+    assert sorted(p.name for p in tmp.iterdir()) == []  # every FMU freed, the run's folders removed
