@@ -106,6 +106,45 @@ def interrupt(args: argparse.Namespace, builds: dict[str, Path | None], tmp: Pat
     print("worst: " + ", ".join(f"{who} {s:.2f} s" for who, s in worst.items()))
 
 
+# -- input-file ---------------------------------------------------------------------------------------
+MAKE_INPUT = """
+import sys
+from pathlib import Path
+import numpy as np
+from orchestrator.ssp import Experiment, SystemStructure, component, pack_ssp, write_ssd
+folder, fmu, mib = Path(sys.argv[1]), Path(sys.argv[2]), int(sys.argv[3])
+actuator = component("actuator", "Actuator.fmu", [("v", "input", "Real"), ("x1", "input", "Real"),
+                                                 ("x2", "input", "Real"), ("uf", "output", "Real")])
+write_ssd(folder / "one", SystemStructure("one", (actuator,), (), Experiment(0.0, 0.01, 0.001)))
+pack_ssp(folder / "one", {"Actuator.fmu": fmu}, folder / "one.ssp")
+rng = np.random.default_rng(44)
+with open(folder / "u.csv", "w") as f:
+    f.write("time,actuator.v,actuator.x1,actuator.x2\\n")
+    row = 0
+    while f.tell() < mib << 20:
+        block = rng.standard_normal((100_000, 4))
+        block[:, 0] = (row + np.arange(100_000)) * 1e-5
+        row += 100_000
+        f.write("\\n".join(",".join(repr(float(x)) for x in r) for r in block) + "\\n")
+"""
+
+
+def input_file(args: argparse.Namespace, builds: dict[str, Path | None], tmp: Path) -> None:
+    fmu = REPO / "build" / "fmus" / INPUT_FMU
+    if not fmu.is_file():
+        raise SystemExit(f"{fmu} does not exist: run 'make build' first")
+    subprocess.run([str(PYTHON), "-c", MAKE_INPUT, str(tmp), str(fmu), str(args.mib)], check=True)
+    size = (tmp / "u.csv").stat().st_size / (1 << 20)
+    print(f"--input-file of {size:.0f} MiB (4 columns), a run of 10 steps: peak resident size of the process")
+    run = [str(tmp / "one.ssp"), "--no-plot", "--output", str(tmp / "r.csv")]
+    for who, before in builds.items():
+        command, env = orchestrate(before)
+        status, mib = peak([*command, "run", *run, "--input-file", str(tmp / "u.csv")], env)
+        _, alone = peak([*command, "run", *run], env)
+        print(f"  {who:7s} {mib:7.0f} MiB ({mib / size:.2f} x the file; without it {alone:.0f} MiB), "
+              f"exit status {status}")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="what", required=True)
@@ -113,6 +152,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--copies", type=int, default=50)
     p.add_argument("--master", default="jacobi")
     p.add_argument("--delays", type=float, nargs="+", default=[1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0])
+    p = sub.add_parser("input-file")
+    p.add_argument("--mib", type=int, default=250)
     for p in sub.choices.values():
         p.add_argument("--before", metavar="COMMIT")
     args = parser.parse_args(argv)
@@ -121,7 +162,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         builds: dict[str, Path | None] = {"now": None}
         if args.before:
             builds["before"] = export(args.before, Path(tempfile.mkdtemp(prefix="before.", dir=tmp)))
-        {"interrupt": interrupt}[args.what](args, builds, tmp)
+        {"interrupt": interrupt, "input-file": input_file}[args.what](args, builds, tmp)
     return 0
 
 
