@@ -3,7 +3,7 @@
 
     python benchmarks/orchestrate_limits.py interrupt [--copies 50] [--master jacobi] [--before COMMIT]
     python benchmarks/orchestrate_limits.py input-file [--mib 250] [--before COMMIT]
-    python benchmarks/orchestrate_limits.py compare [--rows 1000000] [--before COMMIT]
+    python benchmarks/orchestrate_limits.py compare [--rows 1000000] [--columns 8] [--before COMMIT]
 
 * ``interrupt``: example1's loop ``--copies`` times in one system (4 components each: 50 copies are
   200 components, ``build/ssp/example1.ssp``, run ``make build`` first), ``orchestrate run`` for
@@ -12,8 +12,8 @@
   ended (wall time: the machine may be loaded; the worst of the delays is the figure).
 * ``input-file``: a ``--mib`` MiB input file (time and 3 inputs of a lone Actuator, 18 significant
   digits) driving a run of 10 steps: the peak resident size of ``orchestrate run``.
-* ``compare``: two result CSVs of ``--rows`` rows and 8 columns (the second within the first's
-  tubes): the peak resident size of ``orchestrate compare``.
+* ``compare``: two result CSVs of ``--rows`` rows and ``--columns`` signals (the second within the
+  first's tubes): the peak resident size of ``orchestrate compare``.
 
 Peak resident sizes are each process's own: ``ru_maxrss`` from ``wait4`` in a small parent (a fresh
 interpreter without site packages that only spawns and waits), never a child of this larger
@@ -145,6 +145,35 @@ def input_file(args: argparse.Namespace, builds: dict[str, Path | None], tmp: Pa
               f"exit status {status}")
 
 
+# -- compare ------------------------------------------------------------------------------------------
+MAKE_COMPARED = """
+import sys
+import numpy as np
+folder, rows, columns = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+t = np.arange(rows) * 1e-3
+rng = np.random.default_rng(44)
+for name, wobble in (("baseline.csv", 0.0), ("result.csv", 1e-6)):
+    with open(f"{folder}/{name}", "w") as f:
+        f.write(",".join(["time", *(f"plant.x{i}" for i in range(columns))]) + "\\n")
+        for s in range(0, rows, 100_000):
+            u = t[s:s + 100_000]
+            block = [u, *(np.sin(u * (i + 1)) + wobble * rng.standard_normal(len(u)) for i in range(columns))]
+            f.write("\\n".join(",".join(map(repr, r)) for r in np.column_stack(block).tolist()) + "\\n")
+"""
+
+
+def compare(args: argparse.Namespace, builds: dict[str, Path | None], tmp: Path) -> None:
+    subprocess.run([str(PYTHON), "-c", MAKE_COMPARED, str(tmp), str(args.rows), str(args.columns)],
+                   check=True)
+    size = (tmp / "result.csv").stat().st_size / (1 << 20)
+    print(f"orchestrate compare of two CSVs of {args.rows} rows, {args.columns} signals ({size:.0f} MiB "
+          "each): peak resident size of the process")
+    for who, before in builds.items():
+        command, env = orchestrate(before)
+        status, mib = peak([*command, "compare", str(tmp / "result.csv"), str(tmp / "baseline.csv")], env)
+        print(f"  {who:7s} {mib:7.0f} MiB, exit status {status}")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="what", required=True)
@@ -154,6 +183,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--delays", type=float, nargs="+", default=[1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0])
     p = sub.add_parser("input-file")
     p.add_argument("--mib", type=int, default=250)
+    p = sub.add_parser("compare")
+    p.add_argument("--rows", type=int, default=1_000_000)
+    p.add_argument("--columns", type=int, default=8)
     for p in sub.choices.values():
         p.add_argument("--before", metavar="COMMIT")
     args = parser.parse_args(argv)
@@ -162,7 +194,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         builds: dict[str, Path | None] = {"now": None}
         if args.before:
             builds["before"] = export(args.before, Path(tempfile.mkdtemp(prefix="before.", dir=tmp)))
-        {"interrupt": interrupt, "input-file": input_file}[args.what](args, builds, tmp)
+        {"interrupt": interrupt, "input-file": input_file, "compare": compare}[args.what](args, builds, tmp)
     return 0
 
 

@@ -33,8 +33,8 @@ from . import files
 from .errors import OrchestratorWarning, OutputError, UsageError
 from .formats import binary_copy_path, csv_rows, read_table, read_tool_csv
 
-__all__ = ["FLUSH_ROWS", "FLUSH_SECONDS", "PREVIEW_BUCKETS", "NonFiniteError", "Recorder", "ResultFileError",
-           "read_result", "structured"]
+__all__ = ["FLUSH_ROWS", "FLUSH_SECONDS", "PREVIEW_BUCKETS", "Columns", "NonFiniteError", "Recorder",
+           "ResultFileError", "open_columns", "read_result", "structured"]
 
 FLUSH_SECONDS = 1.0  # the rows computed reach the CSV at least this often (a slow run too)
 FLUSH_ROWS = 208  # ... and every this many rows (whole checks of 16 rows)
@@ -78,14 +78,85 @@ def read_result(path: str | os.PathLike,
     names = data.dtype.names or ()
     if "time" not in names:
         raise ResultFileError(f"{path}: no 'time' column (columns: {', '.join(names)})")
-    if len(data) < 2:
-        raise ResultFileError(f"{path}: needs at least two rows (has {len(data)})")
-    bad = np.flatnonzero(np.diff(data["time"]) <= 0)
+    _check_time(path, data["time"])
+    return data
+
+
+CSV_BLOCK = 1 << 20  # CSV text pyarrow parses at a time (16 MiB: 250 MB more for its read-ahead)
+
+
+class Columns:
+    """A result CSV parsed once by pyarrow, ``CSV_BLOCK`` of text at a time, into one raw float64
+    file per column in ``folder``: a column is read back alone (``columns[name]``), so memory
+    holds a column or two, never the file (fmpy's reader took 4.4 times its size). Duck-types
+    the structured array :func:`read_result` returns where a comparison reads it (``dtype.names``
+    and ``[name]``). :func:`open_columns` makes one."""
+
+    def __init__(self, names: Sequence[str], rows: int, folder: Path) -> None:
+        self.dtype = np.dtype([(n, np.float64) for n in names])
+        self.rows, self.folder = rows, folder
+
+    def __len__(self) -> int:
+        return self.rows
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        names = self.dtype.names or ()
+        if name not in names:
+            raise KeyError(name)
+        return np.fromfile(self.folder / f"{names.index(name)}.f64", dtype=np.float64)
+
+
+def open_columns(path: str | os.PathLike, folder: str | os.PathLike) -> Columns | np.ndarray:
+    """The result CSV ``path`` as :class:`Columns` (its files in ``folder``, which the caller
+    removes), checked as :func:`read_result` checks a result; a CSV pyarrow cannot read as
+    numbers (another tool's) or another format: :func:`read_result`'s array."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    path, folder = Path(path), Path(folder)
+    if path.suffix.lower() in (".parquet", ".mat") or not path.is_file():
+        return read_result(path)
+    with open(path, "rb") as stream:
+        header = stream.readline(1 << 16)
+    if b'"' in header or b" " in header:  # another tool's layout (OMSimulator's): read_tool_csv's
+        return read_result(path)
+    rows = 0
+    try:
+        with pacsv.open_csv(path, read_options=pacsv.ReadOptions(block_size=CSV_BLOCK)) as reader:
+            names = list(reader.schema.names)
+        if len(set(names)) != len(names):
+            return read_result(path)
+        numbers = pacsv.ConvertOptions(column_types={name: pa.float64() for name in names})
+        with pacsv.open_csv(path, read_options=pacsv.ReadOptions(block_size=CSV_BLOCK),
+                            convert_options=numbers) as reader:
+            outputs = [open(folder / f"{j}.f64", "wb") for j in range(len(names))]  # noqa: SIM115
+            try:
+                for batch in reader:
+                    for j, column in enumerate(batch.columns):
+                        column.to_numpy(zero_copy_only=False).tofile(outputs[j])
+                    rows += batch.num_rows
+            finally:
+                for output in outputs:
+                    output.close()
+    except pa.ArrowException:  # not numbers (another tool's CSV, with units or quotes): read whole
+        return read_result(path)
+    columns = Columns(names, rows, folder)
+    if "time" not in names:
+        raise ResultFileError(f"{path}: no 'time' column (columns: {', '.join(names)})")
+    _check_time(path, columns["time"])
+    return columns
+
+
+def _check_time(path: Path, time: np.ndarray) -> None:
+    """ResultFileError unless ``time`` (of the result ``path``) has two rows or more and increases
+    strictly (naming the line where it does not)."""
+    if len(time) < 2:
+        raise ResultFileError(f"{path}: needs at least two rows (has {len(time)})")
+    bad = np.flatnonzero(np.diff(time) <= 0)
     if len(bad):
         i = int(bad[0]) + 1
         raise ResultFileError(f"{path}: column 'time' does not increase at line {i + 2} "
-                              f"(t = {float(data['time'][i])!r} after {float(data['time'][i - 1])!r})")
-    return data
+                              f"(t = {float(time[i])!r} after {float(time[i - 1])!r})")
 
 
 PREVIEW_BUCKETS = 2000  # keep=False: the preview holds at most two rows per bucket
