@@ -7,7 +7,9 @@ every ``flush_rows`` rows (``FLUSH_ROWS``; or every ``FLUSH_SECONDS`` of wall ti
 checked rows are formatted and written with one ``write(2)`` to a temporary file beside the result,
 renamed onto the result's name when the run ends, so that name never holds a half-written CSV.
 ``close()`` (called on every path, including a failure or Ctrl-C) writes what is left and renames,
-so a failed run keeps every row computed before the failure. A process killed outright (SIGKILL)
+so a failed run keeps every row computed before the failure; a temporary file removed while the
+run writes it (``rm -r`` of the output folder) is written again from its open descriptor, its
+folder made again (:meth:`Recorder.close`). A process killed outright (SIGKILL)
 leaves the temporary file (``.<name>.<host>-<pid>.<random>.part``, named in the sidecar): a CSV of
 every row up to the last write, at most ``flush_rows`` rows or ``FLUSH_SECONDS`` before the kill.
 
