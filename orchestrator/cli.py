@@ -555,7 +555,9 @@ def _run(args: argparse.Namespace) -> int:
         result = exc.result
         detail = f" ({messages.last})" if messages.last and not getattr(exc, "explained", False) else ""
         prefix = "orchestrate: " if isinstance(exc, Interrupted) else "orchestrate: error: "
-        stopped = f"{prefix}{exc}{detail}; {_rows_text(result)} kept in {output}"
+        early = isinstance(exc, Interrupted) and not result.count  # while instantiating or initializing
+        kept = " (before the first row)" if early else f"; {_rows_text(result)} kept in {output}"
+        stopped = f"{prefix}{exc}{detail}{kept}"
         if plot is None or result.count < 2:
             print(stopped, file=sys.stderr)
             return exc.exit_status

@@ -9,7 +9,9 @@ that does not cover the run is a ScenarioWarning, not a silent hold).
 
 The whole file is held in memory as float64 for the run (it is read once), so it may have at most
 ``MAX_INPUT_BYTES``: a 1 GB file reached 6.9 GB of memory and was still being parsed after 400 s.
-CSV files are parsed by pyarrow (about twice the file size while reading).
+A CSV file is parsed by pyarrow one block at a time into arrays that grow in place: memory holds
+8 bytes per value and one block of text, never the whole text nor a second copy of the values
+(a 250 MiB file of 4 columns: see ``benchmarks/orchestrate_limits.py input-file``).
 """
 
 from __future__ import annotations
@@ -21,13 +23,15 @@ from pathlib import Path
 import numpy as np
 
 from .errors import UsageError, option
-from .results import read_result
+from .results import ResultFileError, read_result
 from .ssp import PortRef
 from .system import System
 
 __all__ = ["MAX_INPUT_BYTES", "InputSeries", "read_inputs"]
 
 MAX_INPUT_BYTES = 256 << 20  # about 10 million values as CSV text
+BLOCK_BYTES = 1 << 20  # CSV text pyarrow parses at a time (16 MiB: 250 MB more for its read-ahead)
+CHECK_ROWS = 1 << 16  # rows checked for non-finite values at a time
 
 
 @dataclass(frozen=True)
@@ -55,22 +59,58 @@ class InputSeries:
         return out
 
 
-def _read_csv(path: Path) -> np.ndarray:
-    """A CSV of numbers parsed by pyarrow (fmpy's reader needs about 7 times the file's size)."""
+def _csv_names(path: Path) -> list[str]:
+    """The column names of the CSV ``path`` (its first line, as pyarrow reads it)."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
     try:
-        table = pacsv.read_csv(path)
+        with pacsv.open_csv(path, read_options=pacsv.ReadOptions(block_size=1 << 20)) as reader:
+            return list(reader.schema.names)
     except pa.ArrowException as exc:
-        raise ValueError(str(exc).splitlines()[0]) from None
-    data = np.empty(table.num_rows, dtype=[(n, np.float64) for n in table.column_names])
-    for name in table.column_names:
-        column = table[name]
-        if not (pa.types.is_integer(column.type) or pa.types.is_floating(column.type)):
-            raise ValueError(f"column '{name}' is not numbers ({column.type})")
-        data[name] = column.to_numpy()
-    return data
+        raise ResultFileError(f"{path}: not a result CSV ({str(exc).splitlines()[0]})") from None
+
+
+def _read_csv(path: Path, names: list[str], columns: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """``time`` and ``columns`` (rows x columns) of the CSV ``path`` whose columns are ``names``:
+    parsed by pyarrow one block of ``BLOCK_BYTES`` at a time into arrays grown in place, so that
+    memory holds the values (8 bytes each) and one block, never the whole text or a second copy."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    where = [names.index("time"), *(names.index(c) for c in columns)]
+    capacity = 1 << 16
+    time, values = np.empty(capacity), np.empty((capacity, len(columns)))
+    n = 0
+    try:
+        with pacsv.open_csv(path, read_options=pacsv.ReadOptions(block_size=BLOCK_BYTES),
+                            convert_options=pacsv.ConvertOptions(
+                                column_types={name: pa.float64() for name in names})) as reader:
+            for batch in reader:
+                k = batch.num_rows
+                if n + k > capacity:  # in place (realloc): no second copy of what is read
+                    capacity = max(2 * capacity, n + k)
+                    time.resize(capacity, refcheck=False)
+                    values.resize((capacity, len(columns)), refcheck=False)
+                time[n:n + k] = batch.column(where[0]).to_numpy(zero_copy_only=False)
+                for j, c in enumerate(where[1:]):
+                    values[n:n + k, j] = batch.column(c).to_numpy(zero_copy_only=False)
+                _increasing(path, time, max(0, n - 1), n + k)
+                n += k
+    except pa.ArrowException as exc:
+        raise ResultFileError(f"{path}: not a result CSV ({str(exc).splitlines()[0]})") from None
+    time.resize(n, refcheck=False)
+    values.resize((n, len(columns)), refcheck=False)
+    return time, values
+
+
+def _increasing(path: Path, time: np.ndarray, start: int, end: int) -> None:
+    """ResultFileError naming the line where ``time[start:end]`` does not increase strictly."""
+    bad = np.flatnonzero(np.diff(time[start:end]) <= 0)
+    if len(bad):
+        i = start + int(bad[0]) + 1
+        raise ResultFileError(f"{path}: column 'time' does not increase at line {i + 2} "
+                              f"(t = {float(time[i])!r} after {float(time[i - 1])!r})")
 
 
 def read_inputs(path: str | os.PathLike, system: System, start: float,
@@ -87,8 +127,11 @@ def read_inputs(path: str | os.PathLike, system: System, start: float,
         raise UsageError(f"{option('input_file')} {path}: {size / (1 << 20):.0f} MiB, more than an input "
                          f"file may have ({MAX_INPUT_BYTES >> 20} MiB, held in memory for the run): thin it "
                          "out (the inputs are interpolated between its rows)")
-    data = read_result(path, reader=_read_csv)
-    names = [n for n in data.dtype.names or () if n != "time"]
+    data = None if path.suffix.lower() not in (".parquet", ".mat") else read_result(path)
+    header = list(data.dtype.names or ()) if data is not None else _csv_names(path)
+    if "time" not in header:
+        raise ResultFileError(f"{path}: no 'time' column (columns: {', '.join(header)})")
+    names = [n for n in header if n != "time"]
     free = {str(PortRef(c.name, i)): (c, PortRef(c.name, i)) for c in system.components.values()
             for i in c.inputs if PortRef(c.name, i) not in system.links}
     ports, discrete, problems = [], [], []
@@ -110,12 +153,19 @@ def read_inputs(path: str | os.PathLike, system: System, start: float,
     if not ports:
         raise UsageError(f"{option('input_file')} {path}: no input column (inputs it can drive: "
                          f"{', '.join(free) or 'none'})")
-    values = np.column_stack([np.asarray(data[str(p)], dtype=float) for p in ports])
-    if not np.isfinite(values).all():
-        row, column = np.argwhere(~np.isfinite(values))[0]
-        raise UsageError(f"{option('input_file')} {path}: '{ports[column]}' is {values[row, column]!r} at "
-                         f"t={float(data['time'][row]):g} s")
-    time = np.asarray(data["time"], dtype=float)
+    if data is not None:
+        time, values = data["time"].copy(), np.column_stack([data[str(p)] for p in ports])
+    else:
+        time, values = _read_csv(path, header, [str(p) for p in ports])
+    if len(time) < 2:
+        raise ResultFileError(f"{path}: needs at least two rows (has {len(time)})")
+    for first in range(0, len(values), CHECK_ROWS):  # a block at a time: no mask as large as the values
+        bad = np.argwhere(~np.isfinite(values[first:first + CHECK_ROWS]))
+        if len(bad):
+            row, column = first + int(bad[0, 0]), int(bad[0, 1])
+            value = float(values[row, column])
+            raise UsageError(f"{option('input_file')} {path}: '{ports[column]}' is {value!r} at "
+                             f"t={float(time[row]):g} s")
     warnings = []
     if time[0] > start or time[-1] < stop:
         warnings.append(f"{option('input_file')} {path} covers t = {time[0]:g} .. {time[-1]:g} s of the "

@@ -268,6 +268,7 @@ class Master:
         self.instances: list[InstanceBase] = []
         self.recorder: Recorder | None = None
         self.messages = MessageLog()
+        self.stopper: Stopper | None = None  # while run() runs: the stop requests
 
     @property
     def times(self) -> np.ndarray:
@@ -287,7 +288,7 @@ class Master:
         Interrupted; each with ``result`` and ``rows``) is raised after every FMU has been freed.
         """
         with ExitStack() as stack:
-            stopper = stack.enter_context(Stopper(self.timeout))
+            stopper = self.stopper = stack.enter_context(Stopper(self.timeout))
             self.setup(stack)
             recorder = self.recorder
             assert recorder is not None  # setup() creates it
@@ -306,6 +307,15 @@ class Master:
             except (Interrupted, TimeLimitError) as exc:
                 raise self._kept(exc) from None
         return recorder.result()
+
+    def _stop_if_asked(self, t: float) -> None:
+        """Raise the stop request (Ctrl-C, SIGTERM, the time limit) at ``t``, if there is one: checked
+        between two components of the set-up and the initialization too, each of which may call a
+        slow FMU (a scenario of 200 Python FMUs served Ctrl-C only after all were instantiated and
+        initialized)."""
+        if self.stopper is not None and self.stopper.requested():
+            self.stopper.disarm()
+            raise self.stopper.error(t)
 
     def _step_all(self, stopper: Stopper, stack: ExitStack) -> None:
         """Every step of the run: one at a time in Python, or blocks of up to ``BLOCK`` in C (the
@@ -394,6 +404,7 @@ class Master:
             instance = self.open_instance(comp, workdir, self.messages, self.start_time)
             stack.callback(instance.release)
             self.instances.append(instance)
+            self._stop_if_asked(self.start_time)
         self._layout()
         self.recorder = Recorder(self.columns, self.n + 1, self.output, keep=self.keep or self.output is None,
                                  binary_copy=self.binary_copy)
@@ -407,6 +418,7 @@ class Master:
             inst.set_start_values(start_values, t0)
             inst.setup(t0, stop)
             inst.set_start_values(start_values, t0)
+            self._stop_if_asked(t0)
         self._drive(t0)
         self._initialize_impl(t0)
         assert self.recorder is not None  # setup() creates it
@@ -565,6 +577,7 @@ class Jacobi(Master):
                     inst.write_inputs(t0)
                 inst.read_outputs(t0)
             self._transfer_all()
+            self._stop_if_asked(t0)
         for inst in self.instances:
             inst.write_inputs(t0)
             inst.exit_initialization(t0)

@@ -10,12 +10,14 @@ it writes the rows kept in the format asked for and finishes the provenance.
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
 from . import formats, provenance
+from .errors import OutputError
 from .results import Recorder
 from .system import PortRef, System
 
@@ -108,12 +110,19 @@ class RunOutput:
         saved = recorder.saved if recorder is not None else 0  # what is on disk, never more
         record["rows_computed"] = count
         kept = self.selection.kept(saved, step)
-        outputs = {"provenance": provenance.finish(self.path, record, status, kept,
-                                                   time(saved - 1) if saved else None, message)}
+        outputs = {}
+        try:
+            outputs["provenance"] = provenance.finish(self.path, record, status, kept,
+                                                      time(saved - 1) if saved else None, message)
+        except OutputError:
+            if status == "complete":
+                raise
+            # else the error that ended the run (its one line names where its rows are) goes on
         if saved and self.stream.is_file():
             units = record.get("units")  # the rows kept, in the format asked for, with their units
             formats.write_selected(self.stream, self.path, self.selection, self.texts,
                                    units if isinstance(units, dict) else None)
             outputs["result"] = self.path
-        formats.binary_copy_path(self.stream).unlink(missing_ok=True)
+        with contextlib.suppress(FileNotFoundError, NotADirectoryError):  # not there (its folder gone)
+            formats.binary_copy_path(self.stream).unlink()
         return outputs

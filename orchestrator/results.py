@@ -7,7 +7,9 @@ every ``flush_rows`` rows (``FLUSH_ROWS``; or every ``FLUSH_SECONDS`` of wall ti
 checked rows are formatted and written with one ``write(2)`` to a temporary file beside the result,
 renamed onto the result's name when the run ends, so that name never holds a half-written CSV.
 ``close()`` (called on every path, including a failure or Ctrl-C) writes what is left and renames,
-so a failed run keeps every row computed before the failure. A process killed outright (SIGKILL)
+so a failed run keeps every row computed before the failure; a temporary file removed while the
+run writes it (``rm -r`` of the output folder) is written again from its open descriptor, its
+folder made again (:meth:`Recorder.close`). A process killed outright (SIGKILL)
 leaves the temporary file (``.<name>.<host>-<pid>.<random>.part``, named in the sidecar): a CSV of
 every row up to the last write, at most ``flush_rows`` rows or ``FLUSH_SECONDS`` before the kill.
 
@@ -20,7 +22,9 @@ CSV. Every ``check_rows`` rows the new rows are checked to be finite.
 from __future__ import annotations
 
 import os
+import tempfile
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -28,11 +32,11 @@ import numpy as np
 from fmpy.util import read_csv
 
 from . import files
-from .errors import OutputError, UsageError
+from .errors import OrchestratorWarning, OutputError, UsageError
 from .formats import binary_copy_path, csv_rows, read_table, read_tool_csv
 
-__all__ = ["FLUSH_ROWS", "FLUSH_SECONDS", "PREVIEW_BUCKETS", "NonFiniteError", "Recorder", "ResultFileError",
-           "read_result", "structured"]
+__all__ = ["FLUSH_ROWS", "FLUSH_SECONDS", "PREVIEW_BUCKETS", "Columns", "NonFiniteError", "Recorder",
+           "ResultFileError", "open_columns", "read_result", "structured"]
 
 FLUSH_SECONDS = 1.0  # the rows computed reach the CSV at least this often (a slow run too)
 FLUSH_ROWS = 208  # ... and every this many rows (whole checks of 16 rows)
@@ -76,14 +80,85 @@ def read_result(path: str | os.PathLike,
     names = data.dtype.names or ()
     if "time" not in names:
         raise ResultFileError(f"{path}: no 'time' column (columns: {', '.join(names)})")
-    if len(data) < 2:
-        raise ResultFileError(f"{path}: needs at least two rows (has {len(data)})")
-    bad = np.flatnonzero(np.diff(data["time"]) <= 0)
+    _check_time(path, data["time"])
+    return data
+
+
+CSV_BLOCK = 1 << 20  # CSV text pyarrow parses at a time (16 MiB: 250 MB more for its read-ahead)
+
+
+class Columns:
+    """A result CSV parsed once by pyarrow, ``CSV_BLOCK`` of text at a time, into one raw float64
+    file per column in ``folder``: a column is read back alone (``columns[name]``), so memory
+    holds a column or two, never the file (fmpy's reader took 4.4 times its size). Duck-types
+    the structured array :func:`read_result` returns where a comparison reads it (``dtype.names``
+    and ``[name]``). :func:`open_columns` makes one."""
+
+    def __init__(self, names: Sequence[str], rows: int, folder: Path) -> None:
+        self.dtype = np.dtype([(n, np.float64) for n in names])
+        self.rows, self.folder = rows, folder
+
+    def __len__(self) -> int:
+        return self.rows
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        names = self.dtype.names or ()
+        if name not in names:
+            raise KeyError(name)
+        return np.fromfile(self.folder / f"{names.index(name)}.f64", dtype=np.float64)
+
+
+def open_columns(path: str | os.PathLike, folder: str | os.PathLike) -> Columns | np.ndarray:
+    """The result CSV ``path`` as :class:`Columns` (its files in ``folder``, which the caller
+    removes), checked as :func:`read_result` checks a result; a CSV pyarrow cannot read as
+    numbers (another tool's) or another format: :func:`read_result`'s array."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    path, folder = Path(path), Path(folder)
+    if path.suffix.lower() in (".parquet", ".mat") or not path.is_file():
+        return read_result(path)
+    with open(path, "rb") as stream:
+        header = stream.readline(1 << 16)
+    if b'"' in header or b" " in header:  # another tool's layout (OMSimulator's): read_tool_csv's
+        return read_result(path)
+    rows = 0
+    try:
+        with pacsv.open_csv(path, read_options=pacsv.ReadOptions(block_size=CSV_BLOCK)) as reader:
+            names = list(reader.schema.names)
+        if len(set(names)) != len(names):
+            return read_result(path)
+        numbers = pacsv.ConvertOptions(column_types={name: pa.float64() for name in names})
+        with pacsv.open_csv(path, read_options=pacsv.ReadOptions(block_size=CSV_BLOCK),
+                            convert_options=numbers) as reader:
+            outputs = [open(folder / f"{j}.f64", "wb") for j in range(len(names))]  # noqa: SIM115
+            try:
+                for batch in reader:
+                    for j, column in enumerate(batch.columns):
+                        column.to_numpy(zero_copy_only=False).tofile(outputs[j])
+                    rows += batch.num_rows
+            finally:
+                for output in outputs:
+                    output.close()
+    except pa.ArrowException:  # not numbers (another tool's CSV, with units or quotes): read whole
+        return read_result(path)
+    columns = Columns(names, rows, folder)
+    if "time" not in names:
+        raise ResultFileError(f"{path}: no 'time' column (columns: {', '.join(names)})")
+    _check_time(path, columns["time"])
+    return columns
+
+
+def _check_time(path: Path, time: np.ndarray) -> None:
+    """ResultFileError unless ``time`` (of the result ``path``) has two rows or more and increases
+    strictly (naming the line where it does not)."""
+    if len(time) < 2:
+        raise ResultFileError(f"{path}: needs at least two rows (has {len(time)})")
+    bad = np.flatnonzero(np.diff(time) <= 0)
     if len(bad):
         i = int(bad[0]) + 1
         raise ResultFileError(f"{path}: column 'time' does not increase at line {i + 2} "
-                              f"(t = {float(data['time'][i])!r} after {float(data['time'][i - 1])!r})")
-    return data
+                              f"(t = {float(time[i])!r} after {float(time[i - 1])!r})")
 
 
 PREVIEW_BUCKETS = 2000  # keep=False: the preview holds at most two rows per bucket
@@ -152,7 +227,7 @@ class Recorder:
                 self._fd = os.open(path, os.O_WRONLY | os.O_CLOEXEC)
             else:
                 self.part = files.reserve(path)
-                self._fd = os.open(self.part, os.O_WRONLY | os.O_TRUNC | os.O_CLOEXEC)
+                self._fd = os.open(self.part, os.O_RDWR | os.O_TRUNC | os.O_CLOEXEC)  # read: _rescue
         except OSError as exc:
             self.failed = True
             raise OutputError(f"{path}: {exc.strerror or exc}") from exc
@@ -294,19 +369,53 @@ class Recorder:
         finally:
             fd, self._fd = self._fd, None
             if fd is not None:  # not given up by _append
-                try:
-                    self._close_binary(remove=False)
-                    os.close(fd)
-                except OSError as exc:
-                    self._discard()
-                    raise OutputError(f"{self.path}: {exc.strerror or exc}") from exc
-                if self.part is not None and self.path is not None and self.part != self.path:
-                    try:
-                        os.replace(self.part, self.path)
-                    except OSError as exc:  # the rows are whole in the temporary file: kept there
-                        self.failed = True  # the result's name holds none of them
-                        raise OutputError(f"{self.path}: {exc.strerror or exc}; the {self._committed[0]} "
-                                          f"rows written are kept in {self.part}") from exc
+                self._finish(fd)
+
+    def _finish(self, fd: int) -> None:
+        """Close the CSV ``fd`` and rename it onto the result's name. A temporary file that was
+        removed while it was written (``rm -r`` of the output folder: the writes went on into the
+        unlinked file) is first written again from ``fd``, beside the result, its folder made again."""
+        try:
+            self._close_binary(remove=False)
+            if self.part != self.path and os.fstat(fd).st_nlink == 0:
+                self._rescue(fd)
+        except OutputError:
+            raise  # the rows are kept where it says
+        except OSError as exc:
+            self._discard()
+            raise OutputError(f"{self.path}: {exc.strerror or exc}") from exc
+        finally:
+            os.close(fd)
+        if self.part is not None and self.path is not None and self.part != self.path:
+            try:
+                os.replace(self.part, self.path)
+            except OSError as exc:  # the rows are whole in the temporary file: kept there
+                self.failed = True  # the result's name holds none of them
+                raise OutputError(f"{self.path}: {exc.strerror or exc}; the {self._committed[0]} "
+                                  f"rows written are kept in {self.part}") from exc
+
+    def _rescue(self, fd: int) -> None:
+        """The CSV ``fd`` was removed while it was written: its rows copied into a new temporary file
+        beside the result (its folder made again; a warning says so), or, where that cannot be, into
+        a file of the temporary folder that the OutputError raised names."""
+        assert self.path is not None and self.part is not None
+        rows, folder = self._committed[0], not self.path.parent.is_dir()
+        what = (f"its folder {self.path.parent}" if folder
+                else f"the file it was streamed to ({self.part.name})")
+        try:
+            self.part = files.reserve(self.path)
+        except OSError as exc:
+            self.part = None
+            self.failed = True  # the result's name holds none of them
+            handle, kept = tempfile.mkstemp(prefix=f"{self.path.stem}-", suffix=self.path.suffix or ".csv")
+            with os.fdopen(handle, "wb") as target:
+                _copy(fd, target.fileno())
+            raise OutputError(f"{self.path}: {what} was removed during the run and cannot be made again "
+                              f"({exc.strerror or exc}); the {rows} rows written are kept in {kept}"
+                              ) from None
+        _copy(fd, os.open(self.part, os.O_WRONLY | os.O_CLOEXEC), close=True)
+        warnings.warn(f"{self.path}: {what} was removed during the run; made again, with all {rows} rows "
+                      "written", OrchestratorWarning, stacklevel=2)
 
     def result(self) -> np.ndarray:
         """The rows recorded so far as a structured array (``time`` first); keep=False: the preview."""
@@ -314,6 +423,18 @@ class Recorder:
         if self._preview is None:
             return structured(current.copy(), self.columns)
         return structured(self._preview.rows(current, len(self.columns)), self.columns)
+
+
+def _copy(source: int, target: int, close: bool = False) -> None:
+    """Copy the whole file ``source`` (from its start) to ``target`` (closed after when ``close``)."""
+    try:
+        offset = 0
+        while chunk := os.pread(source, 1 << 20, offset):
+            _write_all(target, chunk)
+            offset += len(chunk)
+    finally:
+        if close:
+            os.close(target)
 
 
 def _write_all(fd: int, data: bytes) -> None:

@@ -332,6 +332,46 @@ def test_an_input_series_drives_an_unconnected_input(name):
     assert len(sets) == 11 and all(e[1:] == ("gain", ("u",)) for e in sets)  # t0, then every step
 
 
+def test_an_input_file_of_many_blocks_is_read_as_numpy_reads_it(tmp_path, monkeypatch):
+    """The CSV is parsed a block at a time into arrays grown in place (issue 44: a 250 MiB file
+    took 2.5 times its size): 100 000 rows in blocks of 64 KiB give the very values numpy's
+    own parser reads, and a fault deep in the file (time going back, a NaN, a word) is named with
+    its line, input and time as before."""
+    from orchestrator import inputs
+    from orchestrator.errors import UsageError
+    from orchestrator.results import ResultFileError
+
+    monkeypatch.setattr(inputs, "BLOCK_BYTES", 1 << 16)
+    rng = np.random.default_rng(44)
+    t = np.cumsum(rng.uniform(1e-6, 1e-4, 100_000)).tolist()
+    u = (rng.standard_normal(100_000) * 10.0 ** rng.integers(-300, 300, 100_000)).tolist()
+    lines = ["time,gain.u", *(f"{a!r},{b!r}" for a, b in zip(t, u, strict=True))]
+    good = tmp_path / "u.csv"
+    good.write_text("\n".join(lines) + "\n")
+    assert good.stat().st_size > 40 * inputs.BLOCK_BYTES
+    series, _ = inputs.read_inputs(good, lone_gain(), 0.0, 1.0)
+    expected = np.loadtxt(good, delimiter=",", skiprows=1)
+    assert series.time.tobytes() == expected[:, 0].tobytes()
+    assert series.values.tobytes() == expected[:, 1:].tobytes()
+    assert series.ports == (PortRef("gain", "u"),)
+
+    def faulty(row: int, text: str) -> Path:
+        path = tmp_path / "bad.csv"
+        path.write_text("\n".join([*lines[:row], text, *lines[row + 1:]]) + "\n")
+        return path
+
+    back = faulty(90_001, f"{t[90_000 - 2]!r},1.0")  # line 90 002: the time of line 90 000
+    with pytest.raises(ResultFileError, match=f"bad.csv: column 'time' does not increase at line 90002 "
+                                              rf"\(t = {t[90_000 - 2]!r} after {t[90_000 - 1]!r}\)"):
+        inputs.read_inputs(back, lone_gain(), 0.0, 1.0)
+    nan = faulty(95_000, f"{t[95_000 - 1]!r},nan")
+    with pytest.raises(UsageError, match=rf"bad.csv: 'gain.u' is nan at t={t[95_000 - 1]:g} s$"):
+        inputs.read_inputs(nan, lone_gain(), 0.0, 1.0)
+    word = faulty(99_000, f"{t[99_000 - 1]!r},one")
+    with pytest.raises(ResultFileError, match="bad.csv: not a result CSV .*invalid value 'one'"):
+        inputs.read_inputs(word, lone_gain(), 0.0, 1.0)
+
+
 def test_a_discrete_input_holds_its_value_between_rows():
     from orchestrator.inputs import InputSeries
 

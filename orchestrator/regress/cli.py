@@ -7,16 +7,19 @@ from __future__ import annotations
 
 import argparse
 import fnmatch
+import shutil
 import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+import numpy as np
+
 from ..cli import add_command
 from ..errors import OutputError, UsageError
-from ..files import not_regular
+from ..files import not_regular, temporary_folder
 from ..provenance import read_provenance, summary
-from ..results import read_result
+from ..results import Columns, open_columns
 from . import review
 from .figures import plot_failures
 from .junit import write_junit
@@ -278,9 +281,22 @@ def _as_review(o: Outcome) -> Outcome:
 
 
 def _compare(args: argparse.Namespace) -> int:
+    """``orchestrate compare``: each file parsed once into a column file per signal in a temporary
+    folder, compared a signal at a time (memory: a few columns, not the files)."""
+    folder = temporary_folder("compare-")
+    try:
+        (folder / "result").mkdir()
+        (folder / "baseline").mkdir()
+        return _compare_files(args, open_columns(args.result, folder / "result"),
+                              open_columns(args.baseline, folder / "baseline"))
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _compare_files(args: argparse.Namespace, result: Columns | np.ndarray,
+                   baseline: Columns | np.ndarray) -> int:
     tolerances = load_tolerances(args.tolerances).for_scenario(args.baseline.stem) if args.tolerances \
         else tolerances_beside(args.baseline)
-    baseline = read_result(args.baseline)
     columns = [n for n in baseline.dtype.names or () if n != "time"]
     overrides = dict(parse_tolerance(text, tolerances) for text in args.tol)
     unknown = [n for n in overrides if n not in columns]
@@ -294,8 +310,8 @@ def _compare(args: argparse.Namespace) -> int:
             raise UsageError(f"--signal: no signal of {args.baseline} matches {', '.join(unmatched)} "
                              f"(signals: {', '.join(columns)})")
         signals = [n for n in columns if any(fnmatch.fnmatchcase(n, p) for p in args.signal)]
-    comparison = compare(read_result(args.result), baseline, tolerances.with_overrides(overrides),
-                         str(args.result), str(args.baseline), signals=signals)
+    comparison = compare(result, baseline, tolerances.with_overrides(overrides), str(args.result),
+                         str(args.baseline), signals=signals, keep_passed=False)
     print(f"result:   {args.result}: {summary(read_provenance(args.result))}")
     print(f"baseline: {args.baseline}: {summary(read_provenance(args.baseline))}")
     print(format_comparison(comparison))

@@ -32,7 +32,7 @@ from fmpy.util import validate_signal
 from .. import files, open_system
 from ..errors import UsageError
 from ..master import time_grid
-from ..results import read_result
+from ..results import Columns, read_result
 
 __all__ = [
     "BASELINE_GRID",
@@ -177,7 +177,7 @@ def parse_tolerance(text: str, base: Tolerances) -> tuple[str, Tolerance]:
 
 
 # -- results and baselines ----------------------------------------------------------------------
-def _fields(data: np.ndarray) -> tuple[str, ...]:
+def _fields(data: np.ndarray | Columns) -> tuple[str, ...]:
     """The column names of a result or baseline (a structured array, one field per column)."""
     names = data.dtype.names
     if names is None:
@@ -352,16 +352,18 @@ def _check(name: str, t: np.ndarray, y: np.ndarray, y_ref: np.ndarray, tol: Tole
                        float(deviation.max()), t, y, y_ref, lower, upper)
 
 
-def compare(result: np.ndarray, baseline: np.ndarray, tolerances: Tolerances | None = None,
+def compare(result: np.ndarray | Columns, baseline: np.ndarray | Columns,
+            tolerances: Tolerances | None = None,
             result_name: str = "result", baseline_name: str = "baseline", *,
-            signals: Sequence[str] | None = None) -> Comparison:
+            signals: Sequence[str] | None = None, keep_passed: bool = True) -> Comparison:
     """Compare baseline columns with the result's columns of the same name on the baseline's time
     grid (the result is interpolated linearly onto it where it has no row there).
 
     Parameters
     ----------
-    result, baseline : numpy.ndarray
-        Structured arrays, ``time`` first (:func:`orchestrator.results.read_result`).
+    result, baseline : numpy.ndarray or Columns
+        Structured arrays, ``time`` first (:func:`orchestrator.results.read_result`), or files read
+        a column at a time (:func:`orchestrator.results.open_columns`).
     tolerances : Tolerances, optional
         The tubes (default: 1 % of each signal's range).
     result_name, baseline_name : str
@@ -370,6 +372,10 @@ def compare(result: np.ndarray, baseline: np.ndarray, tolerances: Tolerances | N
         The baseline columns the verdict rests on, each required of the result (a missing one
         fails). Default: every column both have; baseline columns the result lacks are listed in
         ``missing`` but do not fail.
+    keep_passed : bool
+        False: a signal inside its tube keeps no arrays (``time`` ... ``upper`` empty), only its
+        figures, so that memory holds the failed signals' arrays alone (``orchestrate compare``
+        of long files, with :func:`orchestrator.results.open_columns`).
 
     Returns
     -------
@@ -410,7 +416,11 @@ def compare(result: np.ndarray, baseline: np.ndarray, tolerances: Tolerances | N
                 problems.append(f"{baseline_name}: column '{n}' has non-finite values")
                 continue
             y = result[n][at_res] if at_res is not None else np.interp(t, t_res, result[n])
-            checks.append(_check(n, t, y, y_ref, tolerances.of(n), tolerances.quiet_until))
+            check = _check(n, t, y, y_ref, tolerances.of(n), tolerances.quiet_until)
+            if check.passed and not keep_passed:
+                none = np.empty(0)
+                check = replace(check, time=none, value=none, reference=none, lower=none, upper=none)
+            checks.append(check)
     return Comparison(result_name, baseline_name, tolerances, checks, missing, extra, problems, grid,
                       required)
 
