@@ -20,9 +20,14 @@ BYTECODE := build/.bytecode
 # temporary file first: a failed compile leaves pip's script working and make fails with the
 # compiler's message. Linked statically where the compiler finds a static C library (libc6-dev has
 # it): the shortest start before the mask.
+# Every pip install of the project writes pip's script again: each is followed by this.
 LAUNCHER := orchestrator/launcher.c
 LAUNCHER_FLAGS = -std=c11 -O2 -Wall -Wextra \
   $(if $(filter /%,$(shell $(CC) -print-file-name=libc.a 2>/dev/null)),-static)
+define install_launcher
+	$(CC) $(LAUNCHER_FLAGS) -o $(ORCH).new $(LAUNCHER) || { rm -f $(ORCH).new; exit 1; }
+	mv -f $(ORCH).new $(ORCH)
+endef
 
 # The project and what a run needs (make run); the test and docs tools on top (make test, lint, docs).
 $(STAMP): pyproject.toml constraints.txt $(LAUNCHER)
@@ -31,8 +36,7 @@ $(STAMP): pyproject.toml constraints.txt $(LAUNCHER)
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip==26.3
 	$(PY) -m pip install --quiet -e . -c constraints.txt
-	$(CC) $(LAUNCHER_FLAGS) -o $(ORCH).new $(LAUNCHER) || { rm -f $(ORCH).new; exit 1; }
-	mv -f $(ORCH).new $(ORCH)
+	$(install_launcher)
 	@if [ -d .git ] && [ -z "$$(git config core.hooksPath)" ]; then \
 	  git config core.hooksPath .githooks && echo "git: commit subjects checked by .githooks/commit-msg (at most 72 characters)"; fi
 	rm -f $(DEV_STAMP)
@@ -40,6 +44,7 @@ $(STAMP): pyproject.toml constraints.txt $(LAUNCHER)
 
 $(DEV_STAMP): $(STAMP)
 	$(PY) -m pip install --quiet -e '.[test,docs]' -c constraints.txt
+	$(install_launcher)
 	touch $(DEV_STAMP)
 
 # No second Python on the machine: the test that needs it says so and skips.
