@@ -151,10 +151,12 @@ class System:
         # fmpy's checks, except a missing input start, which _check_inputs reports in context: the
         # FMU still loads (OMSimulator and libcosim run it), so a warning unless strict_fmus
         found = validate_model_description(md)
-        invalid = [p for p in found if not _is_input_start(p, md)]
+        inputs = {v.name for v in md.modelVariables if v.causality == "input"}
+        invalid = [p for p in found if not _is_input_start(p, inputs)]
         if fmu_warnings:
+            known = set(found)
             self.warnings.extend(f"{where}: {p}" for p in validate_fmu(str(fmucache.materialize(c.source)))
-                                 if p not in found and not _is_input_start(p, md))
+                                 if p not in known and not _is_input_start(p, inputs))
         (self.problems if self.strict_fmus else self.warnings).extend(f"{where}: {p}" for p in invalid)
         bad_starts = [f"variable '{v.name}': start=\"{v.start}\" is no {v.type} value"
                       for v in md.modelVariables if not _start_ok(v)]  # FMI 3.0: fmpy keeps it a string
@@ -243,13 +245,16 @@ class System:
                 self.links[end] = con
 
     def _check_units(self, problems: list[str]) -> None:
-        """A connection without transformation joins units of the same dimension where both ends
-        declare one (the SSD connector's unit, else the FMU variable's): equal units pass the value
-        unchanged, scalings of each other (deg -> rad, ms -> s) get the implied conversion (SSP 1.0
-        unit conversion) as the connection's factor and offset, other dimensions are an error."""
+        """A connection joins units of the same dimension where both ends declare one (the SSD
+        connector's unit, else the FMU variable's): equal units pass the value unchanged, scalings
+        of each other (deg -> rad, ms -> s, degC -> K) get the implied conversion, other dimensions
+        are an error. As SSP 1.0.1 orders it (4.5.2.1), the conversion comes first and the
+        connection's LinearTransformation applies to the converted value: the link's factor and
+        offset become the composition, and a warning shows it (tools differ here). With
+        ``suppressUnitConversion`` the transformation alone applies and the units are not judged."""
         for end, con in list(self.links.items()):
-            if con.transformed:
-                continue  # the transformation is the user's conversion; not ours to judge
+            if con.suppress_units:
+                continue
             try:
                 start, target = self._port_unit(con.start), self._port_unit(con.end)
             except UnitError as exc:
@@ -257,18 +262,30 @@ class System:
                 continue
             except _UndefinedUnitError as exc:  # the FMU's own fault, which fmpy's checks reported
                 self.warnings.append(f"{self.ssd}: connection {con}: {exc.args[0]}: the value is passed "
-                                     "unchanged")
+                                     "unchanged" + (" by the LinearTransformation alone" if con.transformed
+                                                    else ""))
                 continue
             if start is None or target is None or start.name == target.name:
                 continue
             try:
                 factor, offset = conversion(start, target)
             except UnitError:
+                hint = (" (if the LinearTransformation is meant as the conversion, set "
+                        "suppressUnitConversion=\"true\" on the connection)" if con.transformed else "")
                 problems.append(f"{self.ssd}: connection {con}: unit mismatch ({con.start} is in "
-                                f"{start.name}, {con.end} in {target.name})")
+                                f"{start.name}, {con.end} in {target.name}){hint}")
                 continue
-            if (factor, offset) != (1.0, 0.0):
-                self.links[end] = replace(con, factor=factor, offset=offset)
+            if (factor, offset) == (1.0, 0.0):
+                continue
+            composed = replace(con, factor=con.factor * factor, offset=con.factor * offset + con.offset)
+            if con.transformed:
+                self.warnings.append(
+                    f"{self.ssd}: connection {con}: {start.name} -> {target.name} is converted before the "
+                    f"LinearTransformation (factor {con.factor:g}, offset {con.offset:g}), as SSP 1.0.1 "
+                    f"4.5.2.1 orders it: {con.end} = {composed.factor:.12g} * {con.start} + "
+                    f"{composed.offset:.12g} (suppressUnitConversion=\"true\" applies the transformation "
+                    "alone)")
+            self.links[end] = composed
 
     def _resolve(self, name: str, *definitions: Iterable[UnitDef]) -> UnitDef:
         """A unit named in the SSD or a parameter set: the files' own definitions, else the known names."""
@@ -376,6 +393,14 @@ class System:
                                     f"({given.dimension()}) cannot be converted to {fmu}")
                     return
                 value = convert(float(value), given, own)  # already a float: a Real
+                if p.transform is not None and given.name != own.name:
+                    self.warnings.append(
+                        f"{label}: {ref} = {p.value!r} {p.unit}: converted to {own.name} before the "
+                        f"LinearTransformation (factor {p.transform[0]:g}, offset {p.transform[1]:g}), as "
+                        f"SSP 1.0.1 5.3.2 orders it: {value!r} {own.name} -> "
+                        f"{p.transform[0] * float(value) + p.transform[1]!r}")
+            if p.transform is not None and type_ == "Real":
+                value = p.transform[0] * float(value) + p.transform[1]
             outside = _outside(var, value)
             if outside:
                 problems.append(f"{label}: {ref} = {value!r} {outside}")
@@ -647,8 +672,9 @@ def _start_ok(var: ModelVariable) -> bool:
     return True
 
 
-def _is_input_start(problem: str, md: ModelDescription) -> bool:
-    inputs = {v.name for v in md.modelVariables if v.causality == "input"}
+def _is_input_start(problem: str, inputs: Collection[str]) -> bool:
+    """Whether fmpy's ``problem`` is an input without a start value (one of ``inputs``, a set: the
+    check runs once per problem, and an FMU may declare 10^5 variables)."""
     return problem.endswith("has no start value.") and problem.split('"')[1] in inputs
 
 
