@@ -190,11 +190,15 @@ class Connection:
 
 @dataclass(frozen=True)
 class Experiment:
-    """DefaultExperiment of the SSD plus the communication step from a tool annotation."""
+    """DefaultExperiment of the SSD plus the communication step from a tool annotation, and the
+    master that annotation implies (``algorithm``, a name of ``orchestrator.master.MASTERS``; None
+    when the SSD names no algorithm) with the annotation it comes from (``algorithm_from``)."""
 
     start_time: float = 0.0
     stop_time: float | None = None
     step: float | None = None
+    algorithm: str | None = None
+    algorithm_from: str = ""
 
 
 @dataclass(frozen=True)
@@ -1178,10 +1182,18 @@ def _literal_of(type_: str, text: str) -> str:
 
 def _read_experiment(root: etree._Element, system: etree._Element, label: str,
                      problems: list[str]) -> Experiment:
-    """Start/stop from DefaultExperiment; the step from libcosim's or OMSimulator's annotation. A
-    value that is not a finite number is a problem (and left at its default)."""
+    """Start/stop from DefaultExperiment; the step and the algorithm from libcosim's or OMSimulator's
+    annotation (the step: libcosim's first when both are there). A value that is not a finite
+    number is a problem (and left at its default).
+
+    libcosim's ``osp:FixedStepAlgorithm`` is its fixed-step algorithm, which the ``jacobi`` master
+    reproduces (every connection one step late); OMSimulator's ``oms:FixedStepMaster`` (``oms-ma``)
+    steps every FMU and then updates the inputs in dependency order at the new time, as
+    ``gauss-seidel`` does. A file with both was written for both tools (``write_ssd`` writes both,
+    so that each reads the step): it names no one algorithm, and gets the default, gauss-seidel."""
     experiment = root.find("ssd:DefaultExperiment", NS)
     start, stop, step = 0.0, None, None
+    algorithm, algorithm_from = None, ""
 
     def finite(element: etree._Element, attribute: str, default: float | None) -> float | None:
         text = element.get(attribute)
@@ -1203,12 +1215,19 @@ def _read_experiment(root: etree._Element, system: etree._Element, label: str,
                               "/osp:Algorithm/osp:FixedStepAlgorithm", NS)
         if osp is not None:
             step = finite(osp, "baseStepSize", None)
+            algorithm, algorithm_from = "jacobi", (f"{label}: libcosim's osp:FixedStepAlgorithm in the "
+                                                   "DefaultExperiment (every connection one step late)")
     oms = system.find(f"ssd:Annotations/ssc:Annotation[@type='{OMS_ANNOTATION}']"
                       "/oms:Annotations/oms:SimulationInformation/oms:FixedStepMaster", NS)
     if oms is not None:  # read (and checked) also when libcosim's annotation gives the step
         oms_step = finite(oms, "stepSize", None)
         step = oms_step if step is None else step
-    return Experiment(start, stop, step)
+        algorithm, algorithm_from = "gauss-seidel", (
+            f"{label}: OMSimulator's oms:FixedStepMaster in the System (all FMUs step, then inputs are "
+            "updated in dependency order at the new time)" if algorithm is None else
+            f"{label}: both libcosim's osp:FixedStepAlgorithm and OMSimulator's oms:FixedStepMaster (a file "
+            "written for both tools, as orchestrate writes its own): the default, OMSimulator's")
+    return Experiment(start, stop, step, algorithm, algorithm_from)
 
 
 # -- writing ------------------------------------------------------------------------------------------

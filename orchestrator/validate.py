@@ -39,10 +39,11 @@ from .ssp import (
 )
 from .system import System
 
-__all__ = ["DEFAULT_STEP", "STEP_ANNOTATIONS", "Problem", "Validation", "check_scenario", "no_step", "timing",
-           "validate"]
+__all__ = ["DEFAULT_MASTER", "DEFAULT_STEP", "STEP_ANNOTATIONS", "Problem", "Validation", "check_scenario",
+           "choose_master", "no_step", "timing", "validate"]
 
 DEFAULT_STEP = 1e-3
+DEFAULT_MASTER = "gauss-seidel"
 STEP_ANNOTATIONS = ("a step annotation (libcosim's osp:FixedStepAlgorithm baseStepSize in the "
                     "DefaultExperiment, or OMSimulator's oms:FixedStepMaster stepSize in the System)")
 
@@ -167,6 +168,17 @@ def load_problems(system: System, stack: ExitStack) -> list[str]:
             found.append(f"{system.ssd}: component '{comp.name}': FMU '{comp.fmu.name}': cannot load "
                          f"{reasons[comp.fmu]}")
     return found
+
+
+def choose_master(structure: SystemStructure, requested: str | None = None) -> tuple[str, str]:
+    """The master a run uses and why: ``requested`` (``--master``) when given, else the one the
+    SSD's algorithm annotation implies (libcosim's osp:FixedStepAlgorithm: jacobi, OMSimulator's
+    oms:FixedStepMaster: gauss-seidel), else the default, gauss-seidel."""
+    if requested is not None:
+        return requested, option("master")
+    if structure.experiment.algorithm is not None:
+        return structure.experiment.algorithm, structure.experiment.algorithm_from
+    return DEFAULT_MASTER, "the default (the SSD names no algorithm)"
 
 
 def timing(structure: SystemStructure, stop_time: float | None = None,
