@@ -106,6 +106,7 @@ class System:
         problems = self.problems
         self.components: dict[str, ComponentModel] = {}
         names: set[str] = set()
+        self._connected = {port for con in structure.connections for port in (con.start, con.end)}
         for c in structure.components:
             if c.name in names:
                 problems.append(f"{self.ssd}: component name '{c.name}' is used twice")
@@ -183,6 +184,11 @@ class System:
         for k in c.connectors:
             where = f"{self.ssd}: component '{c.name}', connector '{k.name}'"
             v = variables.get(k.name)
+            if v is None and PortRef(c.name, k.name) not in self._connected:
+                self.warnings.append(f"{where}: the FMU has no variable of that name; no connection uses it, "
+                                     "so it is left out (as OMSimulator leaves it; Dymola writes its wrapper "
+                                     "parameters so)")
+                continue
             if v is None:
                 problems.append(f"{where}: the FMU has no variable of that name")
                 continue
@@ -371,6 +377,10 @@ class System:
         type_ = ssp_type(comp.model, var) if var is not None else None
         if var is None:
             problems.append(f"{label}: component '{ref.component}' has no variable '{ref.connector}'")
+        elif _fmi1_output(comp, var):
+            self.warnings.append(f"{label}: {ref} is an output of an FMI 1.0 FMU: the value {p.value!r} "
+                                 "given for it is not set, as libcosim, which runs such files, does not set "
+                                 "it (FMI 2.0 allows no value for an output)")
         elif var.causality not in SETTABLE or var.variability == "constant":
             problems.append(f"{label}: {ref} is a {var.variability} {var.causality}, it cannot be set")
         elif ref in self.links:
@@ -711,6 +721,14 @@ def _with_variables(md: ModelDescription, variables: list[ModelVariable]) -> Mod
     shallow = copy.copy(md)
     shallow.modelVariables = variables
     return shallow
+
+
+def _fmi1_output(comp: ComponentModel, var: ModelVariable) -> bool:
+    """An output of an FMI 1.0 FMU, which files written for libcosim (Vico's, OSP's) give values:
+    libcosim runs them and leaves the value unset (the OSP demo dp-ship with DP Controller.Controlx
+    bound to 7 gives libcosim's outputs, 0, bit for bit only when it is skipped), so orchestrate
+    skips it with a warning where an FMI 2.0 output is an error."""
+    return comp.model.fmiVersion.startswith("1.") and var.causality == "output"
 
 
 def _is_input_start(problem: str, inputs: Collection[str]) -> bool:

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from ssp_conformance.conformance import HERE
+from ssp_conformance.conformance import HERE, libcosim_series
 
 import orchestrator
 from orchestrator import RunOptions
@@ -31,18 +31,6 @@ DP_SHIP = HERE / "osp-demo-cases" / "dp-ship"
 LIBCOSIM_DEMO = HERE / "libcosim" / "ssp" / "demo"
 OMS_CASE = HERE / "omsimulator" / "toplevelparameter1"
 FXG = "Thrust Allocation.Fxg"
-
-
-def libcosim_series(scenario: Path, stop: float, names: list[str]) -> dict[str, list[float]]:
-    """libcosim's series of ``names`` (in a child process: libcosimpy crashes on some files)."""
-    code = ("import json, sys\n"
-            "from orchestrator.crosscheck.libcosim import run_libcosim\n"
-            "rows, _ = run_libcosim(sys.argv[1], float(sys.argv[2]), ['time', *json.loads(sys.argv[3])])\n"
-            "print('RESULT ' + json.dumps({n: rows[n].tolist() for n in rows.dtype.names}))\n")
-    done = subprocess.run([sys.executable, "-c", code, str(scenario), repr(stop), json.dumps(names)],
-                          capture_output=True, text=True, timeout=600, check=True)
-    line = next(ln for ln in done.stdout.splitlines() if ln.startswith("RESULT "))
-    return json.loads(line[len("RESULT "):])
 
 
 def test_dp_ship_runs_libcosims_algorithm_by_default_and_agrees_with_libcosim() -> None:

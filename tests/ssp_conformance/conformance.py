@@ -218,13 +218,18 @@ def omsimulator(scenario: Path, case: Case, names: list[tuple[str, str]],
 
 
 def libcosim(scenario: Path, case: Case, names: list[str]) -> dict[str, list[float]]:
-    """libcosim's series of ``names`` up to the stop time (libcosimpy, in a child process: it crashes
+    """libcosim's series of ``names`` up to the case's stop time (:func:`libcosim_series`)."""
+    return libcosim_series(scenario, case.stop, names)
+
+
+def libcosim_series(scenario: Path, stop: float, names: list[str]) -> dict[str, list[float]]:
+    """libcosim's series of ``names`` up to ``stop`` (libcosimpy, in a child process: it crashes
     on some files, e.g. with a segmentation fault on an FMI 1.0 FMU); RuntimeError when it stops."""
     code = ("import json, sys\n"
             "from orchestrator.crosscheck.libcosim import run_libcosim\n"
             "rows, _ = run_libcosim(sys.argv[1], float(sys.argv[2]), ['time', *json.loads(sys.argv[3])])\n"
             "print('RESULT ' + json.dumps({n: rows[n].tolist() for n in rows.dtype.names}))\n")
-    done = subprocess.run([sys.executable, "-c", code, str(scenario), repr(case.stop), json.dumps(names)],
+    done = subprocess.run([sys.executable, "-c", code, str(scenario), repr(stop), json.dumps(names)],
                           capture_output=True, text=True, timeout=600)
     line = next((ln for ln in done.stdout.splitlines() if ln.startswith("RESULT ")), None)
     if line is None:
