@@ -21,7 +21,7 @@ from typing import SupportsFloat, SupportsIndex, SupportsInt, TypeVar
 
 import fmpy
 from fmpy import read_model_description, validation
-from fmpy.model_description import ModelDescription, ModelVariable, ValidationError
+from fmpy.model_description import ModelDescription, ModelVariable, Unit, ValidationError
 from fmpy.validation import validate_model_description
 from lxml import etree
 
@@ -295,9 +295,14 @@ class System:
                     "alone)")
             self.links[end] = composed
 
-    def _resolve(self, name: str, *definitions: Iterable[UnitDef]) -> UnitDef:
-        """A unit named in the SSD or a parameter set: the files' own definitions, else the known names."""
+    def _resolve(self, name: str, *definitions: Iterable[UnitDef],
+                 fmu: ModelDescription | None = None) -> UnitDef:
+        """A unit named in the SSD or a parameter set: the files' own definitions, then (``fmu``) the
+        UnitDefinitions of the FMU the value goes to (a value in ``bar`` for a variable whose FMU
+        defines bar: OMSimulator's acvs files give them so), else the known names."""
         tables = [{u.name: u for u in d} for d in (*definitions, self.structure.units)]
+        if fmu is not None:
+            tables.append({u.name: _definition(u) for u in fmu.unitDefinitions if u.baseUnit is not None})
         return resolve(name, *tables)
 
     def _port_unit(self, ref: PortRef) -> UnitDef | None:
@@ -394,7 +399,7 @@ class System:
             value = float(p.value) if type_ == "Real" else p.value
             if p.unit is not None and type_ == "Real":
                 try:
-                    given, own = self._resolve(p.unit, units), _unit_def(comp.model, var)
+                    given, own = self._resolve(p.unit, units, fmu=comp.model), _unit_def(comp.model, var)
                 except UnitError as exc:
                     problems.append(f"{label}: {ref} = {p.value!r} {p.unit}: {exc}")
                     return
@@ -630,6 +635,11 @@ def _unit_def(md: ModelDescription, var: ModelVariable) -> UnitDef:
     unit = next((u for u in md.unitDefinitions if u.name == name), None) if name else None
     if unit is None or unit.baseUnit is None:
         return resolve(name)
+    return _definition(unit)
+
+
+def _definition(unit: Unit) -> UnitDef:
+    """An FMU's ``<Unit>`` with a ``<BaseUnit>`` as a UnitDef."""
     base = unit.baseUnit
     return UnitDef(unit.name, tuple(int(getattr(base, b)) for b in BASE), float(base.factor),
                    float(base.offset))

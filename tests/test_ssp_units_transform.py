@@ -14,6 +14,7 @@ parameter was transformed first and converted after (2 * -1 + 1 = -1 km/s2 -> -1
 from __future__ import annotations
 
 import shutil
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -198,3 +199,45 @@ def test_parameter_mapping_converts_units_before_the_transformation(tmp_path: Pa
     assert report.ok, report.errors
     said = [p.message for p in report.problems if "5.3.2" in p.message]
     assert bool(said) != suppress and all(f"{g!r}" in m for m in said), report.problems
+
+
+def test_value_in_a_unit_only_the_fmu_defines(tmp_path: Path) -> None:
+    """A value given in ``bar``, which neither the SSD nor the SSV defines but the FMU's
+    UnitDefinitions do (OMSimulator's acvs files give values so): converted by the FMU's own
+    definitions, 2 bar = 2 * 1e5 Pa = 200 kPa; before issue 43 an "unknown unit" error."""
+    folder = tmp_path / "s"
+    (folder / "resources").mkdir(parents=True)
+    with zipfile.ZipFile(REFERENCE_FMUS / "Feedthrough.fmu") as src, \
+            zipfile.ZipFile(folder / "resources" / "Feedthrough.fmu", "w") as dst:
+        for info in src.infolist():
+            data = src.read(info)
+            if info.filename == "modelDescription.xml":
+                xml = data.decode().replace("  <TypeDefinitions>", """  <UnitDefinitions>
+    <Unit name="kPa"><BaseUnit kg="1" m="-1" s="-2" factor="1000"/></Unit>
+    <Unit name="bar"><BaseUnit kg="1" m="-1" s="-2" factor="100000"/></Unit>
+  </UnitDefinitions>
+  <TypeDefinitions>""", 1)
+                xml = xml.replace('variability="fixed">\n      <Real start="0"/>',
+                                  'variability="fixed">\n      <Real start="0" unit="kPa"/>', 1)
+                data = xml.encode()
+            dst.writestr(info, data)
+    (folder / "SystemStructure.ssd").write_text(HEAD + """  <ssd:System name="pressure">
+    <ssd:Elements>
+      <ssd:Component name="f" source="resources/Feedthrough.fmu">
+        <ssd:Connectors>
+          <ssd:Connector name="Float64_continuous_output" kind="output"><ssc:Real/></ssd:Connector>
+        </ssd:Connectors>
+        <ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>
+          <ssv:ParameterSet version="1.0" name="p"><ssv:Parameters>
+            <ssv:Parameter name="Float64_fixed_parameter"><ssv:Real value="2" unit="bar"/></ssv:Parameter>
+          </ssv:Parameters></ssv:ParameterSet>
+        </ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>
+      </ssd:Component>
+    </ssd:Elements>
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0" stopTime="0.02"/>
+</ssd:SystemStructureDescription>
+""")
+    assert validate(folder).ok
+    result = orchestrator.run(folder, RunOptions(step=0.01))
+    assert result.provenance["start_values"]["f.Float64_fixed_parameter"] == pytest.approx(200.0, rel=1e-15)
