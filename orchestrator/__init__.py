@@ -193,10 +193,10 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
                                     "inputs": [str(p) for p in series.ports]}
         stream = output.start(system, h, record)  # the master streams a CSV; other formats come from it
         runner = MASTERS[master](system, start, stop, h, stream, progress,
-                                         keep=options.keep or stream is None, timeout=options.timeout,
-                                         inputs=series, instances=tracing(options.fmi_log),
-                                         binary_copy=output.staged, loop_tolerance=options.loop_tolerance,
-                                         loop_iterations=options.loop_iterations, compiled=compiled)
+                                 keep=options.keep or stream is None, timeout=options.timeout,
+                                 inputs=series, instances=tracing(options.fmi_log),
+                                 binary_copy=output.staged, loop_tolerance=options.loop_tolerance,
+                                 loop_iterations=options.loop_iterations, compiled=compiled)
         try:
             runner.run()
         except BaseException as exc:  # however the run ends early, the sidecar says so

@@ -147,6 +147,16 @@ CASES = [
          omsimulator="the SSD references its FMUs in a sibling folder, which an archive cannot hold",
          warnings=("algebraic loop: CraneController.Act_Limits[1]",),
          features="a cycle of connections (an algebraic loop under gauss-seidel) run under jacobi"),
+    Case("osp_dp_ship", "osp-demo-cases/dp-ship", "open-simulation-platform/demo-cases dp-ship",
+         {"Thrust Allocation.Fxg": 0.2}, stop=1.0, step=0.04, libcosim=True,
+         omsimulator="OMSimulator 3's Python package stops on these FMI 1.0 FMUs (TypeError: float() "
+                     "argument must be a string or a real number, not 'NoneType')",
+         warnings=("algebraic loop: DP Controller.ControlMz",),
+         features="libcosim's osp:FixedStepAlgorithm choosing the master (jacobi), five FMI 1.0 FMUs, FMUs "
+                  "beside the SSD, a loop through the thrust allocation",
+         notes={"libcosim": "agrees at every step with our master, jacobi, which the file's "
+                            "osp:FixedStepAlgorithm chooses (tests/test_ssp_algorithm.py; Fxg = 0.2 is "
+                            "libcosim's value; gauss-seidel gives 0)"}),
 ]
 
 
