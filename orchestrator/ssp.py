@@ -192,13 +192,15 @@ class Connection:
 class Experiment:
     """DefaultExperiment of the SSD plus the communication step from a tool annotation, and the
     master that annotation implies (``algorithm``, a name of ``orchestrator.master.MASTERS``; None
-    when the SSD names no algorithm) with the annotation it comes from (``algorithm_from``)."""
+    when the SSD names no algorithm) with the annotation it comes from (``algorithm_from``). Those
+    two are read, never written (:func:`write_ssd` writes both tools' annotations, which name no
+    one algorithm), so they take no part in comparing experiments."""
 
     start_time: float = 0.0
     stop_time: float | None = None
     step: float | None = None
-    algorithm: str | None = None
-    algorithm_from: str = ""
+    algorithm: str | None = field(default=None, compare=False)
+    algorithm_from: str = field(default="", compare=False)
 
 
 @dataclass(frozen=True)
