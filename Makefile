@@ -169,13 +169,13 @@ docs: $(DEV_STAMP)
 docs-figure: build
 	$(ORCH) run pendulum --quiet --output results/pendulum.csv --plot docs/images/pendulum.png
 
-## conformance: OMSimulator's and libcosim's whole SSP test resources (fetched: OMS_RESOURCES is
-## OMSimulator's testsuite/tests/resources, LIBCOSIM_DATA libcosim's tests/data), validated before
-## (main at 5287c35) and after issue 32, run, and compared with OMSimulator 3 and libcosim ->
-## docs/ssp-conformance.md (about 5 minutes)
+## conformance: OMSimulator's and libcosim's whole SSP test resources and the OSP demo cases (fetched:
+## OMS_RESOURCES is OMSimulator's testsuite/tests/resources, LIBCOSIM_DATA libcosim's tests/data,
+## DEMO_CASES open-simulation-platform/demo-cases), validated and run before (main at 633067d) and
+## after issue 43, and compared with OMSimulator 3 and libcosim -> docs/ssp-conformance.md (~6 min)
 conformance: build
 	$(PY) tests/ssp_conformance/conformance.py $(if $(OMS_RESOURCES),--omsimulator $(OMS_RESOURCES)) \
-	  $(if $(LIBCOSIM_DATA),--libcosim $(LIBCOSIM_DATA))
+	  $(if $(LIBCOSIM_DATA),--libcosim $(LIBCOSIM_DATA)) $(if $(DEMO_CASES),--demo-cases $(DEMO_CASES))
 
 ## unit: the fast unit tests only (no FMU, no other tool, no 30 s reference)
 unit: $(DEV_STAMP)

@@ -49,7 +49,7 @@ from .output import RunOutput, system_columns
 from .result import RunOptions, RunResult
 from .ssp import DEFAULT_LIMITS, Limits
 from .system import PortRef, System
-from .validate import DEFAULT_STEP, check_scenario, no_step, timing
+from .validate import DEFAULT_STEP, check_scenario, choose_master, no_step, timing
 
 __all__ = ["DEFAULT_STEP", "MASTERS", "EngineNote", "Interrupted", "Limits", "LoopError", "NonFiniteError",
            "OrchestratorError",
@@ -180,21 +180,23 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
                      fmu_dirs=options.fmu_dirs, limits=options.limits, root=options.root,
                      strict_fmus=options.strict_fmus) as system:
         start, stop, h = timing(system.structure, options.stop_time, options.step, options.start_time)
+        master, chosen_by = choose_master(system.structure, options.master)
         series = _before_the_run(system, options, start, stop)
-        compiled, note = _compiled(system, options)
-        record = provenance.describe(scenario, system, start=start, stop=stop, step=h, master=options.master,
-                                     parameter_sets=options.parameter_sets, overrides=options.overrides)
+        compiled, note = _compiled(system, options, master)
+        record = provenance.describe(scenario, system, start=start, stop=stop, step=h, master=master,
+                                     master_from=chosen_by, parameter_sets=options.parameter_sets,
+                                     overrides=options.overrides)
         record["executor"] = "compiled" if compiled else "python"
         if options.input_file is not None and series is not None:
             record["input_file"] = {"path": str(Path(options.input_file).resolve()),
                                     "sha256": provenance.digest(options.input_file),
                                     "inputs": [str(p) for p in series.ports]}
         stream = output.start(system, h, record)  # the master streams a CSV; other formats come from it
-        runner = MASTERS[options.master](system, start, stop, h, stream, progress,
-                                         keep=options.keep or stream is None, timeout=options.timeout,
-                                         inputs=series, instances=tracing(options.fmi_log),
-                                         binary_copy=output.staged, loop_tolerance=options.loop_tolerance,
-                                         loop_iterations=options.loop_iterations, compiled=compiled)
+        runner = MASTERS[master](system, start, stop, h, stream, progress,
+                                 keep=options.keep or stream is None, timeout=options.timeout,
+                                 inputs=series, instances=tracing(options.fmi_log),
+                                 binary_copy=output.staged, loop_tolerance=options.loop_tolerance,
+                                 loop_iterations=options.loop_iterations, compiled=compiled)
         try:
             runner.run()
         except BaseException as exc:  # however the run ends early, the sidecar says so
@@ -230,14 +232,14 @@ def _before_the_run(system: System, options: RunOptions, start: float, stop: flo
     return series
 
 
-def _compiled(system: System, options: RunOptions) -> tuple[bool, str]:
+def _compiled(system: System, options: RunOptions, master: str) -> tuple[bool, str]:
     """Whether the compiled executor runs the scenario (``options.executor``); where ``auto`` finds
     that it cannot, the Python master does, and the second item says why (for the EngineNote of a
     run that completes; ``compiled``: a UsageError)."""
     if options.executor == "python":
         return False, ""
     old = [name for name, c in system.components.items() if c.model.fmiVersion.startswith("1.")]
-    loop = options.master == "gauss-seidel" and bool(system.iterated)
+    loop = master == "gauss-seidel" and bool(system.iterated)
     why = (f"{option('fmi_log')} traces the calls the Python master makes" if options.fmi_log else
            f"FMI 1.0 component{'s' if len(old) > 1 else ''} {', '.join(old)}" if old else
            "an algebraic loop is iterated to a fixed point" if loop else native.unavailable())

@@ -84,8 +84,9 @@ input no connection feeds is a warning.
 Results go to results/<name>.csv (and .png), written as the run goes: a failed run keeps every
 row up to the failure.
 
-masters:
-  gauss-seidel  (default) all FMUs step, then outputs are propagated through direct-feedthrough
+masters (the default: the one the SSD's algorithm annotation implies, libcosim's
+osp:FixedStepAlgorithm jacobi, OMSimulator's oms:FixedStepMaster gauss-seidel; else gauss-seidel):
+  gauss-seidel  all FMUs step, then outputs are propagated through direct-feedthrough
                 components in dependency order: the controller's v at t_k uses the plant at t_k.
                 An algebraic loop is iterated to a fixed point at each communication point
                 (--loop-tolerance, --loop-iterations; no convergence ends the run with its residual).
@@ -236,7 +237,9 @@ def _parser(command: str | None = None) -> argparse.ArgumentParser:
     p.add_argument("--plot", type=Path, metavar="FILE.png", help="plot file (default: results/<name>.png)")
     _plot_variables(p)
     p.add_argument("--no-plot", action="store_true", help="do not plot")
-    p.add_argument("--master", choices=list(MASTERS), default="gauss-seidel", help="master algorithm")
+    p.add_argument("--master", choices=list(MASTERS), default=None,
+                   help="master algorithm (default: the one the SSD's algorithm annotation implies, else "
+                        "gauss-seidel)")
     p.add_argument("--executor", choices=EXECUTORS, default="auto",
                    help="who steps the plan: the compiled executor (auto: where it can, else the Python "
                         "master, with a note), or always the Python master; the same rows bit for bit")
@@ -616,7 +619,8 @@ def _plot_result(result: RunResult, plot: Path, name: str, args: argparse.Namesp
     """Write the plot of a run; False (after one line on stderr) when it cannot be written."""
     _files_backend()
     try:
-        plot_run(result.rows, plot, plot_title(name, result.provenance, args.master), result.units,
+        plot_run(result.rows, plot, plot_title(name, result.provenance, result.provenance.get("master")),
+                 result.units,
                  variables=args.plot_variables, record=result.provenance)
     except OSError as exc:
         kept = result.outputs.get("result", "the output file")

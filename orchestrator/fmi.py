@@ -28,11 +28,14 @@ from __future__ import annotations
 import ctypes
 import logging
 import os
+import select
+import signal
 import sys
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from ctypes import POINTER, byref, c_bool, c_double, c_int, c_size_t, c_uint, c_void_p
 from pathlib import Path
+from time import monotonic
 from typing import NoReturn
 
 import fmpy
@@ -60,8 +63,8 @@ from lxml import etree
 from .errors import ScenarioError, SimulationError
 from .fmucache import release, unpack_fmu
 
-__all__ = ["CALLS", "FAILED", "Instance", "InstanceBase", "MessageLog", "fmi_version", "interpreter_guard",
-           "trace"]
+__all__ = ["CALLS", "FAILED", "LOAD_TIMEOUT", "Instance", "InstanceBase", "MessageLog", "fmi_version",
+           "interpreter_guard", "load_problem", "trace"]
 
 log = logging.getLogger(__name__)
 
@@ -278,19 +281,31 @@ class Instance(InstanceBase):
             raise ScenarioError(f"component '{name}': FMU '{os.path.basename(fmu_path)}' cannot be "
                                 f"unpacked: {detail}") from exc
         try:
-            return cls._instantiate(name, unzipdir, guid, model_identifier, messages, time)
+            return cls._instantiate(name, unzipdir, guid, model_identifier, messages, time,
+                                    os.path.basename(fmu_path))
         except BaseException:
             release(unzipdir)
             raise
 
     @classmethod
     def _instantiate(cls, name: str, unzipdir: str, guid: str, model_identifier: str, messages: MessageLog,
-                     time: float) -> Instance:
-        """Load the unpacked FMU's library and instantiate it."""
+                     time: float, fmu_name: str) -> Instance:
+        """Load the unpacked FMU's library and instantiate it; a library the loader refuses (a missing
+        symbol, a newer glibc or libstdc++, another architecture, no shared object) is one
+        ScenarioError naming the FMU, the file and the loader's reason."""
         version = fmi_version(unzipdir)
         fmi3 = version.startswith("3.")
         kind = FMU3Slave if fmi3 else FMU1Slave if version.startswith("1.") else FMU2Slave
-        fmu = kind(guid=guid, unzipDirectory=unzipdir, modelIdentifier=model_identifier, instanceName=name)
+        cwd = os.getcwd()
+        try:
+            fmu = kind(guid=guid, unzipDirectory=unzipdir, modelIdentifier=model_identifier,
+                       instanceName=name)
+        except Exception as exc:  # fmpy wraps the loader's OSError (or a missing function's) in Exception
+            library = library_path(unzipdir, version, model_identifier)
+            raise ScenarioError(f"component '{name}': FMU '{fmu_name}': cannot load "
+                                f"{_load_reason(exc, unzipdir, library)}") from None
+        finally:
+            os.chdir(cwd)  # fmpy changes into the binaries folder and, when the load fails, stays there
         try:
             if isinstance(fmu, FMU3Slave):
                 fmu.instantiate(logMessage=messages.logger3(name))
@@ -384,6 +399,91 @@ class Instance(InstanceBase):
 
 
 CALLS = logging.getLogger("orchestrator.fmi.calls")
+LOAD_TIMEOUT = 10.0  # seconds a trial load (validate) may take before it is called hung
+
+
+def library_path(unzipdir: str | os.PathLike, version: str, model_identifier: str) -> str:
+    """The shared library of an unpacked FMU that a run loads on this platform (as fmpy finds it)."""
+    folder = fmpy.platform_tuple if version.startswith("3.") else fmpy.platform
+    return os.path.join(unzipdir, "binaries", folder, model_identifier + fmpy.sharedLibraryExtension)
+
+
+def _load_reason(exc: BaseException | str, unzipdir: str | os.PathLike, library: str) -> str:
+    """``<library>: <the loader's own words>`` on one line, the paths inside the FMU relative to it."""
+    if isinstance(exc, BaseException):
+        cause = exc.__context__ if isinstance(exc.__context__, OSError | AttributeError) else exc
+        exc = str(cause)
+    text = " ".join(exc.split())
+    for prefix in (os.path.abspath(unzipdir), str(unzipdir)):
+        text = text.replace(os.path.join(prefix, ""), "")
+    name = os.path.relpath(library, unzipdir)
+    return text if text.startswith(f"{name}:") else f"{name}: {text}"
+
+
+def _functions(version: str, model_identifier: str) -> tuple[str, ...]:
+    """The functions every step of a run calls, as the library must export them."""
+    if version.startswith("1."):
+        return tuple(f"{model_identifier}_{_FMI1_FUNCTIONS[f]}" for f in
+                     ("fmi2Instantiate", "fmi2DoStep", "fmi2GetReal", "fmi2SetReal"))
+    names = ("fmi2Instantiate", "fmi2DoStep", "fmi2GetReal", "fmi2SetReal")
+    return tuple(_FMI3_FUNCTIONS[f] for f in names) if version.startswith("3.") else names
+
+
+def load_problem(unzipdir: str | os.PathLike, version: str, model_identifier: str) -> str:
+    """Why a run could not load the unpacked FMU's library ('' when it can): its path in the FMU,
+    then the loader's reason (an undefined symbol, ``GLIBCXX_3.4.32' not found``, wrong ELF class,
+    invalid ELF header) or the FMI functions it does not export. The trial load happens in a
+    forked child, so neither the library's constructors nor a crash or hang in them touch this
+    process (a child that dies or takes longer than LOAD_TIMEOUT is the reason); where fork is
+    missing (Windows), it happens in this process, as a run's would."""
+    library = library_path(unzipdir, version, model_identifier)
+    if not os.path.isfile(library):
+        return _load_reason("no such file", unzipdir, library)
+    functions = _functions(version, model_identifier)
+    if not hasattr(os, "fork"):
+        return _try_load(library, functions, unzipdir)
+    read, write = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: load, write the reason, leave without any Python clean-up
+        try:
+            os.close(read)
+            os.write(write, _try_load(library, functions, unzipdir).encode()[:4000])
+        finally:
+            os._exit(0)
+    os.close(write)
+    try:
+        return _wait_for(pid, read)
+    finally:
+        os.close(read)
+
+
+def _wait_for(pid: int, read: int) -> str:
+    """What the child of :func:`load_problem` reported; it is killed after LOAD_TIMEOUT."""
+    deadline = monotonic() + LOAD_TIMEOUT
+    chunks: list[bytes] = []
+    while True:
+        ready, _, _ = select.select([read], [], [], max(0.0, deadline - monotonic()))
+        if not ready:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            return f"loading it did not return within {LOAD_TIMEOUT:g} s"
+        chunk = os.read(read, 4096)
+        if not chunk:
+            break
+        chunks.append(chunk)
+    _, status = os.waitpid(pid, 0)
+    if os.WIFSIGNALED(status):
+        return f"loading it crashed the process ({signal.Signals(os.WTERMSIG(status)).name})"
+    return b"".join(chunks).decode(errors="replace")
+
+
+def _try_load(library: str, functions: tuple[str, ...], unzipdir: str | os.PathLike) -> str:
+    try:
+        dll = ctypes.CDLL(library)
+    except OSError as exc:
+        return _load_reason(str(exc), unzipdir, library)
+    missing = [f for f in functions if not hasattr(dll, f)]
+    return _load_reason(f"exports no {', '.join(missing)}", unzipdir, library) if missing else ""
 
 
 def _status(status: int) -> str:

@@ -4,7 +4,8 @@
 Components (FMU file, FMI version, model, generation tool), every input, output and parameter with
 type, unit, range, the FMU's start value, the value a run would apply and where it comes from (the
 FMU, a parameter set of the SSD, a ``--parameter-set`` file, ``--set``), the connections with
-their transformations, and the start, stop time and step with where each comes from. Reading goes
+their transformations (unit conversions composed, as a run applies them), and the start, stop
+time, step and master with where each comes from. Reading goes
 as far as it can: what cannot be read is listed as a problem under the rest.
 """
 
@@ -17,7 +18,7 @@ from dataclasses import dataclass, field, replace
 
 from .ssp import DEFAULT_LIMITS, Limits, SystemStructure
 from .system import ComponentModel, structure_sets
-from .validate import DEFAULT_STEP, check_scenario
+from .validate import DEFAULT_STEP, check_scenario, choose_master
 
 __all__ = ["Inspection", "Variable", "inspect_scenario"]
 
@@ -116,8 +117,10 @@ def inspect_scenario(scenario: str | os.PathLike, *, parameter_sets: Iterable[st
         report.components.append((c.name, _about(comp), variables))
     report.connector_values = [f"{name} = {p.value!r} (from {p.origin})"
                                for name, p in structure.connector_values]
+    applied = [system.links.get(link.end, link) if system.links.get(link.end, link).start == link.start
+               else link for link in structure.connections]  # with the unit conversion a run composes
     report.connections = [f"{link.start} -> {link.end}{_transformation(link.factor, link.offset)}"
-                          for link in structure.connections]
+                          for link in applied]
     return report
 
 
@@ -149,7 +152,7 @@ def _timing(structure: SystemStructure) -> list[tuple[str, str, str]]:
                                "or OMSimulator FixedStepMaster)") if ex.step is not None else
             (f"{DEFAULT_STEP:g} s", "default: no step annotation in the SSD (give --step; 'run' warns)"))
     return [("start", f"{ex.start_time:g} s", f"{where} (0 when it gives none)"), ("stop", *stop),
-            ("step", *step)]
+            ("step", *step), ("master", *choose_master(structure))]
 
 
 def _about(comp: ComponentModel) -> list[str]:

@@ -24,6 +24,10 @@ reads or writes it in place (ctypes arrays aliasing the NumPy buffer), and a con
 gather ``values[inputs] = factor * values[sources] + offset``. The FMI calls themselves (instances,
 checked calls, statuses, cleanup) are :mod:`orchestrator.fmi`'s.
 
+Which one runs (:func:`orchestrator.validate.choose_master`): ``--master``, else the one the SSD's
+algorithm annotation implies (libcosim's ``osp:FixedStepAlgorithm``: jacobi; OMSimulator's
+``oms:FixedStepMaster``: gauss-seidel), else gauss-seidel.
+
 * ``gauss-seidel`` (default): all FMUs step from t_k to t_k+1 with inputs held; then, at t_k+1,
   outputs are read and inputs set in the dependency order of the ModelStructure (``System.schedule``),
   so a direct-feedthrough output (the controller's v, the actuator's uf) at t_k+1 already uses the
@@ -547,7 +551,8 @@ class Master:
 
 
 class GaussSeidel(Master):
-    """Default: step all FMUs, then propagate outputs in dependency order at the new time."""
+    """Default (unless the SSD names libcosim's algorithm): step all FMUs, then propagate outputs
+    in dependency order at the new time."""
 
     name = "gauss-seidel"
 

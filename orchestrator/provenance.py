@@ -85,9 +85,10 @@ def commit() -> dict[str, object] | None:
 
 
 def describe(scenario: str | os.PathLike, system: System, *, start: float, stop: float, step: float,
-             master: str, parameter_sets: Iterable[str | os.PathLike] = (),
+             master: str, master_from: str = "", parameter_sets: Iterable[str | os.PathLike] = (),
              overrides: Mapping[str, object] | None = None) -> dict[str, object]:
-    """Everything that produced a run of ``system`` (status ``running``)."""
+    """Everything that produced a run of ``system`` (status ``running``); ``master_from``: why that
+    master (``--master``, the SSD's algorithm annotation, or the default)."""
     scenario = Path(scenario)
     return {
         "scenario": {"path": str(scenario.resolve()), "sha256": digest(scenario),
@@ -104,6 +105,7 @@ def describe(scenario: str | os.PathLike, system: System, *, start: float, stop:
         "units": column_units(system),
         "outputs": [f"{name}.{k}" for name, comp in system.components.items() for k in comp.outputs],
         "start_time": start, "stop_time": stop, "step": step, "master": master,
+        "master_from": master_from,
         "versions": versions(),
         "git": commit(),
         "date": time.strftime("%Y-%m-%dT%H:%M:%S+00:00", time.gmtime()),  # isoformat, UTC

@@ -52,8 +52,10 @@ class RunOptions:
         ``.ssv`` files naming parameters ``<component>.<variable>``, applied after the SSD's own.
     overrides : mapping
         ``{"controller.k1": 12}``, applied last.
-    master : str
-        A name of :data:`orchestrator.master.MASTERS` (``gauss-seidel`` or ``jacobi``).
+    master : str, optional
+        A name of :data:`orchestrator.master.MASTERS` (``gauss-seidel`` or ``jacobi``); None: the one
+        the SSD's algorithm annotation implies (libcosim's ``osp:FixedStepAlgorithm``: jacobi), else
+        gauss-seidel. The provenance says which ran and why.
     output : path, optional
         Result file written as the run goes (``.csv``, ``.parquet``, ``.mat``), its provenance in
         ``<output>.json``.
@@ -101,7 +103,7 @@ class RunOptions:
     step: float | None = None
     parameter_sets: Sequence[str | os.PathLike] = ()
     overrides: Mapping[str, object] = field(default_factory=dict)
-    master: str = "gauss-seidel"
+    master: str | None = None
     output: str | os.PathLike | None = None
     output_variables: Sequence[str] = ()
     output_interval: float | None = None
@@ -131,7 +133,7 @@ class RunOptions:
             value = getattr(self, name)
             if value is not None:
                 set_(self, name, Path(value))
-        if self.master not in MASTERS:
+        if self.master is not None and self.master not in MASTERS:
             raise UsageError(f"{option('master')}: unknown master {self.master!r} (choose from "
                              f"{', '.join(MASTERS)})")
         if self.executor not in EXECUTORS:

@@ -123,13 +123,16 @@ class Connector:
 class Parameter:
     """One parameter value, already converted to the Python type of its SSV type; ``unit``: the
     unit the value is given in (SSV ``unit`` attribute of a Real; None: the variable's own);
-    ``origin``: how messages name where it came from when not its set's file (an SSM entry)."""
+    ``origin``: how messages name where it came from when not its set's file (an SSM entry);
+    ``transform``: ``(factor, offset)`` of a LinearTransformation still to apply, after the value is
+    converted from ``unit`` to the variable's unit (SSP 1.0.1, 5.3.2: units first)."""
 
     name: str
     type: str
     value: float | int | bool | str
     unit: str | None = None
     origin: str | None = None
+    transform: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -161,12 +164,15 @@ class Component:
 @dataclass(frozen=True)
 class Connection:
     """``start`` output -> ``end`` input, with the value passed as ``factor * value + offset``
-    (``ssc:LinearTransformation``; the identity when there is none)."""
+    (``ssc:LinearTransformation``; the identity when there is none). Read from an SSD, the factor
+    and offset are the file's; the System composes them with the conversion between the ends'
+    units (applied first, SSP 1.0.1 4.5.2.1), unless ``suppress_units`` (``suppressUnitConversion``)."""
 
     start: PortRef
     end: PortRef
     factor: float = 1.0
     offset: float = 0.0
+    suppress_units: bool = False
 
     @classmethod
     def between(cls, start: str, end: str, factor: float = 1.0, offset: float = 0.0) -> Connection:
@@ -184,11 +190,17 @@ class Connection:
 
 @dataclass(frozen=True)
 class Experiment:
-    """DefaultExperiment of the SSD plus the communication step from a tool annotation."""
+    """DefaultExperiment of the SSD plus the communication step from a tool annotation, and the
+    master that annotation implies (``algorithm``, a name of ``orchestrator.master.MASTERS``; None
+    when the SSD names no algorithm) with the annotation it comes from (``algorithm_from``). Those
+    two are read, never written (:func:`write_ssd` writes both tools' annotations, which name no
+    one algorithm), so they take no part in comparing experiments."""
 
     start_time: float = 0.0
     stop_time: float | None = None
     step: float | None = None
+    algorithm: str | None = field(default=None, compare=False)
+    algorithm_from: str = field(default="", compare=False)
 
 
 @dataclass(frozen=True)
@@ -714,6 +726,7 @@ class _Edge:
     factor: float
     offset: float
     system: tuple[str, ...]  # where it is declared
+    suppress: bool = False  # suppressUnitConversion="true"
 
 
 @dataclass
@@ -858,7 +871,8 @@ class _SystemReader:
                                      f"offset={offset!r} is not finite")
         start = ((*path, ends[0]) if ends[0] else path, ends[1])
         end = ((*path, ends[2]) if ends[2] else path, ends[3])
-        self.edges.append(_Edge(start, end, factor, offset, path))
+        suppress = element.get("suppressUnitConversion", "false").strip() in ("true", "1")
+        self.edges.append(_Edge(start, end, factor, offset, path, suppress))
 
     def _bindings(self, element: etree._Element, where: str, strip_prefix: bool,
                   path: tuple[str, ...]) -> list[ParameterSet]:
@@ -962,19 +976,20 @@ class _SystemReader:
                     continue
                 into[edge.end] = edge
         connections: list[Connection] = []
-        feeds: dict[Node, list[tuple[PortRef, float, float]]] = {}
+        feeds: dict[Node, list[tuple[PortRef, _Edge]]] = {}
         for edge in self.edges:
             if edge.end[0] in self.systems:
                 continue  # reached through the chain from the component it ends at
             traced = self._trace(edge, into)
             if traced is None:
                 continue
-            start, factor, offset = traced
+            start = traced.start
             end = PortRef(_flat(edge.end[0]), edge.end[1])
             if start[0] in self.systems:
-                feeds.setdefault(start, []).append((end, factor, offset))
+                feeds.setdefault(start, []).append((end, traced))
             else:
-                connections.append(Connection(PortRef(_flat(start[0]), start[1]), end, factor, offset))
+                connections.append(Connection(PortRef(_flat(start[0]), start[1]), end, traced.factor,
+                                              traced.offset, traced.suppress))
         sets: dict[tuple[str, ...], list[tuple[int, int, ParameterSet]]] = {}
         order = 0
         for path, component in self.components.items():
@@ -1010,11 +1025,13 @@ class _SystemReader:
             gives, takes = takes, gives
         return "source" if gives else "sink" if takes else ""
 
-    def _trace(self, edge: _Edge, into: Mapping[Node, _Edge]) -> tuple[Node, float, float] | None:
+    def _trace(self, edge: _Edge, into: Mapping[Node, _Edge]) -> _Edge | None:
         """Where the value arriving over ``edge`` comes from: a component's connector (or an unknown
-        element, which the system reports), or a system connector nothing feeds; with the composed
-        transformation. None (and a problem) for a cycle through system connectors."""
+        element, which the system reports), or a system connector nothing feeds; as one edge with
+        the composed transformation (suppressing unit conversion when any connection on the way
+        does). None (and a problem) for a cycle through system connectors."""
         factor, offset, node, seen = edge.factor, edge.offset, edge.start, {edge.end}
+        suppress = edge.suppress
         while node[0] in self.systems:
             if node in seen:
                 self.problems.append(f"{self.label}: connections through system connector {_name(node)} form "
@@ -1025,8 +1042,9 @@ class _SystemReader:
             if feeding is None:
                 break
             factor, offset = factor * feeding.factor, factor * feeding.offset + offset
+            suppress = suppress or feeding.suppress
             node = feeding.start
-        return node, factor, offset
+        return _Edge(node, edge.end, factor, offset, edge.system, suppress)
 
     def _resolve(self, path: tuple[str, ...], name: str) -> Node | None:
         """A hierarchical name inside system ``path``: (component path, variable), (system path,
@@ -1044,7 +1062,7 @@ class _SystemReader:
         return (path, name) if name in info.connectors else None
 
     def _bind(self, info: _SystemInfo, ps: ParameterSet, into: Mapping[Node, _Edge],
-              feeds: Mapping[Node, list[tuple[PortRef, float, float]]],
+              feeds: Mapping[Node, list[tuple[PortRef, _Edge]]],
               sets: dict[tuple[str, ...], list[tuple[int, int, ParameterSet]]],
               values: dict[str, Parameter], order: int) -> None:
         """Distribute one system-level parameter set over the components (and system connectors)
@@ -1076,14 +1094,13 @@ class _SystemReader:
                                      "given for it would be overwritten")
                 continue
             values[name] = replace(p, origin=origin)
-            for port, factor, offset in feeds.get(node, []):
-                value = p.value
-                if (factor, offset) != (1.0, 0.0) and p.type == "Real":
-                    value = factor * float(value) + offset
+            for port, edge in feeds.get(node, []):
                 path = tuple(port.component.split(".")) if port.component else ()
                 target = next((k for k, c in self.components.items() if c.name == port.component), path)
                 via = f"{origin} (through system connector {name})"
-                through.setdefault(target, []).append(Parameter(port.connector, p.type, value, p.unit, via))
+                passed = _transformed(replace(p, name=port.connector, origin=via), edge.factor, edge.offset,
+                                      edge.suppress)
+                through.setdefault(target, []).append(passed)
         for rank, found in ((-len(info.path), reached), (1, through)):
             for path, parameters in found.items():
                 sets.setdefault(path, []).append((rank, order, replace(ps, parameters=tuple(parameters))))
@@ -1115,15 +1132,16 @@ def _mapped(ps: ParameterSet, mapping: Mapping[str, list[_Mapping]], problems: l
             if entry is None:
                 parameters.append(p)
                 continue
-            unit = p.unit if entry.keep_unit else None
             value: float | int | bool | str = p.value
             if entry.linear:
                 if p.type != "Real":
                     problems.append(f"{entry.origin}: a LinearTransformation applies to Real values "
                                     f"('{p.name}' is {p.type})")
                     continue
-                value = entry.factor * float(p.value) + entry.offset
-            elif entry.table is not None:
+                mapped = replace(p, name=entry.target, origin=entry.origin)
+                parameters.append(_transformed(mapped, entry.factor, entry.offset, not entry.keep_unit))
+                continue
+            if entry.table is not None:
                 table = {_literal_of(p.type, s): t for s, t in entry.table}
                 if _literal(p.value) not in table:
                     problems.append(f"{entry.origin}: value {_literal(p.value)} of '{p.name}' is not in the "
@@ -1135,8 +1153,25 @@ def _mapped(ps: ParameterSet, mapping: Mapping[str, list[_Mapping]], problems: l
                     problems.append(f"{entry.origin}: mapped value {table[_literal(p.value)]!r} is not a "
                                     f"{p.type}")
                     continue
+            unit = p.unit if entry.keep_unit else None
             parameters.append(Parameter(entry.target, p.type, value, unit, entry.origin))
     return replace(ps, parameters=tuple(parameters))
+
+
+def _transformed(p: Parameter, factor: float, offset: float, suppress_units: bool) -> Parameter:
+    """``p`` passed through a LinearTransformation (of an SSM entry or a connection). A Real value in a
+    unit of its own keeps it and the transformation waits in ``transform``, so that the System
+    converts the value to the variable's unit first (SSP 1.0.1, 5.3.2); with ``suppress_units`` or
+    no unit the transformation applies now (and the result is in the variable's unit)."""
+    if p.type != "Real" or (factor, offset) == (1.0, 0.0):
+        return replace(p, unit=None) if suppress_units else p
+    if p.unit is not None and not suppress_units:
+        before = p.transform or (1.0, 0.0)
+        return replace(p, transform=(factor * before[0], factor * before[1] + offset))
+    value = float(p.value)
+    if p.transform is not None:
+        value = p.transform[0] * value + p.transform[1]
+    return replace(p, value=factor * value + offset, unit=None, transform=None)
 
 
 def _literal_of(type_: str, text: str) -> str:
@@ -1149,10 +1184,18 @@ def _literal_of(type_: str, text: str) -> str:
 
 def _read_experiment(root: etree._Element, system: etree._Element, label: str,
                      problems: list[str]) -> Experiment:
-    """Start/stop from DefaultExperiment; the step from libcosim's or OMSimulator's annotation. A
-    value that is not a finite number is a problem (and left at its default)."""
+    """Start/stop from DefaultExperiment; the step and the algorithm from libcosim's or OMSimulator's
+    annotation (the step: libcosim's first when both are there). A value that is not a finite
+    number is a problem (and left at its default).
+
+    libcosim's ``osp:FixedStepAlgorithm`` is its fixed-step algorithm, which the ``jacobi`` master
+    reproduces (every connection one step late); OMSimulator's ``oms:FixedStepMaster`` (``oms-ma``)
+    steps every FMU and then updates the inputs in dependency order at the new time, as
+    ``gauss-seidel`` does. A file with both was written for both tools (``write_ssd`` writes both,
+    so that each reads the step): it names no one algorithm, and gets the default, gauss-seidel."""
     experiment = root.find("ssd:DefaultExperiment", NS)
     start, stop, step = 0.0, None, None
+    algorithm, algorithm_from = None, ""
 
     def finite(element: etree._Element, attribute: str, default: float | None) -> float | None:
         text = element.get(attribute)
@@ -1174,12 +1217,19 @@ def _read_experiment(root: etree._Element, system: etree._Element, label: str,
                               "/osp:Algorithm/osp:FixedStepAlgorithm", NS)
         if osp is not None:
             step = finite(osp, "baseStepSize", None)
+            algorithm, algorithm_from = "jacobi", (f"{label}: libcosim's osp:FixedStepAlgorithm in the "
+                                                   "DefaultExperiment (every connection one step late)")
     oms = system.find(f"ssd:Annotations/ssc:Annotation[@type='{OMS_ANNOTATION}']"
                       "/oms:Annotations/oms:SimulationInformation/oms:FixedStepMaster", NS)
     if oms is not None:  # read (and checked) also when libcosim's annotation gives the step
         oms_step = finite(oms, "stepSize", None)
         step = oms_step if step is None else step
-    return Experiment(start, stop, step)
+        algorithm, algorithm_from = "gauss-seidel", (
+            f"{label}: OMSimulator's oms:FixedStepMaster in the System (all FMUs step, then inputs are "
+            "updated in dependency order at the new time)" if algorithm is None else
+            f"{label}: both libcosim's osp:FixedStepAlgorithm and OMSimulator's oms:FixedStepMaster (a file "
+            "written for both tools, as orchestrate writes its own): the default, OMSimulator's")
+    return Experiment(start, stop, step, algorithm, algorithm_from)
 
 
 # -- writing ------------------------------------------------------------------------------------------
@@ -1269,6 +1319,8 @@ def write_ssd(folder: str | os.PathLike, structure: SystemStructure) -> Path:
         connection = _element(connections, "ssd:Connection", startElement=link.start.component,
                               startConnector=link.start.connector, endElement=link.end.component,
                               endConnector=link.end.connector)
+        if link.suppress_units:
+            connection.set("suppressUnitConversion", "true")
         if link.transformed:
             _element(connection, "ssc:LinearTransformation", factor=repr(link.factor),
                      offset=repr(link.offset))

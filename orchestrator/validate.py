@@ -21,9 +21,11 @@ from collections.abc import Iterable, Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
+from tempfile import TemporaryDirectory
 
 from .errors import OrchestratorError, ScenarioError, UsageError, is_option, option
-from .fmucache import materialize
+from .fmi import load_problem
+from .fmucache import materialize, release, unpack_fmu
 from .plan import NS_PER_S, GridError, grid
 from .ssp import (
     DEFAULT_LIMITS,
@@ -37,10 +39,11 @@ from .ssp import (
 )
 from .system import System
 
-__all__ = ["DEFAULT_STEP", "STEP_ANNOTATIONS", "Problem", "Validation", "check_scenario", "no_step", "timing",
-           "validate"]
+__all__ = ["DEFAULT_MASTER", "DEFAULT_STEP", "STEP_ANNOTATIONS", "Problem", "Validation", "check_scenario",
+           "choose_master", "no_step", "timing", "validate"]
 
 DEFAULT_STEP = 1e-3
+DEFAULT_MASTER = "gauss-seidel"
 STEP_ANNOTATIONS = ("a step annotation (libcosim's osp:FixedStepAlgorithm baseStepSize in the "
                     "DefaultExperiment, or OMSimulator's oms:FixedStepMaster stepSize in the System)")
 
@@ -94,7 +97,8 @@ def check_scenario(scenario: str | os.PathLike, stack: ExitStack, *,
                    limits: Limits = DEFAULT_LIMITS,
                    unpack_fmus: bool = False,
                    root: str | os.PathLike | None = None,
-                   strict_fmus: bool = False) -> tuple[System | None, list[str], list[str]]:
+                   strict_fmus: bool = False,
+                   load: bool = False) -> tuple[System | None, list[str], list[str]]:
     """Unpack (into a folder ``stack`` removes; within ``limits``), read and check a scenario, every
     stage as far as it can go. Returns the system (None when no SSD could be read; its ``schedule``
     is empty when there are errors), the errors and the warnings (``fmu_warnings``: add fmpy's full
@@ -103,7 +107,7 @@ def check_scenario(scenario: str | os.PathLike, stack: ExitStack, *,
     one whose declared size lies, is an error here rather than when the run starts). ``root``: a
     folder scenario may reference files below it with '..' (never an archive). ``strict_fmus``:
     what fmpy's checks of a model description find is an error even where the FMU still runs (else
-    a warning)."""
+    a warning). ``load``: also load every FMU's library as a run would (:func:`load_problems`)."""
     path = Path(scenario)
     if root is not None and not path.is_dir():
         raise UsageError(f"--root {root}: only a scenario folder may reference files outside itself, "
@@ -139,7 +143,42 @@ def check_scenario(scenario: str | os.PathLike, stack: ExitStack, *,
     partial = {c.name for c in structure.components} if unreadable else reading.partial
     system = System(structure, sets, overrides, strict=False, no_fmu=reading.no_fmu, partial=partial,
                     fmu_warnings=fmu_warnings, strict_fmus=strict_fmus)
-    return system, errors + system.problems, [*reading.notes, *system.warnings]
+    loaded = load_problems(system, stack) if load else []
+    return system, errors + system.problems + loaded, [*reading.notes, *system.warnings]
+
+
+def load_problems(system: System, stack: ExitStack) -> list[str]:
+    """Each component whose FMU's library the loader refuses, one line naming the SSD, component,
+    FMU, file and the loader's reason (what a run would fail on at instantiation). Each FMU is
+    unpacked as a run unpacks it (into the cache, which the run then reuses) and loaded once, in a
+    child process (:func:`orchestrator.fmi.load_problem`)."""
+    found: list[str] = []
+    reasons: dict[Path, str] = {}
+    for comp in system.components.values():
+        assert comp.model.coSimulation is not None  # System keeps Co-Simulation FMUs only
+        if comp.fmu not in reasons:
+            folder = unpack_fmu(comp.fmu, stack.enter_context(TemporaryDirectory(prefix="orchestrate-load-"))
+                                + "/fmu")
+            try:
+                reasons[comp.fmu] = load_problem(folder, comp.model.fmiVersion,
+                                                 comp.model.coSimulation.modelIdentifier)
+            finally:
+                release(folder)
+        if reasons[comp.fmu]:
+            found.append(f"{system.ssd}: component '{comp.name}': FMU '{comp.fmu.name}': cannot load "
+                         f"{reasons[comp.fmu]}")
+    return found
+
+
+def choose_master(structure: SystemStructure, requested: str | None = None) -> tuple[str, str]:
+    """The master a run uses and why: ``requested`` (``--master``) when given, else the one the
+    SSD's algorithm annotation implies (libcosim's osp:FixedStepAlgorithm: jacobi, OMSimulator's
+    oms:FixedStepMaster: gauss-seidel), else the default, gauss-seidel."""
+    if requested is not None:
+        return requested, option("master")
+    if structure.experiment.algorithm is not None:
+        return structure.experiment.algorithm, structure.experiment.algorithm_from
+    return DEFAULT_MASTER, "the default (the SSD names no algorithm)"
 
 
 def timing(structure: SystemStructure, stop_time: float | None = None,
@@ -216,7 +255,7 @@ def validate(scenario: str | os.PathLike, *, parameter_sets: Iterable[str | os.P
         system, errors, warnings = check_scenario(scenario, stack, parameter_sets=parameter_sets,
                                                   overrides=overrides, fmu_warnings=True, fmu_dirs=fmu_dirs,
                                                   limits=limits, unpack_fmus=True, root=root,
-                                                  strict_fmus=strict_fmus)
+                                                  strict_fmus=strict_fmus, load=True)
     if system is None:
         return Validation(str(scenario), tuple(Problem(e) for e in errors))
     structure = system.structure

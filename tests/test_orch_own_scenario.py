@@ -53,7 +53,8 @@ def test_inspect_lists_variables_values_origins_and_connections(tmp_path, capsys
     archive = own_scenario(tmp_path / "vdp")
     report = inspect_scenario(archive, overrides={"through.Float64_tunable_parameter": 3.0})
     assert report.problems == [] and report.name == "vdp"
-    assert [row[:2] for row in report.timing] == [("start", "0 s"), ("stop", "2 s"), ("step", "0.01 s")]
+    assert [row[:2] for row in report.timing] == [("start", "0 s"), ("stop", "2 s"), ("step", "0.01 s"),
+                                                  ("master", "gauss-seidel")]  # written for both tools
     (vdp, about, variables), (through, _, through_vars) = report.components
     assert vdp == "vdp" and through == "through"
     assert "FMI 2.0" in about and "FMU VanDerPol.fmu" in about

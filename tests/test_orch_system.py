@@ -54,7 +54,8 @@ def test_connector_missing_in_fmu_and_type_mismatch_reported_together(tmp_path, 
         orchestrator.run(folder)
     problems = info.value.problems
     ssd = str(folder / "SystemStructure.ssd")
-    assert f"{ssd}: component 'source', connector 'nope': the FMU has no variable of that name" in problems
+    # no connection uses 'nope': a warning since issue 43 (tests/test_ssp_leniency.py), not among these
+    assert not [p for p in problems if "'nope'" in p]
     assert (f"{ssd}: component 'gain', connector 'u': declared type Integer but the FMU's variable is Real"
             in problems)
     assert (f"{ssd}: connection integrator.x -> gain.u: type mismatch "

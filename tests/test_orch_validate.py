@@ -222,8 +222,9 @@ def test_pythonfmu_without_initial_unknowns_is_a_warning(tmp_path, test_fmus, ca
 
 
 def test_units_where_both_sides_declare_them(tmp_path, test_fmus):
-    """m -> s is a mismatch; m -> metre (the same SI definition) is not; a connection with a
-    linear transformation (a deliberate conversion) and a side without unit are not checked."""
+    """m -> s is a mismatch; m -> metre (the same SI definition) is not; a side without unit is not
+    checked. A linear transformation does not make m -> s convertible (SSP 1.0.1 4.5.2.1: the unit
+    conversion comes first; issue 43), unless suppressUnitConversion says it is the conversion."""
     metre = '<Unit name="m"><BaseUnit m="1"/></Unit><Unit name="metre"><BaseUnit m="1"/></Unit>'
     second = '<Unit name="s"><BaseUnit s="1"/></Unit>'
     fmus = {
@@ -246,6 +247,12 @@ def test_units_where_both_sides_declare_them(tmp_path, test_fmus):
     ssd.write_text(ssd.read_text().replace(
         'endElement="timer" endConnector="u"/>',
         'endElement="timer" endConnector="u"><ssc:LinearTransformation factor="0.5"/></ssd:Connection>'))
+    assert errors(validate(folder)) == [
+        f"{label}: connection plant.x -> timer.u: unit mismatch (plant.x is in m, timer.u in s) (if the "
+        'LinearTransformation is meant as the conversion, set suppressUnitConversion="true" on the '
+        "connection)"]
+    timer = 'endElement="timer" endConnector="u"'
+    ssd.write_text(ssd.read_text().replace(f"{timer}>", f'{timer} suppressUnitConversion="true">'))
     assert errors(validate(folder)) == []
 
 

@@ -10,11 +10,11 @@ README.md says where each file comes from. Each case carries the values the othe
 script prints (its "oracle") and says where OMSimulator 3 (the build in ``../shared/tools``) or
 libcosim disagree, and why.
 
-``python tests/ssp_conformance/conformance.py --omsimulator DIR --libcosim DIR`` (``make
-conformance``) measures the whole of both tools' test resources (``DIR``: OMSimulator's
-``testsuite/tests/resources`` and libcosim's ``tests/data``): each file validated and run by the
-engine before this work (main at ``BEFORE``) and now, and compared with OMSimulator 3 and
-libcosim; the table goes to ``docs/ssp-conformance.md``.
+``python tests/ssp_conformance/conformance.py --omsimulator DIR --libcosim DIR --demo-cases DIR``
+(``make conformance``) measures the whole of the tools' test resources (``DIR``: OMSimulator's
+``testsuite/tests/resources``, libcosim's ``tests/data``, the OSP ``demo-cases``): each file
+validated and run by the engine before this work (main at ``BEFORE``) and now, and compared with
+OMSimulator 3 and libcosim; the table goes to ``docs/ssp-conformance.md``.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
-BEFORE = "5287c35"  # main before issue 32
+BEFORE = "633067d"  # main before issue 43 (issue 32's table was against 5287c35)
 OMSIMULATOR = Path(os.environ.get("OMSIMULATOR_HOME", REPO.parent / "shared" / "tools" / "omsimulator"))
 
 
@@ -60,7 +60,7 @@ class Case:
     oms_differs: dict[str, float] = field(default_factory=dict)
     oms_why: str = ""
     libcosim: bool = False
-    master: str = "gauss-seidel"
+    master: str | None = None  # None: the master the SSD's algorithm annotation implies (issue 43)
     warnings: tuple[str, ...] = ()
     features: str = ""
     notes: dict[str, str] = field(default_factory=dict)
@@ -143,10 +143,20 @@ CASES = [
                             "libcosim's unit test applies one named parameter set, by default the first "
                             "(realIn = 2), where SSP 1.0 applies both, the later winning"}),
     Case("libcosim_demo", "libcosim/ssp/demo", "open-simulation-platform/libcosim tests/data/ssp/demo",
-         {}, root="libcosim", stop=0.02, step=1e-4, master="jacobi", libcosim=True,
+         {}, root="libcosim", stop=0.02, step=1e-4, libcosim=True,
          omsimulator="the SSD references its FMUs in a sibling folder, which an archive cannot hold",
          warnings=("algebraic loop: CraneController.Act_Limits[1]",),
          features="a cycle of connections (an algebraic loop under gauss-seidel) run under jacobi"),
+    Case("osp_dp_ship", "osp-demo-cases/dp-ship", "open-simulation-platform/demo-cases dp-ship",
+         {"Thrust Allocation.Fxg": 0.2}, stop=1.0, step=0.04, libcosim=True,
+         omsimulator="OMSimulator 3's Python package stops on these FMI 1.0 FMUs (TypeError: float() "
+                     "argument must be a string or a real number, not 'NoneType')",
+         warnings=("algebraic loop: DP Controller.ControlMz",),
+         features="libcosim's osp:FixedStepAlgorithm choosing the master (jacobi), five FMI 1.0 FMUs, FMUs "
+                  "beside the SSD, a loop through the thrust allocation",
+         notes={"libcosim": "agrees at every step with our master, jacobi, which the file's "
+                            "osp:FixedStepAlgorithm chooses (tests/test_ssp_algorithm.py; Fxg = 0.2 is "
+                            "libcosim's value; gauss-seidel gives 0)"}),
 ]
 
 
@@ -218,13 +228,18 @@ def omsimulator(scenario: Path, case: Case, names: list[tuple[str, str]],
 
 
 def libcosim(scenario: Path, case: Case, names: list[str]) -> dict[str, list[float]]:
-    """libcosim's series of ``names`` up to the stop time (libcosimpy, in a child process: it crashes
+    """libcosim's series of ``names`` up to the case's stop time (:func:`libcosim_series`)."""
+    return libcosim_series(scenario, case.stop, names)
+
+
+def libcosim_series(scenario: Path, stop: float, names: list[str]) -> dict[str, list[float]]:
+    """libcosim's series of ``names`` up to ``stop`` (libcosimpy, in a child process: it crashes
     on some files, e.g. with a segmentation fault on an FMI 1.0 FMU); RuntimeError when it stops."""
     code = ("import json, sys\n"
             "from orchestrator.crosscheck.libcosim import run_libcosim\n"
             "rows, _ = run_libcosim(sys.argv[1], float(sys.argv[2]), ['time', *json.loads(sys.argv[3])])\n"
             "print('RESULT ' + json.dumps({n: rows[n].tolist() for n in rows.dtype.names}))\n")
-    done = subprocess.run([sys.executable, "-c", code, str(scenario), repr(case.stop), json.dumps(names)],
+    done = subprocess.run([sys.executable, "-c", code, str(scenario), repr(stop), json.dumps(names)],
                           capture_output=True, text=True, timeout=600)
     line = next((ln for ln in done.stdout.splitlines() if ln.startswith("RESULT ")), None)
     if line is None:
@@ -245,17 +260,31 @@ def differences(mine: dict[str, float], theirs: dict[str, float | str]) -> dict[
 def _validate_line(engine: Path | None, scenario: Path, root: Path | None) -> tuple[bool, str]:
     """``orchestrate validate`` of ``scenario`` by the engine in ``engine`` (None: this one), in a
     child process: whether it is ok, and its first error."""
+    return _command(engine, ["validate", str(scenario)], root)
+
+
+def _run_line(engine: Path | None, scenario: Path, root: Path | None, stop: float, step: float,
+              output: Path) -> tuple[bool, str]:
+    """``orchestrate run`` of ``scenario`` by the engine in ``engine`` (None: this one) as the
+    survey runs it: whether it completes, and its first error."""
+    return _command(engine, ["run", str(scenario), "--stop-time", repr(stop), "--step", repr(step),
+                             "--output", str(output), "--no-plot"], root)
+
+
+def _command(engine: Path | None, args: list[str], root: Path | None) -> tuple[bool, str]:
+    """An ``orchestrate`` command in a child process, outside this checkout (its working directory
+    would come first on sys.path, and its build's staleness check apply to other files)."""
     env = dict(os.environ)
     if engine is not None:
         env["PYTHONPATH"] = str(engine)
-    argv = [sys.executable, "-m", "orchestrator", "validate", str(scenario)]
-    if root is not None and engine is None:
-        argv += ["--root", str(root)]
+    argv = [sys.executable, "-m", "orchestrator", *args, *(["--root", str(root)] if root is not None else [])]
     done = subprocess.run(argv, capture_output=True, text=True, timeout=600, env=env,
-                          cwd=engine or REPO)
-    errors = [ln for ln in done.stdout.splitlines() if ln.startswith("error:")]
+                          cwd=engine or tempfile.gettempdir())
+    errors = [ln for ln in (done.stdout + done.stderr).splitlines()
+              if ln.startswith(("error:", "orchestrate: error:"))]
     lines = [ln for ln in (done.stdout + done.stderr).splitlines() if ln.strip()]
-    return done.returncode == 0, (errors or lines or [""])[0].removeprefix("error: ")
+    first = (errors or lines or [""])[0]
+    return done.returncode == 0, first.removeprefix("orchestrate: ").removeprefix("error: ")
 
 
 def _short(text: str, scenario: Path | None = None) -> str:
@@ -266,9 +295,11 @@ def _short(text: str, scenario: Path | None = None) -> str:
     return text if len(text) < 160 else text[:157] + "..."
 
 
-def survey(oms_resources: Path | None, libcosim_data: Path | None, output: Path) -> Path:
-    """Validate and run every SSD of OMSimulator's test resources and of libcosim's test data, before
-    (main at BEFORE) and now, compare with OMSimulator 3 and libcosim, and write the table."""
+def survey(oms_resources: Path | None, libcosim_data: Path | None, output: Path,
+           demo_cases: Path | None = None) -> Path:
+    """Validate and run every SSD of OMSimulator's test resources, libcosim's test data and the OSP
+    demo cases, before (main at BEFORE) and now, compare with OMSimulator 3 and libcosim, and write
+    the table."""
     rows = []
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
@@ -293,26 +324,37 @@ def survey(oms_resources: Path | None, libcosim_data: Path | None, output: Path)
                                 libcosim_data))
             for ssp in sorted(libcosim_data.glob("ssp/**/*.ssp")):
                 targets.append((f"libcosim {ssp.relative_to(libcosim_data / 'ssp')}", ssp, None))
+        if demo_cases is not None:
+            for ssd in sorted(demo_cases.glob("**/SystemStructure.ssd")):
+                targets.append((f"OSP demo-cases {ssd.parent.relative_to(demo_cases)}", ssd.parent, None))
         for label, scenario, root in targets:
             print(label, file=sys.stderr)
             ok_before, why_before = _validate_line(before, scenario, root)
             ok_now, why_now = _validate_line(None, scenario, root)
-            run, agree_oms, agree_cosim = "", "", ""
+            run, run_before, agree_oms, agree_cosim = "", "", "", ""
+            stop, step = _span(scenario, root)
+            before_csv = tmp / "before.csv"
+            before_csv.unlink(missing_ok=True)
+            if ok_before and stop is not None:
+                done, why = _run_line(before, scenario, root, stop, step, before_csv)
+                run_before = "ok" if done else f"fails: {_short(why, scenario)}"
             if ok_now:
-                run, agree_oms, agree_cosim = _measure(scenario, root, label)
-            rows.append((label, "ok" if ok_before else f"refused: {_short(why_before, scenario)}",
+                run, agree_oms, agree_cosim = _measure(scenario, root, label, before_csv)
+            rows.append((label, "ok" if ok_before else f"refused: {_short(why_before, scenario)}", run_before,
                          "ok" if ok_now else f"refused: {_short(why_now, scenario)}", run, agree_oms,
                          agree_cosim))
-    lines = ["# SSP conformance: other tools' test files, before and after issue 32", "",
+    lines = ["# SSP conformance: other tools' test files, before and after issue 43", "",
              f"Generated by `make conformance` (tests/ssp_conformance/conformance.py): every SSD of "
-             f"OMSimulator's `testsuite/tests/resources` (packed into an archive as its CMake does) and "
-             f"of libcosim's `tests/data/ssp`, validated by the engine of main at {BEFORE} (before) and "
-             f"by this one (after), run for 1 s (the SSD's stop time when shorter) at a 10 ms step "
-             f"(the SSD's when given), and compared at the stop time with OMSimulator 3 (its Python "
-             f"package) and libcosim (libcosimpy) on every Real input, output and parameter both give. "
-             f"Do not edit by hand.", "",
-             "| file | validate before | validate after | run after | OMSimulator 3 | libcosim |",
-             "|---|---|---|---|---|---|"]
+             f"OMSimulator's `testsuite/tests/resources` (packed into an archive as its CMake does), "
+             f"of libcosim's `tests/data/ssp` and of the OSP `demo-cases`, validated and run by the "
+             f"engine of main at {BEFORE} (before) and by this one (after), run for 1 s (the SSD's stop "
+             f"time when shorter) at a 10 ms step (the SSD's when given) under the master the SSD's "
+             f"algorithm annotation implies, and compared at the stop time with OMSimulator 3 (its "
+             f"Python package) and at every step with libcosim (libcosimpy) on every Real input, output "
+             f"and parameter both give. Do not edit by hand.", "",
+             "| file | validate before | run before | validate after | run after | OMSimulator 3 "
+             "| libcosim |",
+             "|---|---|---|---|---|---|---|"]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     lines += ["", "## The conformance set in `make test`", "",
               "Copied into `tests/ssp_conformance/` and checked by `tests/test_ssp_conformance.py` against "
@@ -330,8 +372,24 @@ def survey(oms_resources: Path | None, libcosim_data: Path | None, output: Path)
     return output
 
 
-def _measure(scenario: Path, root: Path | None, label: str) -> tuple[str, str, str]:
-    """Run now; agreement with OMSimulator 3 and libcosim (each '' when not applicable)."""
+def _span(scenario: Path, root: Path | None) -> tuple[float | None, float]:
+    """The stop time and step the survey runs ``scenario`` at (None: the SSD cannot be read)."""
+    import orchestrator
+
+    try:
+        with orchestrator.open_system(scenario, root=root) as system:
+            ex = system.structure.experiment
+    except Exception:  # noqa: BLE001 - refused: validate's line says why
+        return None, 0.01
+    step = ex.step or 0.01
+    span = (ex.stop_time - ex.start_time) if ex.stop_time is not None else 1.0
+    return ex.start_time + min(span, 1.0, 1000 * step), step
+
+
+def _measure(scenario: Path, root: Path | None, label: str,
+             before: Path | None = None) -> tuple[str, str, str]:
+    """Run now; agreement with OMSimulator 3 and libcosim (each '' when not applicable); ``before``:
+    the result file of the engine before, also compared with libcosim."""
     import orchestrator
 
     try:
@@ -359,20 +417,22 @@ def _measure(scenario: Path, root: Path | None, label: str) -> tuple[str, str, s
                              f"{k} {a:g} vs {b:g}" for k, (a, b) in list(wrong.items())[:3]))
         except Exception as exc:  # noqa: BLE001
             agree_oms = f"does not run it: {_short(' '.join(str(exc).split()))[:120]}"
-    if label.startswith("libcosim"):
+    if label.startswith(("libcosim", "OSP")):  # files written for libcosim
         try:
-            agree_cosim = _libcosim_agreement(scenario, case, [f"{c}.{v}" for c, v in names])
+            agree_cosim = _libcosim_agreement(scenario, case, [f"{c}.{v}" for c, v in names], before)
         except Exception as exc:  # noqa: BLE001
             agree_cosim = f"does not run it: {' '.join(str(exc).split())[:120]}"
     return run, agree_oms, agree_cosim
 
 
-def _libcosim_agreement(scenario: Path, case: Case, names: list[str]) -> str:
-    """libcosim's series against our jacobi master's (its algorithm) at every communication point:
-    outputs at the same time; inputs one step apart (libcosim reports at t the input an FMU used in
-    the step ending at t, our row at t the input transferred at t for the next step). The largest
-    deviation relative to 1 + the column's size."""
-    import numpy as np
+def _libcosim_agreement(scenario: Path, case: Case, names: list[str], before: Path | None = None) -> str:
+    """libcosim's series against our run under the master the SSD implies (jacobi for libcosim's
+    osp:FixedStepAlgorithm, its algorithm) at every communication point: outputs at the same time;
+    inputs one step apart under jacobi (libcosim reports at t the input an FMU used in the step
+    ending at t, our row at t the input transferred at t for the next step). The largest deviation
+    relative to 1 + the column's size; with ``before`` (the CSV the engine before wrote, under
+    gauss-seidel, its default) that one's too."""
+    import csv
 
     import orchestrator
     from orchestrator import RunOptions
@@ -384,16 +444,32 @@ def _libcosim_agreement(scenario: Path, case: Case, names: list[str]) -> str:
             return "runs it; not compared: the SSD gives no step, and libcosim takes its own default"
         inputs = {f"{n}.{v.name}" for n, c in system.components.items() for v in c.model.modelVariables
                   if v.causality == "input"}
-    rows = orchestrator.run(scenario, RunOptions(stop_time=case.stop, step=case.step, master="jacobi",
-                                                 root=root)).rows
-    common = [n for n in theirs if n != "time" and n in (rows.dtype.names or ())]
-    n = min(len(theirs["time"]), len(rows)) - 1
+    result = orchestrator.run(scenario, RunOptions(stop_time=case.stop, step=case.step, root=root))
+    master = str(result.provenance["master"])
+    rows = {n: result.rows[n] for n in result.rows.dtype.names or ()}
+    delayed = inputs if master == "jacobi" else set()
+    text = _against(theirs, rows, delayed, f"our {master} master (the file's)")
+    if before is not None and before.is_file():
+        with before.open(newline="") as file:
+            table = list(csv.reader(file))
+        old = {name: [float(r[i]) for r in table[1:]] for i, name in enumerate(table[0])}
+        text += "; before: " + _against(theirs, old, set(), "the gauss-seidel master")
+    return text
+
+
+def _against(theirs: dict[str, list[float]], rows: dict[str, object], delayed: set[str], what: str) -> str:
+    """How far ``rows`` are from libcosim's series (``delayed``: input columns one step apart)."""
+    import numpy as np
+
+    common = [n for n in theirs if n != "time" and n in rows]
+    n = min(len(theirs["time"]), len(rows["time"])) - 1  # type: ignore[arg-type]
     worst = 0.0
     for c in common:
-        mine, other = rows[c], np.array(theirs[c])
-        gap = other[2:n + 1] - mine[1:n] if c in inputs else other[1:n + 1] - mine[1:n + 1]
+        mine, other = np.asarray(rows[c]), np.array(theirs[c])
+        gap = other[2:n + 1] - mine[1:n] if c in delayed else other[1:n + 1] - mine[1:n + 1]
         worst = max(worst, float(np.max(np.abs(gap)) / (1 + np.max(np.abs(mine)))))
-    where = f"{len(common)} columns x {n} steps against our jacobi master, inputs one step apart"
+    where = f"{len(common)} columns x {n} steps against {what}" + (
+        ", inputs one step apart" if delayed else "")
     return f"agrees ({where})" if worst <= 1e-9 else f"differs by up to {worst:.2g} relative ({where})"
 
 
@@ -402,11 +478,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--omsimulator", type=Path, help="OMSimulator's testsuite/tests/resources")
     parser.add_argument("--libcosim", type=Path, help="libcosim's tests/data")
+    parser.add_argument("--demo-cases", type=Path, help="the OSP demo-cases repository")
     parser.add_argument("--output", type=Path, default=REPO / "docs" / "ssp-conformance.md")
     args = parser.parse_args(argv)
     if args.omsimulator is None and args.libcosim is None:
         parser.error("give --omsimulator and/or --libcosim (folders of the fetched repositories)")
-    print(survey(args.omsimulator, args.libcosim, args.output))
+    print(survey(args.omsimulator, args.libcosim, args.output, args.demo_cases))
     return 0
 
 
