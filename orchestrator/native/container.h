@@ -62,6 +62,9 @@ fmi2Status apply_inputs(struct container *x, double t);
 /* gauss-seidel: the outputs that depend on inputs set since, propagated again. */
 fmi2Status propagate(struct container *x, double t);
 
+/* Whether a getter's or setter's arrays can be read (container_fmi2.c); else fmi2Error said. */
+int container_arrays(struct container *x, const char *function, size_t n, const void *vr, const void *values);
+
 /* The core's result as the container's status. */
 #define CORE(x, call) ((call) ? failed(x) : fmi2OK)
 

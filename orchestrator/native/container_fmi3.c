@@ -99,41 +99,46 @@ FMI3_Export fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentComm
     return (fmi3Status)s;
 }
 
-/* Scalar variables only: one value per value reference. */
-static int scalars(fmi3Instance instance, size_t nValueReferences, size_t nValues) {
-    if (nValues == nValueReferences) return 1;
-    say(instance, fmi2Error, "the container's variables are scalars: %zu values for %zu value references",
-        nValues, nValueReferences);
-    return 0;
+/* Scalar variables only: one value per value reference; the arrays readable (container_arrays). */
+static int scalars(fmi3Instance instance, const char *function, const fmi3ValueReference valueReferences[],
+                   size_t nValueReferences, const void *values, size_t nValues) {
+    if (!instance) return 0;
+    if (nValues != nValueReferences) {
+        say(instance, fmi2Error, "%s: the container's variables are scalars: %zu values for %zu value references",
+            function, nValues, nValueReferences);
+        return 0;
+    }
+    return container_arrays(instance, function, nValueReferences, valueReferences, values);
 }
+
 
 FMI3_Export fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                       size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
-    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    if (!scalars(instance, __func__, valueReferences, nValueReferences, values, nValues)) return fmi3Error;
     return (fmi3Status)fmi2GetReal(instance, valueReferences, nValueReferences, values);
 }
 
 FMI3_Export fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                       size_t nValueReferences, const fmi3Float64 values[], size_t nValues) {
-    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    if (!scalars(instance, __func__, valueReferences, nValueReferences, values, nValues)) return fmi3Error;
     return (fmi3Status)fmi2SetReal(instance, valueReferences, nValueReferences, values);
 }
 
 FMI3_Export fmi3Status fmi3GetInt32(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                     size_t nValueReferences, fmi3Int32 values[], size_t nValues) {
-    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    if (!scalars(instance, __func__, valueReferences, nValueReferences, values, nValues)) return fmi3Error;
     return (fmi3Status)fmi2GetInteger(instance, valueReferences, nValueReferences, values);
 }
 
 FMI3_Export fmi3Status fmi3SetInt32(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                     size_t nValueReferences, const fmi3Int32 values[], size_t nValues) {
-    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    if (!scalars(instance, __func__, valueReferences, nValueReferences, values, nValues)) return fmi3Error;
     return (fmi3Status)fmi2SetInteger(instance, valueReferences, nValueReferences, values);
 }
 
 FMI3_Export fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                       size_t nValueReferences, fmi3Boolean values[], size_t nValues) {
-    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    if (!scalars(instance, __func__, valueReferences, nValueReferences, values, nValues)) return fmi3Error;
     for (size_t j = 0; j < nValueReferences; j++) {
         fmi2Boolean value;
         fmi2Status s = fmi2GetBoolean(instance, &valueReferences[j], 1, &value);
@@ -145,7 +150,7 @@ FMI3_Export fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueRefe
 
 FMI3_Export fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                       size_t nValueReferences, const fmi3Boolean values[], size_t nValues) {
-    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    if (!scalars(instance, __func__, valueReferences, nValueReferences, values, nValues)) return fmi3Error;
     for (size_t j = 0; j < nValueReferences; j++) {
         fmi2Boolean value = values[j] ? 1 : 0;
         fmi2Status s = fmi2SetBoolean(instance, &valueReferences[j], 1, &value);
