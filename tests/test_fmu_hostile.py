@@ -250,7 +250,7 @@ LEAK_CASES = ([(f"{v}/{m}", n) for v, m in CASES for n in NAMINGS] +
 @pytest.mark.parametrize(("case", "naming"), LEAK_CASES, ids=[f"{c}-{n}" for c, n in LEAK_CASES])
 def test_at_most_1_kb_per_instantiate_free_cycle(host: Path, built: Path, unpacked: Path, container: Path,
                                                  tmp_path: Path, case: str, naming: str) -> None:
-    """1000 instantiate/free cycles (after 200 that fill Python's and the allocator's caches), the
+    """1000 instantiate/free cycles (after 500 that fill Python's and the allocator's caches), the
     instances named the same, anew each time (run0, run1, ...) or two names in turn: the resident
     memory grows by at most 1 KB a cycle (before, one name: 19.7 KB for Actuator, 32.8 KB for
     FixedTimeController, 80 KB for the container; at main 633067d, new names: 7.4-18.8 KB on
@@ -277,16 +277,17 @@ def test_a_component_reused_for_a_new_name_takes_that_name(built: Path, tmp_path
     fmu = FMU2Slave(guid=md.guid, unzipDirectory=str(folder), instanceName="run0",
                     modelIdentifier=md.coSimulation.modelIdentifier)
     fmu.instantiate()
-    seen = []
     for name in ("run1", "run2"):
         fmu.fmi2FreeInstance(fmu.component)
         fmu.instanceName = name
         fmu.instantiate()
         gc.collect()
         slaves = [o for o in gc.get_objects() if type(o).__name__ == "Actuator"]
-        seen.append([o.instance_name for o in slaves if isinstance(getattr(o, "instance_name", None), str)])
+        names = {o.instance_name for o in slaves if isinstance(getattr(o, "instance_name", None), str)}
+        # pythonfmu constructs the reused component's slave as "run0" (the name it was first
+        # instantiated with); the shim renames it (an older slave may await the collector)
+        assert name in names and "run0" not in names, (name, names)
     fmu.freeInstance()
-    assert seen == [["run1"], ["run2"]]
 
 
 FEW = ("ok", "resources-null", "guid-null", "no-logger", "unknown-vr", "after-error", "model-fails")
