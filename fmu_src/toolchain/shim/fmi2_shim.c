@@ -207,9 +207,20 @@ static int load(void) {
        otherwise); then what pythonfmu's binary imports by name and the process lacks: the
        stable-ABI forwarder python3.dll (to whichever python311.dll is loaded) and the MSVC
        runtime. A DLL of that name already in the process is the one every import binds to. */
-    char file[TEXT + 64];
+    /* The runtime and pythonfmu's binary are loaded from copies in the user's cache (see
+       ftc_cached_copy), so that the host can delete the folder it unpacked once it has freed the
+       instances and this library; where there is no cache, from that folder as before. */
+    char runtime[TEXT + 16], inner_dir[TEXT], file[TEXT + 64];
+    snprintf(runtime, sizeof runtime, "%s/%s", dir, RUNTIME_DIR);
+    snprintf(file, sizeof file, "%s%s", model, INNER_SUFFIX);
+    int cached = ftc_cached_copy(runtime, NULL, runtime, sizeof runtime) == 0 &&
+                 ftc_cached_copy(dir, file, inner_dir, sizeof inner_dir) == 0;
+    if (!cached) {
+        snprintf(runtime, sizeof runtime, "%s/%s", dir, RUNTIME_DIR);
+        snprintf(inner_dir, sizeof inner_dir, "%s", dir);
+    }
     if (!ftc_library_symbol(NULL, "Py_IsInitialized")) {
-        snprintf(file, sizeof file, "%s/%s/%s", dir, RUNTIME_DIR, FTC_LIBPYTHON);
+        snprintf(file, sizeof file, "%s/%s", runtime, FTC_LIBPYTHON);
         if (!(python = ftc_library_open(file, 1))) {
             snprintf(failure, TEXT, "%s: cannot load the bundled %s: %s", model, file, ftc_library_error(file));
             return -1;
@@ -217,7 +228,7 @@ static int load(void) {
     }
     static const char *const imported[] = {"vcruntime140.dll", "vcruntime140_1.dll", "msvcp140.dll", "python3.dll"};
     for (size_t k = 0; k < sizeof imported / sizeof imported[0]; k++) {
-        snprintf(file, sizeof file, "%s/%s/%s", dir, RUNTIME_DIR, imported[k]);
+        snprintf(file, sizeof file, "%s/%s", runtime, imported[k]);
         if (!ftc_library_loaded(imported[k]) && !ftc_library_open(file, 1)) {
             snprintf(failure, TEXT, "%s: cannot load the bundled %s: %s", model, file, ftc_library_error(file));
             return -1;
@@ -274,9 +285,11 @@ static int load(void) {
     if (status != 0) return -1;
 
     char path[TEXT + 300];
-    snprintf(path, sizeof path, "%s/%s%s", dir, model, INNER_SUFFIX);
 #ifdef _WIN32
+    snprintf(path, sizeof path, "%s/%s%s", inner_dir, model, INNER_SUFFIX);
     int first = !ftc_library_loaded(path); /* else a former load of this folder kept its files */
+#else
+    snprintf(path, sizeof path, "%s/%s%s", dir, model, INNER_SUFFIX);
 #endif
     inner = ftc_library_open(path, 0);
     if (!inner) {
@@ -284,12 +297,11 @@ static int load(void) {
         return -1;
     }
 #ifdef _WIN32
-    if (first) {
-        char runtime[TEXT + 16];
-        snprintf(runtime, sizeof runtime, "%s/%s", dir, RUNTIME_DIR);
-        ftc_keep_files(dir);
+    if (first) { /* the cache's files, or those of the unpacked folder where there is no cache */
+        ftc_keep_files(inner_dir);
         ftc_keep_files(runtime);
     }
+    ftc_keep_own_file(self);
 #endif
     inner_fmi2Instantiate = (fmi2Component(*)(fmi2String, fmi2Type, fmi2String, fmi2String,
                                                const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean))
@@ -1004,6 +1016,13 @@ fmi2Component ftc_instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     int found = problem ? 0 : ftc_resources(&description, fmuResourceLocation, resources, sizeof resources, note,
                                             sizeof note);
     if (found < 0) problem = note;
+#ifdef _WIN32
+    /* pythonfmu's Python imports the model from the resources folder and keeps its extension
+       modules (.pyd) loaded: it gets a copy in the user's cache (see ftc_cached_copy), so that
+       the host can delete what it unpacked; the same files, so the same model (the identity was
+       checked on the folder given). Where there is no cache, the folder itself. */
+    if (!problem) ftc_cached_copy(resources, NULL, resources, sizeof resources);
+#endif
     char readable[TEXT]; /* what pythonfmu's binary can open: the same folder (see ftc_ascii_path) */
     if (!problem && ftc_ascii_path(resources, readable, sizeof readable) != 0) {
         snprintf(note, sizeof note, "the resources folder %s has no ASCII (8.3) name, which pythonfmu's binary "
