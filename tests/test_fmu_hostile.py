@@ -290,11 +290,12 @@ def test_a_component_reused_for_a_new_name_takes_that_name(built: Path, tmp_path
     fmu.freeInstance()
 
 
-FEW = ("ok", "resources-null", "guid-null", "no-logger", "unknown-vr", "after-error", "model-fails")
-VALGRIND_CASES = [("fmus/Actuator", SCENARIOS if EVERY_CASE else FEW),
+FEW = ("ok", "resources-null", "guid-null", "no-logger", "unknown-vr", "after-error", "model-fails",
+       "debug-null-entry", "get-count-beyond", "set-string-null-entry", "get-state-undeclared-size")
+VALGRIND_CASES = [("fmus/Actuator", SCENARIOS + NONSENSE if EVERY_CASE else FEW),
                   ("fmus3/Reference", ("ok", "resources-null", "unknown-vr", "after-error", "model-fails",
-                                       "set-output-twice")),
-                  ("container", ("ok", "after-error"))][: 3 if EVERY_CASE else 1]
+                                       "set-output-twice", *NONSENSE)),
+                  ("container", ("ok", "after-error", *NONSENSE))][: 3 if EVERY_CASE else 1]
 
 
 @pytest.mark.skipif(VALGRIND is None, reason="valgrind is not installed")
