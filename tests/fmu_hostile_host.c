@@ -13,7 +13,11 @@
 
    (S: the status of the call under test, -2 if skipped, I: 1 if the instance under test exists, M: messages the
    FMU logged, N: of them with a NULL category, X: a figure of the scenario) and the parent prints
-   "EXIT name code" or "EXIT name signal N" when the child ends. Scenarios: see SCENARIOS below.
+   "EXIT name code" or "EXIT name signal N" when the child ends. Scenarios: see scenario() below;
+   those with an argument: resources-other=LOCATION (another FMU's resources; extra: the output the
+   short run ends on), cycles=N, cycles-distinct=N, cycles-alternating=N (extra: bytes kept per
+   instantiate/free cycle, the instances named alike, anew each time, or two names in turn), and
+   the NONSENSE calls (extra: the messages the call under test logged).
    On Linux (tests/test_fmu_hostile.py) a child is a fork of the host after Python has started once.
    Cross-compiled with mingw-w64 (tests/test_fmu_windows.py, under wine) it loads
    binaries/win64/IDENTIFIER.dll (FMI 3.0: x86_64-windows), FMU_DIR is a C:/ path, and each scenario
