@@ -215,6 +215,11 @@ def test_the_containers_refuse_nonsense_arguments(host: Path, built: Path, tmp_p
         if fmi == "3" and name in FMI2_ONLY:
             continue
         assert (outcome.status, outcome.extra) == (ERROR, 1), where
+        if name.startswith("debug-"):  # the message names the host's function
+            assert outcome.message.startswith(f"fmi{fmi}SetDebugLogging: "), where
+        if name.startswith("setup-"):
+            function = "fmi2SetupExperiment" if fmi == "2" else "fmi3EnterInitializationMode"
+            assert outcome.message.startswith(f"{function}: "), where
     actuator = arguments(built, "fmus" if fmi == "2" else "fmus3", "Actuator", tmp_path)[0]
     other = resources_of(Path(actuator), fmi)
     answers = run(host, args, ["ok", f"resources-other={other}"])[0]

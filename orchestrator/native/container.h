@@ -32,6 +32,7 @@ struct container {
     void **libraries;       /* dlopen handles, per component */
     struct relay3 *relays;  /* per component */
     char name[256];
+    const char *serving;    /* the FMI 3.0 function served by an FMI 2.0 one (its messages name it) */
     char resources[TEXT];
     fmi2CallbackFunctions host;
     /* FMI 3.0 host (fmi3InstantiateCoSimulation): its logMessage and instance environment */

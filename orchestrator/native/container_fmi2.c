@@ -55,13 +55,14 @@ int container_arrays(struct container *x, const char *function, size_t n, const 
 
 EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[]) {
     CONTAINER(c, ANY);
+    const char *function = x->serving ? x->serving : __func__;
     if (n > 0 && !categories) {
-        say(x, fmi2Error, "%s: %zu categories given, but the categories array is NULL", __func__, n);
+        say(x, fmi2Error, "%s: %zu categories given, but the categories array is NULL", function, n);
         return fmi2Error;
     }
     for (size_t k = 0; k < n; k++)
         if (!categories[k]) {
-            say(x, fmi2Error, "%s: categories[%zu] is NULL, not a category name", __func__, k);
+            say(x, fmi2Error, "%s: categories[%zu] is NULL, not a category name", function, k);
             return fmi2Error;
         }
     x->logging = on;
@@ -76,19 +77,20 @@ EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n,
 EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
                                       fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
     CONTAINER(c, 1 << INSTANTIATED);
+    const char *function = x->serving ? x->serving : __func__;
     double ns = startTime * 1e9;
     if (!(fabs(ns) < 9e18)) {
-        say(x, fmi2Error, "fmi2SetupExperiment: start time %g s is not a finite time", startTime);
+        say(x, fmi2Error, "%s: start time %g s is not a finite time", function, startTime);
         return fmi2Error;
     }
     /* Values not defined are ignored, as the standard says. */
     if (stopTimeDefined && !(isfinite(stopTime) && stopTime >= startTime)) {
-        say(x, fmi2Error, "fmi2SetupExperiment: the stop time %g s is not a finite time at or after the start "
-            "time %g s", stopTime, startTime);
+        say(x, fmi2Error, "%s: the stop time %g s is not a finite time at or after the start time %g s", function,
+            stopTime, startTime);
         return fmi2Error;
     }
     if (toleranceDefined && !(isfinite(tolerance) && tolerance > 0.0)) {
-        say(x, fmi2Error, "fmi2SetupExperiment: the tolerance %g is not a positive finite number", tolerance);
+        say(x, fmi2Error, "%s: the tolerance %g is not a positive finite number", function, tolerance);
         return fmi2Error;
     }
     x->plan.t0 = llround(ns);

@@ -61,16 +61,26 @@ FMI3_Export fmi3Instance fmi3InstantiateScheduledExecution(
 
 FMI3_Export void fmi3FreeInstance(fmi3Instance instance) { fmi2FreeInstance(instance); }
 
+/* The FMI 2.0 function's messages name the FMI 3.0 one it serves. */
+static void serving(fmi3Instance instance, const char *function) {
+    if (instance) ((struct container *)instance)->serving = function;
+}
+
 FMI3_Export fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
                                            const fmi3String categories[]) {
-    return (fmi3Status)fmi2SetDebugLogging(instance, loggingOn, nCategories, categories);
+    serving(instance, __func__);
+    fmi2Status s = fmi2SetDebugLogging(instance, loggingOn, nCategories, categories);
+    serving(instance, NULL);
+    return (fmi3Status)s;
 }
 
 FMI3_Export fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined,
                                                    fmi3Float64 tolerance, fmi3Float64 startTime,
                                                    fmi3Boolean stopTimeDefined, fmi3Float64 stopTime) {
+    serving(instance, __func__);
     fmi2Status s =
         fmi2SetupExperiment(instance, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime);
+    serving(instance, NULL);
     return (fmi3Status)(s == fmi2OK ? fmi2EnterInitializationMode(instance) : s);
 }
 
