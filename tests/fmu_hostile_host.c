@@ -13,7 +13,11 @@
 
    (S: the status of the call under test, -2 if skipped, I: 1 if the instance under test exists, M: messages the
    FMU logged, N: of them with a NULL category, X: a figure of the scenario) and the parent prints
-   "EXIT name code" or "EXIT name signal N" when the child ends. Scenarios: see SCENARIOS below.
+   "EXIT name code" or "EXIT name signal N" when the child ends. Scenarios: see scenario() below;
+   those with an argument: resources-other=LOCATION (another FMU's resources; extra: the output the
+   short run ends on), cycles=N, cycles-distinct=N, cycles-alternating=N (extra: bytes kept per
+   instantiate/free cycle, the instances named alike, anew each time, or two names in turn), and
+   the NONSENSE calls (extra: the messages the call under test logged).
    On Linux (tests/test_fmu_hostile.py) a child is a fork of the host after Python has started once.
    Cross-compiled with mingw-w64 (tests/test_fmu_windows.py, under wine) it loads
    binaries/win64/IDENTIFIER.dll (FMI 3.0: x86_64-windows), FMU_DIR is a C:/ path, and each scenario
@@ -83,6 +87,8 @@ static char dir[4096], token[256], resources[4200];
 static int in_vr, out_vr, par_vr;
 static int messages, null_categories;
 static char first[512];
+static double last_output; /* the output at the end of the last short run (run()) */
+static int messages_of_call; /* the messages of a nonsense call, when others follow it */
 
 /* ---- the host's loggers: count, keep the first message of status warning or worse ---------- */
 
@@ -195,12 +201,15 @@ static void free_instance(component c) {
 
 static int worst(int a, int b) { return a > b ? a : b; }
 
-/* A short run: initialize, 10 steps, read the output; its worst status. */
+/* A short run: initialize, 10 steps with a varying input, read the output (last_output); its worst status. */
 static int run(component c) {
     int s = initialize(c);
-    for (int k = 0; k < 10 && s <= WARNING; k++) s = worst(s, step(c, k * 1e-3, 1e-3));
-    double y;
-    if (out_vr >= 0 && s <= WARNING) s = worst(s, get_real(c, (unsigned)out_vr, &y));
+    for (int k = 0; k < 10 && s <= WARNING; k++) {
+        if (in_vr >= 0) s = worst(s, set_real(c, (unsigned)in_vr, 0.1 * (k + 1)));
+        s = worst(s, step(c, k * 1e-3, 1e-3));
+    }
+    last_output = NAN;
+    if (out_vr >= 0 && s <= WARNING) s = worst(s, get_real(c, (unsigned)out_vr, &last_output));
     return s;
 }
 
@@ -212,10 +221,12 @@ struct result {
     double extra;
 };
 
-/* Instantiation with the resource location `where` (the call under test: the short run after it). */
+/* Instantiation with the resource location `where` (the call under test: the short run after it;
+   extra: the output it ends with, which tells which model ran). */
 static struct result with_resources(const char *where) {
     component c = instantiate("r", where, token, LOGGER);
     struct result r = {c ? run(c) : ERROR, c != NULL, 0};
+    r.extra = last_output;
     if (c) free_instance(c);
     return r;
 }
@@ -305,14 +316,23 @@ static long resident_bytes(void) {
 #endif
 }
 
-/* Memory kept per instantiate/free cycle (extra: bytes per cycle over `n` cycles after 200, which
-   fill the caches of Python and the allocator). */
-static struct result cycles(int n) {
+/* Memory kept per instantiate/free cycle (extra: bytes per cycle over `n` cycles after WARM_UP,
+   which fill the caches of Python and the allocator: after 200, ManipulatorPlant kept 1.1 KB a
+   cycle over the next 1000, 0.39 KB over the next 3000, bounded; after 500, 0.56 KB). The instances are named as `naming` says: 's' the
+   same name, 'd' a new one each time (run0, run1, ... as campaign tools and FMPy do), 'a' two
+   names in turn. */
+#ifndef WARM_UP
+#define WARM_UP 500
+#endif
+static struct result cycles(int n, char naming) {
     int s = OK;
     long start = 0;
-    for (int k = -200; k < n && s == OK; k++) {
+    for (int k = -WARM_UP; k < n && s == OK; k++) {
         if (k == 0) start = resident_bytes();
-        component c = fresh("cycle");
+        char name[32] = "cycle";
+        if (naming == 'd') snprintf(name, sizeof name, "run%d", k + WARM_UP);
+        else if (naming == 'a') snprintf(name, sizeof name, "%s", k % 2 ? "odd" : "even");
+        component c = fresh(name);
         if (!c) s = ERROR;
         else free_instance(c);
     }
@@ -379,6 +399,127 @@ static struct result two_threads(void) {
     return (struct result){worst(alone.status, worst(a.status, b.status)), 1, same};
 }
 
+/* The nonsense scenarios: a NULL array or entry, a count beyond any array, a time that cannot be, a
+   capability the model description does not declare. */
+static const char *const NONSENSE[] = {
+    "debug-null-categories", "debug-null-entry", "setup-stop-before-start", "setup-start-nan", "setup-start-inf",
+    "setup-stop-inf", "setup-tolerance-nan", "setup-tolerance-negative", "get-null-vr", "get-null-values",
+    "set-null-values", "get-count-beyond", "get-integer-null-vr", "get-boolean-null-values",
+    "set-string-null-entry", "get-state-null", "set-state-null", "get-state-undeclared-size", "deserialize-null",
+    "directional-null", "output-derivatives-null", "input-derivatives-null", "status-null", "real-status-null"};
+
+/* ---- nonsense arguments: each call on an instance of its own, one message expected ------------- */
+
+/* The counters start again for the call under test (pythonfmu logs at instantiation). */
+static void under_test(void) { messages = null_categories = 0, first[0] = '\0'; }
+
+#define F2(name, type) ((type)fn(name)) /* an FMI function by name, as a pointer of `type` */
+typedef int (*vr_call)(component, const unsigned *, size_t, void *, size_t);
+
+static int nonsense_call(component c, const char *name) {
+    unsigned vr[2] = {(unsigned)out_vr, (unsigned)out_vr};
+    double values[2] = {0, 0};
+    int ints[2] = {0, 0};
+    static const char *categories[] = {"logAll", NULL};
+    const char *strings[1] = {NULL};
+    void *state = NULL;
+    size_t size = 0;
+    if (!strcmp(name, "debug-null-categories") || !strcmp(name, "debug-null-entry")) {
+        int (*f)(component, int, size_t, const char **) =
+            fn(version == 2 ? "fmi2SetDebugLogging" : "fmi3SetDebugLogging");
+        return f(c, 1, 2, strcmp(name, "debug-null-entry") ? NULL : categories);
+    }
+    if (!strncmp(name, "setup-", 6)) { /* start, stop, tolerance */
+        double start = 0, stop = 1, tolerance = 1e-6;
+        int stop_defined = 1, tolerance_defined = 1;
+        if (!strcmp(name, "setup-stop-before-start")) start = 1, stop = 0.5;
+        else if (!strcmp(name, "setup-start-nan")) start = NAN;
+        else if (!strcmp(name, "setup-start-inf")) start = INFINITY;
+        else if (!strcmp(name, "setup-stop-inf")) stop = INFINITY;
+        else if (!strcmp(name, "setup-tolerance-nan")) tolerance = NAN;
+        else if (!strcmp(name, "setup-tolerance-negative")) tolerance = -1e-6;
+        if (version == 2)
+            return F2("fmi2SetupExperiment", int (*)(component, int, double, double, int, double))(
+                c, tolerance_defined, tolerance, start, stop_defined, stop);
+        return F2("fmi3EnterInitializationMode", int (*)(component, bool, double, double, bool, double))(
+            c, tolerance_defined, tolerance, start, stop_defined, stop);
+    }
+    /* the rest after initialization */
+    int s = initialize(c);
+    if (s > WARNING) return 100 + s; /* not the call under test: the test fails on it */
+    if (!strcmp(name, "get-state-undeclared-size")) { /* a state got, then its serialized size */
+        int (*get)(component, void **) = fn(version == 2 ? "fmi2GetFMUstate" : "fmi3GetFMUState");
+        if (get(c, &state) > WARNING) state = NULL;
+    }
+    under_test();
+    const char *real_get = version == 2 ? "fmi2GetReal" : "fmi3GetFloat64";
+    if (!strcmp(name, "get-null-vr")) return F2(real_get, vr_call)(c, NULL, 1, values, 1);
+    if (!strcmp(name, "get-null-values")) return F2(real_get, vr_call)(c, vr, 1, NULL, 1);
+    if (!strcmp(name, "set-null-values"))
+        return F2(version == 2 ? "fmi2SetReal" : "fmi3SetFloat64", vr_call)(c, vr, 1, NULL, 1);
+    if (!strcmp(name, "get-count-beyond")) /* far more than the arrays hold */
+        return F2(real_get, vr_call)(c, vr, (size_t)1 << 40, values, (size_t)1 << 40);
+    if (!strcmp(name, "get-integer-null-vr"))
+        return F2(version == 2 ? "fmi2GetInteger" : "fmi3GetInt32", vr_call)(c, NULL, 1, ints, 1);
+    if (!strcmp(name, "get-boolean-null-values"))
+        return F2(version == 2 ? "fmi2GetBoolean" : "fmi3GetBoolean", vr_call)(c, vr, 1, NULL, 1);
+    if (!strcmp(name, "set-string-null-entry"))
+        return F2(version == 2 ? "fmi2SetString" : "fmi3SetString", vr_call)(c, vr, 1, (void *)strings, 1);
+    if (!strcmp(name, "get-state-null"))
+        return F2(version == 2 ? "fmi2GetFMUstate" : "fmi3GetFMUState", int (*)(component, void **))(c, NULL);
+    if (!strcmp(name, "set-state-null"))
+        return F2(version == 2 ? "fmi2SetFMUstate" : "fmi3SetFMUState", int (*)(component, void *))(c, NULL);
+    if (!strcmp(name, "get-state-undeclared-size")) {
+        int r = F2(version == 2 ? "fmi2SerializedFMUstateSize" : "fmi3SerializedFMUStateSize",
+                   int (*)(component, void *, size_t *))(c, state, &size);
+        messages_of_call = messages;
+        if (state) F2(version == 2 ? "fmi2FreeFMUstate" : "fmi3FreeFMUState", int (*)(component, void **))(c, &state);
+        return r;
+    }
+    if (!strcmp(name, "deserialize-null"))
+        return F2(version == 2 ? "fmi2DeSerializeFMUstate" : "fmi3DeserializeFMUState",
+                  int (*)(component, const void *, size_t, void **))(c, NULL, 16, &state);
+    if (!strcmp(name, "directional-null")) {
+        if (version == 2)
+            return F2("fmi2GetDirectionalDerivative", int (*)(component, const unsigned *, size_t, const unsigned *,
+                                                                size_t, const double *, double *))(
+                c, NULL, 1, NULL, 1, NULL, NULL);
+        return F2("fmi3GetDirectionalDerivative", int (*)(component, const unsigned *, size_t, const unsigned *,
+                                                            size_t, const double *, size_t, double *, size_t))(
+            c, NULL, 1, NULL, 1, NULL, 1, NULL, 1);
+    }
+    if (!strcmp(name, "output-derivatives-null")) {
+        if (version == 2)
+            return F2("fmi2GetRealOutputDerivatives",
+                      int (*)(component, const unsigned *, size_t, const int *, double *))(c, NULL, 1, NULL, NULL);
+        return F2("fmi3GetOutputDerivatives",
+                  int (*)(component, const unsigned *, size_t, const int *, double *, size_t))(c, NULL, 1, NULL,
+                                                                                               NULL, 1);
+    }
+    if (version == 3) return -2; /* FMI 2.0 only below */
+    if (!strcmp(name, "input-derivatives-null"))
+        return F2("fmi2SetRealInputDerivatives",
+                  int (*)(component, const unsigned *, size_t, const int *, const double *))(c, NULL, 1, NULL, NULL);
+    if (!strcmp(name, "status-null"))
+        return F2("fmi2GetStatus", int (*)(component, int, int *))(c, 0 /* fmi2DoStepStatus */, NULL);
+    if (!strcmp(name, "real-status-null"))
+        return F2("fmi2GetRealStatus", int (*)(component, int, double *))(c, 2 /* LastSuccessfulTime */, NULL);
+    printf("unknown scenario %s\n", name);
+    exit(2);
+}
+
+/* One nonsense call on a fresh instance; extra: the messages the call logged. */
+static struct result nonsense(const char *name) {
+    component c = fresh("nonsense");
+    if (!c) return (struct result){ERROR, 0, 0};
+    under_test();
+    messages_of_call = -1;
+    int s = nonsense_call(c, name);
+    int logged = messages_of_call >= 0 ? messages_of_call : messages;
+    free_instance(c);
+    return (struct result){s, 1, logged};
+}
+
 static struct result scenario(const char *name) {
     const struct result skipped = {-2, 0, 0}; /* the FMU has no variable the scenario needs */
     if ((par_vr < 0 && (!strcmp(name, "set-fixed-after-init") || !strcmp(name, "model-fails"))) ||
@@ -416,7 +557,13 @@ static struct result scenario(const char *name) {
     if (!strcmp(name, "model-fails")) return model_fails();
     if (!strcmp(name, "fifty")) return fifty();
     if (!strcmp(name, "two-threads")) return two_threads();
-    if (!strncmp(name, "cycles", 6)) return cycles(name[6] == '=' ? atoi(name + 7) : 1000);
+    if (!strncmp(name, "resources-other=", 16)) return with_resources(name + 16);
+    if (!strncmp(name, "cycles", 6)) { /* cycles=N (one name), cycles-distinct=N, cycles-alternating=N */
+        const char *count = strchr(name, '=');
+        return cycles(count ? atoi(count + 1) : 1000, name[6] == '-' ? name[7] : 's');
+    }
+    for (size_t k = 0; k < sizeof NONSENSE / sizeof NONSENSE[0]; k++)
+        if (!strcmp(name, NONSENSE[k])) return nonsense(name);
     printf("unknown scenario %s\n", name);
     exit(2);
 }

@@ -23,6 +23,18 @@ SCENARIOS = (
     "set-output-twice", "set-fixed-after-init", "step-after-terminate", "after-error", "reset-after-error",
     "model-fails", "fifty", "two-threads",
 )
+# The nonsense calls (fmu_hostile_host.c's NONSENSE), each on an instance of its own: a NULL array or
+# entry, a count beyond any array, a time that cannot be, a capability the FMU does not declare.
+NONSENSE = (
+    "debug-null-categories", "debug-null-entry", "setup-stop-before-start", "setup-start-nan",
+    "setup-start-inf", "setup-stop-inf", "setup-tolerance-nan", "setup-tolerance-negative", "get-null-vr",
+    "get-null-values", "set-null-values", "get-count-beyond", "get-integer-null-vr",
+    "get-boolean-null-values", "set-string-null-entry", "get-state-null", "set-state-null",
+    "get-state-undeclared-size", "deserialize-null", "directional-null", "output-derivatives-null",
+    "input-derivatives-null", "status-null", "real-status-null",
+)
+# How the leak scenario names its instances: one name, a new one each cycle, two in turn.
+NAMINGS = {"same": "cycles", "distinct": "cycles-distinct", "alternating": "cycles-alternating"}
 
 
 @dataclass(frozen=True)
@@ -73,6 +85,12 @@ def unpack(fmu: Path, dest: Path) -> tuple[Path, list[str]]:
     identifier = md.coSimulation.modelIdentifier
     return folder, [str(folder), version, identifier, token, first("input"), first("output"),
                     first("parameter", "fixed")]
+
+
+def resources_of(folder: Path, version: str) -> str:
+    """The resource location of the FMU unpacked in ``folder`` as the host passes it (FMI 2.0: a
+    file URI; FMI 3.0: a native path ending in a separator)."""
+    return f"{(folder / 'resources').as_uri()}" if version == "2" else f"{folder / 'resources'}/"
 
 
 def run(

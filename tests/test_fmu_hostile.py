@@ -13,14 +13,18 @@ per container cycle."""
 
 from __future__ import annotations
 
+import gc
 import os
+import re
 import shutil
 import subprocess
 from pathlib import Path
 
+import fmpy
 import pytest
+from fmpy.fmi2 import FMU2Slave
 from fmu_helpers import MODELS
-from hostile import CC, SCENARIOS, Outcome, compile_host, run, unpack
+from hostile import CC, NAMINGS, NONSENSE, SCENARIOS, Outcome, compile_host, resources_of, run, unpack
 
 from orchestrator.export import export
 
@@ -63,6 +67,37 @@ EXPECTED = {
     "fifty": (OK, True, ""),
     "two-threads": (OK, True, ""),
 }
+# Nonsense call -> what its one message says (a regular expression; FMI 2.0 | FMI 3.0 wording).
+# Oracle: the standard's text, which makes each of them an error of the host (a NULL array where
+# values are asked for, a stop time before the start, ...; a capability declared false: "the
+# function must not be called").
+NONSENSE_WORDS = {
+    "debug-null-categories": "2 categories given, but the categories array is NULL",
+    "debug-null-entry": r"categories\[1\] is NULL",
+    "setup-stop-before-start": "the stop time 0.5 is before the start time 1",
+    "setup-start-nan": "the start time nan is not a finite number",
+    "setup-start-inf": "the start time inf is not a finite number",
+    "setup-stop-inf": "the stop time inf is not a finite number",
+    "setup-tolerance-nan": "the tolerance nan is not a positive finite number",
+    "setup-tolerance-negative": "the tolerance -1e-06 is not a positive finite number",
+    "get-null-vr": "1 values asked for, but the (value reference|valueReferences) array is NULL",
+    "get-null-values": "1 values asked for, but the values? array is NULL",
+    "set-null-values": "1 values asked for, but the values? array is NULL",
+    "get-count-beyond": "1099511627776 value references, more than the model's [0-9]+ variables",
+    "get-integer-null-vr": "array is NULL",
+    "get-boolean-null-values": "array is NULL",
+    "set-string-null-entry": r"value\[0\] is NULL, not a string",
+    "get-state-null": "FMUstate pointer is NULL|FMUState is NULL",
+    "set-state-null": "the FMUstate is NULL|FMUState is NULL",
+    "get-state-undeclared-size": 'declares canSerializeFMU[Ss]tate="false"',
+    "deserialize-null": 'declares canSerializeFMU[Ss]tate="false"|no state bytes',
+    "directional-null": 'providesDirectionalDerivative="false"|directional derivatives are not provided',
+    "output-derivatives-null": "maxOutputDerivativeOrder",
+    "input-derivatives-null": 'canInterpolateInputs="false"',
+    "status-null": "value is NULL",
+    "real-status-null": "value is NULL",
+}
+FMI2_ONLY = ("input-derivatives-null", "status-null", "real-status-null")
 CASES = [(version, model) for version in ("fmus", "fmus3") for model in MODELS]
 
 
@@ -117,6 +152,81 @@ def test_no_call_crashes_the_host_and_each_refusal_says_why(host: Path, built: P
         assert outcomes[name].status == reference[name].status, (name, outcomes[name], reference[name])
 
 
+def other_fmu(built: Path, version: str, model: str, unpacked: Path) -> Path:
+    """Another of the project's FMUs of the same FMI version, unpacked: its folder."""
+    other = MODELS[(MODELS.index(model) + 1) % len(MODELS)]
+    return Path(arguments(built, version, other, unpacked)[0])
+
+
+@pytest.mark.parametrize(("version", "model"), CASES)
+def test_another_fmus_resources_never_run_its_model(host: Path, built: Path, unpacked: Path, version: str,
+                                                     model: str) -> None:
+    """Given another of the project's FMUs' resources folder, the FMU uses its own (a warning says
+    so, naming both identities) and runs its own model: the short run ends on the very output it
+    gives with its own folder (the oracle: the FMU itself, given its own resources). Before (main
+    633067d): the other folder was accepted without a word and the other FMU's model ran."""
+    args = arguments(built, version, model, unpacked)
+    other = resources_of(other_fmu(built, version, model, unpacked), args[1])
+    outcomes, process = run(host, args, ["ok", f"resources-other={other}"])
+    own, foreign = outcomes["ok"], outcomes[f"resources-other={other}"]
+    where = f"{version}/{model}: {foreign}\n{process.stderr[-2000:]}"
+    assert own.exit == foreign.exit == "0" and own.status == foreign.status == OK, where
+    assert "is another FMU's resources folder" in foreign.message and args[3] in foreign.message, where
+    assert "using the FMU's own resources folder" in foreign.message, where
+    assert foreign.extra == own.extra, where  # the same model, the same inputs: the same output
+
+
+def nonsense_answers(host: Path, args: list[str]) -> tuple[dict[str, Outcome], str]:
+    outcomes, process = run(host, args, NONSENSE)
+    return outcomes, process.stderr[-2000:]
+
+
+@pytest.mark.parametrize(("version", "model"), CASES)
+def test_nonsense_arguments_get_an_error_and_one_message(host: Path, built: Path, unpacked: Path,
+                                                         version: str, model: str) -> None:
+    """Every array, string and time argument checked: each nonsense call (a NULL array or entry, a
+    count beyond any array, stop before start, a non-finite time or tolerance, a capability declared
+    false) answers Error and logs exactly one message saying why, and nothing reaches pythonfmu.
+    Before (main 633067d): NULL categories killed every FMU (SIGSEGV), a NULL entry the FMI 2.0 ones
+    (SIGABRT), nonsense times were answered OK, a serialized state size Fatal with pythonfmu's message."""
+    outcomes, stderr = nonsense_answers(host, arguments(built, version, model, unpacked))
+    for name, outcome in outcomes.items():
+        where = f"{version}/{model} {name}: {outcome}\n{stderr}"
+        assert outcome.exit == "0" and outcome.null_categories == 0, where
+        if version == "fmus3" and name in FMI2_ONLY:
+            assert outcome.status == SKIPPED, where
+            continue
+        assert (outcome.status, outcome.instance, outcome.extra) == (ERROR, True, 1), where
+        assert re.search(NONSENSE_WORDS[name], outcome.message), where
+
+
+@pytest.mark.parametrize("fmi", ["2", "3"])
+def test_the_containers_refuse_nonsense_arguments(host: Path, built: Path, tmp_path: Path, fmi: str) -> None:
+    """Both exported containers (their own guard, orchestrator/native/container_fmi2.c): each
+    nonsense call answers Error with one message, none crashes; another FMU's resources folder
+    changes nothing (the container always uses its own). Before (main 633067d): NULL categories
+    killed the host (SIGSEGV, through the embedded FMUs' shims) and nonsense times were answered OK."""
+    path, _ = export(built / "ssp" / "example1.ssp", tmp_path / "example1.fmu", fmi=fmi)
+    args = unpack(path, tmp_path)[1]
+    outcomes, stderr = nonsense_answers(host, args)
+    for name, outcome in outcomes.items():
+        where = f"container FMI {fmi} {name}: {outcome}\n{stderr}"
+        assert outcome.exit == "0" and outcome.null_categories == 0, where
+        if fmi == "3" and name in FMI2_ONLY:
+            continue
+        assert (outcome.status, outcome.extra) == (ERROR, 1), where
+        if name.startswith("debug-"):  # the message names the host's function
+            assert outcome.message.startswith(f"fmi{fmi}SetDebugLogging: "), where
+        if name.startswith("setup-"):
+            function = "fmi2SetupExperiment" if fmi == "2" else "fmi3EnterInitializationMode"
+            assert outcome.message.startswith(f"{function}: "), where
+    actuator = arguments(built, "fmus" if fmi == "2" else "fmus3", "Actuator", tmp_path)[0]
+    other = resources_of(Path(actuator), fmi)
+    answers = run(host, args, ["ok", f"resources-other={other}"])[0]
+    assert answers["ok"].status == answers[f"resources-other={other}"].status == OK, answers
+    assert answers["ok"].extra == answers[f"resources-other={other}"].extra, answers
+
+
 @pytest.mark.parametrize("fmi", ["2", "3"] if EVERY_CASE else ["2"])
 def test_the_container_never_crashes_and_latches_after_an_error(host: Path, built: Path, unpacked: Path,
                                                                 tmp_path: Path, fmi: str) -> None:
@@ -135,28 +245,62 @@ def test_the_container_never_crashes_and_latches_after_an_error(host: Path, buil
     assert outcomes["fifty"].extra == 50 and outcomes["two-threads"].extra == 1
 
 
-@pytest.mark.parametrize("case", ["fmus/Actuator", "fmus3/FixedTimeController", "container"] if EVERY_CASE
-                         else ["fmus3/FixedTimeController", "container"])
+# `make test`: one real case of each naming; `make hostile`: every FMU and both containers, each naming.
+LEAK_CASES = ([(f"{v}/{m}", n) for v, m in CASES for n in NAMINGS] +
+              [(c, n) for c in ("container", "container3") for n in NAMINGS]) if EVERY_CASE else [
+    ("fmus3/FixedTimeController", "distinct"), ("fmus/Actuator", "alternating"), ("container", "distinct"),
+    ("fmus/Example1Plant", "same")]
+
+
+@pytest.mark.parametrize(("case", "naming"), LEAK_CASES, ids=[f"{c}-{n}" for c, n in LEAK_CASES])
 def test_at_most_1_kb_per_instantiate_free_cycle(host: Path, built: Path, unpacked: Path, container: Path,
-                                                 case: str) -> None:
-    """1000 instantiate/free cycles (after 200 that fill Python's and the allocator's caches): the
-    resident memory grows by at most 1 KB a cycle (before: 19.7 KB for Actuator, 32.8 KB for
-    FixedTimeController, 80 KB for the container)."""
+                                                 tmp_path: Path, case: str, naming: str) -> None:
+    """1000 instantiate/free cycles (after 500 that fill Python's and the allocator's caches), the
+    instances named the same, anew each time (run0, run1, ...) or two names in turn: the resident
+    memory grows by at most 1 KB a cycle (before, one name: 19.7 KB for Actuator, 32.8 KB for
+    FixedTimeController, 80 KB for the container; at main 633067d, new names: 7.4-18.8 KB on
+    every FMU, the pool reusing a component only for the same name)."""
     if case == "container":
         args = unpack(container, unpacked)[1]
+    elif case == "container3":
+        exported = export(built / "ssp" / "example1.ssp", tmp_path / "example1.fmu", fmi="3")[0]
+        args = unpack(exported, tmp_path)[1]
     else:
         version, model = case.split("/")
         args = arguments(built, version, model, unpacked)
-    outcome = run(host, args, ["cycles=1000"])[0]["cycles=1000"]
+    scenario = f"{NAMINGS[naming]}=1000"
+    outcome = run(host, args, [scenario])[0][scenario]
     assert outcome.exit == "0" and outcome.status == OK, outcome
-    assert outcome.extra <= 1024, f"{case}: {outcome.extra:.0f} bytes per cycle"
+    assert outcome.extra <= 1024, f"{case}, {naming} names: {outcome.extra:.0f} bytes per cycle"
 
 
-FEW = ("ok", "resources-null", "guid-null", "no-logger", "unknown-vr", "after-error", "model-fails")
-VALGRIND_CASES = [("fmus/Actuator", SCENARIOS if EVERY_CASE else FEW),
+def test_a_component_reused_for_a_new_name_takes_that_name(built: Path, tmp_path: Path) -> None:
+    """The pool hands a freed component to an instance of another name: its Python slave then
+    bears the new name (what the model logs under), in FMPy as host. Oracle: the names FMPy gave."""
+    folder = Path(fmpy.extract(str(built / "fmus" / "Actuator.fmu"), str(tmp_path / "fmu")))
+    md = fmpy.read_model_description(str(folder))
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=str(folder), instanceName="run0",
+                    modelIdentifier=md.coSimulation.modelIdentifier)
+    fmu.instantiate()
+    for name in ("run1", "run2"):
+        fmu.fmi2FreeInstance(fmu.component)
+        fmu.instanceName = name
+        fmu.instantiate()
+        gc.collect()
+        slaves = [o for o in gc.get_objects() if type(o).__name__ == "Actuator"]
+        names = {o.instance_name for o in slaves if isinstance(getattr(o, "instance_name", None), str)}
+        # pythonfmu constructs the reused component's slave as "run0" (the name it was first
+        # instantiated with); the shim renames it (an older slave may await the collector)
+        assert name in names and "run0" not in names, (name, names)
+    fmu.freeInstance()
+
+
+FEW = ("ok", "resources-null", "guid-null", "no-logger", "unknown-vr", "after-error", "model-fails",
+       "debug-null-entry", "get-count-beyond", "set-string-null-entry", "get-state-undeclared-size")
+VALGRIND_CASES = [("fmus/Actuator", SCENARIOS + NONSENSE if EVERY_CASE else FEW),
                   ("fmus3/Reference", ("ok", "resources-null", "unknown-vr", "after-error", "model-fails",
-                                       "set-output-twice")),
-                  ("container", ("ok", "after-error"))][: 3 if EVERY_CASE else 1]
+                                       "set-output-twice", *NONSENSE)),
+                  ("container", ("ok", "after-error", *NONSENSE))][: 3 if EVERY_CASE else 1]
 
 
 @pytest.mark.skipif(VALGRIND is None, reason="valgrind is not installed")

@@ -121,6 +121,9 @@ WIN_IMPORTS = {
     "VCRUNTIME140.dll": ("memcpy", "memmove", "memset"),
 }
 DESCRIPTION_COPY = "_modelDescription.xml"  # guard.h's DESCRIPTION_SUFFIX
+# guard.h's IDENTITY_FILE: the resources folder names its FMU (GUID / instantiation token), so that
+# the shim never runs another FMU's model from a resource location the host gives it
+IDENTITY_FILE = "resources/fmu_identity.txt"
 PLATFORMS = (("linux64", ".so"), ("win64", ".dll"))  # FMI 2.0 platform folders, binary suffix
 PLATFORM_NAMES = tuple(name for name, _ in PLATFORMS)
 # The bundled runtime as a command (for the build's bytecode and standard-library closure).
@@ -614,11 +617,22 @@ def _write_normalized(raw_fmu: Path, target: Path, bundle: Bundle, digest: str, 
         entries.update(controller_documentation(bundle.model, entries["modelDescription.xml"]))
     except ValueError as error:
         raise BuildError(str(error)) from error
+    entries[IDENTITY_FILE] = identity(entries["modelDescription.xml"])
     # the shim's guard reads it beside the binary: hosts may unpack only binaries/ and resources/
     for platform, _ in chosen:
         entries[f"binaries/{platform}/{bundle.model}{DESCRIPTION_COPY}"] = entries["modelDescription.xml"]
     entries.update(_bytecode(entries))
     write_archive(target, entries)
+
+
+def identity(description: bytes) -> bytes:
+    """The content of the resources folder's identity file: the model description's GUID (FMI 2.0)
+    or instantiation token (FMI 3.0), one line."""
+    root = ElementTree.fromstring(description)
+    token = root.get("guid") or root.get("instantiationToken")
+    if not token:
+        raise BuildError("the model description has no guid or instantiationToken")
+    return token.encode() + b"\n"
 
 
 def _bytecode(entries: dict[str, bytes]) -> dict[str, bytes]:

@@ -38,6 +38,7 @@ from . import stamps
 from .build import (
     DESCRIPTION_COPY,
     GUID_NAMESPACE,
+    IDENTITY_FILE,
     REPO_ROOT,
     SHIM_DIR,
     SHIM_HEADERS,
@@ -46,6 +47,7 @@ from .build import (
     _ensure_runtime,
     build_inputs,
     compile_shim,
+    identity,
     write_archive,
 )
 from .licences import generation_tool
@@ -246,6 +248,7 @@ def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT, *, force: bool = 
     digest = hashlib.sha256(old.get("guid", "").encode() + b"\0" + hashlib.sha256(shim).digest()).hexdigest()
     token = "{" + str(uuid.uuid5(GUID_NAMESPACE, f"{model}:fmi3:{digest}")) + "}"
     moved["modelDescription.xml"] = fmi3_model_description(xml, token)[0]
+    moved[IDENTITY_FILE] = identity(moved["modelDescription.xml"])
     for fmi3 in shims:  # not the FMI 2.0 one
         moved[f"{fmi3}{model}{DESCRIPTION_COPY}"] = moved["modelDescription.xml"]
     dest.mkdir(parents=True, exist_ok=True)

@@ -32,6 +32,7 @@ struct container {
     void **libraries;       /* dlopen handles, per component */
     struct relay3 *relays;  /* per component */
     char name[256];
+    const char *serving;    /* the FMI 3.0 function served by an FMI 2.0 one (its messages name it) */
     char resources[TEXT];
     fmi2CallbackFunctions host;
     /* FMI 3.0 host (fmi3InstantiateCoSimulation): its logMessage and instance environment */
@@ -61,6 +62,9 @@ void release(struct container *x);
 fmi2Status apply_inputs(struct container *x, double t);
 /* gauss-seidel: the outputs that depend on inputs set since, propagated again. */
 fmi2Status propagate(struct container *x, double t);
+
+/* Whether a getter's or setter's arrays can be read (container_fmi2.c); else fmi2Error said. */
+int container_arrays(struct container *x, const char *function, size_t n, const void *vr, const void *values);
 
 /* The core's result as the container's status. */
 #define CORE(x, call) ((call) ? failed(x) : fmi2OK)

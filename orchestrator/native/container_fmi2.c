@@ -36,8 +36,35 @@ EXPORT void fmi2FreeInstance(fmi2Component c) {
     if (c) release(c);
 }
 
+/* Whether the arrays of a getter or setter of `n` values can be read: neither NULL when values are
+   asked for, and `n` not beyond the container's variables (arrays that long cannot exist); else
+   fmi2Error (latched) with one message. */
+int container_arrays(struct container *x, const char *function, size_t n, const void *vr, const void *values) {
+    if (n > 0 && (!vr || !values))
+        say(x, fmi2Error, "%s: %zu values asked for, but the %s array is NULL", function, n,
+            !vr ? "value reference" : "value");
+    else if (n > x->plan.nexposed)
+        say(x, fmi2Error, "%s: %zu value references, more than the container's %zu variables", function, n,
+            x->plan.nexposed);
+    else return 1;
+    return 0;
+}
+
+#define ARRAYS(n, vr, values)                                                                                \
+    if (!container_arrays(x, __func__, n, vr, values)) return fmi2Error
+
 EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[]) {
     CONTAINER(c, ANY);
+    const char *function = x->serving ? x->serving : __func__;
+    if (n > 0 && !categories) {
+        say(x, fmi2Error, "%s: %zu categories given, but the categories array is NULL", function, n);
+        return fmi2Error;
+    }
+    for (size_t k = 0; k < n; k++)
+        if (!categories[k]) {
+            say(x, fmi2Error, "%s: categories[%zu] is NULL, not a category name", function, k);
+            return fmi2Error;
+        }
     x->logging = on;
     int worst = fmi2OK;
     for (size_t i = 0; i < x->plan.ncomponents; i++) {
@@ -50,10 +77,20 @@ EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n,
 EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
                                       fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
     CONTAINER(c, 1 << INSTANTIATED);
-    (void)toleranceDefined, (void)tolerance;
+    const char *function = x->serving ? x->serving : __func__;
     double ns = startTime * 1e9;
     if (!(fabs(ns) < 9e18)) {
-        say(x, fmi2Error, "fmi2SetupExperiment: start time %g s is not a finite time", startTime);
+        say(x, fmi2Error, "%s: start time %g s is not a finite time", function, startTime);
+        return fmi2Error;
+    }
+    /* Values not defined are ignored, as the standard says. */
+    if (stopTimeDefined && !(isfinite(stopTime) && stopTime >= startTime)) {
+        say(x, fmi2Error, "%s: the stop time %g s is not a finite time at or after the start time %g s", function,
+            stopTime, startTime);
+        return fmi2Error;
+    }
+    if (toleranceDefined && !(isfinite(tolerance) && tolerance > 0.0)) {
+        say(x, fmi2Error, "%s: the tolerance %g is not a positive finite number", function, tolerance);
         return fmi2Error;
     }
     x->plan.t0 = llround(ns);
@@ -126,6 +163,7 @@ static struct exposed *find(struct container *x, fmi2ValueReference vr, char typ
 
 EXPORT fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real value[]) {
     CONTAINER(c, ANY);
+    ARRAYS(n, vr, value);
     if (!x->plan.jacobi && x->dirty && (x->state == INITIALIZATION || x->state == STEPPING)) {
         fmi2Status s = propagate(x, plan_time(&x->plan, x->k));
         if (s != fmi2OK) return s;
@@ -143,6 +181,7 @@ EXPORT fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], si
 
 EXPORT fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real value[]) {
     CONTAINER(c, ANY);
+    ARRAYS(n, vr, value);
     for (size_t j = 0; j < n; j++) {
         struct exposed *e = find(x, vr[j], 'r');
         if (!e || e->kind == 'o' || (e->kind == 'p' && x->state != INSTANTIATED && x->state != INITIALIZATION)) {
@@ -192,23 +231,27 @@ static fmi2Status set_ints(struct container *x, const fmi2ValueReference vr[], s
 
 EXPORT fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer value[]) {
     CONTAINER(c, ANY);
+    ARRAYS(n, vr, value);
     return get_ints(x, vr, n, value, 'i');
 }
 
 EXPORT fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean value[]) {
     CONTAINER(c, ANY);
+    ARRAYS(n, vr, value);
     return get_ints(x, vr, n, value, 'b');
 }
 
 EXPORT fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n,
                                  const fmi2Integer value[]) {
     CONTAINER(c, ANY);
+    ARRAYS(n, vr, value);
     return set_ints(x, vr, n, value, 'i');
 }
 
 EXPORT fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n,
                                  const fmi2Boolean value[]) {
     CONTAINER(c, ANY);
+    ARRAYS(n, vr, value);
     return set_ints(x, vr, n, value, 'b');
 }
 

@@ -61,16 +61,26 @@ FMI3_Export fmi3Instance fmi3InstantiateScheduledExecution(
 
 FMI3_Export void fmi3FreeInstance(fmi3Instance instance) { fmi2FreeInstance(instance); }
 
+/* The FMI 2.0 function's messages name the FMI 3.0 one it serves. */
+static void serving(fmi3Instance instance, const char *function) {
+    if (instance) ((struct container *)instance)->serving = function;
+}
+
 FMI3_Export fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
                                            const fmi3String categories[]) {
-    return (fmi3Status)fmi2SetDebugLogging(instance, loggingOn, nCategories, categories);
+    serving(instance, __func__);
+    fmi2Status s = fmi2SetDebugLogging(instance, loggingOn, nCategories, categories);
+    serving(instance, NULL);
+    return (fmi3Status)s;
 }
 
 FMI3_Export fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined,
                                                    fmi3Float64 tolerance, fmi3Float64 startTime,
                                                    fmi3Boolean stopTimeDefined, fmi3Float64 stopTime) {
+    serving(instance, __func__);
     fmi2Status s =
         fmi2SetupExperiment(instance, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime);
+    serving(instance, NULL);
     return (fmi3Status)(s == fmi2OK ? fmi2EnterInitializationMode(instance) : s);
 }
 
@@ -99,41 +109,46 @@ FMI3_Export fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentComm
     return (fmi3Status)s;
 }
 
-/* Scalar variables only: one value per value reference. */
-static int scalars(fmi3Instance instance, size_t nValueReferences, size_t nValues) {
-    if (nValues == nValueReferences) return 1;
-    say(instance, fmi2Error, "the container's variables are scalars: %zu values for %zu value references",
-        nValues, nValueReferences);
-    return 0;
+/* Scalar variables only: one value per value reference; the arrays readable (container_arrays). */
+static int scalars(fmi3Instance instance, const char *function, const fmi3ValueReference valueReferences[],
+                   size_t nValueReferences, const void *values, size_t nValues) {
+    if (!instance) return 0;
+    if (nValues != nValueReferences) {
+        say(instance, fmi2Error, "%s: the container's variables are scalars: %zu values for %zu value references",
+            function, nValues, nValueReferences);
+        return 0;
+    }
+    return container_arrays(instance, function, nValueReferences, valueReferences, values);
 }
+
 
 FMI3_Export fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                       size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
-    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    if (!scalars(instance, __func__, valueReferences, nValueReferences, values, nValues)) return fmi3Error;
     return (fmi3Status)fmi2GetReal(instance, valueReferences, nValueReferences, values);
 }
 
 FMI3_Export fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                       size_t nValueReferences, const fmi3Float64 values[], size_t nValues) {
-    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    if (!scalars(instance, __func__, valueReferences, nValueReferences, values, nValues)) return fmi3Error;
     return (fmi3Status)fmi2SetReal(instance, valueReferences, nValueReferences, values);
 }
 
 FMI3_Export fmi3Status fmi3GetInt32(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                     size_t nValueReferences, fmi3Int32 values[], size_t nValues) {
-    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    if (!scalars(instance, __func__, valueReferences, nValueReferences, values, nValues)) return fmi3Error;
     return (fmi3Status)fmi2GetInteger(instance, valueReferences, nValueReferences, values);
 }
 
 FMI3_Export fmi3Status fmi3SetInt32(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                     size_t nValueReferences, const fmi3Int32 values[], size_t nValues) {
-    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    if (!scalars(instance, __func__, valueReferences, nValueReferences, values, nValues)) return fmi3Error;
     return (fmi3Status)fmi2SetInteger(instance, valueReferences, nValueReferences, values);
 }
 
 FMI3_Export fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                       size_t nValueReferences, fmi3Boolean values[], size_t nValues) {
-    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    if (!scalars(instance, __func__, valueReferences, nValueReferences, values, nValues)) return fmi3Error;
     for (size_t j = 0; j < nValueReferences; j++) {
         fmi2Boolean value;
         fmi2Status s = fmi2GetBoolean(instance, &valueReferences[j], 1, &value);
@@ -145,7 +160,7 @@ FMI3_Export fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueRefe
 
 FMI3_Export fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                       size_t nValueReferences, const fmi3Boolean values[], size_t nValues) {
-    if (!scalars(instance, nValueReferences, nValues)) return fmi3Error;
+    if (!scalars(instance, __func__, valueReferences, nValueReferences, values, nValues)) return fmi3Error;
     for (size_t j = 0; j < nValueReferences; j++) {
         fmi2Boolean value = values[j] ? 1 : 0;
         fmi2Status s = fmi2SetBoolean(instance, &valueReferences[j], 1, &value);

@@ -105,9 +105,10 @@ struct pooled {
     fmi2Component c;
     fmi2CallbackFunctions callbacks; /* relay() with this entry as environment */
     struct instance *owner;          /* NULL while in the pool */
-    char name[256];                  /* what pythonfmu was instantiated with */
+    char name[256];                  /* what pythonfmu was instantiated with (it keeps it) */
     char resources[TEXT];
     fmi2Boolean visible;
+    int renamable;                   /* its slave is the project's: the shim renames it (bind_direct) */
     struct pooled *next;
 };
 
@@ -206,9 +207,20 @@ static int load(void) {
        otherwise); then what pythonfmu's binary imports by name and the process lacks: the
        stable-ABI forwarder python3.dll (to whichever python311.dll is loaded) and the MSVC
        runtime. A DLL of that name already in the process is the one every import binds to. */
-    char file[TEXT + 64];
+    /* The runtime and pythonfmu's binary are loaded from copies in the user's cache (see
+       ftc_cached_copy), so that the host can delete the folder it unpacked once it has freed the
+       instances and this library; where there is no cache, from that folder as before. */
+    char runtime[TEXT + 16], inner_dir[TEXT], file[TEXT + 64];
+    snprintf(runtime, sizeof runtime, "%s/%s", dir, RUNTIME_DIR);
+    snprintf(file, sizeof file, "%s%s", model, INNER_SUFFIX);
+    int cached = ftc_cached_copy(runtime, NULL, runtime, sizeof runtime) == 0 &&
+                 ftc_cached_copy(dir, file, inner_dir, sizeof inner_dir) == 0;
+    if (!cached) {
+        snprintf(runtime, sizeof runtime, "%s/%s", dir, RUNTIME_DIR);
+        snprintf(inner_dir, sizeof inner_dir, "%s", dir);
+    }
     if (!ftc_library_symbol(NULL, "Py_IsInitialized")) {
-        snprintf(file, sizeof file, "%s/%s/%s", dir, RUNTIME_DIR, FTC_LIBPYTHON);
+        snprintf(file, sizeof file, "%s/%s", runtime, FTC_LIBPYTHON);
         if (!(python = ftc_library_open(file, 1))) {
             snprintf(failure, TEXT, "%s: cannot load the bundled %s: %s", model, file, ftc_library_error(file));
             return -1;
@@ -216,7 +228,7 @@ static int load(void) {
     }
     static const char *const imported[] = {"vcruntime140.dll", "vcruntime140_1.dll", "msvcp140.dll", "python3.dll"};
     for (size_t k = 0; k < sizeof imported / sizeof imported[0]; k++) {
-        snprintf(file, sizeof file, "%s/%s/%s", dir, RUNTIME_DIR, imported[k]);
+        snprintf(file, sizeof file, "%s/%s", runtime, imported[k]);
         if (!ftc_library_loaded(imported[k]) && !ftc_library_open(file, 1)) {
             snprintf(failure, TEXT, "%s: cannot load the bundled %s: %s", model, file, ftc_library_error(file));
             return -1;
@@ -273,9 +285,11 @@ static int load(void) {
     if (status != 0) return -1;
 
     char path[TEXT + 300];
-    snprintf(path, sizeof path, "%s/%s%s", dir, model, INNER_SUFFIX);
 #ifdef _WIN32
+    snprintf(path, sizeof path, "%s/%s%s", inner_dir, model, INNER_SUFFIX);
     int first = !ftc_library_loaded(path); /* else a former load of this folder kept its files */
+#else
+    snprintf(path, sizeof path, "%s/%s%s", dir, model, INNER_SUFFIX);
 #endif
     inner = ftc_library_open(path, 0);
     if (!inner) {
@@ -283,12 +297,11 @@ static int load(void) {
         return -1;
     }
 #ifdef _WIN32
-    if (first) {
-        char runtime[TEXT + 16];
-        snprintf(runtime, sizeof runtime, "%s/%s", dir, RUNTIME_DIR);
-        ftc_keep_files(dir);
+    if (first) { /* the cache's files, or those of the unpacked folder where there is no cache */
+        ftc_keep_files(inner_dir);
         ftc_keep_files(runtime);
     }
+    ftc_keep_own_file(self);
 #endif
     inner_fmi2Instantiate = (fmi2Component(*)(fmi2String, fmi2Type, fmi2String, fmi2String,
                                                const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean))
@@ -439,10 +452,25 @@ static const char *unsettable(const struct ftc_variable *v, enum state s) {
    may be read (`set` 0) or set in the current state; else fmi2Error and one message. */
 static fmi2Status check_references(struct instance *i, const char *function, const fmi2ValueReference vr[],
                                    size_t n, const void *values, int type, int set) {
-    if (n > 0 && (!vr || !values)) return refuse(i, function, "the value reference or value array is NULL");
+    char reason[TEXT];
+    if (n > 0 && (!vr || !values)) {
+        snprintf(reason, sizeof reason, "%zu values asked for, but the %s array is NULL", n,
+                 !vr ? "value reference" : "value");
+        return refuse(i, function, reason);
+    }
+    if (n > description.n) { /* the arrays cannot be that long: not read */
+        snprintf(reason, sizeof reason, "%zu value references, more than the model's %zu variables", n,
+                 description.n);
+        return refuse(i, function, reason);
+    }
+    if (set && type == 3) /* a NULL string would reach pythonfmu's std::string */
+        for (size_t k = 0; k < n; k++)
+            if (!((const fmi2String *)values)[k]) {
+                snprintf(reason, sizeof reason, "value[%zu] is NULL, not a string", k);
+                return refuse(i, function, reason);
+            }
     for (size_t k = 0; k < n; k++) {
         const struct ftc_variable *v = ftc_variable(&description, vr[k] + FTC_VR_OFFSET);
-        char reason[TEXT];
         const char *problem = NULL;
         if (!v) {
             snprintf(reason, sizeof reason, "no variable has the value reference %u", vr[k] + FTC_VR_OFFSET);
@@ -484,15 +512,73 @@ fmi2Status ftc_allowed(fmi2Component c, const char *function, int in_error) {
     return c ? allowed_in(c, function, ANY_STATE, in_error) : fmi2Error;
 }
 
+size_t ftc_variable_count(void) { return description.n; }
+
+/* ---- Arguments ---------------------------------------------------------------------------------
+
+   Each function's pointers, counts and times, checked after its state (ARGS_<name> in the
+   FORWARD macros below): 0, or fmi2Error with one message (the call is then not forwarded). */
+
+#define REFUSE_IF(condition, ...)                                                                             \
+    do {                                                                                                      \
+        if (condition) {                                                                                      \
+            char reason_[TEXT];                                                                               \
+            snprintf(reason_, sizeof reason_, __VA_ARGS__);                                                   \
+            return refuse(i, function, reason_);                                                              \
+        }                                                                                                     \
+    } while (0)
+
+static fmi2Status check_categories(struct instance *i, const char *function, size_t n,
+                                   const fmi2String categories[]) {
+    REFUSE_IF(n > 0 && !categories, "%zu categories given, but the categories array is NULL", n);
+    for (size_t k = 0; k < n; k++) REFUSE_IF(!categories[k], "categories[%zu] is NULL, not a category name", k);
+    return fmi2OK;
+}
+
+/* The experiment's times: the start finite; the stop (if defined) finite and not before the start;
+   the tolerance (if defined) positive and finite. Values not defined are ignored, as the standard says. */
+static fmi2Status check_experiment(struct instance *i, const char *function, fmi2Boolean tolerance_defined,
+                                   fmi2Real tolerance, fmi2Real start, fmi2Boolean stop_defined, fmi2Real stop) {
+    REFUSE_IF(!isfinite(start), "the start time %g is not a finite number", start);
+    REFUSE_IF(stop_defined && !isfinite(stop), "the stop time %g is not a finite number", stop);
+    REFUSE_IF(stop_defined && stop < start, "the stop time %g is before the start time %g", stop, start);
+    REFUSE_IF(tolerance_defined && !(isfinite(tolerance) && tolerance > 0.0),
+              "the tolerance %g is not a positive finite number", tolerance);
+    return fmi2OK;
+}
+
+/* A capability the model description declares false: the standard says the function must not be called. */
+static fmi2Status check_capability(struct instance *i, const char *function, int declared, const char *what) {
+    REFUSE_IF(!declared, "not provided: the model description declares %s", what);
+    return fmi2OK;
+}
+
+static fmi2Status check_pointer(struct instance *i, const char *function, const void *pointer, const char *what) {
+    REFUSE_IF(!pointer, "%s is NULL", what);
+    return fmi2OK;
+}
+
+/* Arrays of `n` value references (and values): not NULL when n > 0, n not beyond the variables. */
+static fmi2Status check_array(struct instance *i, const char *function, size_t n, const void *references,
+                              const void *values, const char *what) {
+    REFUSE_IF(n > 0 && (!references || !values), "%zu %s asked for, but an array is NULL", n, what);
+    REFUSE_IF(n > description.n, "%zu %s, more than the model's %zu variables", n, what, description.n);
+    return fmi2OK;
+}
+
 /* ---- Pool ----------------------------------------------------------------------------------------
 
    pythonfmu 0.7.0 leaks 16-34 KB every time it constructs a component (its findClass runs the
    FMU's script again and keeps references to the classes it made; each constructor also puts the
    resources folder on sys.path once more), and nothing when it resets one. So a freed instance's
-   component is kept, and the next fmi2Instantiate with the same instance name, resources folder
-   and visibility resets it (pythonfmu constructs a new Python slave from the class it found, as
-   fmi2Reset does) instead of constructing another. At most POOL_SIZE are kept; the pool is
-   emptied when the shim is unloaded. */
+   component is kept, and the next fmi2Instantiate with the same resources folder and visibility
+   resets it (pythonfmu constructs a new Python slave from the class it found, as fmi2Reset does)
+   instead of constructing another: one of the same instance name if there is one, else any whose
+   slave is the project's (renamable). pythonfmu constructs the new slave under the name it was
+   first instantiated with; bind_direct renames it (its instance_name) to the new instance's, and
+   the shim's logger gives the host the new name, so hosts that name every instance anew (run0,
+   run1, ... as campaign tools and FMPy do) leak nothing either. At most POOL_SIZE are kept; the
+   pool is emptied when the shim is unloaded. */
 
 #define POOL_SIZE 16
 static ftc_mutex pool_lock = FTC_MUTEX_INIT;
@@ -504,6 +590,9 @@ static struct pooled *take(const char *name, const char *resources, fmi2Boolean 
     struct pooled **p = &pool;
     while (*p && (strcmp((*p)->name, name) || strcmp((*p)->resources, resources) || (*p)->visible != visible))
         p = &(*p)->next;
+    if (!*p) /* none of this name: one that can be renamed */
+        for (p = &pool; *p && (!(*p)->renamable || strcmp((*p)->resources, resources) || (*p)->visible != visible);)
+            p = &(*p)->next;
     struct pooled *found = *p;
     if (found) {
         *p = found->next;
@@ -660,16 +749,27 @@ static void release_binding(struct instance *i) {
     i->direct = NULL;
 }
 
-/* Asks the slave just constructed in this thread for its binding; leaves i->direct NULL (every
-   call forwarded) for slaves that do not offer one, such as plain pythonfmu slaves. */
+/* Asks the slave just constructed in this thread (under the name pythonfmu keeps) for its binding,
+   and gives it the instance's name; leaves i->direct NULL (every call forwarded) for slaves that
+   do not offer one, such as plain pythonfmu slaves, and when FTC_FMU_DIRECT is "0". */
 static void bind_direct(struct instance *i) {
-    if (!i->direct_allowed || !py.ready) return;
+    if (!py.ready) return;
     int gil = py.gil_ensure();
     PyObject *sys = py.import("sys"), *claim = NULL, *binding = NULL, *model_name = NULL, *name = NULL;
     if (sys) claim = py.getattr(sys, "_ftc_fmu_claim");
     if (claim) model_name = py.from_string(model);
-    if (model_name) name = py.from_string(i->name);
+    if (model_name) name = py.from_string(i->pooled->name);
     if (name) binding = py.call2(claim, model_name, name, NULL);
+    if (binding && py.tuple_size(binding) == 9 && py.as_long(py.tuple_item(binding, 0)) == DIRECT_PROTOCOL) {
+        PyObject *key = py.from_string("instance_name"), *renamed = py.from_string(i->name);
+        i->pooled->renamable = key && renamed && py.dict_set(py.tuple_item(binding, 1), key, renamed) == 0;
+        if (key) py.decref(key);
+        if (renamed) py.decref(renamed);
+    }
+    if (!i->direct_allowed && binding) {
+        py.decref(binding);
+        binding = NULL;
+    }
     struct direct *d = NULL;
     if (binding && py.tuple_size(binding) == 9 && py.as_long(py.tuple_item(binding, 0)) == DIRECT_PROTOCOL) {
         d = calloc(1, sizeof *d);
@@ -916,6 +1016,13 @@ fmi2Component ftc_instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     int found = problem ? 0 : ftc_resources(&description, fmuResourceLocation, resources, sizeof resources, note,
                                             sizeof note);
     if (found < 0) problem = note;
+#ifdef _WIN32
+    /* pythonfmu's Python imports the model from the resources folder and keeps its extension
+       modules (.pyd) loaded: it gets a copy in the user's cache (see ftc_cached_copy), so that
+       the host can delete what it unpacked; the same files, so the same model (the identity was
+       checked on the folder given). Where there is no cache, the folder itself. */
+    if (!problem) ftc_cached_copy(resources, NULL, resources, sizeof resources);
+#endif
     char readable[TEXT]; /* what pythonfmu's binary can open: the same folder (see ftc_ascii_path) */
     if (!problem && ftc_ascii_path(resources, readable, sizeof readable) != 0) {
         snprintf(note, sizeof note, "the resources folder %s has no ASCII (8.3) name, which pythonfmu's binary "
@@ -1015,14 +1122,71 @@ EXPORT void fmi2FreeInstance(fmi2Component c) {
 #define NEXT_fmi2Terminate TERMINATED
 #define NEXT_fmi2SetFMUstate (i->state == STEP_FAILED ? STEP_COMPLETE : 0)
 
+/* The arguments' checks (see "Arguments"); `function` is the function's name. */
+#define CHECK(call)                                                                                          \
+    if ((call) != fmi2OK) return fmi2Error
+#define ARGS_fmi2SetDebugLogging CHECK(check_categories(i, function, n, categories))
+#define ARGS_fmi2SetupExperiment CHECK(check_experiment(i, function, tolDefined, tol, start, stopDefined, stop))
+#define ARGS_fmi2EnterInitializationMode (void)function
+#define ARGS_fmi2ExitInitializationMode (void)function
+#define ARGS_fmi2Terminate (void)function
+#ifdef FTC_TIME_VR /* the FMI 3.0 build: its model description's spelling */
+#define FMU_STATE "FMUState"
+#else
+#define FMU_STATE "FMUstate"
+#endif
+#define CAN_GET_AND_SET                                                                                      \
+    CHECK(check_capability(i, function, description.can_get_and_set_state, "canGetAndSet" FMU_STATE "=\"false\""))
+#define CAN_SERIALIZE                                                                                        \
+    CHECK(check_capability(i, function, description.can_get_and_set_state && description.can_serialize_state,  \
+                           "canSerialize" FMU_STATE "=\"false\""))
+#define ARGS_fmi2GetFMUstate CAN_GET_AND_SET; CHECK(check_pointer(i, function, state, "the FMUstate pointer"))
+#define ARGS_fmi2SetFMUstate CAN_GET_AND_SET; CHECK(check_pointer(i, function, state, "the FMUstate"))
+#define ARGS_fmi2FreeFMUstate                                                                                \
+    CAN_GET_AND_SET;                                                                                         \
+    CHECK(check_pointer(i, function, state, "the FMUstate pointer"));                                        \
+    if (!*state) return fmi2OK /* the standard: a NULL state is ignored */
+#define ARGS_fmi2SerializedFMUstateSize                                                                      \
+    CAN_SERIALIZE;                                                                                           \
+    CHECK(check_pointer(i, function, state, "the FMUstate"));                                                \
+    CHECK(check_pointer(i, function, size, "the size pointer"))
+#define ARGS_fmi2SerializeFMUstate                                                                           \
+    CAN_SERIALIZE;                                                                                           \
+    CHECK(check_pointer(i, function, state, "the FMUstate"));                                                \
+    CHECK(check_pointer(i, function, bytes, "the byte array"))
+#define ARGS_fmi2DeSerializeFMUstate                                                                         \
+    CAN_SERIALIZE;                                                                                           \
+    CHECK(check_pointer(i, function, bytes, "the byte array"));                                              \
+    CHECK(check_pointer(i, function, state, "the FMUstate pointer"))
+#define ARGS_fmi2GetDirectionalDerivative                                                                    \
+    CHECK(check_capability(i, function, description.directional_derivatives,                                 \
+                           "providesDirectionalDerivative=\"false\""));                                     \
+    CHECK(check_array(i, function, nUnknown, unknown, dvUnknown, "unknowns"));                               \
+    CHECK(check_array(i, function, nKnown, known, dvKnown, "knowns"))
+#define ARGS_fmi2SetRealInputDerivatives                                                                     \
+    CHECK(check_capability(i, function, description.interpolate_inputs, "canInterpolateInputs=\"false\""));  \
+    CHECK(check_array(i, function, n, vr, order && value ? value : NULL, "input derivatives"))
+#define ARGS_fmi2GetRealOutputDerivatives                                                                    \
+    CHECK(check_capability(i, function, description.output_derivative_order > 0,                             \
+                           "maxOutputDerivativeOrder=\"0\""));                                              \
+    CHECK(check_array(i, function, n, vr, order && value ? value : NULL, "output derivatives"))
+#define ARGS_fmi2CancelStep (void)function
+#define ARGS_fmi2GetStatus CHECK(check_pointer(i, function, value, "value"))
+#define ARGS_fmi2GetIntegerStatus ARGS_fmi2GetStatus
+#define ARGS_fmi2GetStringStatus ARGS_fmi2GetStatus
+
 #define FORWARD(name, params, args)                                                                          \
     EXPORT fmi2Status name params {                                                                          \
+        const char *function = #name;                                                                        \
         GUARD(#name, MASK_##name, ERROR_##name);                                                             \
+        ARGS_##name;                                                                                         \
         return settle(i, call_##name args);                                                                  \
     }
 #define FORWARD_NEXT(name, params, args)                                                                     \
     EXPORT fmi2Status name params {                                                                          \
+        const char *function = #name;                                                                        \
         GUARD(#name, MASK_##name, ERROR_##name);                                                             \
+        ARGS_##name;                                                                                         \
         fmi2Status status = call_##name args;                                                                \
         int next = NEXT_##name;                                                                              \
         if (status < fmi2Discard && next) i->state = (enum state)next;                                       \

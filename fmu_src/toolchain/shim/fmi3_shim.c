@@ -96,6 +96,7 @@ fmi2Component ftc_instantiate(fmi2String, fmi2Type, fmi2String, fmi2String, cons
 void ftc_serving(fmi2Component, const char *);
 fmi2Status ftc_latch(fmi2Component, fmi2Status);
 fmi2Status ftc_allowed(fmi2Component, const char *, int);
+size_t ftc_variable_count(void);
 #define SERVE(i, function)                                                                                    \
     if (i) ftc_serving((i)->c, function)
 
@@ -332,6 +333,23 @@ static void release(struct references *t) {
     if (t->vr != t->small) free(t->vr);
 }
 
+/* The arrays of a getter or setter: as many values as value references, neither array NULL when
+   values are asked for, not more than the model's variables (arrays that long cannot exist). */
+static int check_arrays(struct instance3 *i, const char *function, const fmi3ValueReference vr[], size_t n,
+                        const void *values, size_t nValues) {
+    char reason[160];
+    if (count_matches(i, function, n, nValues)) return -1;
+    if (n > 0 && (!vr || !values))
+        snprintf(reason, sizeof reason, "%zu values asked for, but the %s array is NULL", n,
+                 !vr ? "valueReferences" : "values");
+    else if (n > ftc_variable_count())
+        snprintf(reason, sizeof reason, "%zu value references, more than the model's %zu variables", n,
+                 ftc_variable_count());
+    else return 0;
+    refuse(i, function, reason);
+    return -1;
+}
+
 static int translate(struct instance3 *i, const char *function, struct references *t,
                      const fmi3ValueReference vr[], size_t n) {
     t->vr = n <= VR_BUFFER ? t->small : malloc(n * sizeof *t->vr);
@@ -356,8 +374,8 @@ static int translate(struct instance3 *i, const char *function, struct reference
 
 /* Translates the references of a call that cannot name `time` (any but fmi3GetFloat64). */
 static int translate_settable(struct instance3 *i, const char *function, struct references *t,
-                              const fmi3ValueReference vr[], size_t n, size_t nValues) {
-    if (count_matches(i, function, n, nValues) || translate(i, function, t, vr, n)) return -1;
+                              const fmi3ValueReference vr[], size_t n, const void *values, size_t nValues) {
+    if (check_arrays(i, function, vr, n, values, nValues) || translate(i, function, t, vr, n)) return -1;
     if (t->time) {
         release(t);
         refuse(i, function, "the independent variable time is a read-only Float64");
@@ -371,7 +389,7 @@ EXPORT3 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReferenc
     struct instance3 *i = instance;
     SERVE(i, "fmi3GetFloat64");
     struct references t;
-    if (!i || count_matches(i, "fmi3GetFloat64", nValueReferences, nValues) ||
+    if (!i || check_arrays(i, "fmi3GetFloat64", valueReferences, nValueReferences, values, nValues) ||
         translate(i, "fmi3GetFloat64", &t, valueReferences, nValueReferences))
         return fmi3Error;
     fmi2Status status = fmi2OK;
@@ -394,7 +412,7 @@ EXPORT3 fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReferenc
     struct instance3 *i = instance;
     SERVE(i, "fmi3SetFloat64");
     struct references t;
-    if (!i || translate_settable(i, "fmi3SetFloat64", &t, valueReferences, nValueReferences, nValues))
+    if (!i || translate_settable(i, "fmi3SetFloat64", &t, valueReferences, nValueReferences, values, nValues))
         return fmi3Error;
     fmi2Status status = fmi2SetReal(i->c, t.vr, t.n, values);
     release(&t);
@@ -410,7 +428,7 @@ EXPORT3 fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReferenc
         struct instance3 *i = instance;                                                                       \
         struct references t;                                                                                  \
         SERVE(i, "fmi3Get" #Name);                                                                            \
-        if (!i || translate_settable(i, "fmi3Get" #Name, &t, valueReferences, nValueReferences, nValues))    \
+        if (!i || translate_settable(i, "fmi3Get" #Name, &t, valueReferences, nValueReferences, values, nValues))    \
             return fmi3Error;                                                                                 \
         fmi2Status status = get2(i->c, t.vr, t.n, values);                                                    \
         release(&t);                                                                                          \
@@ -421,7 +439,7 @@ EXPORT3 fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReferenc
         struct instance3 *i = instance;                                                                       \
         struct references t;                                                                                  \
         SERVE(i, "fmi3Set" #Name);                                                                            \
-        if (!i || translate_settable(i, "fmi3Set" #Name, &t, valueReferences, nValueReferences, nValues))    \
+        if (!i || translate_settable(i, "fmi3Set" #Name, &t, valueReferences, nValueReferences, values, nValues))    \
             return fmi3Error;                                                                                 \
         fmi2Status status = set2(i->c, t.vr, t.n, values);                                                    \
         release(&t);                                                                                          \
@@ -435,7 +453,7 @@ EXPORT3 fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReferenc
     struct instance3 *i = instance;
     SERVE(i, "fmi3GetBoolean");
     struct references t;
-    if (!i || translate_settable(i, "fmi3GetBoolean", &t, valueReferences, nValueReferences, nValues))
+    if (!i || translate_settable(i, "fmi3GetBoolean", &t, valueReferences, nValueReferences, values, nValues))
         return fmi3Error;
     fmi2Boolean *found = malloc((t.n + 1) * sizeof *found);
     fmi2Status status = found ? fmi2GetBoolean(i->c, t.vr, t.n, found) : fmi2Error;
@@ -450,7 +468,7 @@ EXPORT3 fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueReferenc
     struct instance3 *i = instance;
     SERVE(i, "fmi3SetBoolean");
     struct references t;
-    if (!i || translate_settable(i, "fmi3SetBoolean", &t, valueReferences, nValueReferences, nValues))
+    if (!i || translate_settable(i, "fmi3SetBoolean", &t, valueReferences, nValueReferences, values, nValues))
         return fmi3Error;
     fmi2Boolean *given = malloc((t.n + 1) * sizeof *given);
     for (size_t k = 0; given && k < t.n; k++) given[k] = values[k] ? 1 : 0;

@@ -62,6 +62,12 @@ static int attribute(const char *tag, const char *name, char *out, size_t size) 
     return 0;
 }
 
+/* Whether boolean attribute `name` of the tag at `tag` is "true" (or "1"). */
+static int flag(const char *tag, const char *name) {
+    char value[16];
+    return attribute(tag, name, value, sizeof value) && (strcmp(value, "true") == 0 || strcmp(value, "1") == 0);
+}
+
 static char code(const char *value, const char *const names[], const char *codes) {
     for (size_t k = 0; names[k]; k++)
         if (strcmp(value, names[k]) == 0) return codes[k];
@@ -129,6 +135,17 @@ int ftc_read_model(const char *binary, struct ftc_model *model, char *why, size_
         snprintf(why, size, "%s: no guid or instantiationToken", path);
         free(text);
         return -1;
+    }
+    const char *cs = strstr(text, "<CoSimulation");
+    if (cs) { /* FMI 2.0 spells FMUstate, FMI 3.0 FMUState */
+        model->can_get_and_set_state = flag(cs, "canGetAndSetFMUstate") || flag(cs, "canGetAndSetFMUState");
+        model->can_serialize_state = flag(cs, "canSerializeFMUstate") || flag(cs, "canSerializeFMUState");
+        model->directional_derivatives =
+            flag(cs, "providesDirectionalDerivative") || flag(cs, "providesDirectionalDerivatives");
+        model->interpolate_inputs = flag(cs, "canInterpolateInputs");
+        char order[32];
+        model->output_derivative_order =
+            attribute(cs, "maxOutputDerivativeOrder", order, sizeof order) ? atoi(order) : 0;
     }
     size_t capacity = 0;
     int failed = 0;
@@ -215,15 +232,36 @@ static int holds_resources(const char *folder) {
     return ftc_is_file(marker);
 }
 
+/* The identity the resources folder records (IDENTITY_FILE, its first line) in `out`; 0, or -1 if
+   it records none. */
+static int identity(const char *folder, char *out, size_t size) {
+    char path[4096 + 32];
+    snprintf(path, sizeof path, "%s/" IDENTITY_FILE, folder);
+    FILE *f = ftc_fopen(path, "rb");
+    if (!f) return -1;
+    size_t n = fread(out, 1, size - 1, f);
+    fclose(f);
+    out[n] = '\0';
+    out[strcspn(out, "\r\n")] = '\0';
+    return n ? 0 : -1;
+}
+
 int ftc_resources(const struct ftc_model *model, const char *given, char *out, size_t size, char *note,
                   size_t note_size) {
-    char path[4096];
+    char path[4096], found[160], other[sizeof found + 96];
     const char *problem = NULL;
     if (!given) problem = "is not given";
     else if (!given[0]) problem = "is empty";
     else if (native_path(given, path, sizeof path) != 0) problem = "is not a file URI or absolute path";
     else if (!ftc_is_dir(path)) problem = "does not exist";
     else if (!holds_resources(path)) problem = "is not this FMU's resources folder (no slavemodule.txt)";
+    else if (identity(path, found, sizeof found) != 0)
+        problem = "is not this FMU's resources folder (no " IDENTITY_FILE " naming its model)";
+    else if (strcmp(found, model->token) != 0) {
+        snprintf(other, sizeof other, "is another FMU's resources folder (of %s, not this FMU's %s)", found,
+                 model->token);
+        problem = other;
+    }
     if (!problem) {
         snprintf(out, size, "%s", path);
         return 0;

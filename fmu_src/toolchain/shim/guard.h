@@ -24,7 +24,14 @@ struct ftc_model {
     char token[160];   /* guid (FMI 2.0) or instantiationToken (FMI 3.0) */
     size_t n;          /* variables, sorted by value reference */
     struct ftc_variable *variables;
+    /* the CoSimulation element's capabilities (1: declared true; the order: a number) */
+    int can_get_and_set_state, can_serialize_state, directional_derivatives, interpolate_inputs;
+    int output_derivative_order;
 };
+
+/* The file in the resources folder that names the FMU it belongs to: its GUID (FMI 2.0) or
+   instantiation token (FMI 3.0), written by the build (fmu_src/toolchain/build.py, fmi3.py). */
+#define IDENTITY_FILE "fmu_identity.txt"
 
 /* The build's copy of the model description beside each binary: <binary without extension> + this. */
 #define DESCRIPTION_SUFFIX "_modelDescription.xml"
@@ -37,7 +44,8 @@ int ftc_read_model(const char *binary, struct ftc_model *model, char *why, size_
 const struct ftc_variable *ftc_variable(const struct ftc_model *model, unsigned vr);
 
 /* The resources folder to give the model: `given` (a file URI, or a native path as FMI 3.0 passes
-   it) when it holds this FMU's resources (resources/slavemodule.txt), else the FMU's own
+   it) when it holds this FMU's resources (resources/slavemodule.txt, and IDENTITY_FILE naming this
+   FMU's token), else the FMU's own
    <root>/resources. Writes the native path to `out`; 0: `given` is used; 1: the FMU's own is used
    and `note` says why; -1: neither, `note` says why. */
 int ftc_resources(const struct ftc_model *model, const char *given, char *out, size_t size, char *note,

@@ -78,6 +78,7 @@ void ftc_standard_streams_done(int saved[3]) { (void)saved; }
 
 #include <stdint.h>
 #include <stdlib.h>
+#include <wchar.h>
 #include <windows.h>
 #include <psapi.h>
 
@@ -210,6 +211,153 @@ void ftc_keep_files(const char *dir) {
                     FILE_ATTRIBUTE_NORMAL, NULL);
     } while (FindNextFileW(search, &found));
     FindClose(search);
+}
+
+/* ---- the user's cache of runtime files (ftc_cached_copy) ---- */
+
+#define CACHE_FILES 4096
+
+static int by_name(const void *a, const void *b) { return wcscmp(*(wchar_t *const *)a, *(wchar_t *const *)b); }
+
+/* FNV-1a, 64 bits, over `n` bytes. */
+static unsigned long long fnv(unsigned long long h, const void *bytes, size_t n) {
+    for (const unsigned char *p = bytes; n--; p++) h = (h ^ *p) * 1099511628211ull;
+    return h;
+}
+
+static int hash_file(const wchar_t *path, unsigned long long *h) {
+    enum { BLOCK = 1 << 16 };
+    unsigned char *block = malloc(BLOCK); /* hosts instantiate from any thread */
+    HANDLE f = block ? CreateFileW(path, GENERIC_READ, FILE_SHARE_READ | FILE_SHARE_WRITE | FILE_SHARE_DELETE, NULL,
+                                   OPEN_EXISTING, FILE_ATTRIBUTE_NORMAL, NULL)
+                     : INVALID_HANDLE_VALUE;
+    DWORD got = 0;
+    BOOL ok = f != INVALID_HANDLE_VALUE;
+    while (ok && (ok = ReadFile(f, block, BLOCK, &got, NULL)) && got) *h = fnv(*h, block, got);
+    if (f != INVALID_HANDLE_VALUE) CloseHandle(f);
+    free(block);
+    return ok ? 0 : -1;
+}
+
+/* Creates each missing folder of `path` (and the one of its last separator when `parent_only`);
+   0 if it then exists. */
+static int make_folders(wchar_t *path, int parent_only) {
+    for (wchar_t *p = path + 3; *p; p++)
+        if (*p == L'/' || *p == L'\\') {
+            wchar_t kept = *p;
+            *p = L'\0';
+            CreateDirectoryW(path, NULL);
+            *p = kept;
+        }
+    if (parent_only) return 0;
+    CreateDirectoryW(path, NULL);
+    DWORD a = GetFileAttributesW(path);
+    return a != INVALID_FILE_ATTRIBUTES && (a & FILE_ATTRIBUTE_DIRECTORY) ? 0 : -1;
+}
+
+/* The files under `root`/`relative` (relative paths with '/'), appended to `names`; 0, or -1. */
+static int collect(const wchar_t *root, const wchar_t *relative, wchar_t **names, size_t *n) {
+    wchar_t pattern[FTC_PLATFORM_TEXT], path[FTC_PLATFORM_TEXT];
+    if (_snwprintf(pattern, FTC_PLATFORM_TEXT, L"%ls%ls%ls/*", root, relative[0] ? L"/" : L"", relative) < 0)
+        return -1;
+    WIN32_FIND_DATAW found;
+    HANDLE search = FindFirstFileW(pattern, &found);
+    if (search == INVALID_HANDLE_VALUE) return -1;
+    int failed = 0;
+    do {
+        if (!wcscmp(found.cFileName, L".") || !wcscmp(found.cFileName, L"..")) continue;
+        if (_snwprintf(path, FTC_PLATFORM_TEXT, L"%ls%ls%ls", relative, relative[0] ? L"/" : L"", found.cFileName) < 0)
+            failed = 1;
+        else if (found.dwFileAttributes & FILE_ATTRIBUTE_DIRECTORY) failed = collect(root, path, names, n);
+        else if (*n < CACHE_FILES && (names[*n] = _wcsdup(path))) ++*n;
+        else failed = 1;
+    } while (!failed && FindNextFileW(search, &found));
+    FindClose(search);
+    return failed ? -1 : 0;
+}
+
+/* A folder of ours that did not become the cache's: its files and folders removed (best effort). */
+static void remove_copy(const wchar_t *folder, wchar_t **names, size_t n) {
+    wchar_t path[FTC_PLATFORM_TEXT];
+    for (size_t k = 0; k < n; k++)
+        if (_snwprintf(path, FTC_PLATFORM_TEXT, L"%ls/%ls", folder, names[k]) > 0) DeleteFileW(path);
+    if (_snwprintf(path, FTC_PLATFORM_TEXT, L"%ls/.complete", folder) > 0) DeleteFileW(path);
+    for (size_t k = n; k-- > 0;) /* the subfolders, deepest first (names are sorted) */
+        for (wchar_t *slash = wcsrchr(names[k], L'/'); slash; slash = wcsrchr(names[k], L'/')) {
+            *slash = L'\0';
+            if (_snwprintf(path, FTC_PLATFORM_TEXT, L"%ls/%ls", folder, names[k]) > 0) RemoveDirectoryW(path);
+        }
+    RemoveDirectoryW(folder);
+}
+
+int ftc_cached_copy(const char *folder, const char *only, char *out, size_t size) {
+    wchar_t source[FTC_PLATFORM_TEXT], path[FTC_PLATFORM_TEXT], base[FTC_PLATFORM_TEXT];
+    wchar_t final[FTC_PLATFORM_TEXT], work[FTC_PLATFORM_TEXT], from[FTC_PLATFORM_TEXT], to[FTC_PLATFORM_TEXT];
+    if (!wide(folder, source, FTC_PLATFORM_TEXT) || (only && !wide(only, path, FTC_PLATFORM_TEXT))) return -1;
+    DWORD n_base = GetEnvironmentVariableW(L"LOCALAPPDATA", base, FTC_PLATFORM_TEXT);
+    if (n_base == 0 || n_base >= FTC_PLATFORM_TEXT - 64) return -1;
+    wchar_t **names = calloc(CACHE_FILES, sizeof *names);
+    size_t n = 0;
+    int failed = !names;
+    if (!failed && only) failed = !(names[n++] = _wcsdup(path));
+    else if (!failed) failed = collect(source, L"", names, &n);
+    unsigned long long h = 14695981039346656037ull;
+    if (!failed) {
+        qsort(names, n, sizeof *names, by_name);
+        for (size_t k = 0; k < n && !failed; k++) {
+            h = fnv(h, names[k], (wcslen(names[k]) + 1) * sizeof(wchar_t));
+            failed = _snwprintf(from, FTC_PLATFORM_TEXT, L"%ls/%ls", source, names[k]) < 0 || hash_file(from, &h);
+        }
+    }
+    int status = -1;
+    if (!failed && n > 0 &&
+        _snwprintf(final, FTC_PLATFORM_TEXT, L"%ls/fixed-time-cosim/runtime/%016llx", base, h) > 0 &&
+        _snwprintf(path, FTC_PLATFORM_TEXT, L"%ls/.complete", final) > 0) {
+        if (GetFileAttributesW(path) != INVALID_FILE_ATTRIBUTES) status = 0; /* made before */
+        else if (_snwprintf(work, FTC_PLATFORM_TEXT, L"%ls.part-%lu-%lu", final, GetCurrentProcessId(),
+                            GetCurrentThreadId()) > 0 && make_folders(work, 0) == 0) {
+            int copied = 1;
+            for (size_t k = 0; k < n && copied; k++)
+                copied = _snwprintf(from, FTC_PLATFORM_TEXT, L"%ls/%ls", source, names[k]) > 0 &&
+                         _snwprintf(to, FTC_PLATFORM_TEXT, L"%ls/%ls", work, names[k]) > 0 &&
+                         make_folders(to, 1) == 0 && CopyFileW(from, to, TRUE);
+            HANDLE marker = INVALID_HANDLE_VALUE;
+            if (copied && _snwprintf(to, FTC_PLATFORM_TEXT, L"%ls/.complete", work) > 0)
+                marker = CreateFileW(to, GENERIC_WRITE, 0, NULL, CREATE_NEW, FILE_ATTRIBUTE_NORMAL, NULL);
+            if (marker != INVALID_HANDLE_VALUE) CloseHandle(marker);
+            /* into place complete, or another process was first: its copy serves */
+            if (marker != INVALID_HANDLE_VALUE && MoveFileExW(work, final, 0)) status = 0;
+            else {
+                remove_copy(work, names, n);
+                if (GetFileAttributesW(path) != INVALID_FILE_ATTRIBUTES) status = 0;
+            }
+        }
+    }
+    for (size_t k = 0; names && k < n; k++) free(names[k]);
+    free(names);
+    if (status == 0 && narrow(final, out, size) != 0) status = -1;
+    return status;
+}
+
+/* The shim's own file, opened without FILE_SHARE_DELETE while the shim is loaded (ftc_keep_own_file):
+   closed when the host unloads it. */
+static HANDLE own_file = INVALID_HANDLE_VALUE;
+
+void ftc_keep_own_file(const char *path) {
+    wchar_t w[FTC_PLATFORM_TEXT];
+    if (own_file == INVALID_HANDLE_VALUE && wide(path, w, FTC_PLATFORM_TEXT))
+        own_file = CreateFileW(w, GENERIC_READ, FILE_SHARE_READ | FILE_SHARE_WRITE, NULL, OPEN_EXISTING,
+                               FILE_ATTRIBUTE_NORMAL, NULL);
+}
+
+BOOL WINAPI DllMain(HINSTANCE instance, DWORD reason, LPVOID reserved);
+BOOL WINAPI DllMain(HINSTANCE instance, DWORD reason, LPVOID reserved) {
+    (void)instance, (void)reserved;
+    if (reason == DLL_PROCESS_DETACH && own_file != INVALID_HANDLE_VALUE) { /* CloseHandle: safe here */
+        CloseHandle(own_file);
+        own_file = INVALID_HANDLE_VALUE;
+    }
+    return TRUE;
 }
 
 static int is_ascii(const char *text) {

@@ -53,6 +53,23 @@ void ftc_file_unlock(int lock);
    deletes them got msvcp140.dll of the first FMU for the second's pythonfmu binary). The shim
    never unloads what it loads, so its files are kept, once per folder and process. */
 void ftc_keep_files(const char *dir);
+
+/* The files of `folder` (all, its subfolders' too, or only the one named `only`) copied once
+   into the user's cache, %LOCALAPPDATA%/fixed-time-cosim/runtime/<key>/, where <key>
+   is a 64-bit FNV-1a hash of their names and bytes: the same files share one copy, other files
+   never meet it, and nothing in the cache is ever deleted or rewritten (a copy is made in a
+   folder of its own and renamed into place, complete). The shim loads its runtime and
+   pythonfmu's binary from there, so that the folder the host unpacked holds no module the
+   process keeps loaded and can be deleted after fmi2FreeInstance and FreeLibrary, as a C FMU's
+   can (and wine's stale modules, see ftc_keep_files, never meet a deleted file). Writes the
+   copy's folder to `out`; 0, or -1 (no cache: no LOCALAPPDATA, a full disk, ...; the caller
+   then loads from `folder`). */
+int ftc_cached_copy(const char *folder, const char *only, char *out, size_t size);
+
+/* The shim's own file (`path`) opened without FILE_SHARE_DELETE until the host unloads the shim
+   (DllMain): undeletable while loaded, as Windows keeps any loaded image, so that wine never
+   hands a later file the stale module (see ftc_keep_files), and deletable once unloaded. */
+void ftc_keep_own_file(const char *path);
 #endif
 
 /* Windows only: a path the host's C runtime and pythonfmu's binary read alike (pythonfmu reads
