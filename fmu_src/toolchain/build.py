@@ -268,21 +268,26 @@ def collect_bundle(model: str, root: Path = REPO_ROOT) -> Bundle:
     return Bundle(model, script, modules, frozenset(third_party - ignored), extensions)
 
 
-@functools.cache
 def c_compiler() -> tuple[str, str]:
     """The system C compiler (``$CC``, else ``cc``, else ``gcc`` from PATH) and its version line."""
     for name in (os.environ.get("CC"), "cc", "gcc"):
         path = shutil.which(name) if name else None
         if path:
-            try:
-                version = subprocess.run([path, "--version"], capture_output=True, text=True, check=True)
-            except (OSError, subprocess.CalledProcessError) as error:
-                raise BuildError(f"C compiler {path} does not run: {error}") from error
-            return path, version.stdout.partition("\n")[0]
+            return path, _version_line(path)
     raise BuildError(
         "no C compiler (CC, cc or gcc on PATH) to build the FMI shim binaries/linux64/<model>.so; "
         "install one, e.g. apt-get install gcc"
     )
+
+
+@functools.cache
+def _version_line(compiler: str) -> str:
+    """The first line of ``compiler --version`` (read once per compiler and process)."""
+    try:
+        version = subprocess.run([compiler, "--version"], capture_output=True, text=True, check=True)
+    except (OSError, subprocess.CalledProcessError) as error:
+        raise BuildError(f"C compiler {compiler} does not run: {error}") from error
+    return version.stdout.partition("\n")[0]
 
 
 def mingw() -> str:

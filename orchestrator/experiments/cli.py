@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -35,6 +36,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--platform", action="append", dest="platforms", choices=PLATFORM_NAMES,
                    help="build at least this platform (repeatable; default: every platform this machine "
                         "can build: linux64, and win64 where mingw-w64 and osslsigncode are installed)")
+    p.add_argument("-j", "--jobs", type=int, default=os.cpu_count() or 1, metavar="N",
+                   help="FMUs built at once, each in its own process (default: the machine's cores)")
     p.add_argument("--no-fmi3", dest="fmi3", action="store_false",
                    help="no FMI 3.0 variants of the FMUs and no <name>_fmi3.ssp twins")
 
@@ -63,6 +66,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _build(args: argparse.Namespace) -> int:
     if not args.scenarios and not list(args.sources.glob("*/SystemStructure.ssd")):
         raise UsageError(f"no scenarios found in {args.sources}/")
+    if args.jobs < 1:
+        raise UsageError(f"--jobs {args.jobs}: at least 1")
     log = args.dest / "build.log"
     args.dest.mkdir(parents=True, exist_ok=True)
     with log.open("a", encoding="utf-8") as logged:
@@ -77,7 +82,8 @@ def _build(args: argparse.Namespace) -> int:
 
         try:
             targets = build_scenarios(args.scenarios, args.dest, args.sources, fmi3=args.fmi3,
-                                      platforms=args.platforms, force=args.force, progress=progress)
+                                      platforms=args.platforms, force=args.force, progress=progress,
+                                      jobs=args.jobs)
         except BuildError as error:  # a compiler or source missing: what, not a traceback
             logged.write(f"error: {error}\n")
             raise OrchestratorError(f"build: {error} (log: {log})") from None

@@ -43,7 +43,7 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
                     sources: str | os.PathLike = SCENARIO_DIR, *, fmi3: bool = True,
                     platforms: Sequence[str] | None = None, force: bool = False,
                     progress: Callable[[str], None] | None = None,
-                    root: Path | None = None) -> dict[str, Path]:
+                    root: Path | None = None, jobs: int = 1) -> dict[str, Path]:
     """Build the FMUs into ``dest/fmus`` and their FMI 3.0 variants into ``dest/fmus3``, pack
     ``sources/<name>/`` (default: all) into ``dest/ssp/<name>.ssp`` and its FMI 3.0 twin (the same
     SSD and parameter files, the FMI 3.0 FMUs) into ``dest/ssp/<name>_fmi3.ssp``, each validated
@@ -52,7 +52,10 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
     scenarios use (a report of four scenarios builds four FMUs, not nine). ``platforms``: at
     least these (default: all this machine can build); ``force``: rebuild what is up to date;
     ``progress`` receives one line per product as it is done; ``root``: the FMUs' source tree
-    (default: this checkout's, or the installed package's)."""
+    (default: this checkout's, or the installed package's); ``jobs``: processes that build at
+    once (more than 1 only from a fresh process such as ``orchestrate build``: a process that has
+    loaded Python FMUs has their resources, a partial copy of pythonfmu, on ``sys.path``, which
+    the workers would inherit)."""
     from fmu_src.toolchain.build import FMU_SCRIPTS, REPO_ROOT, build_fmu, buildable_platforms, fmu_current
     from fmu_src.toolchain.fmi3 import build_fmu3, fmu3_current
 
@@ -77,7 +80,7 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
     on = ", ".join(platforms)
     stale = [m for m in models if force or not fmu_current(m, dest / "fmus", root, platforms)]
     _in_parallel({f"{m}.fmu ({on})": partial(build_fmu, m, dest / "fmus", root, platforms, force=force)
-                  for m in stale}, say)
+                  for m in stale}, say, jobs)
     if len(stale) < len(models):
         say(f"{len(models) - len(stale)} of {len(models)} FMUs up to date")
     fmus2 = {f"{m}.fmu": dest / "fmus" / f"{m}.fmu" for m in models}  # where build_fmu writes them
@@ -85,7 +88,7 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
     if fmi3:
         stale3 = [n for n, p in fmus2.items() if force or not fmu3_current(p, dest / "fmus3", root)]
         _in_parallel({f"{n} (FMI 3.0)": partial(build_fmu3, fmus2[n], dest / "fmus3", root, force=force)
-                      for n in stale3}, say)
+                      for n in stale3}, say, jobs)
         if len(stale3) < len(fmus2):
             say(f"{len(fmus2) - len(stale3)} of {len(fmus2)} FMI 3.0 variants up to date")
         variants.append(({n: dest / "fmus3" / n for n in fmus2}, FMI3_SUFFIX))
@@ -97,13 +100,13 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
     return archives
 
 
-def _in_parallel(builds: dict[str, Callable[[], Path]], say: Callable[[str], None]) -> None:
-    """Run ``builds`` (label -> a product's build) in as many processes as the machine has cores
-    (one build: in this process), saying each as it is done. The first failure is raised once
-    the builds under way have ended."""
+def _in_parallel(builds: dict[str, Callable[[], Path]], say: Callable[[str], None], jobs: int) -> None:
+    """Run ``builds`` (label -> a product's build) in up to ``jobs`` processes (1: in this
+    process), saying each as it is done. The first failure is raised once the builds under way
+    have ended."""
     if not builds:
         return
-    workers = min(len(builds), os.cpu_count() or 1)
+    workers = max(1, min(len(builds), jobs))
     started = time.perf_counter()
     if workers == 1:
         for number, (label, build) in enumerate(builds.items(), 1):
