@@ -17,6 +17,7 @@ another importer might not, and a scenario without a stop time (``run`` then nee
 from __future__ import annotations
 
 import os
+import zipfile
 from collections.abc import Iterable, Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass
@@ -157,8 +158,12 @@ def load_problems(system: System, stack: ExitStack) -> list[str]:
     for comp in system.components.values():
         assert comp.model.coSimulation is not None  # System keeps Co-Simulation FMUs only
         if comp.fmu not in reasons:
-            folder = unpack_fmu(comp.fmu, stack.enter_context(TemporaryDirectory(prefix="orchestrate-load-"))
-                                + "/fmu")
+            fallback = stack.enter_context(TemporaryDirectory(prefix="orchestrate-load-")) + "/fmu"
+            try:
+                folder = unpack_fmu(comp.fmu, fallback)
+            except (zipfile.BadZipFile, ValueError, OSError):  # a damaged archive: its own finding already
+                reasons[comp.fmu] = ""
+                continue
             try:
                 reasons[comp.fmu] = load_problem(folder, comp.model.fmiVersion,
                                                  comp.model.coSimulation.modelIdentifier)
