@@ -28,6 +28,7 @@ from ..campaign import read_design, read_table, sweep
 from ..campaign.report import write_report
 from . import findings
 from .campaigns import RESEARCH, TRACKING
+from .caps import metrics_for, rows_cap_cell, scenario_sampling
 
 __all__ = ["EQ84", "FINDINGS", "QUESTIONS", "Finding", "Question", "answer", "main", "run_table",
            "write_page"]
@@ -91,7 +92,20 @@ FINDINGS = (
             "law (`nn_term` = 1, bit for bit the law of before), semi-implicit sampling (under explicit "
             "sampling most of these states diverge either way), from the study's "
             "initial states on its 21 x 21 grid, 3 s. Settling: "
-            "the 0.05 band. Paired table: per initial state, the two runs compared.", findings.nn_term),
+            "the 0.05 band. Paired table: per initial state, the two runs compared. Scope: the paper's "
+            "gains, a and kappa only; the cap column shows how often the semi-implicit cap, not the "
+            "law, set zeta_1 and v (where it binds, the NN term inside phi cannot act). Other (a, kappa, "
+            "q), both laws, both samplings: the next question.", findings.nn_term),
+    Finding("The NN term over (a, kappa, q)", "nn_grid",
+            ("example1", "pendulum", "example1_smooth", "pendulum_smooth"),
+            "The NN term switched out (`nn_term` = 0) against the paper's law over a grid of its width a, "
+            "the adaptation gain kappa and the gain q (`ssp/campaigns/nn_grid.toml` and its points "
+            "`nn_grid_points.csv`), both laws, on the paper's explicit sampling (`example1` at 1 ms, "
+            "`pendulum` at 0.5 ms) and the semi-implicit one (`example1_smooth`, `pendulum_smooth`), "
+            "from each scenario's own initial state, 3 s (before the fault). A point *helps* when the "
+            "term cuts the MAE by more than 5 %, *hurts* when it raises it by more; *destabilised*: only "
+            "the run without the term ends ok (the plants' bounds end a diverging run).",
+            findings.nn_grid, figures=False),
 )
 EQ84 = Finding(
     "Eq. (84), the bound on the tracking error", "nn_term", ("example1_smooth", "pendulum_smooth"),
@@ -99,28 +113,33 @@ EQ84 = Finding(
     "It cannot be evaluated for the paper's examples: b_0 (eq. 77) sums, per step j, "
     "(o_j + rho_tilde_j) eta_j^2 / (2 kappa_j) with eta_j = norm(W_j*)^2 / b_m (the ideal NN weights, "
     "never given), epsilon_j^2 / 2 (the NN approximation error bound, never given), l_j and sigma_j "
-    "(Lemma 6 constants of the unknown bounds psi_j1, psi_j2 of Assumption 5), b_j(t) (from the ISpS "
-    "gains of Assumption 6) and d_j*^2 / 2 (disturbance bounds), plus b_m beta_bar^2 / 2 and "
-    "b_m L_bar^2 / 2 (bounds of the fault's beta(t) and L(t); L(t) = L_gain x2 cos^2 x1 + L_bias "
-    "is bounded only once x2 is) and d / kappa_0 (Assumption 6's d and a kappa_0 the law never uses); "
-    "c_0 is \"assumed\" to bound a term on the set abs(z_1) < 0.8814 nu with nu never chosen. Every one "
-    "of those terms is non-negative, so what the paper does give is a lower bound of x_0: "
-    "sum a_j^2 / 2 + (1 - alpha) alpha^(1 - alpha) + (1 - beta) beta^(1 - beta) "
-    "(`orchestrator/experiments/findings.py`, `eq84`), with c of eq. (77) as the study's T_m uses it "
-    "(b_m = m_bar = 1) and c <= a_bar for any b_m, m_bar. The bound of eq. (84) is at least the values "
-    "below, against the largest final error of the full law's settled runs of the NN term campaign "
-    "above.", findings.eq84, figures=False)
+    "(Lemma 6 constants of the unknown bounds psi_j1, psi_j2 of Assumption 5) and b_j(t) (from the ISpS "
+    "gains of Assumption 6), plus b_m L_bar^2 / 2 (the bound of the fault's L(t) = L_gain x2 cos^2 x1 + "
+    "L_bias, bounded only once x2 is) and d / kappa_0 (d = 0.625 is given, eq. 90 and 104, but kappa_0 "
+    "is a constant of the proof the law never uses, so the term may be as small as one likes); c_0 is "
+    "\"assumed\" to bound a term on the set abs(z_1) < 0.8814 nu with nu never chosen. Three constants "
+    "are given: beta_bar = max(m_r b_r, m_l b_l) = 0.72 of eq. (7) (the dead-zone's 1.2 x 0.6), entering "
+    "as b_m beta_bar^2 / 2; d = 0.625; and the pendulum's disturbance bounds d_1* = 0.2, d_2* = 0.3 of "
+    "eq. (99) (0.2 sin t, 0.3 cos t; Example 1 has no disturbance), entering as d_j*^2 / 2. Every "
+    "other term is non-negative, so what the paper gives is a lower bound of x_0: sum a_j^2 / 2 + "
+    "(1 - alpha) alpha^(1 - alpha) + (1 - beta) beta^(1 - beta) + b_m beta_bar^2 / 2 + sum d_j*^2 / 2 "
+    "(`orchestrator/experiments/findings.py`, `eq84_terms`), with c of eq. (77) as the study's T_m uses "
+    "it (b_m = m_bar = 1) and c <= a_bar for any b_m, m_bar. The bound of eq. (84) is at least the "
+    "values below, against the largest final error of the full law's settled runs of the NN term "
+    "campaign above.", findings.eq84, figures=False)
 
 
 def run_table(rows: Sequence[Mapping[str, Any]], question: Question) -> str:
-    """The Markdown table of a question's runs, sorted by its two parameters."""
+    """The Markdown table of a question's runs, sorted by its two parameters, with the share of
+    samples where the semi-implicit cap bound (``-``: explicit sampling, no cap)."""
     a, b = question.parameters
-    header = f"| {a} | {b} | " + " | ".join(label for _, label, _ in COLUMNS) + " |"
-    lines = [header, "|" + "---|" * (2 + len(COLUMNS))]
+    header = f"| {a} | {b} | " + " | ".join(label for _, label, _ in COLUMNS) + f" | {findings.CAP_COLUMN} |"
+    lines = [header, "|" + "---|" * (3 + len(COLUMNS))]
     for r in sorted(rows, key=lambda r: (float(r[a]), float(r[b]))):
         cells = [f"{float(r[a]):g}", f"{float(r[b]):g}"]
         cells += [format(float(r[name]), spec) if r.get(name) is not None else "-"
                   for name, _, spec in COLUMNS]
+        cells.append(rows_cap_cell([r]))
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -146,10 +165,10 @@ def answer(rows: Sequence[Mapping[str, Any]], question: Question) -> str:
 
 
 def _figures(design: str, out: Path, docs: Path) -> list[str]:
-    """The design's report figures copied into ``docs`` as Markdown images."""
+    """The design's report figures (one report per scenario) copied into ``docs`` as Markdown images."""
     parts = []
-    for figure in sorted((out / design / "report").glob("*.png")):
-        name = f"{design}_{figure.name}"
+    for figure in sorted((out / design).glob("*/report/*.png")):
+        name = f"{design}_{figure.parent.parent.name}_{figure.name}"
         shutil.copyfile(figure, docs / name)
         parts.append(f"![{design}: {figure.stem}]({name})")
     return parts
@@ -200,14 +219,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     everything: tuple[Question | Finding, ...] = (*QUESTIONS, *FINDINGS, EQ84)
     for question in everything:
         folder = args.out / question.design
+        scenarios, metrics = ((question.scenario,), TRACKING) if isinstance(question, Question) else (
+            question.scenarios, RESEARCH)
         if not args.report_only and not any(q.design == question.design for q in tables):
-            scenarios, metrics = ((question.scenario,), TRACKING) if isinstance(question, Question) else (
-                question.scenarios, RESEARCH)
-            summary = sweep([args.build / "ssp" / f"{s}.ssp" for s in scenarios],
-                            read_design(CAMPAIGNS / f"{question.design}.toml"), folder, metrics=metrics,
-                            workers=args.workers, force=True)
-            write_report(summary.parquet, folder / "report")
-        tables[question] = read_table(folder / "runs.parquet")[0]
+            for s in scenarios:  # one sweep per scenario: its semi-implicit cap (caps.metrics_for)
+                design = read_design(CAMPAIGNS / f"{question.design}.toml")
+                summary = sweep([args.build / "ssp" / f"{s}.ssp"], design, folder / s,
+                                metrics=metrics_for(metrics, scenario_sampling(s)), workers=args.workers,
+                                force=True)
+                write_report(summary.parquet, folder / s / "report")
+        tables[question] = [r for s in scenarios for r in read_table(folder / s / "runs.parquet")[0]]
     seconds = None if args.report_only else time.perf_counter() - started
     text = write_page(tables, args.out, args.docs, seconds)
     print(text)
