@@ -53,7 +53,7 @@ def _tables(section: str) -> list[list[dict[str, str]]]:
     """The section's Markdown tables as rows of {header: cell}."""
     tables, current, header = [], [], None
     for line in [*section.splitlines(), ""]:
-        if line.startswith("| "):
+        if line.startswith("|"):
             cells = [c.strip() for c in line.strip().strip("|").split("|")]
             if header is None:
                 header = cells
@@ -142,7 +142,7 @@ def test_each_number_of_the_finding_answers_is_its_own_cell() -> None:
     rest = _checked(_answer(sections["The adaptive estimates eta_hat"]),
                     r"(?P<s>\w+) (?P<law>f\w+-time) \((?P<ok>\d+) runs ok\): eta_hat_1 <= (?P<e1>\S+), "
                     r"eta_hat_2 <= "
-                    r"(?P<e2>\S+), change over the last second <= (?P<c1>\S+) and (?P<c2>[^\s;.]+(?:\.\d+)?)",
+                    r"(?P<e2>\S+), change over the last second <= (?P<c1>\S+) and (?P<c2>[0-9][0-9.e+-]*[0-9])",
                     lambda m: cells(_row(estimates, scenario=m["s"], law=m["law"]), m,
                                     {"ok": "ok", "e1": "max eta_hat_1", "e2": "max eta_hat_2",
                                      "c1": "max abs change eta_hat_1", "c2": "max abs change eta_hat_2"}))
@@ -167,14 +167,14 @@ def test_each_number_of_the_finding_answers_is_its_own_cell() -> None:
 
     grid = tables["The NN term over (a, kappa, q)"][0]
     columns = {"points": "points", "helps": "term helps", "none": "no effect", "hurts": "term hurts",
-               "de": "destabilised by the term", "st": "stabilised by the term", "fail": "both fail"}
+               "de": "destabilised by the term", "st": "stabilised by the term", "fail": "neither settles"}
 
     def totals(m: re.Match) -> None:
         for group, column in columns.items():
             assert int(m[group]) == sum(int(r[column]) for r in grid), column
-        points = read_table(REPO / "ssp" / "campaigns" / "nn_grid_points.csv")[0]
+        design = read_design(REPO / "ssp" / "campaigns" / "nn_grid.toml")
         for name, column in (("a", "controller.a1"), ("kappa", "controller.kappa1"), ("q", "controller.q1")):
-            values = sorted({float(p[column]) for p in points})
+            values = sorted({float(v[column]) for v in design.variants()})
             assert [float(v) for v in m[name].split(", ")] == values
 
     rest = _checked(_answer(sections["The NN term over (a, kappa, q)"]),
@@ -183,9 +183,9 @@ def test_each_number_of_the_finding_answers_is_its_own_cell() -> None:
                     r"of (?P<points>\d+) \(scenario, law, a, kappa, q\) points the term cuts the MAE by "
                     r"more than "
                     r"5% at (?P<helps>\d+), has no effect at (?P<none>\d+), raises it at (?P<hurts>\d+), "
-                    r"destabilises the sampled loop at (?P<de>\d+) \(the run without it ends ok\), "
+                    r"destabilises the sampled loop at (?P<de>\d+) \(only the run without it settles\), "
                     r"stabilises it at "
-                    r"(?P<st>\d+), and both fail at (?P<fail>\d+)", totals)
+                    r"(?P<st>\d+), and neither run settles at (?P<fail>\d+)", totals)
     _no_number_left(rest)
 
     eq84 = tables["Eq. (84), the bound on the tracking error"][0]
@@ -231,8 +231,8 @@ def test_nn_term_pairs_the_runs_of_each_initial_state() -> None:
 
 def test_nn_grid_classifies_each_point_by_the_pair_of_runs() -> None:
     """Five (a, kappa, q) points of one scenario and law: the term cuts the MAE by 50 % (helps), by
-    2 % (no effect), raises it by 10 % (hurts), only the run without the term ends ok (destabilised),
-    both fail; with the term on the cap bound in a quarter and a half of the samples (steps 1, 2)."""
+    2 % (no effect), raises it by 10 % (hurts), only the run without the term settles (destabilised),
+    neither settles; with the term on the cap bound in a quarter and a half of the samples (steps 1, 2)."""
     def row(a: float, nn: int, status: str, mae: float) -> dict:
         return {"scenario": "example1_smooth", "controller.mode": 0, "controller.a1": a,
                 "controller.kappa1": 2.0, "controller.q1": 8.0, "controller.nn_term": nn, "status": status,
@@ -251,9 +251,8 @@ def test_nn_grid_classifies_each_point_by_the_pair_of_runs() -> None:
     assert line.startswith("Scope: a in {0.2, 0.5, 1, 2, 5}, kappa in {2}, q in {8} (the same for both steps")
     assert line.endswith("of 5 (scenario, law, a, kappa, q) points the term cuts the MAE by more than 5% "
                          "at 1, has "
-                         "no effect at 1, raises it at 1, destabilises the sampled loop at 1 (the run "
-                         "without it "
-                         "ends ok), stabilises it at 0, and both fail at 1.")
+                         "no effect at 1, raises it at 1, destabilises the sampled loop at 1 (only the "
+                         "run without it settles), stabilises it at 0, and neither run settles at 1.")
 
 
 def test_eq84_lower_bound_written_out() -> None:
