@@ -141,8 +141,8 @@ def test_each_number_of_the_finding_answers_is_its_own_cell() -> None:
     estimates = tables["The adaptive estimates eta_hat"][0]
     rest = _checked(_answer(sections["The adaptive estimates eta_hat"]),
                     r"(?P<s>\w+) (?P<law>f\w+-time) \((?P<ok>\d+) runs ok\): eta_hat_1 <= (?P<e1>\S+), "
-                    r"eta_hat_2 <= "
-                    r"(?P<e2>\S+), change over the last second <= (?P<c1>\S+) and (?P<c2>[0-9][0-9.e+-]*[0-9])",
+                    r"eta_hat_2 <= (?P<e2>\S+), change over the last second <= (?P<c1>\S+) and "
+                    r"(?P<c2>[0-9][0-9.e+-]*[0-9])",
                     lambda m: cells(_row(estimates, scenario=m["s"], law=m["law"]), m,
                                     {"ok": "ok", "e1": "max eta_hat_1", "e2": "max eta_hat_2",
                                      "c1": "max abs change eta_hat_1", "c2": "max abs change eta_hat_2"}))
