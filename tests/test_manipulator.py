@@ -96,7 +96,7 @@ def test_order_three_loop_matches_the_monolithic_reference(cosimulation: np.ndar
         scale = max(1.0, float(np.max(np.abs(reference[field]))))
         assert np.max(np.abs(rows[column] - reference[field])) <= 1e-8 * scale, column
     assert np.max(np.abs(rows["controller.v"] - reference["v"])) <= 1e-8 * np.max(np.abs(reference["v"]))
-    assert abs(reference["v"][0]) > 500  # a transient worth the name: 3378 V at t = 0
+    assert abs(reference["v"][0]) > 500  # a transient worth the name: 1458 V at t = 0
 
 
 @pytest.mark.system
@@ -118,15 +118,16 @@ def test_the_papers_law_acts_in_most_samples(cosimulation: np.ndarray) -> None:
     """Issue 45: with Example 1's gains and b_max = 80 every step was the cap |z_i| / (b_max h) at every
     sample (v = -12.5 z_3). Now, over the scenario's 30 s, the cap (computed here from the outputs:
     |zeta_i| = |z_i| / (b_max h), with b_max and h of the scenario's parameters) binds in a minority of
-    the samples of every step, and the law's own feedback (|zeta_i| < the cap) sets the rest."""
+    the samples of every step (measured: 0.26, 0.027, 0.002), and the law's own feedback
+    (|zeta_i| < the cap) sets the rest."""
     bh = MANIPULATOR.controller.b_max * MANIPULATOR.controller.sample_time
-    assert bh == pytest.approx(0.05)
+    assert bh == pytest.approx(0.07)
     d = cosimulation
     for i, out in ((1, "controller.zeta1"), (2, "controller.zeta2"), (3, "controller.v")):
         z, zeta = np.abs(d[f"controller.z{i}"]), np.abs(d[out])
         assert np.all(zeta <= z / bh * (1 + 1e-12))  # never beyond the cap
         capped = np.abs(zeta - z / bh) <= 1e-12 * z / bh
-        assert 0.0 < capped.mean() < 0.2, (i, capped.mean())
+        assert 0.0 < capped.mean() < 0.5, (i, capped.mean())
 
 
 @pytest.mark.system

@@ -6,8 +6,9 @@ knows of the plant, its input gains g_1..g_n of the paper's system (1) and the t
 reference (its amplitude A and angular frequency omega), the wanted accuracy e and the
 communication step h, and gives a first guess (:func:`first_guess`):
 
-* ``b_max = 1.25 max g_i``: a bound of every input gain, and g_n / b_max = 0.8 < 1, which keeps the
-  semi-implicit correction stable under masters that delay every connection by a step;
+* ``b_max = 1.25 max g_i``: a bound of every input gain with a margin, for a delay-free master (a
+  master that delays every connection needs more, the manipulator's 1.75 g_3; the campaign does
+  not check that case);
 * ``beta = 0.95``: the q term q |z|^(2 beta - 1) is nearly linear, so the cap |z| / (b_max h) binds
   only where |z| < (q b_max h)^(1 / (2 - 2 beta)), a tiny layer, instead of near every small error;
   ``alpha = 1.5`` (the project's default) and k_i = 1 leave the fast term to large errors;
