@@ -311,8 +311,18 @@ def test_table_shows_the_bound_and_where_it_is_exceeded() -> None:
     # issue 37: a row where most runs diverge says how few runs the verdict covers
     mostly_diverged = fast + [Cell(1.0, 0.0, "diverged", math.inf, 1e7, 0.0)] * 3
     row = study_table({(1, "fixed-time", "c"): mostly_diverged}, {1: bound}).splitlines()[2]
-    assert row.endswith("| yes, 1 of 4 settled |")
+    assert row.endswith("| yes, 1 of 4 settled | - |")  # no cap shares: no cap column value
     assert "none (k = 0)" in lines[4]
+    # issue 45: the cap column, the mean over the row's runs per step, and a row whose v was the
+    # cap at every sample of every run says that the paper's law never acted
+    capped = [Cell(0.0, 0.0, "settled", 0.05, 5.0, 2.0, caps=(0.5, 1.0)),
+              Cell(1.0, 0.0, "settled", 0.05, 5.0, 2.0, caps=(0.25, 1.0))]
+    row = study_table({(1, "fixed-time", "d"): capped}, {1: bound}).splitlines()[2]
+    assert row.endswith("| 0.375 / 1 (v = the cap at every sample: the paper's law never acted) |")
+    limited = [Cell(0.0, 0.0, "settled", 0.05, 5.0, 2.0, caps=(math.nan, math.nan), limit=0.1),
+               Cell(1.0, 0.0, "settled", 0.05, 5.0, 2.0, caps=(math.nan, math.nan), limit=0.3)]
+    row = study_table({(1, "fixed-time", "e"): limited}, {1: bound}).splitlines()[2]
+    assert row.endswith("| limit abs(v) > u_max: 0.2 |")
 
 
 def test_colour_scale_has_no_impossible_values() -> None:

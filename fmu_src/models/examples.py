@@ -76,14 +76,18 @@ EXAMPLE2 = Example(
 EXAMPLES: dict[int, Example] = {1: EXAMPLE1, 2: EXAMPLE2}
 
 # Issue 35: the single-link manipulator driven by a DC motor (Dawson, Carroll and Schneider 1994), the
-# order-3 controller with the gains of Example 1 for every step (steps beyond 2 repeat step 2's,
-# SPEC 11), sampled semi-implicitly at 1 ms (its explicit law at 1 ms diverges in the first step:
-# |v(0)| = 4.7e6 V), the reference and fault of Example 1. b_max = 2 / L = 80, twice the largest input
-# gain g3 = 1 / L (a bound b_M of Assumption 3 need not be the least one): the semi-implicit law's
-# one-sample correction |z| / (b_max h) then removes half of z_3 per step, not all of it, and the loop
-# stays stable under the one-step delay of the masters that delay every connection (libcosim, Ecos,
-# jacobi: z_(k+1) = z_k - (g3 / b_max) z_(k-1) is stable for g3 / b_max < 1; at b_max = 1 / L = 40
-# they diverge within 20 ms, at any step).
+# order-3 controller sampled semi-implicitly at 1 ms (its explicit law at 1 ms diverges in the first
+# step), the reference and fault of Example 1. Issue 45: one b_max caps every backstepping step at
+# |z_i| / (b_max h), and with Example 1's gains (k = 10, q = 8, beta = 0.75) and b_max = 80 the law's
+# feedback exceeded that cap at every sample of every run: the FMU was a linear controller
+# v = -12.5 z_3. The semi-implicit cap binds where |z_i| < (q_i b_max h)^(1 / (2 - 2 beta)) (the q
+# term) or |z_i| > 1 / (k_i b_max h) (the k term): beta = 0.9 shrinks the first region to
+# (6 x 0.07)^5 = 0.013 (steps 1, 2) and (1 x 0.07)^5 = 2e-6 (step 3), k = 20, 20, 10 put the second
+# beyond 0.7, 0.7 and 1.4, so the paper's law acts in most samples of every step
+# (orchestrator/experiments/caps.py measures the share, docs/fixed-time-study/manipulator.md shows it).
+# b_max = 1.75 g3 (g3 = 1 / L = 40): the masters that delay every connection (libcosim, Ecos, jacobi:
+# z_(k+1) = z_k - (g3 / b_max) z_(k-1), stable for g3 / b_max < 1) stay stable with the law's own
+# transient too; at b_max = 50 and 60 they diverged within 0.2 s, at b_max = 1 / L = 40 within 20 ms.
 MANIPULATOR = Example(
     number=3,
     name="Manipulator (Dawson et al. 1994)",
@@ -93,9 +97,9 @@ MANIPULATOR = Example(
     reference=ReferenceParameters(amplitude=0.5, omega=1.0),
     actuator=ActuatorParameters(t_fault=10.0),
     controller=ControllerParameters(
-        k=(10, 10, 10), q=(8, 8, 8), a=(5, 2, 2), kappa=(2, 2, 2), rho=(2, 2, 2), rho_bar=(1, 1, 1),
-        alpha=1.5, beta=0.75, discretization=SEMI_IMPLICIT, sample_time=1e-3,
-        b_max=2.0 * max(input_gains(ManipulatorParameters())),
+        k=(20, 20, 10), q=(6, 6, 1), a=(5, 2, 2), kappa=(2, 2, 2), rho=(2, 2, 2), rho_bar=(1, 1, 1),
+        alpha=1.5, beta=0.9, discretization=SEMI_IMPLICIT, sample_time=1e-3,
+        b_max=1.75 * max(input_gains(ManipulatorParameters())),
     ),
     plant=ManipulatorParameters(),
     states=MANIPULATOR_STATES,

@@ -19,13 +19,18 @@ from typing import Any
 import numpy as np
 
 from controller.params import ControllerParameters
-from fmu_src.models.examples import EXAMPLE1, EXAMPLE2
+from fmu_src.models.examples import EXAMPLE1, EXAMPLE2, Example
+from fmu_src.models.plants import PendulumParameters
 
+from .caps import rows_cap_cell
 from .fixed_time_study import study_bounds
 
-__all__ = ["EXAMPLES", "Summary", "eq84", "eq84_known_part", "estimates", "nn_term", "recovery"]
+__all__ = ["EXAMPLES", "Summary", "eq84", "eq84_known_part", "eq84_terms", "estimates",
+           "nn_grid", "nn_term", "recovery"]
 
 Row = Mapping[str, Any]
+# the share of samples with the semi-implicit cap binding, per step (orchestrator/experiments/caps.py)
+CAP_COLUMN = "cap active, share of samples (step 1 / 2)"
 # (tables, answer)
 Summary = tuple[list[str], str]
 
@@ -69,7 +74,7 @@ def recovery(rows: Sequence[Row]) -> Summary:
     the median pre-fault band ``recovery_band`` and the median of the largest error after the fault
     over it (how far the fault pushes the error out of its band)."""
     header = ("scenario", "law", "runs", "ok", "back in band", "never back", "median recovery (s)",
-              "max recovery (s)", "median band", "median peak after fault / band")
+              "max recovery (s)", "median band", "median peak after fault / band", CAP_COLUMN)
     lines, parts = [], []
     groups = _groups(rows, lambda r: (str(r["scenario"]), _law(r)))
     for (scenario, law), runs in groups.items():
@@ -81,7 +86,7 @@ def recovery(rows: Sequence[Row]) -> Summary:
         band = _stat([value(r, "recovery_band") for r in ok], np.median)
         peak = _stat([value(r, "max_error_after_fault") / value(r, "recovery_band") for r in ok], np.median)
         lines.append((scenario, law, str(len(runs)), str(len(ok)), str(len(back)), str(never), _cell(median),
-                      _cell(largest), _cell(band), _cell(peak)))
+                      _cell(largest), _cell(band), _cell(peak), rows_cap_cell(runs)))
         parts.append(f"{scenario} {law}: {len(back)} of {len(runs)} runs back in band "
                      f"(median {_cell(median)} s, max {_cell(largest)} s), {never} never")
     return [_table(header, lines)], "; ".join(parts) + "."
@@ -92,14 +97,15 @@ def estimates(rows: Sequence[Row]) -> Summary:
     value and the largest |change over the last window| (``eta<i>_change``), and the runs that
     failed (their estimates are reported only as far as they ran)."""
     header = ("scenario", "law", "runs", "ok", "max eta_hat_1", "max eta_hat_2", "median final eta_hat_1",
-              "median final eta_hat_2", "max abs change eta_hat_1", "max abs change eta_hat_2")
+              "median final eta_hat_2", "max abs change eta_hat_1", "max abs change eta_hat_2", CAP_COLUMN)
     lines, parts = [], []
     for (scenario, law), runs in _groups(rows, lambda r: (str(r["scenario"]), _law(r))).items():
         ok = [r for r in runs if r["status"] == "ok"]
         cells = [_stat([value(r, f"eta{i}_max") for r in ok], np.max) for i in (1, 2)]
         cells += [_stat([value(r, f"eta{i}_final") for r in ok], np.median) for i in (1, 2)]
         cells += [_stat([abs(value(r, f"eta{i}_change")) for r in ok], np.max) for i in (1, 2)]
-        lines.append((scenario, law, str(len(runs)), str(len(ok)), *(_cell(c) for c in cells)))
+        lines.append((scenario, law, str(len(runs)), str(len(ok)), *(_cell(c) for c in cells),
+                      rows_cap_cell(runs)))
         parts.append(f"{scenario} {law} ({len(ok)} runs ok): eta_hat_1 <= {_cell(cells[0])}, eta_hat_2 <= "
                      f"{_cell(cells[1])}, change over the last second <= {_cell(cells[4])} and "
                      f"{_cell(cells[5])}")
@@ -118,7 +124,7 @@ def nn_term(rows: Sequence[Row]) -> Summary:
     |change| of the settling time (off minus on) where both settle, and the median ratio of the
     integral of v^2 and the median and largest ratio of the MAE (off over on)."""
     header = ("scenario", "NN term", "runs", "ok", "settled", "median settling (s)", "max settling (s)",
-              "median peak abs(v)", "median int v^2 dt", "median MAE")
+              "median peak abs(v)", "median int v^2 dt", "median MAE", CAP_COLUMN)
     lines = []
     def switch(r: Row) -> tuple[str, str]:
         return str(r["scenario"]), "on" if value(r, "controller.nn_term") else "off"
@@ -130,7 +136,7 @@ def nn_term(rows: Sequence[Row]) -> Summary:
         lines.append((scenario, on, str(len(runs)), str(ok), str(len(settled)),
                       _cell(_stat(times, np.median)), _cell(_stat(times, np.max)),
                       *(_cell(_stat([value(r, m) for r in settled], np.median), ".4g")
-                        for m in ("peak_v", "energy_v", "mae"))))
+                        for m in ("peak_v", "energy_v", "mae")), rows_cap_cell(runs)))
     paired_header = ("scenario", "initial states", "settle with both", "only with the term", "only without",
                      "median settling change (s)", "max abs settling change (s)", "median ratio int v^2 dt",
                      "median ratio MAE", "max ratio MAE")
@@ -166,34 +172,127 @@ EXAMPLES = {"example1_smooth": ("Example 1", EXAMPLE1),
 
 
 def eq84_known_part(params: ControllerParameters) -> float:
-    """The part of x_0 = b_0 + c_0 (eq. 79, 77) that the paper gives numbers for: sum a_j^2 / 2 +
+    """The part of x_0 = b_0 + c_0 (eq. 79, 77) fixed by the design constants alone: sum a_j^2 / 2 +
     (1 - alpha) alpha^(1 - alpha) + (1 - beta) beta^(1 - beta). Every other term of b_0 and c_0 is
     a square, a bound of a non-negative quantity or a constant of Lemma 6 times a positive design
-    constant (eq. 30-33, 62-63, 77), so x_0 is at least this."""
+    constant (eq. 30-33, 62-63, 77), so x_0 is at least this (:func:`eq84_terms` adds the plant's)."""
     alpha, beta = params.alpha, params.beta
     return (sum(a * a / 2.0 for a in params.a) + (1.0 - alpha) * alpha ** (1.0 - alpha)
             + (1.0 - beta) * beta ** (1.0 - beta))
 
 
+def eq84_terms(example: Example) -> tuple[float, float, float]:
+    """(design part, b_m beta_bar^2 / 2, sum d_j*^2 / 2) of x_0 that the paper gives numbers for:
+    :func:`eq84_known_part`; beta_bar = max(m_r b_r, m_l b_l) of eq. (7) (0.72 for the examples'
+    dead-zone) with b_m = 1 as the study's T_m; the disturbance bounds d_j* of Assumption 4 from the
+    plant's own disturbances (eq. 99: 0.2 sin t and 0.3 cos t give d_1* >= 0.2, d_2* >= 0.3; Example
+    1, eq. 85, has none, so d_j* may be any positive number: 0 in the bound)."""
+    act = example.actuator
+    beta_bar = max(act.m_r * act.b_r, act.m_l * act.b_l)
+    plant = example.plant
+    disturbances = (plant.d1, plant.d2) if isinstance(plant, PendulumParameters) else ()
+    return (eq84_known_part(example.controller), 1.0 * beta_bar * beta_bar / 2.0,
+            sum(d * d / 2.0 for d in disturbances))
+
+
 def eq84(rows: Sequence[Row]) -> Summary:
     """Eq. (84), |y - yd| <= 2 (x_0 / ((1 - Phi) c))^(1 / (2 alpha)), from what the paper gives: per
-    example, the known part of x_0 (:func:`eq84_known_part`), c of eq. (77) as the study computes it
-    (:func:`~orchestrator.experiments.fixed_time_study.study_bounds`: b_m = m_bar = 1, Phi = 0.5), the
-    lower bound of the right-hand side at Phi = 0.5 and for any Phi (1 - Phi < 1, c <= a_bar), and
-    the largest final |y - yd| of the full law's settled runs in ``rows`` (the NN term campaign)."""
-    header = ("example", "known part of x_0", "c (eq. 77)", "a_bar", "bound at least, Phi = 0.5",
+    example, the known terms of x_0 (:func:`eq84_terms`) and their sum, c of eq. (77) as the study
+    computes it (:func:`~orchestrator.experiments.fixed_time_study.study_bounds`: b_m = m_bar = 1,
+    Phi = 0.5), the lower bound of the right-hand side at Phi = 0.5 and for any Phi (1 - Phi < 1,
+    c <= a_bar), and the largest final |y - yd| of the full law's settled runs in ``rows`` (the NN
+    term campaign)."""
+    header = ("example", "a_j^2 / 2 + alpha, beta terms", "b_m beta_bar^2 / 2 (eq. 7)",
+              "sum d_j*^2 / 2 (eq. 99)", "known part of x_0", "c (eq. 77)", "a_bar",
+              "bound at least, Phi = 0.5",
               "bound at least, any Phi", "largest final abs(y - yd), settled runs")
     lines, parts = [], []
     for scenario, (name, example) in EXAMPLES.items():
         params = example.controller
-        known, c = eq84_known_part(params), study_bounds(params).constant("c")
+        design, fault, disturbance = eq84_terms(example)
+        known, c = design + fault + disturbance, study_bounds(params).constant("c")
         at_half = 2.0 * (known / (0.5 * c)) ** (1.0 / (2.0 * params.alpha))
         any_phi = 2.0 * (known / params.a_bar) ** (1.0 / (2.0 * params.alpha))
         final = _stat([value(r, "final_error") for r in rows if r["scenario"] == scenario
                        and value(r, "controller.nn_term") and _settled(r)], np.max)
-        lines.append((name, _cell(known, ".4g"), _cell(c, ".4g"), _cell(params.a_bar, ".4g"),
+        lines.append((name, _cell(design, ".4g"), _cell(fault, ".4g"), _cell(disturbance, ".4g"),
+                      _cell(known, ".4g"), _cell(c, ".4g"), _cell(params.a_bar, ".4g"),
                       _cell(at_half, ".3g"), _cell(any_phi, ".3g"), _cell(final, ".3g")))
         parts.append(f"{scenario}: the bound is at least {_cell(any_phi)} for any Phi ({_cell(at_half)} at "
                      f"the study's Phi), the runs end within {_cell(final)}")
     return [_table(header, lines)], ("Not evaluable: x_0 needs constants the paper never gives; its known "
                                      "part alone makes the bound vacuous. " + "; ".join(parts) + ".")
+
+
+NN_GRID = ("controller.a1", "controller.kappa1", "controller.q1")
+EFFECT = 0.05  # a relative change of the MAE below this is no measurable effect
+
+
+def _sampling(scenario: str) -> str:
+    return "semi-implicit" if scenario.endswith("_smooth") else "explicit"
+
+
+def nn_grid(rows: Sequence[Row]) -> Summary:
+    """The NN term over a grid of (a, kappa, q) (``ssp/campaigns/nn_grid.toml``): per scenario and
+    law, the grid points paired by (a, kappa, q), the term on against off. A point where both runs
+    settle (end ok, inside the band at the end) is *helped* when the term cuts the MAE by more than
+    :data:`EFFECT` (MAE on < (1 - EFFECT) MAE off), *hurt* when it raises it by more, else *no
+    effect*; *destabilised* when only the run without the term settles (the one with it diverges or
+    runs away inside the horizon), *stabilised* when only the run with it does. Beside the counts:
+    the point with the largest cut of the MAE (its ratio on / off and its settling times off -> on)
+    and the share of samples the semi-implicit cap bound with the term on."""
+    header = ("scenario", "sampling", "law", "points", "term helps", "no effect", "term hurts",
+              "destabilised by the term", "stabilised by the term", "neither settles",
+              "largest MAE cut: MAE on / off at (a, kappa, q)", "settling off -> on there (s)", CAP_COLUMN)
+    lines, parts = [], []
+    totals = dict.fromkeys(("points", "helps", "none", "hurts", "destabilised", "stabilised", "fail"), 0)
+    for (scenario, law), runs in _groups(rows, lambda r: (str(r["scenario"]), _law(r))).items():
+        points: dict[tuple[float, ...], dict[bool, Row]] = {}
+        for r in runs:
+            key = tuple(value(r, p) for p in NN_GRID)
+            points.setdefault(key, {})[bool(value(r, "controller.nn_term"))] = r
+        counts = dict.fromkeys(totals, 0)
+        best: tuple[float, tuple[float, ...]] | None = None
+        for key, pair in points.items():
+            on, off = pair.get(True), pair.get(False)
+            if on is None or off is None:
+                continue
+            counts["points"] += 1
+            ok_on, ok_off = _settled(on), _settled(off)
+            if not ok_on and not ok_off:
+                counts["fail"] += 1
+            elif not ok_on:
+                counts["destabilised"] += 1
+            elif not ok_off:
+                counts["stabilised"] += 1
+            else:
+                ratio = value(on, "mae") / value(off, "mae")
+                counts["helps" if ratio < 1 - EFFECT else "hurts" if ratio > 1 + EFFECT else "none"] += 1
+                if best is None or ratio < best[0]:
+                    best = (ratio, key)
+        where, settling = "-", "-"
+        if best is not None:
+            ratio, key = best
+            on, off = points[key][True], points[key][False]
+            where = f"{ratio:.3g} at ({key[0]:g}, {key[1]:g}, {key[2]:g})"
+            settling = f"{_cell(value(off, 'settling_time'))} -> {_cell(value(on, 'settling_time'))}"
+        lines.append((scenario, _sampling(scenario), law, str(counts["points"]), str(counts["helps"]),
+                      str(counts["none"]), str(counts["hurts"]), str(counts["destabilised"]),
+                      str(counts["stabilised"]), str(counts["fail"]), where, settling,
+                      rows_cap_cell([r for r in runs if value(r, "controller.nn_term")])))
+        for name in totals:
+            totals[name] += counts[name]
+    a, kappa, q = ({value(r, p) for r in rows} for p in NN_GRID)
+    grid = (f"a in {_values(a)}, kappa in {_values(kappa)}, q in {_values(q)} (the same for both steps; "
+            "k and rho as the scenario ships them)")
+    parts.append(f"Scope: {grid}, both laws, from each scenario's initial state, 3 s, no fault; "
+                 f"of {totals['points']} (scenario, law, a, kappa, q) points the term cuts the MAE by "
+                 f"more than {EFFECT:.0%} at {totals['helps']}, has no effect at {totals['none']}, "
+                 f"raises it at {totals['hurts']}, destabilises the sampled loop at "
+                 f"{totals['destabilised']} (only the run without it settles), stabilises it at "
+                 f"{totals['stabilised']}, and neither run settles at {totals['fail']}")
+    return [_table(header, lines)], "; ".join(parts) + "."
+
+
+def _values(values: set[float]) -> str:
+    return "{" + ", ".join(f"{v:g}" for v in sorted(values)) + "}"

@@ -31,7 +31,7 @@ from collections.abc import Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -44,6 +44,7 @@ from fmu_src.models.reference import reference_signal
 from ..campaign import Design, read_design, read_table, sweep
 from ..campaign.report import colour_norm
 from .campaigns import BAND, TRACKING
+from .caps import CAP_NAMES, LIMIT_NAME, cap_cell, metrics_for, scenario_sampling
 from .fixed_time_bound import FixedTimeBound, fixed_time_bound
 from .metrics import settling_time
 
@@ -89,6 +90,8 @@ class Cell:
     settling: float
     peak_v: float
     time_reached: float
+    caps: tuple[float, ...] = ()  # per step i, the share of samples with the semi-implicit cap binding
+    limit: float = math.nan  # the share of samples with |v| > u_max (behind an actuator limit)
 
 
 def _outcome(status: str, settling: float) -> str:
@@ -114,9 +117,15 @@ def cells_from_rows(rows: Sequence[Mapping[str, Any]]) -> list[Cell]:
                 s,
                 math.nan if peak is None else float(peak),
                 math.nan if reached is None else float(reached),
+                tuple(_float(r.get(name)) for name in CAP_NAMES),
+                _float(r.get(LIMIT_NAME)),
             )
         )
     return out
+
+
+def _float(value: object) -> float:
+    return math.nan if value is None else float(cast("float | str", value))
 
 
 def _example_without_fault(example: Example) -> Example:
@@ -217,6 +226,21 @@ def _g(value: float, digits: int = 3) -> str:
 
 
 HOLDS_HEADER = "max settling <= T_m (settled runs only)"
+CAP_HEADER = "cap active, share of samples (step 1 / 2 / ...)"
+
+
+def caps_cell(cells: Sequence[Cell]) -> str:
+    """The row's cap column: per step i the mean over its runs of the share of samples with the
+    semi-implicit cap binding (:func:`~orchestrator.experiments.caps.cap_cell`); behind an actuator
+    limit, the mean share of samples with abs(v) > u_max; ``-`` where neither exists."""
+    limits = [c.limit for c in cells if math.isfinite(c.limit)]
+    if limits:
+        return f"limit abs(v) > u_max: {float(np.mean(limits)):.3g}"
+    steps = max((len(c.caps) for c in cells), default=0)
+    fractions = [[c.caps[i] for c in cells if i < len(c.caps)] for i in range(steps)]
+    while fractions and not any(math.isfinite(f) for f in fractions[-1]):
+        fractions.pop()  # the steps beyond the plant's order
+    return cap_cell(fractions)
 
 
 def holds_cell(s: Summary, bound: FixedTimeBound | None) -> str:
@@ -233,11 +257,12 @@ def study_table(
     configurations: Mapping[tuple[int, str, str], Sequence[Cell]], bounds: Mapping[int, FixedTimeBound]
 ) -> str:
     """The Markdown table: per (example, law, sampling) the counts, settling median / max, peak |v|
-    median / max and, for the fixed-time law, T_m of eq. (83) (Phi = 0.5) beside the worst time."""
+    median / max, for the fixed-time law T_m of eq. (83) (Phi = 0.5) beside the worst time, and how
+    often the semi-implicit cap (or an actuator limit) replaced the law (:func:`caps_cell`)."""
     lines = [
         "| example | law | sampling | runs | diverged | never settled | settling median / max (s) "
-        f"| peak abs(v) median / max | T_m (83), Phi = 0.5 (s) | {HOLDS_HEADER} |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        f"| peak abs(v) median / max | T_m (83), Phi = 0.5 (s) | {HOLDS_HEADER} | {CAP_HEADER} |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for (number, law, sampling), cells in configurations.items():
         s = summarize(cells)
@@ -247,7 +272,7 @@ def study_table(
         lines.append(
             f"| {number} | {law} | {sampling} | {s.runs} | {s.diverged} | {s.never} | "
             f"{_g(s.settling_median)} / {_g(s.settling_max)} | {_g(s.peak_v_median)} / {_g(s.peak_v_max)} | "
-            f"{t_m} | {holds} |"
+            f"{t_m} | {holds} | {caps_cell(cells)} |"
         )
     return "\n".join(lines)
 
@@ -414,11 +439,13 @@ def _campaign(
     designs: Sequence[Path], build: Path, out: Path, workers: int, states: int
 ) -> list[dict[str, Any]]:
     rows: list[dict[str, Any]] = []
-    archives = [build / "ssp" / f"{name}.ssp" for name in SCENARIOS.values()]
     for path in designs:
         design = on_grid(read_design(path), states)
-        summary = sweep(archives, design, out / path.stem, metrics=TRACKING, workers=workers, force=True)
-        rows += read_table(summary.parquet)[0]
+        for name in SCENARIOS.values():  # one sweep per scenario: its cap b_max h (caps.metrics_for)
+            summary = sweep([build / "ssp" / f"{name}.ssp"], design, out / path.stem / name,
+                            metrics=metrics_for(TRACKING, scenario_sampling(name)), workers=workers,
+                            force=True)
+            rows += read_table(summary.parquet)[0]
     return rows
 
 
@@ -489,7 +516,8 @@ def run_study(
     out.mkdir(parents=True, exist_ok=True)
     designs = [STUDY_DESIGN, SATURATION_DESIGN]
     if report_only:
-        rows = [r for d in designs for r in read_table(out / d.stem / "runs.parquet")[0]]
+        rows = [r for d in designs for name in SCENARIOS.values()
+                for r in read_table(out / d.stem / name / "runs.parquet")[0]]
     else:
         rows = _campaign(designs, build, out, workers, states)
     sampled_time = time.perf_counter() - started
@@ -604,8 +632,8 @@ def run_map(name: str, out: Path, docs: Path | None, build: Path, workers: int, 
         rows = read_table(out / name / "runs.parquet")[0]
     else:
         design = on_grid(read_design(spec.design), states)
-        summary = sweep([build / "ssp" / f"{name}.ssp"], design, out / name, metrics=TRACKING,
-                        workers=workers, force=True)
+        summary = sweep([build / "ssp" / f"{name}.ssp"], design, out / name,
+                        metrics=metrics_for(TRACKING, scenario_sampling(name)), workers=workers, force=True)
         rows = read_table(summary.parquet)[0]
         timing_path.write_text(json.dumps({"wall": time.perf_counter() - started, "workers": workers}),
                                encoding="utf-8")
