@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import zipfile
+import zlib
 from collections.abc import Iterable, Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass
@@ -161,7 +162,7 @@ def load_problems(system: System, stack: ExitStack) -> list[str]:
             fallback = stack.enter_context(TemporaryDirectory(prefix="orchestrate-load-")) + "/fmu"
             try:
                 folder = unpack_fmu(comp.fmu, fallback)
-            except (zipfile.BadZipFile, ValueError, OSError):  # a damaged archive: its own finding already
+            except (zipfile.BadZipFile, zlib.error, ValueError, OSError):  # damaged: already a finding
                 reasons[comp.fmu] = ""
                 continue
             try:

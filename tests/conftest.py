@@ -5,8 +5,11 @@ per worker) and shared read-only."""
 from __future__ import annotations
 
 import shutil
+import signal
 import subprocess
 import sys
+import warnings
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -53,3 +56,22 @@ def test_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """The small test FMUs of tests/fmus/ (Source, Gain, Integrator), name -> path."""
     folder = tmp_path_factory.mktemp("test_fmus")
     return {n: build_test_fmu(n, folder) for n in ("Source", "Gain", "Integrator")}
+
+
+@pytest.fixture(autouse=True)
+def _signals_left_as_found(request: pytest.FixtureRequest) -> Iterator[None]:
+    """A test that leaves SIGINT or SIGTERM blocked in the test process makes every command a
+    later test starts inherit the block (the launcher hands back only what it blocked itself):
+    Ctrl-C tests then time out far from the cause. The mask is put back after each test, and the
+    test that changed it is named in a warning and in results/signal-mask-leaks.txt."""
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    yield
+    after = signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    leaked = {s for s in (signal.SIGINT, signal.SIGTERM) if s in after and s not in before}
+    if leaked:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
+        line = f"{request.node.nodeid}: left {', '.join(sorted(s.name for s in leaked))} blocked"
+        (REPO / "results").mkdir(exist_ok=True)
+        with (REPO / "results" / "signal-mask-leaks.txt").open("a") as log:
+            log.write(line + "\n")
+        warnings.warn(line, stacklevel=1)
