@@ -99,7 +99,7 @@ def test_the_cell_says_when_the_law_never_acted() -> None:
 
 def test_the_scenarios_sampling_is_their_parameter_files() -> None:
     """The shipped scenarios: example1_smooth at 1 ms with b_max 3, pendulum_smooth at 0.5 ms with
-    b_max 1, the manipulator at 1 ms with b_max 70 (1.75 g3, issue 45), example1 explicit."""
+    b_max 1, the manipulator at 1 ms with b_max 70 (issue 45), example1 explicit."""
     assert scenario_sampling("example1_smooth") == Sampling(SEMI_IMPLICIT, 1e-3, 3.0)
     assert scenario_sampling("pendulum_smooth") == Sampling(SEMI_IMPLICIT, 5e-4, 1.0)
     assert scenario_sampling("manipulator") == Sampling(SEMI_IMPLICIT, 1e-3, 70.0)
