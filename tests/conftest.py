@@ -60,17 +60,25 @@ def test_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 @pytest.fixture(autouse=True)
 def _signals_left_as_found(request: pytest.FixtureRequest) -> Iterator[None]:
-    """A test that leaves SIGINT or SIGTERM blocked in the test process makes every command a
-    later test starts inherit the block (the launcher hands back only what it blocked itself):
-    Ctrl-C tests then time out far from the cause. The mask is put back after each test, and the
-    test that changed it is named in a warning and in results/signal-mask-leaks.txt."""
+    """A test that leaves SIGINT or SIGTERM blocked or ignored in the test process makes every
+    command a later test starts inherit it (the launcher hands back only what it blocked itself;
+    an ignored signal stays ignored across exec): Ctrl-C tests then time out far from the cause.
+    Mask and handlers are put back after each test, and the test that changed them is named in a
+    warning and in results/signal-mask-leaks.txt."""
+    watched = (signal.SIGINT, signal.SIGTERM)
     before = signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    handlers = {s: signal.getsignal(s) for s in watched}
     yield
     after = signal.pthread_sigmask(signal.SIG_BLOCK, [])
-    leaked = {s for s in (signal.SIGINT, signal.SIGTERM) if s in after and s not in before}
-    if leaked:
+    changed = [f"{s.name} blocked" for s in watched if s in after and s not in before]
+    changed += [f"{s.name} handler {signal.getsignal(s)!r}" for s in watched
+                if signal.getsignal(s) != handlers[s]]
+    if changed:
         signal.pthread_sigmask(signal.SIG_SETMASK, before)
-        line = f"{request.node.nodeid}: left {', '.join(sorted(s.name for s in leaked))} blocked"
+        for s, handler in handlers.items():
+            if handler is not None:
+                signal.signal(s, handler)
+        line = f"{request.node.nodeid}: left {', '.join(changed)}"
         (REPO / "results").mkdir(exist_ok=True)
         with (REPO / "results" / "signal-mask-leaks.txt").open("a") as log:
             log.write(line + "\n")
