@@ -19,6 +19,12 @@ from orchestrator.cli import main
 
 REPO = Path(__file__).resolve().parent.parent
 
+# A suite started as a background job of a non-interactive shell (`make test &`, nohup) has SIGINT
+# ignored, and an ignored signal stays ignored across exec: every command the Ctrl-C tests start
+# would then ignore their SIGINT and run to its end. Handled here, it is the default again in them.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
 
 @pytest.fixture(scope="session")
 def built(tmp_path_factory: pytest.TempPathFactory) -> Path:
