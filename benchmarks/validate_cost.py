@@ -35,24 +35,12 @@ from collections.abc import Sequence
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO / "tests"))
+from ssd_text import feedthrough  # noqa: E402  (the tests' frame of a hand-written SSD)
+
 REFERENCE_FMUS = REPO.parent / "shared" / "tools" / "reference-fmus" / "2.0"
 LIBCOSIM_DEMO = REPO / "tests" / "ssp_conformance" / "libcosim" / "ssp" / "demo"
-SSD = """<?xml version="1.0" encoding="UTF-8"?>
-<ssd:SystemStructureDescription version="1.0" name="wide"
-    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
-    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon">
-  <ssd:System name="wide">
-    <ssd:Elements>
-      <ssd:Component name="f" source="resources/Wide.fmu">
-        <ssd:Connectors>
-          <ssd:Connector name="Float64_continuous_output" kind="output"><ssc:Real/></ssd:Connector>
-        </ssd:Connectors>
-      </ssd:Component>
-    </ssd:Elements>
-  </ssd:System>
-  <ssd:DefaultExperiment startTime="0" stopTime="1"/>
-</ssd:SystemStructureDescription>
-"""
+SSD = feedthrough("wide", 1, "resources/Wide.fmu")
 
 
 def cpu(args: Sequence[str], before: Path | None = None) -> float:

@@ -20,6 +20,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
+from ssd_text import feedthrough
 
 from orchestrator.validate import validate
 
@@ -31,22 +32,7 @@ pytestmark = [pytest.mark.system,
                                  or not (REFERENCE_FMUS / "Feedthrough.fmu").is_file(),
                                  reason="needs Linux, gcc and the Modelica Reference FMUs")]
 
-SSD = """<?xml version="1.0" encoding="UTF-8"?>
-<ssd:SystemStructureDescription version="1.0" name="broken"
-    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
-    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon">
-  <ssd:System name="broken">
-    <ssd:Elements>
-      <ssd:Component name="f" source="resources/Feedthrough.fmu">
-        <ssd:Connectors>
-          <ssd:Connector name="Float64_continuous_output" kind="output"><ssc:Real/></ssd:Connector>
-        </ssd:Connectors>
-      </ssd:Component>
-    </ssd:Elements>
-  </ssd:System>
-  <ssd:DefaultExperiment startTime="0" stopTime="0.02"/>
-</ssd:SystemStructureDescription>
-"""
+SSD = feedthrough("broken", 0.02)
 
 
 def compile_library(folder: Path, source: str, *flags: str, compiler: str = "gcc") -> Path:

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from ssd_text import component, connector, ssd
 from ssp_conformance.conformance import HERE, libcosim_series
 
 import orchestrator
@@ -27,32 +28,12 @@ REFERENCE_FMUS = Path(__file__).resolve().parents[2] / "shared" / "tools" / "ref
 pytestmark = [pytest.mark.system, pytest.mark.filterwarnings("ignore::orchestrator.errors.ScenarioWarning"),
               pytest.mark.filterwarnings("ignore::orchestrator.EngineNote")]
 
-SSD = """<?xml version="1.0" encoding="UTF-8"?>
-<ssd:SystemStructureDescription version="1.0" name="wrapper"
-    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
-    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon">
-  <ssd:System name="wrapper">
-    <ssd:Elements>
-      <ssd:Component name="vdp" source="resources/VanDerPol.fmu">
-        <ssd:Connectors>
-          <ssd:Connector name="x0" kind="output"><ssc:Real/></ssd:Connector>{extra}
-        </ssd:Connectors>
-      </ssd:Component>
-      <ssd:Component name="f" source="resources/Feedthrough.fmu">
-        <ssd:Connectors>
-          <ssd:Connector name="Float64_continuous_input" kind="input"><ssc:Real/></ssd:Connector>
-          <ssd:Connector name="Float64_continuous_output" kind="output"><ssc:Real/></ssd:Connector>
-        </ssd:Connectors>
-      </ssd:Component>
-    </ssd:Elements>
-    <ssd:Connections>
-      <ssd:Connection startElement="vdp" startConnector="x0" endElement="f"
-          endConnector="Float64_continuous_input"/>{connection}
-    </ssd:Connections>
-  </ssd:System>
-  <ssd:DefaultExperiment startTime="0" stopTime="1"/>
-</ssd:SystemStructureDescription>
-"""
+SSD = ssd("wrapper", component("vdp", "resources/VanDerPol.fmu", connector("x0", "output") + "{extra}")
+          + component("f", "resources/Feedthrough.fmu",
+                      connector("Float64_continuous_input", "input") + "\n"
+                      + connector("Float64_continuous_output", "output")),
+          1, '      <ssd:Connection startElement="vdp" startConnector="x0" endElement="f"\n'
+             '          endConnector="Float64_continuous_input"/>{connection}')
 WRAPPER = '\n          <ssd:Connector name="wrapper.k" kind="parameter"><ssc:Real/></ssd:Connector>'
 
 
