@@ -18,9 +18,9 @@
 
    Why compiled: the law costs about 1.5 us per RK4 stage in Python, four stages per communication
    step; a controller FMU spends its step there. What depends on the held inputs alone (|x1|^gamma,
-   z1 and its powers, X_1's input sums) is computed once per call and shared by the stages, as
-   controller/order2.py does in Python; a power computed early keeps its error until the point where
-   the reference computes it.
+   z1 and its powers, X_1's input sums) is computed once per call and shared by the stages (as
+   controller/order2.py did in Python until issue 47); a power computed early keeps its error until
+   the point where the reference computes it.
 
    Functions (constants: bytes packed by controller.native.law_constants, n = 1..4; state: the tuple
    (r, eta_1..eta_n); inputs: the tuple (x_1..x_n, yd, yd', ..., yd^(n))):

@@ -1,12 +1,15 @@
 # SPDX-License-Identifier: BSD-2-Clause
-"""n = 2 stays the FMU of before issue 35, bit for bit, on every shipped scenario of the paper's examples.
+"""The n = 2 controller FMU gives the Python reference law's bits on every shipped scenario of the
+paper's examples.
 
-Before issue 35 the FixedTimeController FMU ran controller.order2.Order2Controller (unchanged since) in
-Python; it now runs the compiled law (controller/_law.c). Each scenario runs in full with the built
-FMUs, then the controller's inputs recorded at every communication point are replayed through
-Order2Controller as the old FMU stepped it (its output's law reused as the first RK4 stage): every
-output of the controller at every step (v, z1, z2, zeta1, eta1_hat, eta2_hat, r) has the same bits. The
-rest of each loop (reference, actuator, plant FMUs) is unchanged, so each whole run is the old one."""
+The FixedTimeController FMU runs the compiled law (controller/_law.c). Each scenario runs in full with
+the built FMUs, then the controller's inputs recorded at every communication point are replayed
+through the Python reference (controller.native.ReferenceLaw: controller.law and
+controller.stepping.rk4_step) as the FMU steps it (its output's law reused as the first RK4 stage):
+every output of the controller at every step (v, z1, z2, zeta1, eta1_hat, eta2_hat, r) has the same
+bits. Until issue 47 the replay ran controller/order2.py, the scalar n = 2 path the FMU ran before
+issue 35; that path was the general reference's operations in the same order (bit-equal on random
+gains, states and runs), so the reference is the same record."""
 
 from __future__ import annotations
 
@@ -19,7 +22,7 @@ import pytest
 from lxml import etree
 
 import orchestrator
-from controller.order2 import Order2Controller
+from controller.native import ReferenceLaw
 from controller.params import ControllerParameters
 
 pytestmark = pytest.mark.system
@@ -48,19 +51,20 @@ def bits(column: np.ndarray) -> bytes:
 
 
 @pytest.mark.parametrize("name", SCENARIOS)
-def test_controller_outputs_are_the_previous_fmus_bits(built: Path, name: str) -> None:
+def test_controller_outputs_are_the_reference_laws_bits(built: Path, name: str) -> None:
     archive = built / "ssp" / f"{name}.ssp"
     rows = orchestrator.run(archive).rows
-    c = Order2Controller(controller_parameters(archive))
+    params = controller_parameters(archive)
+    law = ReferenceLaw(params)
     inputs = np.stack([rows[f"controller.{n}"] for n in ("x1", "x2", "yd", "yd_dot", "yd_ddot")], axis=1)
     h = float(rows["time"][1] - rows["time"][0])
     expected = np.empty((len(rows), 7))
-    for k, values in enumerate(inputs.tolist()):
-        stage = c.stage(*values)
-        v, z1, z2, zeta1 = stage[0][:4]
-        expected[k] = (v, z1, z2, zeta1, c.eta1, c.eta2, c.r)
+    state: tuple[float, ...] = (params.r0, *params.eta0)  # (r, eta_hat_1, eta_hat_2)
+    for k, values in enumerate(map(tuple, inputs.tolist())):
+        stage = law.evaluate(state, values)
+        expected[k] = (*stage[:4], state[1], state[2], state[0])
         step = float(rows["time"][k + 1] - rows["time"][k]) if k + 1 < len(rows) else h
-        c.advance(*values, step, stage)
+        state = law.advance(step, stage, state, values)
     for j, output in enumerate(("v", "z1", "z2", "zeta1", "eta1_hat", "eta2_hat", "r")):
         got = rows[f"controller.{output}"]
         if bits(got) != bits(expected[:, j]):

@@ -3,8 +3,7 @@
 reference (controller.law, controller.stepping.rk4_step through controller.native.ReferenceLaw), a
 second implementation of the same arithmetic: the same bits of every result and the same exception
 and message, on random gains of every order 1..4 (both laws, both discretizations, any number of
-RBF neurons), random states and inputs from tiny to overflowing; and the n = 2 law the controller
-FMU ran before issue 35 (controller.order2), which the compiled law must repeat bit for bit."""
+RBF neurons), random states and inputs from tiny to overflowing."""
 
 from __future__ import annotations
 
@@ -20,7 +19,6 @@ from hypothesis import strategies as st
 
 from controller import native
 from controller.law import InputError
-from controller.order2 import Order2Controller
 from controller.params import (
     DEFAULT_CENTERS,
     EXPLICIT,
@@ -144,27 +142,6 @@ def test_many_steps_equal_the_library_controller(compiled, params, seed, substep
         state = law.advance(1e-3, stage, state, (*x, *yd))
         assert bits(state) == bits(tuple(library.state))
     assert all(math.isfinite(v) for v in state)
-
-
-@settings(max_examples=300, deadline=None)
-@given(params=parameters(n=2), seed=st.integers(0, 2**32 - 1))
-def test_order_two_is_the_previous_fmus_law_bit_for_bit(compiled, params, seed) -> None:
-    """The n = 2 controller FMU ran controller.order2 before issue 35: the compiled law gives its
-    outputs and states, bit for bit (so every scenario runs as before)."""
-    import random
-
-    rng = random.Random(seed)
-    law, before = native.CompiledLaw(params), Order2Controller(params)
-    state = tuple(before.state)
-    for _ in range(50):
-        x1, x2, yd, yd1, yd2 = inputs = tuple(rng.uniform(-3, 3) for _ in range(5))
-        stage = law.evaluate(state, inputs)
-        old = before.stage(x1, x2, yd, yd1, yd2)
-        v, z1, z2, zeta1, ptp1, ptp2, dr, deta1, deta2 = old[0]
-        assert bits(stage) == bits((v, z1, z2, zeta1, v, ptp1, ptp2, dr, deta1, deta2))
-        state = law.advance(1e-3, stage, state, inputs)
-        before.advance(x1, x2, yd, yd1, yd2, 1e-3, old)
-        assert bits(state) == bits(tuple(before.state))
 
 
 def test_inputs_that_do_not_fit_the_order_are_refused(compiled) -> None:
