@@ -59,7 +59,7 @@ $(ALT_STAMP): constraints.txt
 # simulations of the tests, the study and the research pages), as every FMU carries them: the same
 # bits as the Python transcriptions (tests/test_fmath.py), about 10 times faster.
 FMATH := controller/_fmath.abi3.so
-$(FMATH): $(STAMP) controller/_fmath.c controller/fmath.h
+$(FMATH): $(STAMP) controller/_fmath.c controller/fmath.h controller/fmath_pow.h
 	$(PY) -m fmu_src.toolchain --in-place controller._fmath
 
 ## build: the nine FMUs (each with its own Python runtime for linux64 and, where mingw-w64 and

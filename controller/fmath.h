@@ -178,19 +178,17 @@ static const double ftc_PIo2[5] = {
   1.27065575308067607349e-29, /* 0x39F01B83, 0x80000000 */
 };
 
-static int ftc_rem_pio2_large(double x, double *y0, double *y1)
-{
-    /* caller part (musl __rem_pio2, large-argument tail) */
-    uint64_t ui = ftc_bits(x);
-    double tx[3];
-    int sign = (int)(ui >> 63);
-    uint32_t ix = (uint32_t)(ui >> 32) & 0x7fffffff;
-    int nx, e0;
-    /* k_rem_pio2 locals; jk = jp = 4 for prec = 1 */
-    const int32_t jk = 4, jp = 4;
-    int32_t jz, jx, jv, carry, n, iq[20], i, j, k, m, q0, ih;
-    double z, fw, f[20], fq[20] = {0}, q[20]; /* fq zeroed: gcc cannot see jz >= 0 */
+/* Payne-Hanek reduction for large |x| (musl __rem_pio2_large.c, fdlibm k_rem_pio2.c, prec = 1, with
+   the caller's part of __rem_pio2.c), cut at musl's own comments into the steps below, each the
+   same statements in the same order (fmath.py's _rem_pio2_large is cut alike). */
 
+/* x's 24-bit digits tx[0..nx-1] (nx returned; the first non-zero) and their exponent *e0 */
+static int32_t ftc_rem_pio2_digits(double x, double tx[3], int32_t *e0)
+{
+    uint64_t ui = ftc_bits(x);
+    uint32_t ix = (uint32_t)(ui >> 32) & 0x7fffffff;
+    double z;
+    int32_t i;
     /* set z = scalbn(|x|,-ilogb(x)+23) */
     ui &= (uint64_t)-1 >> 12;
     ui |= (uint64_t)(0x3ff + 23) << 52;
@@ -203,31 +201,56 @@ static int ftc_rem_pio2_large(double x, double *y0, double *y1)
     /* skip zero terms, first term is non-zero */
     while (tx[i] == 0.0)
         i--;
-    nx = i + 1;
-    e0 = (int)(ix >> 20) - (0x3ff + 23);
+    *e0 = (int32_t)(ix >> 20) - (0x3ff + 23);
+    return i + 1;
+}
 
-    /* __rem_pio2_large(tx, ty, e0, nx, 1) */
-    /* determine jx,jv,q0, note that 3>q0 */
-    jx = nx - 1;
-    jv = (e0 - 3) / 24;  if (jv < 0) jv = 0;
-    q0 = e0 - 24 * (jv + 1);
-
-    /* set up f[0] to f[jx+jk] where f[jx+jk] = ipio2[jv+jk] */
-    j = jv - jx; m = jx + jk;
-    for (i = 0; i <= m; i++, j++) {
-        f[i] = j < 0 ? 0.0 : (double)ftc_ipio2[j];
-    }
-
-    /* compute q[0],q[1],...q[jk] */
-    for (i = 0; i <= jk; i++) {
+/* q[from..to], q[i] = sum over j of tx[j] * f[jx + i - j] */
+static void ftc_rem_pio2_q(const double tx[3], const double f[20], double q[20], int32_t jx, int32_t from,
+                           int32_t to)
+{
+    int32_t i, j;
+    double fw;
+    for (i = from; i <= to; i++) {
         for (j = 0, fw = 0.0; j <= jx; j++)
             fw += tx[j] * f[jx + i - j];
         q[i] = fw;
     }
+}
 
-    jz = jk;
-recompute:
-    /* distill q[] into iq[] reversingly */
+/* 1 - q in iq[0..jz-1] (q > 0.5), and z for ih == 2 */
+static double ftc_rem_pio2_complement(int32_t iq[20], int32_t jz, int32_t q0, int32_t ih, double z)
+{
+    int32_t i, j, carry = 0;
+    for (i = 0; i < jz; i++) {  /* compute 1-q */
+        j = iq[i];
+        if (carry == 0) {
+            if (j != 0) {
+                carry = 1;
+                iq[i] = 0x1000000 - j;
+            }
+        } else
+            iq[i] = 0xffffff - j;
+    }
+    if (q0 == 1)  /* rare case: chance is 1 in 12 */
+        iq[jz - 1] &= 0x7fffff;
+    else if (q0 == 2)
+        iq[jz - 1] &= 0x3fffff;
+    if (ih == 2) {
+        z = 1.0 - z;
+        if (carry != 0)
+            z -= ftc_scalbn(1.0, q0);
+    }
+    return z;
+}
+
+/* q[0..jz] distilled into iq[] reversingly, n (mod 8 and more) into *np, the fraction into *zp;
+   returns ih (0: q < 0.5, else q > 0.5 and 1 - q is taken) */
+static int32_t ftc_rem_pio2_distill(const double q[20], int32_t iq[20], int32_t jz, int32_t q0, double *zp,
+                                    int32_t *np)
+{
+    double z, fw;
+    int32_t i, j, n, ih = 0;
     for (i = 0, j = jz, z = q[jz]; j > 0; i++, j--) {
         fw    = (double)(int32_t)(0x1p-24 * z);
         iq[i] = (int32_t)(z - 0x1p24 * fw);
@@ -239,7 +262,6 @@ recompute:
     z -= 8.0 * floor(z * 0.125);   /* trim off integer >= 8 */
     n  = (int32_t)z;
     z -= (double)n;
-    ih = 0;
     if (q0 > 0) {  /* need iq[jz-1] to determine n */
         i  = iq[jz - 1] >> (24 - q0); n += i;
         iq[jz - 1] -= i << (24 - q0);
@@ -249,70 +271,58 @@ recompute:
     else if (z >= 0.5) ih = 2;
 
     if (ih > 0) {  /* q > 0.5 */
-        n += 1; carry = 0;
-        for (i = 0; i < jz; i++) {  /* compute 1-q */
-            j = iq[i];
-            if (carry == 0) {
-                if (j != 0) {
-                    carry = 1;
-                    iq[i] = 0x1000000 - j;
-                }
-            } else
-                iq[i] = 0xffffff - j;
-        }
-        if (q0 > 0) {  /* rare case: chance is 1 in 12 */
-            switch (q0) {
-            case 1:
-                iq[jz - 1] &= 0x7fffff; break;
-            case 2:
-                iq[jz - 1] &= 0x3fffff; break;
-            }
-        }
-        if (ih == 2) {
-            z = 1.0 - z;
-            if (carry != 0)
-                z -= ftc_scalbn(1.0, q0);
-        }
+        n += 1;
+        z = ftc_rem_pio2_complement(iq, jz, q0, ih, z);
     }
+    *zp = z;
+    *np = n;
+    return ih;
+}
 
-    /* check if recomputation is needed */
-    if (z == 0.0) {
-        j = 0;
-        for (i = jz - 1; i >= jk; i--) j |= iq[i];
-        if (j == 0) {  /* need recomputation */
-            for (k = 1; iq[jk - k] == 0; k++);  /* k = no. of terms needed */
+/* how many more terms of q a recomputation needs (0: none) */
+static int32_t ftc_rem_pio2_more(const int32_t iq[20], int32_t jz, int32_t jk, double z)
+{
+    int32_t i, j = 0, k;
+    if (z != 0.0)
+        return 0;
+    for (i = jz - 1; i >= jk; i--) j |= iq[i];
+    if (j != 0)
+        return 0;
+    for (k = 1; iq[jk - k] == 0; k++);  /* k = no. of terms needed */
+    return k;
+}
 
-            for (i = jz + 1; i <= jz + k; i++) {  /* add q[jz+1] to q[jz+k] */
-                f[jx + i] = (double)ftc_ipio2[jv + i];
-                for (j = 0, fw = 0.0; j <= jx; j++)
-                    fw += tx[j] * f[jx + i - j];
-                q[i] = fw;
-            }
-            jz += k;
-            goto recompute;
-        }
-    }
-
-    /* chop off zero terms */
+/* zero terms chopped off, or z broken into 24-bit chunks; returns the new jz */
+static int32_t ftc_rem_pio2_chop(int32_t iq[20], int32_t jz, int32_t *q0, double z)
+{
+    double fw;
     if (z == 0.0) {
         jz -= 1;
-        q0 -= 24;
+        *q0 -= 24;
         while (iq[jz] == 0) {
             jz--;
-            q0 -= 24;
+            *q0 -= 24;
         }
-    } else { /* break z into 24-bit if necessary */
-        z = ftc_scalbn(z, -q0);
-        if (z >= 0x1p24) {
-            fw = (double)(int32_t)(0x1p-24 * z);
-            iq[jz] = (int32_t)(z - 0x1p24 * fw);
-            jz += 1;
-            q0 += 24;
-            iq[jz] = (int32_t)fw;
-        } else
-            iq[jz] = (int32_t)z;
+        return jz;
     }
+    z = ftc_scalbn(z, -*q0);
+    if (z >= 0x1p24) {
+        fw = (double)(int32_t)(0x1p-24 * z);
+        iq[jz] = (int32_t)(z - 0x1p24 * fw);
+        jz += 1;
+        *q0 += 24;
+        iq[jz] = (int32_t)fw;
+    } else
+        iq[jz] = (int32_t)z;
+    return jz;
+}
 
+/* the chunks iq[0..jz] times pi/2, compressed into *y0 + *y1 (prec = 1) */
+static void ftc_rem_pio2_sum(const int32_t iq[20], int32_t jz, int32_t q0, int32_t ih, double *y0, double *y1)
+{
+    const int32_t jp = 4;
+    double fw, q[20] = {0}, fq[20] = {0}; /* zeroed: gcc cannot see jz >= 0 */
+    int32_t i, k;
     /* convert integer "bit" chunk to floating-point value */
     fw = ftc_scalbn(1.0, q0);
     for (i = jz; i >= 0; i--) {
@@ -336,10 +346,39 @@ recompute:
     for (i = 1; i <= jz; i++)
         fw += fq[i];
     *y1 = ih == 0 ? fw : -fw;
+}
+
+static int ftc_rem_pio2_large(double x, double *y0, double *y1)
+{
+    const int32_t jk = 4; /* jk = jp = 4 for prec = 1 */
+    double tx[3], f[20], q[20] = {0}, z;
+    int32_t iq[20], jx, jv, jz, q0, n, ih, k, i, j, e0;
+
+    jx = ftc_rem_pio2_digits(x, tx, &e0) - 1;
+    /* determine jx,jv,q0, note that 3>q0 */
+    jv = (e0 - 3) / 24;  if (jv < 0) jv = 0;
+    q0 = e0 - 24 * (jv + 1);
+
+    /* set up f[0] to f[jx+jk] where f[jx+jk] = ipio2[jv+jk] */
+    for (i = 0, j = jv - jx; i <= jx + jk; i++, j++)
+        f[i] = j < 0 ? 0.0 : (double)ftc_ipio2[j];
+    ftc_rem_pio2_q(tx, f, q, jx, 0, jk);  /* compute q[0],q[1],...q[jk] */
+
+    for (jz = jk;; jz += k) {
+        ih = ftc_rem_pio2_distill(q, iq, jz, q0, &z, &n);
+        k = ftc_rem_pio2_more(iq, jz, jk, z);
+        if (k == 0)
+            break;
+        for (i = jz + 1; i <= jz + k; i++)  /* add q[jz+1] to q[jz+k] */
+            f[jx + i] = (double)ftc_ipio2[jv + i];
+        ftc_rem_pio2_q(tx, f, q, jx, jz + 1, jz + k);
+    }
+    jz = ftc_rem_pio2_chop(iq, jz, &q0, z);
+    ftc_rem_pio2_sum(iq, jz, q0, ih, y0, y1);
     n &= 7;
 
     /* caller part: apply the sign of x */
-    if (sign) {
+    if (ftc_bits(x) >> 63) {
         *y0 = -*y0;
         *y1 = -*y1;
         return -n;
@@ -480,280 +519,6 @@ static double ftc_cos(double x) {
     }
 }
 
-/* pow(x, y) (musl pow.c before its table-driven rewrite; fdlibm e_pow.c). Unlike musl, a nan
-   result is built from bits (the first nan argument, quieted, as SSE2's x + y gives it; the x86
-   default nan for a negative x to a non-integer y), so that it does not depend on the compiler's
-   operand order; n << 20 is done in uint32_t (no signed shift). */
-#define FTC_HI(x) ((int32_t)(ftc_bits(x) >> 32))
-#define FTC_LO(x) ((uint32_t)ftc_bits(x))
-#define FTC_ZERO_LO(x) ftc_double(ftc_bits(x) & 0xFFFFFFFF00000000ULL)
-#define FTC_SET_HI(x, hi) ftc_double((ftc_bits(x) & 0xFFFFFFFFULL) | ((uint64_t)(uint32_t)(hi) << 32))
-
-static const double
-ftc_pow_bp[]   = {1.0, 1.5,},
-ftc_pow_dp_h[] = { 0.0, 5.84962487220764160156e-01,}, /* 0x3FE2B803, 0x40000000 */
-ftc_pow_dp_l[] = { 0.0, 1.35003920212974897128e-08,}; /* 0x3E4CFDEB, 0x43CFD006 */
-
-static double ftc_pow(double x, double y)
-{
-    static const double
-    two53  =  9007199254740992.0, /* 0x43400000, 0x00000000 */
-    huge   =  1.0e300,
-    tiny   =  1.0e-300,
-    /* poly coefs for (3/2)*(log(x)-2s-2/3*s**3 */
-    L1 =  5.99999999999994648725e-01, /* 0x3FE33333, 0x33333303 */
-    L2 =  4.28571428578550184252e-01, /* 0x3FDB6DB6, 0xDB6FABFF */
-    L3 =  3.33333329818377432918e-01, /* 0x3FD55555, 0x518F264D */
-    L4 =  2.72728123808534006489e-01, /* 0x3FD17460, 0xA91D4101 */
-    L5 =  2.30660745775561754067e-01, /* 0x3FCD864A, 0x93C9DB65 */
-    L6 =  2.06975017800338417784e-01, /* 0x3FCA7E28, 0x4A454EEF */
-    P1 =  1.66666666666666019037e-01, /* 0x3FC55555, 0x5555553E */
-    P2 = -2.77777777770155933842e-03, /* 0xBF66C16C, 0x16BEBD93 */
-    P3 =  6.61375632143793436117e-05, /* 0x3F11566A, 0xAF25DE2C */
-    P4 = -1.65339022054652515390e-06, /* 0xBEBBBD41, 0xC5D26BF1 */
-    P5 =  4.13813679705723846039e-08, /* 0x3E663769, 0x72BEA4D0 */
-    lg2     =  6.93147180559945286227e-01, /* 0x3FE62E42, 0xFEFA39EF */
-    lg2_h   =  6.93147182464599609375e-01, /* 0x3FE62E43, 0x00000000 */
-    lg2_l   = -1.90465429995776804525e-09, /* 0xBE205C61, 0x0CA86C39 */
-    ovt     =  8.0085662595372944372e-017, /* -(1024-log2(ovfl+.5ulp)) */
-    cp      =  9.61796693925975554329e-01, /* 0x3FEEC709, 0xDC3A03FD =2/(3ln2) */
-    cp_h    =  9.61796700954437255859e-01, /* 0x3FEEC709, 0xE0000000 =(float)cp */
-    cp_l    = -7.02846165095275826516e-09, /* 0xBE3E2FE0, 0x145B01F5 =tail of cp_h*/
-    ivln2   =  1.44269504088896338700e+00, /* 0x3FF71547, 0x652B82FE =1/ln2 */
-    ivln2_h =  1.44269502162933349609e+00, /* 0x3FF71547, 0x60000000 =24b 1/ln2*/
-    ivln2_l =  1.92596299112661746887e-08; /* 0x3E54AE0B, 0xF85DDF44 =1/ln2 tail*/
-
-    double z,ax,z_h,z_l,p_h,p_l;
-    double y1,t1,t2,r,s,t,u,v,w;
-    int32_t i,j,k,yisint,n;
-    int32_t hx,hy,ix,iy;
-    uint32_t lx,ly;
-
-    hx = FTC_HI(x); lx = FTC_LO(x);
-    hy = FTC_HI(y); ly = FTC_LO(y);
-    ix = hx & 0x7fffffff;
-    iy = hy & 0x7fffffff;
-
-    /* x**0 = 1, even if x is NaN */
-    if ((iy|ly) == 0)
-        return 1.0;
-    /* 1**y = 1, even if y is NaN */
-    if (hx == 0x3ff00000 && lx == 0)
-        return 1.0;
-    /* NaN if either arg is NaN */
-    if (ix > 0x7ff00000 || (ix == 0x7ff00000 && lx != 0) ||
-        iy > 0x7ff00000 || (iy == 0x7ff00000 && ly != 0)) {
-        /* musl: return x + y; SSE2 result: first NaN operand, quieted */
-        if (ix > 0x7ff00000 || (ix == 0x7ff00000 && lx != 0))
-            return ftc_double(ftc_bits(x) | 0x0008000000000000ULL);
-        return ftc_double(ftc_bits(y) | 0x0008000000000000ULL);
-    }
-
-    /* determine if y is an odd int when x < 0
-     * yisint = 0       ... y is not an integer
-     * yisint = 1       ... y is an odd int
-     * yisint = 2       ... y is an even int
-     */
-    yisint = 0;
-    if (hx < 0) {
-        if (iy >= 0x43400000)
-            yisint = 2; /* even integer y */
-        else if (iy >= 0x3ff00000) {
-            k = (iy>>20) - 0x3ff;  /* exponent */
-            if (k > 20) {
-                uint32_t jj = ly>>(52-k);
-                if ((jj<<(52-k)) == ly)
-                    yisint = 2 - (int32_t)(jj&1);
-            } else if (ly == 0) {
-                uint32_t jj = (uint32_t)iy>>(20-k);
-                if ((jj<<(20-k)) == (uint32_t)iy)
-                    yisint = 2 - (int32_t)(jj&1);
-            }
-        }
-    }
-
-    /* special value of y */
-    if (ly == 0) {
-        if (iy == 0x7ff00000) {  /* y is +-inf */
-            if (((ix-0x3ff00000)|lx) == 0)  /* (-1)**+-inf is 1 */
-                return 1.0;
-            else if (ix >= 0x3ff00000) /* (|x|>1)**+-inf = inf,0 */
-                return hy >= 0 ? y : 0.0;
-            else                       /* (|x|<1)**+-inf = 0,inf */
-                return hy >= 0 ? 0.0 : -y;
-        }
-        if (iy == 0x3ff00000) {    /* y is +-1 */
-            if (hy >= 0)
-                return x;
-            return 1/x;
-        }
-        if (hy == 0x40000000)    /* y is 2 */
-            return x*x;
-        if (hy == 0x3fe00000) {  /* y is 0.5 */
-            if (hx >= 0)     /* x >= +0 */
-                return ftc_sqrt(x);
-        }
-    }
-
-    ax = ftc_double(ftc_bits(x) & 0x7FFFFFFFFFFFFFFFULL); /* fabs(x) */
-    /* special value of x */
-    if (lx == 0) {
-        if (ix == 0x7ff00000 || ix == 0 || ix == 0x3ff00000) { /* x is +-0,+-inf,+-1 */
-            z = ax;
-            if (hy < 0)   /* z = (1/|x|) */
-                z = 1.0/z;
-            if (hx < 0) {
-                if (((ix-0x3ff00000)|yisint) == 0) {
-                    /* musl: z = (z-z)/(z-z); (-1)**non-int is NaN */
-                    z = ftc_double(0xFFF8000000000000ULL);
-                } else if (yisint == 1)
-                    z = -z;          /* (x<0)**odd = -(|x|**odd) */
-            }
-            return z;
-        }
-    }
-
-    s = 1.0; /* sign of result */
-    if (hx < 0) {
-        if (yisint == 0) /* (x<0)**(non-int) is NaN; musl: (x-x)/(x-x) */
-            return ftc_double(0xFFF8000000000000ULL);
-        if (yisint == 1) /* (x<0)**(odd int) */
-            s = -1.0;
-    }
-
-    /* |y| is huge */
-    if (iy > 0x41e00000) { /* if |y| > 2**31 */
-        if (iy > 0x43f00000) {  /* if |y| > 2**64, must o/uflow */
-            if (ix <= 0x3fefffff)
-                return hy < 0 ? huge*huge : tiny*tiny;
-            if (ix >= 0x3ff00000)
-                return hy > 0 ? huge*huge : tiny*tiny;
-        }
-        /* over/underflow if x is not close to one */
-        if (ix < 0x3fefffff)
-            return hy < 0 ? s*huge*huge : s*tiny*tiny;
-        if (ix > 0x3ff00000)
-            return hy > 0 ? s*huge*huge : s*tiny*tiny;
-        /* now |1-x| is tiny <= 2**-20, suffice to compute
-           log(x) by x-x^2/2+x^3/3-x^4/4 */
-        t = ax - 1.0;       /* t has 20 trailing zeros */
-        w = (t*t)*(0.5 - t*(0.3333333333333333333333-t*0.25));
-        u = ivln2_h*t;      /* ivln2_h has 21 sig. bits */
-        v = t*ivln2_l - w*ivln2;
-        t1 = u + v;
-        t1 = FTC_ZERO_LO(t1);
-        t2 = v - (t1-u);
-    } else {
-        double ss,s2,s_h,s_l,t_h,t_l;
-        n = 0;
-        /* take care subnormal number */
-        if (ix < 0x00100000) {
-            ax *= two53;
-            n -= 53;
-            ix = FTC_HI(ax);
-        }
-        n += ((ix)>>20) - 0x3ff;
-        j = ix & 0x000fffff;
-        /* determine interval */
-        ix = j | 0x3ff00000;   /* normalize ix */
-        if (j <= 0x3988E)      /* |x|<sqrt(3/2) */
-            k = 0;
-        else if (j < 0xBB67A)  /* |x|<sqrt(3)   */
-            k = 1;
-        else {
-            k = 0;
-            n += 1;
-            ix -= 0x00100000;
-        }
-        ax = FTC_SET_HI(ax, ix);
-
-        /* compute ss = s_h+s_l = (x-1)/(x+1) or (x-1.5)/(x+1.5) */
-        u = ax - ftc_pow_bp[k];        /* bp[0]=1.0, bp[1]=1.5 */
-        v = 1.0/(ax+ftc_pow_bp[k]);
-        ss = u*v;
-        s_h = FTC_ZERO_LO(ss);
-        /* t_h=ax+bp[k] High */
-        t_h = ftc_double((uint64_t)(uint32_t)(((ix>>1)|0x20000000) + 0x00080000 + (k<<18)) << 32);
-        t_l = ax - (t_h-ftc_pow_bp[k]);
-        s_l = v*((u-s_h*t_h)-s_h*t_l);
-        /* compute log(ax) */
-        s2 = ss*ss;
-        r = s2*s2*(L1+s2*(L2+s2*(L3+s2*(L4+s2*(L5+s2*L6)))));
-        r += s_l*(s_h+ss);
-        s2 = s_h*s_h;
-        t_h = 3.0 + s2 + r;
-        t_h = FTC_ZERO_LO(t_h);
-        t_l = r - ((t_h-3.0)-s2);
-        /* u+v = ss*(1+...) */
-        u = s_h*t_h;
-        v = s_l*t_h + t_l*ss;
-        /* 2/(3log2)*(ss+...) */
-        p_h = u + v;
-        p_h = FTC_ZERO_LO(p_h);
-        p_l = v - (p_h-u);
-        z_h = cp_h*p_h;        /* cp_h+cp_l = 2/(3*log2) */
-        z_l = cp_l*p_h+p_l*cp + ftc_pow_dp_l[k];
-        /* log2(ax) = (ss+..)*2/(3*log2) = n + dp_h + z_h + z_l */
-        t = (double)n;
-        t1 = ((z_h + z_l) + ftc_pow_dp_h[k]) + t;
-        t1 = FTC_ZERO_LO(t1);
-        t2 = z_l - (((t1 - t) - ftc_pow_dp_h[k]) - z_h);
-    }
-
-    /* split up y into y1+y2 and compute (y1+y2)*(t1+t2) */
-    y1 = FTC_ZERO_LO(y);
-    p_l = (y-y1)*t1 + y*t2;
-    p_h = y1*t1;
-    z = p_l + p_h;
-    j = FTC_HI(z); i = (int32_t)FTC_LO(z);
-    if (j >= 0x40900000) {                      /* z >= 1024 */
-        if (((j-0x40900000)|i) != 0)        /* if z > 1024 */
-            return s*huge*huge;         /* overflow */
-        if (p_l + ovt > z - p_h)
-            return s*huge*huge;         /* overflow */
-    } else if ((j&0x7fffffff) >= 0x4090cc00) {  /* z <= -1075 */
-        if ((((uint32_t)j-0xc090cc00u)|(uint32_t)i) != 0)  /* z < -1075 */
-            return s*tiny*tiny;         /* underflow */
-        if (p_l <= z - p_h)
-            return s*tiny*tiny;         /* underflow */
-    }
-    /*
-     * compute 2**(p_h+p_l)
-     */
-    i = j & 0x7fffffff;
-    k = (i>>20) - 0x3ff;
-    n = 0;
-    if (i > 0x3fe00000) {  /* if |z| > 0.5, set n = [z+0.5] */
-        n = j + (0x00100000>>(k+1));
-        k = ((n&0x7fffffff)>>20) - 0x3ff;  /* new k for n */
-        t = ftc_double((uint64_t)(uint32_t)(n & ~(0x000fffff>>k)) << 32);
-        n = ((n&0x000fffff)|0x00100000)>>(20-k);
-        if (j < 0)
-            n = -n;
-        p_h -= t;
-    }
-    t = p_l + p_h;
-    t = FTC_ZERO_LO(t);
-    u = t*lg2_h;
-    v = (p_l-(t-p_h))*lg2 + t*lg2_l;
-    z = u + v;
-    w = v - (z-u);
-    t = z*z;
-    t1 = z - t*(P1+t*(P2+t*(P3+t*(P4+t*P5))));
-    r = (z*t1)/(t1-2.0) - (w + z*w);
-    z = 1.0 - (r-z);
-    j = FTC_HI(z);
-    j += (int32_t)((uint32_t)n << 20);
-    if ((j>>20) <= 0)  /* subnormal output */
-        z = ftc_scalbn(z,n);
-    else
-        z = FTC_SET_HI(z, j);
-    return s*z;
-}
-
-#undef FTC_HI
-#undef FTC_LO
-#undef FTC_ZERO_LO
-#undef FTC_SET_HI
+#include "fmath_pow.h" /* pow(x, y) */
 
 #endif

@@ -7,14 +7,21 @@ plain variants on two Linux CPUs. Chattering laws amplify one such bit to a visi
 (up to 0.28 of the output's magnitude in a 3 s run, issue 31). Here every operation is an IEEE
 754 ``+``, ``-``, ``*``, ``/`` or an integer conversion, which round alike everywhere.
 
-``controller/fmath.h`` is the same algorithms in C for the compiled law and plants, operation for
-operation, so both give the same bits (``tests/test_fmath.py``). The algorithms are musl's (MIT),
+``controller/fmath.h`` (pow in ``fmath_pow.h``) is the same algorithms in C for the compiled law
+and plants, operation for operation and cut into the same functions, so both give the same bits
+(``tests/test_fmath.py``).
+
+Why a Python twin at all: ``controller`` is the pure-Python reference of the law, and it must run
+where nothing is compiled (a source tree without ``make``, a docs build, a platform without a C
+compiler), with the bits of the compiled FMUs, which the tests compare against it. Where
+``controller/_fmath.c`` is compiled (``make`` in a checkout, every FMU) the public functions call
+that instead; the transcriptions below then serve only as that reference. The algorithms are musl's (MIT),
 from FreeBSD's msun and Sun's fdlibm (exp.c, pow.c, sin.c, cos.c and their kernels); their
 accuracy is below 1 ulp (tests/test_fmath.py, against mpmath), but for pow with x within about
 3e-7 of 1 and |y| > 2^31 (musl's own algorithm: up to 519 ulp, far from the law's arguments).
 Where the FMU build has compiled ``controller/_fmath.c`` (in every FMU) the public functions call
 it: 0.08 us per call (math's: 0.03 us); the Python transcriptions cost 0.4-0.8 us for exp, sin or
-cos and 3 us for pow. The public functions keep the contract of the
+cos and 5 us for pow. The public functions keep the contract of the
 Python operation they replace: :func:`exp` as :func:`math.exp`, :func:`sin` and :func:`cos` as
 :func:`math.sin` and :func:`math.cos`, :func:`power` as ``float ** float`` (ValueError where that
 gives a complex).
@@ -183,13 +190,9 @@ _JP = 4
 _TWO24 = 16777216.0  # 0x1p24
 _TWOM24 = 5.9604644775390625e-08  # 0x1p-24
 
-def _rem_pio2_large(x: float) -> tuple[int, float, float]:  # noqa: C901 (musl line by line: same bits)
-    """(n, y0, y1) with y0 + y1 = x - N pi/2 and n = N mod 8 with the sign of x, for finite
-    |x| >= 2^20 pi/2: Payne-Hanek reduction, musl's __rem_pio2_large.c (fdlibm k_rem_pio2.c) for
-    double precision (prec = 1) with the caller's part of __rem_pio2.c (fmath.h's ftc_rem_pio2_large)."""
-    # caller part (musl __rem_pio2, large-argument tail)
+def _rem_pio2_digits(x: float) -> tuple[list[float], int]:
+    """x's 24-bit digits (from the first non-zero one) and their exponent e0 (ftc_rem_pio2_digits)."""
     ui = _unpack_quad(_pack_double(x))[0]
-    sign = ui >> 63
     ix = (ui >> 32) & 0x7FFFFFFF
     # set z = scalbn(|x|,-ilogb(x)+23)
     z = _double((ui & 0x000FFFFFFFFFFFFF) | ((0x3FF + 23) << 52))
@@ -202,116 +205,112 @@ def _rem_pio2_large(x: float) -> tuple[int, float, float]:  # noqa: C901 (musl l
     i = 2
     while tx[i] == 0.0:
         i -= 1
-    nx = i + 1
-    e0 = (ix >> 20) - (0x3FF + 23)
+    return tx[: i + 1], (ix >> 20) - (0x3FF + 23)
 
-    # __rem_pio2_large(tx, ty, e0, nx, 1)
-    jk = _JK
-    jx = nx - 1
-    # C truncates (e0-3)/24 toward zero; floor differs only for e0 - 3 < 0, where both clamp to 0
-    jv = max((e0 - 3) // 24, 0)
-    q0 = e0 - 24 * (jv + 1)
 
-    # set up f[0] to f[jx+jk] where f[jx+jk] = ipio2[jv+jk]
-    f = [0.0] * 20
-    j = jv - jx
-    for i in range(jx + jk + 1):
-        f[i] = 0.0 if j < 0 else _F_IPIO2[j]
-        j += 1
-
-    # compute q[0],q[1],...q[jk]
-    q = [0.0] * 20
-    for i in range(jk + 1):
+def _rem_pio2_q(tx: list[float], f: list[float], q: list[float], first: int, last: int) -> None:
+    """q[first..last], q[i] = sum over j of tx[j] * f[jx + i - j] (ftc_rem_pio2_q)."""
+    jx = len(tx) - 1
+    for i in range(first, last + 1):
         fw = 0.0
         for j in range(jx + 1):
             fw += tx[j] * f[jx + i - j]
         q[i] = fw
 
-    iq = [0] * 20
-    jz = jk
-    while True:  # recompute:
-        # distill q[] into iq[] reversingly
-        z = q[jz]
-        for i, j in enumerate(range(jz, 0, -1)):
-            fw = float(int(_TWOM24 * z))
-            iq[i] = int(z - _TWO24 * fw)
-            z = q[j - 1] + fw
 
-        # compute n
-        z = _scalbn(z, q0)  # actual value of z
-        z -= 8.0 * _floor(z * 0.125)  # trim off integer >= 8 (floor of a double is exact)
-        n = int(z)
-        z -= float(n)
-        ih = 0
-        if q0 > 0:  # need iq[jz-1] to determine n (iq[] >= 0 here, so >> matches C)
-            i = iq[jz - 1] >> (24 - q0)
-            n += i
-            iq[jz - 1] -= i << (24 - q0)
-            ih = iq[jz - 1] >> (23 - q0)
-        elif q0 == 0:
-            ih = iq[jz - 1] >> 23
-        elif z >= 0.5:
-            ih = 2
+def _rem_pio2_complement(iq: list[int], jz: int, q0: int, ih: int, z: float) -> float:
+    """1 - q in iq[0..jz-1] (q > 0.5), and z for ih == 2 (ftc_rem_pio2_complement)."""
+    carry = 0
+    for i in range(jz):  # compute 1-q
+        j = iq[i]
+        if carry == 0:
+            if j != 0:
+                carry = 1
+                iq[i] = 0x1000000 - j
+        else:
+            iq[i] = 0xFFFFFF - j
+    if q0 == 1:  # rare case: chance is 1 in 12
+        iq[jz - 1] &= 0x7FFFFF
+    elif q0 == 2:
+        iq[jz - 1] &= 0x3FFFFF
+    if ih == 2:
+        z = 1.0 - z
+        if carry != 0:
+            z -= _scalbn(1.0, q0)
+    return z
 
-        carry = 0
-        if ih > 0:  # q > 0.5
-            n += 1
-            for i in range(jz):  # compute 1-q
-                j = iq[i]
-                if carry == 0:
-                    if j != 0:
-                        carry = 1
-                        iq[i] = 0x1000000 - j
-                else:
-                    iq[i] = 0xFFFFFF - j
-            if q0 > 0:  # rare case: chance is 1 in 12
-                if q0 == 1:
-                    iq[jz - 1] &= 0x7FFFFF
-                elif q0 == 2:
-                    iq[jz - 1] &= 0x3FFFFF
-            if ih == 2:
-                z = 1.0 - z
-                if carry != 0:
-                    z -= _scalbn(1.0, q0)
 
-        # check if recomputation is needed
-        if z == 0.0:
-            j = 0
-            for i in range(jz - 1, jk - 1, -1):
-                j |= iq[i]
-            if j == 0:  # need recomputation
-                k = 1
-                while iq[jk - k] == 0:  # k = no. of terms needed
-                    k += 1
-                for i in range(jz + 1, jz + k + 1):  # add q[jz+1] to q[jz+k]
-                    f[jx + i] = _F_IPIO2[jv + i]
-                    fw = 0.0
-                    for j in range(jx + 1):
-                        fw += tx[j] * f[jx + i - j]
-                    q[i] = fw
-                jz += k
-                continue
-        break
+def _rem_pio2_distill(q: list[float], iq: list[int], jz: int, q0: int) -> tuple[int, int, float]:
+    """(ih, n, z): q[0..jz] distilled into iq[] reversingly, n and the fraction z; ih = 0: q < 0.5,
+    else q > 0.5 and 1 - q is taken (ftc_rem_pio2_distill)."""
+    z = q[jz]
+    for i, j in enumerate(range(jz, 0, -1)):
+        fw = float(int(_TWOM24 * z))
+        iq[i] = int(z - _TWO24 * fw)
+        z = q[j - 1] + fw
 
-    # chop off zero terms
+    # compute n
+    z = _scalbn(z, q0)  # actual value of z
+    z -= 8.0 * _floor(z * 0.125)  # trim off integer >= 8 (floor of a double is exact)
+    n = int(z)
+    z -= float(n)
+    ih = 0
+    if q0 > 0:  # need iq[jz-1] to determine n (iq[] >= 0 here, so >> matches C)
+        i = iq[jz - 1] >> (24 - q0)
+        n += i
+        iq[jz - 1] -= i << (24 - q0)
+        ih = iq[jz - 1] >> (23 - q0)
+    elif q0 == 0:
+        ih = iq[jz - 1] >> 23
+    elif z >= 0.5:
+        ih = 2
+    if ih > 0:  # q > 0.5
+        n += 1
+        z = _rem_pio2_complement(iq, jz, q0, ih, z)
+    return ih, n, z
+
+
+def _rem_pio2_more(iq: list[int], jz: int, z: float) -> int:
+    """How many more terms of q a recomputation needs, 0 for none (ftc_rem_pio2_more)."""
+    if z != 0.0:
+        return 0
+    j = 0
+    for i in range(jz - 1, _JK - 1, -1):
+        j |= iq[i]
+    if j != 0:
+        return 0
+    k = 1
+    while iq[_JK - k] == 0:  # k = no. of terms needed
+        k += 1
+    return k
+
+
+def _rem_pio2_chop(iq: list[int], jz: int, q0: int, z: float) -> tuple[int, int]:
+    """(jz, q0) after the zero terms are chopped off, or z broken into 24-bit chunks
+    (ftc_rem_pio2_chop)."""
     if z == 0.0:
         jz -= 1
         q0 -= 24
         while iq[jz] == 0:
             jz -= 1
             q0 -= 24
-    else:  # break z into 24-bit if necessary
-        z = _scalbn(z, -q0)
-        if z >= _TWO24:
-            fw = float(int(_TWOM24 * z))
-            iq[jz] = int(z - _TWO24 * fw)
-            jz += 1
-            q0 += 24
-            iq[jz] = int(fw)
-        else:
-            iq[jz] = int(z)
+        return jz, q0
+    z = _scalbn(z, -q0)
+    if z >= _TWO24:
+        fw = float(int(_TWOM24 * z))
+        iq[jz] = int(z - _TWO24 * fw)
+        jz += 1
+        q0 += 24
+        iq[jz] = int(fw)
+    else:
+        iq[jz] = int(z)
+    return jz, q0
 
+
+def _rem_pio2_sum(iq: list[int], jz: int, q0: int, ih: int) -> tuple[float, float]:
+    """The chunks iq[0..jz] times pi/2, compressed into y0 + y1 (prec = 1; ftc_rem_pio2_sum)."""
     # convert integer "bit" chunk to floating-point value
+    q = [0.0] * 20
     fw = _scalbn(1.0, q0)
     for i in range(jz, -1, -1):
         q[i] = fw * float(iq[i])
@@ -333,13 +332,47 @@ def _rem_pio2_large(x: float) -> tuple[int, float, float]:  # noqa: C901 (musl l
     fw = fq[0] - fw
     for i in range(1, jz + 1):
         fw += fq[i]
-    y1 = fw if ih == 0 else -fw
+    return y0, (fw if ih == 0 else -fw)
+
+
+def _rem_pio2_large(x: float) -> tuple[int, float, float]:
+    """(n, y0, y1) with y0 + y1 = x - N pi/2 and n = N mod 8 with the sign of x, for finite
+    |x| >= 2^20 pi/2: Payne-Hanek reduction, musl's __rem_pio2_large.c (fdlibm k_rem_pio2.c) for
+    double precision (prec = 1) with the caller's part of __rem_pio2.c, cut into the steps of
+    fmath.h's ftc_rem_pio2_large."""
+    tx, e0 = _rem_pio2_digits(x)
+    jx = len(tx) - 1
+    # C truncates (e0-3)/24 toward zero; floor differs only for e0 - 3 < 0, where both clamp to 0
+    jv = max((e0 - 3) // 24, 0)
+    q0 = e0 - 24 * (jv + 1)
+
+    # set up f[0] to f[jx+jk] where f[jx+jk] = ipio2[jv+jk]
+    f = [0.0] * 20
+    for i, j in enumerate(range(jv - jx, jv + _JK + 1)):
+        f[i] = 0.0 if j < 0 else _F_IPIO2[j]
+    q = [0.0] * 20
+    _rem_pio2_q(tx, f, q, 0, _JK)  # compute q[0],q[1],...q[jk]
+
+    iq = [0] * 20
+    jz = _JK
+    while True:
+        ih, n, z = _rem_pio2_distill(q, iq, jz, q0)
+        k = _rem_pio2_more(iq, jz, z)
+        if k == 0:
+            break
+        for i in range(jz + 1, jz + k + 1):  # add q[jz+1] to q[jz+k]
+            f[jx + i] = _F_IPIO2[jv + i]
+        _rem_pio2_q(tx, f, q, jz + 1, jz + k)
+        jz += k
+    jz, q0 = _rem_pio2_chop(iq, jz, q0, z)
+    y0, y1 = _rem_pio2_sum(iq, jz, q0, ih)
     n &= 7
 
     # caller part: apply the sign of x
-    if sign:
+    if _bits(x) >> 63:
         return -n, -y0, -y1
     return n, y0, y1
+
 
 # Argument reduction (musl __rem_pio2.c)
 _TOINT = float.fromhex("0x1.8p52")
@@ -442,7 +475,6 @@ def _cos(x: float) -> float:
 
 
 # pow (musl pow.c before its table-driven rewrite; fdlibm e_pow.c)
-_LO, _HI = (0, 1) if sys.byteorder == "little" else (1, 0)  # the words of a double as two int32
 _NAN_INVALID = _double(0xFFF8000000000000)  # x86 default NaN, what (x-x)/(x-x) gives in musl on SSE2
 
 _TWO53 = 9007199254740992.0  # 0x43400000, 0x00000000
@@ -474,181 +506,145 @@ _DP_H1 = 5.84962487220764160156e-01  # dp_h[1]: 0x3FE2B803, 0x40000000 (dp_h[0] 
 _DP_L1 = 1.35003920212974897128e-08  # dp_l[1]: 0x3E4CFDEB, 0x43CFD006 (dp_l[0] = 0.0)
 
 
-def _pow(x: float, y: float) -> float:  # noqa: C901 (a transcription of one C function)
-    """Return x**y exactly as musl's fdlibm pow (same bits as ftc_pow in pow.h); x and y must be floats."""
-    mv = memoryview(bytearray(8))
-    fd = mv.cast("d")  # the 8 bytes as one double
-    wi = mv.cast("i")  # the same bytes as int32 [low word, high word]
-    fd[0] = x
-    lx = wi[_LO]  # signed here; only ever tested against 0 (or masked to uint32 below)
-    hx = wi[_HI]
-    fd[0] = y
-    ly = wi[_LO]
-    hy = wi[_HI]
+_LO, _HI = (0, 1) if sys.byteorder == "little" else (1, 0)  # the words of a double as two int32
+
+
+def _pow_yisint(iy: int, ly: int) -> int:
+    """0: y is not an integer, 1: an odd integer, 2: an even integer (ftc_pow_yisint; ly as uint32)."""
+    if iy >= 0x43400000:
+        return 2  # even integer y
+    if iy < 0x3FF00000:
+        return 0
+    k = (iy >> 20) - 0x3FF  # exponent
+    # (jj << s) only clears the bits shifted out by (>> s), so it cannot exceed 32 bits
+    if k > 20:
+        jj = ly >> (52 - k)
+        if (jj << (52 - k)) == ly:
+            return 2 - (jj & 1)
+    elif not ly:
+        jj = iy >> (20 - k)
+        if (jj << (20 - k)) == iy:
+            return 2 - (jj & 1)
+    return 0
+
+
+def _pow_special_y(x: float, y: float, hx: int, lx: int, hy: int) -> float | None:
+    """x**y for y = +-inf, +-1, 2 and (x >= +0) 0.5, else None; y's low word is 0 (ftc_pow_special_y)."""
+    ix, iy = hx & 0x7FFFFFFF, hy & 0x7FFFFFFF
+    if iy == 0x7FF00000:  # y is +-inf
+        if not ((ix - 0x3FF00000) | lx):  # (-1)**+-inf is 1
+            return 1.0
+        if ix >= 0x3FF00000:  # (|x|>1)**+-inf = inf,0
+            return y if hy >= 0 else 0.0
+        return 0.0 if hy >= 0 else -y  # (|x|<1)**+-inf = 0,inf
+    if iy == 0x3FF00000:  # y is +-1
+        if hy >= 0:
+            return x
+        if not (ix | lx):  # C: 1/(+-0) = +-inf
+            return -_INF if hx < 0 else _INF
+        return 1 / x
+    if hy == 0x40000000:  # y is 2
+        return x * x
+    if hy == 0x3FE00000 and hx >= 0:  # y is 0.5, x >= +0
+        return _math_sqrt(x)
+    return None
+
+
+def _pow_special_x(ax: float, hx: int, hy: int, yisint: int) -> float:
+    """x**y for x = +-0, +-inf, +-1 (ftc_pow_special_x)."""
     ix = hx & 0x7FFFFFFF
-    iy = hy & 0x7FFFFFFF
-
-    # x**0 = 1, even if x is NaN
-    if not (iy | ly):
-        return 1.0
-    # 1**y = 1, even if y is NaN
-    if hx == 0x3FF00000 and not lx:
-        return 1.0
-    # NaN if either arg is NaN (musl: x + y; SSE2 gives the first NaN operand, quieted)
-    if ix > 0x7FF00000 or (ix == 0x7FF00000 and lx) or iy > 0x7FF00000 or (iy == 0x7FF00000 and ly):
-        if ix > 0x7FF00000 or (ix == 0x7FF00000 and lx):
-            return _double(_bits(x) | 0x0008000000000000)
-        return _double(_bits(y) | 0x0008000000000000)
-
-    # yisint = 0: y not an integer, 1: odd integer, 2: even integer (only computed when x < 0)
-    yisint = 0
+    z = ax
+    if hy < 0:  # z = (1/|x|)
+        z = _INF if ix == 0 else 1.0 / z
     if hx < 0:
-        if iy >= 0x43400000:
-            yisint = 2  # even integer y
-        elif iy >= 0x3FF00000:
-            k = (iy >> 20) - 0x3FF  # exponent
-            # (jj << s) only clears the bits shifted out by (>> s), so it cannot exceed 32 bits
-            if k > 20:
-                uly = ly & 0xFFFFFFFF  # C: uint32_t ly
-                jj = uly >> (52 - k)
-                if (jj << (52 - k)) == uly:
-                    yisint = 2 - (jj & 1)
-            elif not ly:
-                jj = iy >> (20 - k)
-                if (jj << (20 - k)) == iy:
-                    yisint = 2 - (jj & 1)
+        if not ((ix - 0x3FF00000) | yisint):
+            z = _NAN_INVALID  # (-1)**non-int is NaN
+        elif yisint == 1:
+            z = -z  # (x<0)**odd = -(|x|**odd)
+    return z
 
-    # special value of y
-    if not ly:
-        if iy == 0x7FF00000:  # y is +-inf
-            if not ((ix - 0x3FF00000) | lx):  # (-1)**+-inf is 1
-                return 1.0
-            if ix >= 0x3FF00000:  # (|x|>1)**+-inf = inf,0
-                return y if hy >= 0 else 0.0
-            return 0.0 if hy >= 0 else -y  # (|x|<1)**+-inf = 0,inf
-        if iy == 0x3FF00000:  # y is +-1
-            if hy >= 0:
-                return x
-            if not (ix | lx):  # C: 1/(+-0) = +-inf
-                return -_INF if hx < 0 else _INF
-            return 1 / x
-        if hy == 0x40000000:  # y is 2
-            return x * x
-        if hy == 0x3FE00000 and hx >= 0:  # y is 0.5, x >= +0
-            return _math_sqrt(x)
 
-    ax = abs(x)
-    # special value of x
-    if not lx and (ix == 0x7FF00000 or ix == 0 or ix == 0x3FF00000):  # x is +-0,+-inf,+-1
-        z = ax
-        if hy < 0:  # z = (1/|x|)
-            z = _INF if ix == 0 else 1.0 / z
-        if hx < 0:
-            if not ((ix - 0x3FF00000) | yisint):
-                z = _NAN_INVALID  # (-1)**non-int is NaN
-            elif yisint == 1:
-                z = -z  # (x<0)**odd = -(|x|**odd)
-        return z
+# The steps below share the caller's scratch double ``fd`` and its two int32 words ``wi`` (one
+# per call of _pow, so that threads never share one): fdlibm's GET/SET_HIGH/LOW_WORD.
 
-    s = 1.0  # sign of result
-    if hx < 0:
-        if yisint == 0:  # (x<0)**(non-int) is NaN
-            return _NAN_INVALID
-        if yisint == 1:  # (x<0)**(odd int)
-            s = -1.0
 
-    if iy > 0x41E00000:  # |y| > 2**31
-        if iy > 0x43F00000:  # |y| > 2**64, must o/uflow
-            if ix <= 0x3FEFFFFF:
-                return _HUGE * _HUGE if hy < 0 else _TINY * _TINY
-            if ix >= 0x3FF00000:
-                return _HUGE * _HUGE if hy > 0 else _TINY * _TINY
-        # over/underflow if x is not close to one
-        if ix < 0x3FEFFFFF:
-            return s * _HUGE * _HUGE if hy < 0 else s * _TINY * _TINY
-        if ix > 0x3FF00000:
-            return s * _HUGE * _HUGE if hy > 0 else s * _TINY * _TINY
-        # now |1-x| is tiny <= 2**-20, suffice to compute log(x) by x-x^2/2+x^3/3-x^4/4
-        t = ax - 1.0  # t has 20 trailing zeros
-        w = (t * t) * (0.5 - t * (0.3333333333333333333333 - t * 0.25))
-        u = _IVLN2_H * t  # ivln2_h has 21 sig. bits
-        v = t * _IVLN2_L - w * _IVLN2
-        fd[0] = u + v
-        wi[_LO] = 0  # SET_LOW_WORD(t1, 0)
-        t1 = fd[0]
-        t2 = v - (t1 - u)
-    else:
-        n = 0
-        # take care subnormal number
-        if ix < 0x00100000:
-            ax *= _TWO53
-            n -= 53
-            fd[0] = ax
-            ix = wi[_HI]
-        n += (ix >> 20) - 0x3FF
-        j = ix & 0x000FFFFF
-        # determine interval
-        ix = j | 0x3FF00000  # normalize ix
-        if j <= 0x3988E:  # |x|<sqrt(3/2)
-            k = 0
-            bp = 1.0
-            dp_h = 0.0
-            dp_l = 0.0
-        elif j < 0xBB67A:  # |x|<sqrt(3)
-            k = 1
-            bp = 1.5
-            dp_h = _DP_H1
-            dp_l = _DP_L1
-        else:
-            k = 0
-            bp = 1.0
-            dp_h = 0.0
-            dp_l = 0.0
-            n += 1
-            ix -= 0x00100000
+def _pow_log2_near_1(ax: float, fd: memoryview[float], wi: memoryview[int]) -> tuple[float, float]:
+    """log2(ax) = t1 + t2 for |1-ax| <= 2**-20 by x-x^2/2+x^3/3-x^4/4 (ftc_pow_log2_near_1)."""
+    t = ax - 1.0  # t has 20 trailing zeros
+    w = (t * t) * (0.5 - t * (0.3333333333333333333333 - t * 0.25))
+    u = _IVLN2_H * t  # ivln2_h has 21 sig. bits
+    v = t * _IVLN2_L - w * _IVLN2
+    fd[0] = u + v
+    wi[_LO] = 0  # SET_LOW_WORD(t1, 0)
+    t1 = fd[0]
+    return t1, v - (t1 - u)
+
+
+def _pow_log2(ax: float, ix: int, fd: memoryview[float], wi: memoryview[int]) -> tuple[float, float]:
+    """log2(ax) = t1 + t2; ix: ax's high word (ftc_pow_log2)."""
+    n = 0
+    # take care subnormal number
+    if ix < 0x00100000:
+        ax *= _TWO53
+        n -= 53
         fd[0] = ax
-        wi[_HI] = ix  # SET_HIGH_WORD(ax, ix)
-        ax = fd[0]
+        ix = wi[_HI]
+    n += (ix >> 20) - 0x3FF
+    j = ix & 0x000FFFFF
+    # determine interval
+    ix = j | 0x3FF00000  # normalize ix
+    k, bp, dp_h, dp_l = 0, 1.0, 0.0, 0.0  # |x|<sqrt(3/2)
+    if 0x3988E < j < 0xBB67A:  # |x|<sqrt(3)
+        k, bp, dp_h, dp_l = 1, 1.5, _DP_H1, _DP_L1
+    elif j >= 0xBB67A:
+        n += 1
+        ix -= 0x00100000
+    fd[0] = ax
+    wi[_HI] = ix  # SET_HIGH_WORD(ax, ix)
+    ax = fd[0]
 
-        # compute ss = s_h+s_l = (x-1)/(x+1) or (x-1.5)/(x+1.5)
-        u = ax - bp
-        v = 1.0 / (ax + bp)
-        ss = u * v
-        fd[0] = ss
-        wi[_LO] = 0  # SET_LOW_WORD(s_h, 0)
-        s_h = fd[0]
-        # t_h=ax+bp[k] High
-        wi[_LO] = 0
-        wi[_HI] = ((ix >> 1) | 0x20000000) + 0x00080000 + (k << 18)
-        t_h = fd[0]
-        t_l = ax - (t_h - bp)
-        s_l = v * ((u - s_h * t_h) - s_h * t_l)
-        # compute log(ax)
-        s2 = ss * ss
-        r = s2 * s2 * (_L1 + s2 * (_L2 + s2 * (_L3 + s2 * (_L4 + s2 * (_L5 + s2 * _L6)))))
-        r += s_l * (s_h + ss)
-        s2 = s_h * s_h
-        fd[0] = 3.0 + s2 + r
-        wi[_LO] = 0  # SET_LOW_WORD(t_h, 0)
-        t_h = fd[0]
-        t_l = r - ((t_h - 3.0) - s2)
-        # u+v = ss*(1+...)
-        u = s_h * t_h
-        v = s_l * t_h + t_l * ss
-        # 2/(3log2)*(ss+...)
-        fd[0] = u + v
-        wi[_LO] = 0  # SET_LOW_WORD(p_h, 0)
-        p_h = fd[0]
-        p_l = v - (p_h - u)
-        z_h = _CP_H * p_h  # cp_h+cp_l = 2/(3*log2)
-        z_l = _CP_L * p_h + p_l * _CP + dp_l
-        # log2(ax) = (ss+..)*2/(3*log2) = n + dp_h + z_h + z_l
-        t = float(n)
-        fd[0] = ((z_h + z_l) + dp_h) + t
-        wi[_LO] = 0  # SET_LOW_WORD(t1, 0)
-        t1 = fd[0]
-        t2 = z_l - (((t1 - t) - dp_h) - z_h)
+    # compute ss = s_h+s_l = (x-1)/(x+1) or (x-1.5)/(x+1.5)
+    u = ax - bp
+    v = 1.0 / (ax + bp)
+    ss = u * v
+    fd[0] = ss
+    wi[_LO] = 0  # SET_LOW_WORD(s_h, 0)
+    s_h = fd[0]
+    # t_h=ax+bp[k] High
+    wi[_LO] = 0
+    wi[_HI] = ((ix >> 1) | 0x20000000) + 0x00080000 + (k << 18)
+    t_h = fd[0]
+    t_l = ax - (t_h - bp)
+    s_l = v * ((u - s_h * t_h) - s_h * t_l)
+    # compute log(ax)
+    s2 = ss * ss
+    r = s2 * s2 * (_L1 + s2 * (_L2 + s2 * (_L3 + s2 * (_L4 + s2 * (_L5 + s2 * _L6)))))
+    r += s_l * (s_h + ss)
+    s2 = s_h * s_h
+    fd[0] = 3.0 + s2 + r
+    wi[_LO] = 0  # SET_LOW_WORD(t_h, 0)
+    t_h = fd[0]
+    t_l = r - ((t_h - 3.0) - s2)
+    # u+v = ss*(1+...)
+    u = s_h * t_h
+    v = s_l * t_h + t_l * ss
+    # 2/(3log2)*(ss+...)
+    fd[0] = u + v
+    wi[_LO] = 0  # SET_LOW_WORD(p_h, 0)
+    p_h = fd[0]
+    p_l = v - (p_h - u)
+    z_h = _CP_H * p_h  # cp_h+cp_l = 2/(3*log2)
+    z_l = _CP_L * p_h + p_l * _CP + dp_l
+    # log2(ax) = (ss+..)*2/(3*log2) = n + dp_h + z_h + z_l
+    t = float(n)
+    fd[0] = ((z_h + z_l) + dp_h) + t
+    wi[_LO] = 0  # SET_LOW_WORD(t1, 0)
+    t1 = fd[0]
+    return t1, z_l - (((t1 - t) - dp_h) - z_h)
 
+
+def _pow_exp2(y: float, t1: float, t2: float, s: float, fd: memoryview[float], wi: memoryview[int]) -> float:
+    """s * 2**(y*(t1+t2)) with fdlibm's overflow and underflow checks (ftc_pow_exp2)."""
     # split up y into y1+y2 and compute (y1+y2)*(t1+t2)
     fd[0] = y
     wi[_LO] = 0  # SET_LOW_WORD(y1, 0)
@@ -699,11 +695,78 @@ def _pow(x: float, y: float) -> float:  # noqa: C901 (a transcription of one C f
     j = wi[_HI]
     j += n << 20  # no int32 overflow: z in [0.7, 1.5), -1075 <= n <= 1024
     if (j >> 20) <= 0:  # subnormal output
-        z = _scalbn(z, n)
+        return s * _scalbn(z, n)
+    wi[_HI] = j  # SET_HIGH_WORD(z, j): fd still holds z; 0 < j < 0x7FF00000 here
+    return s * fd[0]
+
+
+def _pow_huge_y(ax: float, ix: int, iy: int, hy: int, s: float, fd: memoryview[float],
+                wi: memoryview[int]) -> float | tuple[float, float]:
+    """|y| > 2**31: the over- or underflowed result, or, for |x| within 2**-20 of 1, log2(|x|) as
+    (t1, t2) (ftc_pow_huge_y)."""
+    if iy > 0x43F00000:  # |y| > 2**64, must o/uflow
+        if ix <= 0x3FEFFFFF:
+            return _HUGE * _HUGE if hy < 0 else _TINY * _TINY
+        if ix >= 0x3FF00000:
+            return _HUGE * _HUGE if hy > 0 else _TINY * _TINY
+    # over/underflow if x is not close to one
+    if ix < 0x3FEFFFFF:
+        return s * _HUGE * _HUGE if hy < 0 else s * _TINY * _TINY
+    if ix > 0x3FF00000:
+        return s * _HUGE * _HUGE if hy > 0 else s * _TINY * _TINY
+    return _pow_log2_near_1(ax, fd, wi)
+
+
+def _pow(x: float, y: float) -> float:
+    """Return x**y exactly as musl's fdlibm pow (the same bits as ftc_pow in fmath_pow.h, cut into
+    the same steps); x and y must be floats."""
+    mv = memoryview(bytearray(8))
+    fd = mv.cast("d")  # the 8 bytes as one double
+    wi = mv.cast("i")  # the same bytes as int32 [low word, high word]
+    fd[0] = x
+    lx = wi[_LO]  # signed here; only ever tested against 0
+    hx = wi[_HI]
+    fd[0] = y
+    ly = wi[_LO] & 0xFFFFFFFF  # C: uint32_t
+    hy = wi[_HI]
+    ix = hx & 0x7FFFFFFF
+    iy = hy & 0x7FFFFFFF
+
+    # x**0 = 1, even if x is NaN
+    if not (iy | ly):
+        return 1.0
+    # 1**y = 1, even if y is NaN
+    if hx == 0x3FF00000 and not lx:
+        return 1.0
+    # NaN if either arg is NaN (musl: x + y; SSE2 gives the first NaN operand, quieted)
+    if ix > 0x7FF00000 or (ix == 0x7FF00000 and lx):
+        return _double(_bits(x) | 0x0008000000000000)
+    if iy > 0x7FF00000 or (iy == 0x7FF00000 and ly):
+        return _double(_bits(y) | 0x0008000000000000)
+
+    yisint = _pow_yisint(iy, ly) if hx < 0 else 0
+    if not ly:
+        z = _pow_special_y(x, y, hx, lx, hy)
+        if z is not None:
+            return z
+    ax = abs(x)
+    if not lx and (ix == 0x7FF00000 or ix == 0 or ix == 0x3FF00000):  # x is +-0,+-inf,+-1
+        return _pow_special_x(ax, hx, hy, yisint)
+
+    s = 1.0  # sign of result
+    if hx < 0:
+        if yisint == 0:  # (x<0)**(non-int) is NaN
+            return _NAN_INVALID
+        if yisint == 1:  # (x<0)**(odd int)
+            s = -1.0
+    if iy > 0x41E00000:  # |y| > 2**31
+        logs = _pow_huge_y(ax, ix, iy, hy, s, fd, wi)
+        if isinstance(logs, float):
+            return logs
+        t1, t2 = logs
     else:
-        wi[_HI] = j  # SET_HIGH_WORD(z, j): fd still holds z; 0 < j < 0x7FF00000 here
-        z = fd[0]
-    return s * z
+        t1, t2 = _pow_log2(ax, ix, fd, wi)
+    return _pow_exp2(y, t1, t2, s, fd, wi)
 
 
 try:  # the compiled functions (controller/_fmath.c, built into every FMU): the same bits, faster

@@ -8,7 +8,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 TAG = "SPDX-License-Identifier: BSD-2-Clause"
 # transcribed from musl (MIT), their licence beside them (controller/fmath-LICENSE.txt)
-MIT = {name: "controller/fmath-LICENSE.txt" for name in ("controller/fmath.py", "controller/fmath.h")}
+MIT = {name: "controller/fmath-LICENSE.txt" for name in ("controller/fmath.py", "controller/fmath.h",
+                                                                  "controller/fmath_pow.h")}
 
 
 def _sources() -> list[str]:

@@ -139,9 +139,10 @@ BUILD_CODE = ("build.py", "fmi3.py", "runtime.py", "runtime_pins.txt", "runtime_
 EXTENSIONS = {"fmu_src.models._dopri": Path("fmu_src", "models", "_dopri.c"),
               "controller._law": Path("controller", "_law.c"),
               "controller._fmath": Path("controller", "_fmath.c")}
-# The headers every extension module's source includes (relative to the source root): fmath.h,
-# the elementary functions that give the same bits on every platform (controller/fmath.py).
-EXTENSION_HEADERS = (Path("controller", "fmath.h"),)
+# The headers every extension module's source includes (relative to the source root): fmath.h and
+# its fmath_pow.h, the elementary functions that give the same bits on every platform
+# (controller/fmath.py).
+EXTENSION_HEADERS = (Path("controller", "fmath.h"), Path("controller", "fmath_pow.h"))
 FMATH_MODULE = "controller.fmath"  # musl's functions: an FMU that bundles them carries their licence
 FMATH_LICENSE = Path("controller", "fmath-LICENSE.txt")
 EXTENSION_SUFFIX = ".abi3.so"
