@@ -24,11 +24,15 @@ lands on a communication point exactly where both coincide.
 from __future__ import annotations
 
 import math
+import zipfile
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 from fmpy.model_description import ModelDescription
+from lxml import etree
 
+from . import fmucache
 from .ssp import Connector
 
 __all__ = ["InputClock", "due", "input_clocks", "next_tick"]
@@ -60,15 +64,42 @@ def _ns(seconds: float) -> int:
     return round(seconds * NS_PER_S)
 
 
-def input_clocks(where: str, md: ModelDescription,
-                 declared: Iterable[Connector] = ()) -> tuple[list[InputClock], list[str]]:
+def _decimals(fmu: Path | None) -> dict[str, tuple[float | None, float | None]]:
+    """Each Clock's ``intervalDecimal`` and ``shiftDecimal`` as the FMU's model description (or a
+    ``modelDescription.xml`` itself) gives them (fmpy 0.3 does not read them); empty when the file
+    cannot be read."""
+    if fmu is None:
+        return {}
+    parser = etree.XMLParser(resolve_entities=False, no_network=True)
+    try:
+        if fmu.suffix == ".xml":
+            root = etree.parse(str(fmu), parser).getroot()
+        else:
+            with zipfile.ZipFile(fmucache.materialize(fmu)) as zf, zf.open("modelDescription.xml") as xml:
+                root = etree.parse(xml, parser).getroot()
+    except (OSError, KeyError, zipfile.BadZipFile, etree.XMLSyntaxError):
+        return {}
+
+    def number(text: str | None) -> float | None:
+        try:
+            return None if text is None else float(text)
+        except ValueError:
+            return None
+    return {c.get("name", ""): (number(c.get("intervalDecimal")), number(c.get("shiftDecimal")))
+            for c in root.iter("Clock")}
+
+
+def input_clocks(where: str, md: ModelDescription, declared: Iterable[Connector] = (),
+                 fmu: Path | None = None) -> tuple[list[InputClock], list[str]]:
     """The periodic input clocks of an FMU and the problems that refuse it (one line each, naming
     ``where`` — the SSD and component — and the clock); both empty for an FMU without clocks.
     ``declared``: the component's SSD connectors, whose Clock ``intervalDecimal`` gives the interval
-    of a ``fixed`` clock the FMU leaves open."""
+    of a ``fixed`` clock the FMU leaves open; ``fmu``: the FMU file, whose model description gives
+    the clocks' ``intervalDecimal`` and ``shiftDecimal``."""
     variables = [v for v in md.modelVariables if v.type == "Clock"]
     if not variables:
         return [], []
+    decimals = _decimals(fmu)
     cs = md.coSimulation
     if cs is None or not cs.hasEventMode:
         return [], [f"{where}: the FMU has clocks ({', '.join(v.name for v in variables)}) but its "
@@ -92,7 +123,7 @@ def input_clocks(where: str, md: ModelDescription,
             problems.append(f"{where}: input clock '{v.name}' has intervalVariability '{variability}': only "
                             f"periodic clocks ({', '.join(PERIODIC)}) are supported")
             continue
-        interval = v.intervalDecimal
+        interval, shift = decimals.get(v.name, (v.intervalDecimal, v.shiftDecimal))
         ssd = from_ssd.get(v.name)
         if interval is None:
             interval = ssd
@@ -104,8 +135,7 @@ def input_clocks(where: str, md: ModelDescription,
             problems.append(f"{where}: input clock '{v.name}' has no positive interval (intervalDecimal, "
                             "in the FMU or the SSD's Clock connector)")
             continue
-        shift = v.shiftDecimal or 0.0
-        clocks.append(InputClock(v.name, v.valueReference, _ns(interval), _ns(shift)))
+        clocks.append(InputClock(v.name, v.valueReference, _ns(interval), _ns(shift or 0.0)))
     return clocks, problems
 
 

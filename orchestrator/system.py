@@ -225,7 +225,7 @@ class System:
         for output, deps in _dependencies(c.source, md, all_inputs).items():
             for d in deps:
                 feedthrough.setdefault(d, set()).add(output)
-        clocks, clock_problems = input_clocks(f"{self.ssd}: component '{c.name}'", md, c.connectors)
+        clocks, clock_problems = input_clocks(f"{self.ssd}: component '{c.name}'", md, c.connectors, c.source)
         problems.extend(clock_problems)
         return ComponentModel(c.name, c.source, md, outputs, inputs, feedthrough=feedthrough, clocks=clocks)
 
@@ -462,7 +462,8 @@ class System:
                 continue
             for v in comp.model.modelVariables:
                 ref = PortRef(comp.name, v.name)
-                if v.causality != "input" or ref in self.links or v.name in comp.start_values:
+                if v.causality != "input" or ref in self.links or v.name in comp.start_values or \
+                        v.type == "Clock":  # an input clock is ticked by the master
                     continue
                 where = f"{self.ssd}: component '{comp.name}', input '{v.name}'"
                 if v.start is None:

@@ -1,0 +1,219 @@
+# SPDX-License-Identifier: BSD-2-Clause
+"""FMI 3.0 clocks driven by both masters: a periodic input clock ticked on schedule, in event mode.
+
+The FMU is ``Sampler`` (tests/clocked_fmu.py, C, compiled here): its clocked output ``y`` is its
+input ``u`` sampled at every tick of its input clock (interval T = 0.1 s), ``ticks`` counts the
+ticks, and ``y_grid`` is the unclocked sample-and-hold an FMI 2.0 FMU with a sample time makes: at
+the first communication point at or after each k T. With u(t) = t (an input file), the oracles
+are analytic: ``y(t) = T floor(t / T)`` and ``ticks(t) = floor(t / T) + 1`` (a tick at t0), and the
+unclocked sampler samples u at ``h ceil(k T / h)`` on the master's grid of step h. The second
+oracle is fmusim (the Modelica Reference FMUs' importer) running the same FMU with
+``--event-mode-used``, the clock activated from its CSV input at each tick.
+
+The case the issue asks to see: h = 0.03 s does not divide T. The clocked FMU samples at 0.1,
+0.2, ... exactly (the master cuts its step at each tick); the unclocked one at 0.12, 0.21, 0.3,
+0.42, ... (wrong by up to h).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+import shutil
+import subprocess
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from clocked_fmu import INTERVAL, build_sampler
+from fmpy import read_model_description
+
+import orchestrator
+from orchestrator import RunOptions
+from orchestrator.clocks import input_clocks
+from orchestrator.errors import UsageError
+from orchestrator.ssp import SSD_NAME
+
+HERE = Path(__file__).resolve().parent
+# /work/shared beside a checkout of /work/main, or seen from a worktree below /work/wt
+SHARED = next((p for p in (HERE.parents[1] / "shared", Path("/work/shared")) if p.is_dir()),
+              Path("/work/shared"))
+FMUSIM = SHARED / "tools" / "fmusim" / "bin" / "fmusim"
+FEEDTHROUGH = SHARED / "tools" / "reference-fmus" / "3.0" / "Feedthrough.fmu"
+STEP, STOP = 0.03, 0.99  # 0.03 does not divide T = 0.1
+pytestmark = [pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler"),
+              pytest.mark.filterwarnings("ignore::orchestrator.errors.ScenarioWarning"),
+              pytest.mark.filterwarnings("ignore::orchestrator.EngineNote")]
+
+SAMPLER = """
+      <ssd:Component name="s" source="resources/Sampler.fmu">
+        <ssd:Connectors>{clock}
+          <ssd:Connector name="u" kind="input"><ssc:Float64/></ssd:Connector>
+          <ssd:Connector name="y_grid" kind="output"><ssc:Float64/></ssd:Connector>{clocked}
+        </ssd:Connectors>
+      </ssd:Component>"""
+CLOCK = """
+          <ssd:Connector name="tick" kind="input">
+            <ssc:Clock intervalVariability="constant"/></ssd:Connector>"""
+CLOCKED = """
+          <ssd:Connector name="y" kind="output"><ssc:Float64/><ssd:Clock name="tick"/></ssd:Connector>
+          <ssd:Connector name="ticks" kind="output"><ssc:Float64/><ssd:Clock name="tick"/></ssd:Connector>"""
+FEED = """
+      <ssd:Component name="f" source="resources/Feedthrough.fmu">
+        <ssd:Connectors>
+          <ssd:Connector name="Float64_continuous_input" kind="input"><ssc:Float64/></ssd:Connector>
+          <ssd:Connector name="Float64_continuous_output" kind="output"><ssc:Float64/></ssd:Connector>
+        </ssd:Connectors>
+      </ssd:Component>"""
+SSD = """<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="2.0" name="sampled"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon">
+  <ssd:System name="sampled">
+    <ssd:Elements>{elements}
+    </ssd:Elements>{connections}
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0" stopTime="{stop}"/>
+</ssd:SystemStructureDescription>
+"""
+CONNECTION = """
+    <ssd:Connections>
+      <ssd:Connection startElement="s" startConnector="y" endElement="f"
+          endConnector="Float64_continuous_input"/>
+    </ssd:Connections>"""
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The clocked Sampler and its unclocked twin (the same C code, no clock declared)."""
+    folder = tmp_path_factory.mktemp("sampler")
+    return {"clocked": build_sampler(folder / "clocked"),
+            "unclocked": build_sampler(folder / "plain", clocked=False)}
+
+
+def scenario(folder: Path, fmu: Path, clocked: bool = True, feed: bool = False) -> tuple[Path, Path]:
+    """The SSD folder running ``fmu`` as component ``s`` (and a Feedthrough ``f`` fed by ``s.y``),
+    and the input file u(t) = t."""
+    (folder / "resources").mkdir(parents=True)
+    shutil.copy(fmu, folder / "resources" / "Sampler.fmu")
+    if feed:
+        shutil.copy(FEEDTHROUGH, folder / "resources")
+    sampler = SAMPLER.format(clock=CLOCK if clocked else "", clocked=CLOCKED if clocked else "")
+    (folder / SSD_NAME).write_text(SSD.format(elements=sampler + (FEED if feed else ""), stop=STOP,
+                                              connections=CONNECTION if feed else ""))
+    ramp = folder.parent / f"{folder.name}-ramp.csv"
+    ramp.write_text("time,s.u\n0,0\n10,10\n")
+    return folder, ramp
+
+
+def run(folder: Path, ramp: Path, **options: object) -> np.ndarray:
+    return orchestrator.run(folder, RunOptions(step=STEP, input_file=ramp, **options)).rows  # type: ignore[arg-type]
+
+
+def sampled_at_ticks(t: np.ndarray) -> np.ndarray:
+    """u(t) = t sampled at the ticks k T and held: T floor(t / T) (to a nanosecond, as the grid)."""
+    return np.array([INTERVAL * math.floor(round(x / INTERVAL, 9)) for x in t])
+
+
+def sampled_on_grid(t: np.ndarray) -> np.ndarray:
+    """What the unclocked sampler holds at each row of the grid ``t``: u (= time) at the first grid
+    point at or after each k T, taken in the step that starts there, so seen from the next row."""
+    points = {min(s for s in t if s >= k * INTERVAL - 1e-12) for k in range(int(t[-1] / INTERVAL) + 1)}
+    return np.array([max((p for p in points if p < x - 1e-12), default=0.0) for x in t])
+
+
+@pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])
+def test_clocked_fmu_samples_at_the_ticks_when_the_step_does_not_divide_the_interval(
+        fmus: dict[str, Path], tmp_path: Path, master: str) -> None:
+    rows = run(*scenario(tmp_path / "s", fmus["clocked"]), master=master)
+    t = rows["time"]
+    assert len(t) == round(STOP / STEP) + 1  # rows on the master's grid only
+    np.testing.assert_allclose(rows["s.y"], sampled_at_ticks(t), rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(rows["s.ticks"], [math.floor(round(x / INTERVAL, 9)) + 1 for x in t])
+
+
+def test_unclocked_sampler_on_the_masters_grid_samples_at_the_wrong_instants(
+        fmus: dict[str, Path], tmp_path: Path) -> None:
+    """The same C code without the clock, on the grid of 0.03 s: it samples u at 0.12, 0.21, 0.3,
+    0.42 ... (analytic: the first grid point at or after each k T), off the ticks by up to 0.02 s."""
+    rows = run(*scenario(tmp_path / "plain", fmus["unclocked"], clocked=False))
+    t = rows["time"]
+    np.testing.assert_allclose(rows["s.y_grid"], sampled_on_grid(t), rtol=0, atol=1e-12)
+    clocked = run(*scenario(tmp_path / "clocked", fmus["clocked"]))
+    error = np.abs(rows["s.y_grid"] - clocked["s.y"])
+    assert error.max() == pytest.approx(INTERVAL, abs=1e-12)  # at 0.12 it still holds u(0), not u(0.1)
+
+
+@pytest.mark.skipif(not FMUSIM.is_file(), reason="no fmusim")
+def test_agrees_with_fmusim_in_event_mode(fmus: dict[str, Path], tmp_path: Path) -> None:
+    """fmusim activates the clock from a CSV column (1 at each tick; it cannot tick at t0, where
+    u = 0 = y anyway) and steps from tick to tick; at every row of orchestrate's run on the grid of
+    0.03 s, y equals fmusim's y after the last tick at or before it."""
+    ticks = [round(k * INTERVAL, 10) for k in range(1, 10)]
+    with (tmp_path / "in.csv").open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["time", "u", "tick"])
+        writer.writerow([0.0, 0.0, 0])
+        for x in ticks:
+            writer.writerows([[x, x, 0], [x, x, 1]])
+    subprocess.run([str(FMUSIM), "--interface-type", "cs", "--event-mode-used", "--stop-time", "0.9",
+                    "--output-interval", str(INTERVAL), "--input-file", str(tmp_path / "in.csv"),
+                    "--output-file", str(tmp_path / "out.csv"), str(fmus["clocked"])], check=True, timeout=60)
+    theirs = np.genfromtxt(tmp_path / "out.csv", delimiter=",", names=True)
+    after_tick = {round(float(r["time"]), 9): float(r["y"]) for r in theirs}  # the row after the event wins
+    assert [after_tick[x] for x in ticks] == pytest.approx(ticks, abs=1e-15)
+    rows = run(*scenario(tmp_path / "s", fmus["clocked"]))
+    for x, y in zip(rows["time"], rows["s.y"], strict=True):
+        last = max((k for k in after_tick if k <= x + 1e-12), default=0.0)
+        assert y == pytest.approx(after_tick[last], abs=1e-12), x
+
+
+@pytest.mark.skipif(not FEEDTHROUGH.is_file(), reason="no Modelica Reference FMUs (FMI 3.0)")
+def test_clocked_output_is_passed_on_at_the_tick(fmus: dict[str, Path], tmp_path: Path) -> None:
+    """s.y -> Reference Feedthrough: under gauss-seidel f's output equals y at every row (the value
+    set after the tick reaches f at the tick); under jacobi it is y at the start of the step that
+    ends at the row, which is the tick where a tick cut the step (0.12: y(0.1) = 0.1)."""
+    folder, ramp = scenario(tmp_path / "s", fmus["clocked"], feed=True)
+    rows = run(folder, ramp)
+    np.testing.assert_array_equal(rows["f.Float64_continuous_output"], rows["s.y"])
+    jacobi = run(folder, ramp, master="jacobi")
+    t = jacobi["time"][1:]
+    starts = np.maximum(t - STEP, INTERVAL * np.floor(np.round((t - 1e-9) / INTERVAL, 9)))  # a cut step's
+    np.testing.assert_allclose(jacobi["f.Float64_continuous_output"][1:], sampled_at_ticks(starts),
+                               rtol=0, atol=1e-12)
+
+
+def test_the_compiled_executor_leaves_clocks_to_the_python_master(fmus: dict[str, Path],
+                                                                 tmp_path: Path) -> None:
+    folder, ramp = scenario(tmp_path / "s", fmus["clocked"])
+    with pytest.raises(UsageError, match=r"compiled cannot run this scenario: FMI 3.0 clocks \(of s\) are "
+                                         "ticked by the Python master"):
+        run(folder, ramp, executor="compiled")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run(folder, ramp, executor="auto")
+    assert any("FMI 3.0 clocks (of s)" in str(w.message) for w in caught)
+
+
+def test_reference_clocks_model_is_refused_in_one_line() -> None:
+    """The Reference FMUs' Clocks (Scheduled Execution only, a third-party file): one line."""
+    md = read_model_description(str(HERE / "reference_clocks" / "modelDescription.xml"), validate=False)
+    clocks, problems = input_clocks("x.ssd: component 'c'", md)
+    assert clocks == [] and problems == [
+        "x.ssd: component 'c': the FMU has clocks (inClock1, inClock2, inClock3, outClock) but its "
+        "Co-Simulation interface has no event mode (hasEventMode): Scheduled Execution is not supported"]
+
+
+def test_unsupported_clocks_are_refused_one_line_each(fmus: dict[str, Path]) -> None:
+    """The Clocks model's variables as if it offered Co-Simulation with event mode: its triggered and
+    countdown input clocks and its output clock are each refused, naming the clock."""
+    xml = HERE / "reference_clocks" / "modelDescription.xml"
+    md = read_model_description(str(xml), validate=False)
+    md.coSimulation = read_model_description(str(fmus["clocked"]), validate=False).coSimulation
+    clocks, problems = input_clocks("x.ssd: component 'c'", md, fmu=xml)
+    assert [(c.name, c.vr, c.interval_ns) for c in clocks] == [("inClock1", 1001, 1_000_000_000)]
+    assert [re.search(r"'(\w+)'", p.split(": ", 2)[2]).group(1) for p in problems] == [  # type: ignore[union-attr]
+        "inClock2", "inClock3", "outClock"]
+    assert all("\n" not in p for p in problems)
