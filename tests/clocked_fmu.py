@@ -19,13 +19,19 @@ offers no Co-Simulation), hence this one. fmusim (the Reference FMUs' importer) 
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import zipfile
 from pathlib import Path
 
 import orchestrator
+from orchestrator.ssp import SSD_NAME
 
 HEADERS = Path(orchestrator.__file__).parent / "native" / "fmi"
+# /work/shared beside a checkout of /work/main, or seen from a worktree below /work/wt
+SHARED = next((p for p in (Path(__file__).resolve().parents[2] / "shared", Path("/work/shared"))
+               if p.is_dir()), Path("/work/shared"))
+FEEDTHROUGH = SHARED / "tools" / "reference-fmus" / "3.0" / "Feedthrough.fmu"
 INTERVAL = 0.1  # s, the clock's interval in the model description
 
 SOURCE = r"""
@@ -146,15 +152,54 @@ MODEL_DESCRIPTION = """<?xml version="1.0" encoding="UTF-8"?>
 """
 
 
-CLOCK = """
+MD_CLOCK = """
     <Clock name="tick" valueReference="1" causality="input" intervalVariability="constant"
       intervalDecimal="{interval!r}"/>"""
-CLOCKED = """
+MD_CLOCKED = """
     <Float64 name="y" valueReference="3" causality="output" variability="discrete" clocks="1"/>
     <Float64 name="ticks" valueReference="5" causality="output" variability="discrete" clocks="1"/>"""
 CLOCKED_OUTPUTS = """
     <Output valueReference="3" dependencies="2"/>
     <Output valueReference="5" dependencies=""/>"""
+
+
+SAMPLER = """
+      <ssd:Component name="s" source="resources/Sampler.fmu">
+        <ssd:Connectors>{clock}
+          <ssd:Connector name="u" kind="input"><ssc:Float64/></ssd:Connector>
+          <ssd:Connector name="y_grid" kind="output"><ssc:Float64/></ssd:Connector>{clocked}
+        </ssd:Connectors>
+      </ssd:Component>"""
+SSD_CLOCK = """
+          <ssd:Connector name="tick" kind="input">
+            <ssc:Clock intervalVariability="constant"/></ssd:Connector>"""
+SSD_CLOCKED = """
+          <ssd:Connector name="y" kind="output"><ssc:Float64/><ssd:Clock name="tick"/></ssd:Connector>
+          <ssd:Connector name="ticks" kind="output"><ssc:Float64/><ssd:Clock name="tick"/></ssd:Connector>"""
+FEED = """
+      <ssd:Component name="f" source="resources/Feedthrough.fmu">
+        <ssd:Connectors>
+          <ssd:Connector name="Float64_continuous_input" kind="input"><ssc:Float64/></ssd:Connector>
+          <ssd:Connector name="Float64_continuous_output" kind="output"><ssc:Float64/></ssd:Connector>
+        </ssd:Connectors>
+      </ssd:Component>"""
+SSD = """<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="2.0" name="sampled"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon">
+  <ssd:System name="sampled">
+    <ssd:Elements>{elements}
+    </ssd:Elements>{connections}
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0" stopTime="{stop}"/>
+</ssd:SystemStructureDescription>
+"""
+CONNECTION = """
+    <ssd:Connections>
+      <ssd:Connection startElement="s" startConnector="y" endElement="f"
+          endConnector="Float64_continuous_input"/>
+    </ssd:Connections>"""
+
 
 
 def build_sampler(dest: Path, interval: float = INTERVAL, clocked: bool = True) -> Path:
@@ -169,9 +214,69 @@ def build_sampler(dest: Path, interval: float = INTERVAL, clocked: bool = True) 
                     str(dest / "sampler.c"), str(dest / "stubs.c")], check=True, capture_output=True)
     fmu = dest / "Sampler.fmu"
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as zf:
-        parts = {"event_mode": ' hasEventMode="true"', "clock": CLOCK.format(interval=interval),
-                 "clocked": CLOCKED, "clocked_outputs": CLOCKED_OUTPUTS} if clocked else dict.fromkeys(
+        parts = {"event_mode": ' hasEventMode="true"', "clock": MD_CLOCK.format(interval=interval),
+                 "clocked": MD_CLOCKED, "clocked_outputs": CLOCKED_OUTPUTS} if clocked else dict.fromkeys(
                      ("event_mode", "clock", "clocked", "clocked_outputs"), "")
         zf.writestr("modelDescription.xml", MODEL_DESCRIPTION.format(token=TOKEN, **parts))
         zf.write(library, "binaries/x86_64-linux/Sampler.so")
     return fmu
+
+
+def scenario(folder: Path, fmu: Path, clocked: bool = True, feed: bool = False,
+             stop: float = 0.99) -> tuple[Path, Path]:
+    """The SSD folder running ``fmu`` as component ``s`` (and a Feedthrough ``f`` fed by ``s.y``),
+    and the input file u(t) = t."""
+    (folder / "resources").mkdir(parents=True)
+    shutil.copy(fmu, folder / "resources" / "Sampler.fmu")
+    if feed:
+        shutil.copy(FEEDTHROUGH, folder / "resources")
+    sampler = SAMPLER.format(clock=SSD_CLOCK if clocked else "", clocked=SSD_CLOCKED if clocked else "")
+    (folder / SSD_NAME).write_text(SSD.format(elements=sampler + (FEED if feed else ""), stop=stop,
+                                              connections=CONNECTION if feed else ""))
+    ramp = folder.parent / f"{folder.name}-ramp.csv"
+    ramp.write_text("time,s.u\n0,0\n10,10\n")
+    return folder, ramp
+
+
+def figure(dest: Path, step: float = 0.03) -> Path:
+    """The issue's case as a figure at ``dest`` (PNG): u(t) = t sampled every T = 0.1 s by the clocked
+    Sampler and by its unclocked twin, both run by ``orchestrate`` (gauss-seidel) on a grid of
+    ``step`` that does not divide T, with the true sampling instants k T marked."""
+    import tempfile
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        runs = {}
+        for clocked in (True, False):
+            fmu = build_sampler(folder / f"fmu-{clocked}", clocked=clocked)
+            ssd, ramp = scenario(folder / f"s-{clocked}", fmu, clocked=clocked)
+            runs[clocked] = orchestrator.run(ssd, orchestrator.RunOptions(step=step, input_file=ramp)).rows
+    fig, ax = plt.subplots(figsize=(8, 4.2))
+    t = runs[True]["time"]
+    ax.plot(t, t, color="0.7", label="u(t) = t")
+    cases = ((runs[True], "s.y", "-", "clocked FMU, ticked in event mode"),
+             (runs[False], "s.y_grid", "--", f"unclocked FMU, master's step {step} s"))
+    for rows, column, style, label in cases:
+        line, = ax.step(t, rows[column], where="post", linestyle=style, marker=".", markersize=4,
+                        label=f"{label}: rows")
+        held = sorted(set(rows[column]) - {0.0})  # u = t: a held value is the instant it was sampled at
+        ax.plot(held, held, "o" if style == "-" else "s", color=line.get_color(), fillstyle="none",
+                label=f"{label}: sampled at t = " + ", ".join(f"{x:g}" for x in held[:4]) + " ...")
+    for k in range(1, int(t[-1] / INTERVAL) + 1):
+        ax.axvline(k * INTERVAL, color="0.85", linewidth=0.8, zorder=0)
+    ax.set_xlabel("time [s]  (grey lines: the ticks k T, T = 0.1 s)")
+    ax.set_ylabel("held sample of u")
+    ax.legend(loc="upper left", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(dest, dpi=110)
+    return dest
+
+
+if __name__ == "__main__":
+    import sys
+
+    print(figure(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("clock-sampling.png")))

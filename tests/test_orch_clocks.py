@@ -27,63 +27,20 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from clocked_fmu import INTERVAL, build_sampler
+from clocked_fmu import FEEDTHROUGH, INTERVAL, SHARED, build_sampler, scenario
 from fmpy import read_model_description
 
 import orchestrator
 from orchestrator import RunOptions
 from orchestrator.clocks import input_clocks
 from orchestrator.errors import UsageError
-from orchestrator.ssp import SSD_NAME
 
 HERE = Path(__file__).resolve().parent
-# /work/shared beside a checkout of /work/main, or seen from a worktree below /work/wt
-SHARED = next((p for p in (HERE.parents[1] / "shared", Path("/work/shared")) if p.is_dir()),
-              Path("/work/shared"))
 FMUSIM = SHARED / "tools" / "fmusim" / "bin" / "fmusim"
-FEEDTHROUGH = SHARED / "tools" / "reference-fmus" / "3.0" / "Feedthrough.fmu"
-STEP, STOP = 0.03, 0.99  # 0.03 does not divide T = 0.1
+STEP = 0.03  # does not divide T = 0.1
 pytestmark = [pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler"),
               pytest.mark.filterwarnings("ignore::orchestrator.errors.ScenarioWarning"),
               pytest.mark.filterwarnings("ignore::orchestrator.EngineNote")]
-
-SAMPLER = """
-      <ssd:Component name="s" source="resources/Sampler.fmu">
-        <ssd:Connectors>{clock}
-          <ssd:Connector name="u" kind="input"><ssc:Float64/></ssd:Connector>
-          <ssd:Connector name="y_grid" kind="output"><ssc:Float64/></ssd:Connector>{clocked}
-        </ssd:Connectors>
-      </ssd:Component>"""
-CLOCK = """
-          <ssd:Connector name="tick" kind="input">
-            <ssc:Clock intervalVariability="constant"/></ssd:Connector>"""
-CLOCKED = """
-          <ssd:Connector name="y" kind="output"><ssc:Float64/><ssd:Clock name="tick"/></ssd:Connector>
-          <ssd:Connector name="ticks" kind="output"><ssc:Float64/><ssd:Clock name="tick"/></ssd:Connector>"""
-FEED = """
-      <ssd:Component name="f" source="resources/Feedthrough.fmu">
-        <ssd:Connectors>
-          <ssd:Connector name="Float64_continuous_input" kind="input"><ssc:Float64/></ssd:Connector>
-          <ssd:Connector name="Float64_continuous_output" kind="output"><ssc:Float64/></ssd:Connector>
-        </ssd:Connectors>
-      </ssd:Component>"""
-SSD = """<?xml version="1.0" encoding="UTF-8"?>
-<ssd:SystemStructureDescription version="2.0" name="sampled"
-    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
-    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon">
-  <ssd:System name="sampled">
-    <ssd:Elements>{elements}
-    </ssd:Elements>{connections}
-  </ssd:System>
-  <ssd:DefaultExperiment startTime="0" stopTime="{stop}"/>
-</ssd:SystemStructureDescription>
-"""
-CONNECTION = """
-    <ssd:Connections>
-      <ssd:Connection startElement="s" startConnector="y" endElement="f"
-          endConnector="Float64_continuous_input"/>
-    </ssd:Connections>"""
-
 
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
@@ -91,21 +48,6 @@ def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     folder = tmp_path_factory.mktemp("sampler")
     return {"clocked": build_sampler(folder / "clocked"),
             "unclocked": build_sampler(folder / "plain", clocked=False)}
-
-
-def scenario(folder: Path, fmu: Path, clocked: bool = True, feed: bool = False) -> tuple[Path, Path]:
-    """The SSD folder running ``fmu`` as component ``s`` (and a Feedthrough ``f`` fed by ``s.y``),
-    and the input file u(t) = t."""
-    (folder / "resources").mkdir(parents=True)
-    shutil.copy(fmu, folder / "resources" / "Sampler.fmu")
-    if feed:
-        shutil.copy(FEEDTHROUGH, folder / "resources")
-    sampler = SAMPLER.format(clock=CLOCK if clocked else "", clocked=CLOCKED if clocked else "")
-    (folder / SSD_NAME).write_text(SSD.format(elements=sampler + (FEED if feed else ""), stop=STOP,
-                                              connections=CONNECTION if feed else ""))
-    ramp = folder.parent / f"{folder.name}-ramp.csv"
-    ramp.write_text("time,s.u\n0,0\n10,10\n")
-    return folder, ramp
 
 
 def run(folder: Path, ramp: Path, **options: object) -> np.ndarray:
@@ -129,7 +71,7 @@ def test_clocked_fmu_samples_at_the_ticks_when_the_step_does_not_divide_the_inte
         fmus: dict[str, Path], tmp_path: Path, master: str) -> None:
     rows = run(*scenario(tmp_path / "s", fmus["clocked"]), master=master)
     t = rows["time"]
-    assert len(t) == round(STOP / STEP) + 1  # rows on the master's grid only
+    assert len(t) == round(0.99 / STEP) + 1  # rows on the master's grid only
     np.testing.assert_allclose(rows["s.y"], sampled_at_ticks(t), rtol=0, atol=1e-12)
     np.testing.assert_array_equal(rows["s.ticks"], [math.floor(round(x / INTERVAL, 9)) + 1 for x in t])
 
