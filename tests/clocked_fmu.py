@@ -147,6 +147,7 @@ MODEL_DESCRIPTION = """<?xml version="1.0" encoding="UTF-8"?>
   </ModelVariables>
   <ModelStructure>
     <Output valueReference="4" dependencies=""/>{clocked_outputs}
+    <InitialUnknown valueReference="4"/>
   </ModelStructure>
 </fmiModelDescription>
 """

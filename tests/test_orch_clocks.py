@@ -32,7 +32,7 @@ from fmpy import read_model_description
 
 import orchestrator
 from orchestrator import RunOptions
-from orchestrator.clocks import input_clocks
+from orchestrator.clocks import InputClock, due, input_clocks, next_tick
 from orchestrator.errors import UsageError
 
 HERE = Path(__file__).resolve().parent
@@ -51,7 +51,8 @@ def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 def run(folder: Path, ramp: Path, **options: object) -> np.ndarray:
-    return orchestrator.run(folder, RunOptions(step=STEP, input_file=ramp, **options)).rows  # type: ignore[arg-type]
+    options.setdefault("step", STEP)
+    return orchestrator.run(folder, RunOptions(input_file=ramp, **options)).rows  # type: ignore[arg-type]
 
 
 def sampled_at_ticks(t: np.ndarray) -> np.ndarray:
@@ -86,6 +87,17 @@ def test_unclocked_sampler_on_the_masters_grid_samples_at_the_wrong_instants(
     clocked = run(*scenario(tmp_path / "clocked", fmus["clocked"]))
     error = np.abs(rows["s.y_grid"] - clocked["s.y"])
     assert error.max() == pytest.approx(INTERVAL, abs=1e-12)  # at 0.12 it still holds u(0), not u(0.1)
+
+
+def test_where_the_grids_coincide_the_clocked_run_equals_the_unclocked_one(fmus: dict[str, Path],
+                                                                          tmp_path: Path) -> None:
+    """Step 0.02 s divides T: no step is cut, the unclocked output of the clocked run equals the
+    unclocked twin's bit for bit, and the clocked y equals it one row earlier (the event samples u
+    at the tick itself; the unclocked sampler in the step that starts there)."""
+    clocked = run(*scenario(tmp_path / "c", fmus["clocked"], stop=1.0), step=0.02)
+    plain = run(*scenario(tmp_path / "p", fmus["unclocked"], clocked=False, stop=1.0), step=0.02)
+    np.testing.assert_array_equal(clocked["s.y_grid"], plain["s.y_grid"])
+    np.testing.assert_array_equal(clocked["s.y"][:-1], plain["s.y_grid"][1:])
 
 
 @pytest.mark.skipif(not FMUSIM.is_file(), reason="no fmusim")
@@ -159,3 +171,19 @@ def test_unsupported_clocks_are_refused_one_line_each(fmus: dict[str, Path]) -> 
     assert [re.search(r"'(\w+)'", p.split(": ", 2)[2]).group(1) for p in problems] == [  # type: ignore[union-attr]
         "inClock2", "inClock3", "outClock"]
     assert all("\n" not in p for p in problems)
+
+
+def test_ticks_with_a_shift_are_counted_in_nanoseconds() -> None:
+    """FMI 3.0: a periodic clock ticks at t0 + shift + k interval; the next tick strictly after a
+    time, and the clocks due at a time, in integer nanoseconds (t0 = 1 s, interval 0.3 s, shift 0.1 s:
+    1.1, 1.4, 1.7 s ...)."""
+    a = InputClock("a", 1, 300_000_000, 100_000_000)
+    b = InputClock("b", 2, 200_000_000)
+    t0 = 1_000_000_000
+    assert [a.tick_at_or_after(t, t0) for t in (0, 1_100_000_000, 1_100_000_001, 1_400_000_000)] == [
+        1_100_000_000, 1_100_000_000, 1_400_000_000, 1_400_000_000]
+    assert next_tick([a, b], 1_000_000_000, t0) == 1_100_000_000
+    assert next_tick([a, b], 1_100_000_000, t0) == 1_200_000_000
+    assert next_tick([], 0, t0) is None
+    assert [c.name for c in due([a, b], 1_400_000_000, t0)] == ["a", "b"]
+    assert [c.name for c in due([a, b], 1_200_000_000, t0)] == ["b"]
