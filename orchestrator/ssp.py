@@ -19,7 +19,8 @@ communication step, and what other tools write beyond our own scenarios: nested 
 SSM parameter mappings, and OMSimulator's ``version="2.0"`` files. Every problem names the file it is in.
 
 Writing (lxml) the way every tool reads it (SPEC section 7): literal ``ssd:``/``ssc:``/``ssv:``
-prefixes, ``version="1.0"``, every connector declared with its causality and type, parameter
+prefixes, ``version="1.0"`` (``"2.0"`` only when a connector needs SSP 2.0: an FMI 3.0 type, a
+clock), every connector declared with its causality and type, parameter
 bindings on components (one ``.ssv`` each: libcosim applies only the first binding of a
 component), the communication step both where libcosim reads it (``osp:FixedStepAlgorithm
 baseStepSize``) and where OMSimulator does (``oms:FixedStepMaster stepSize``).
@@ -1318,6 +1319,14 @@ def write_ssv(path: str | os.PathLike, parameter_set: ParameterSet, name: str | 
     return path
 
 
+def _version(structure: SystemStructure) -> str:
+    """The SSP version a structure is written as: "1.0" (what every tool reads), or "2.0" when a
+    connector needs it (an FMI 3.0 type such as Float64 or Clock, a clock association)."""
+    needs_2 = any(k.type not in (*TYPES[:6], None) or k.clocks or k.interval is not None
+                  for c in structure.components for k in c.connectors)
+    return "2.0" if needs_2 else "1.0"
+
+
 def write_ssd(folder: str | os.PathLike, structure: SystemStructure) -> Path:
     """Write ``folder/SystemStructure.ssd`` and the ``.ssv`` file of every parameter set bound by a
     component (file named by its ``origin``); returns the SSD's path.
@@ -1328,7 +1337,8 @@ def write_ssd(folder: str | os.PathLike, structure: SystemStructure) -> Path:
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     nsmap = {prefix: NS[prefix] for prefix in ("ssd", "ssc", "ssv", "osp", "oms")}
-    root = _element(None, "ssd:SystemStructureDescription", nsmap, version="1.0", name=structure.name)
+    root = _element(None, "ssd:SystemStructureDescription", nsmap, version=_version(structure),
+                    name=structure.name)
     system = _element(root, "ssd:System", name=structure.name, description=structure.description)
     elements = _element(system, "ssd:Elements")
     for c in structure.components:
@@ -1342,6 +1352,10 @@ def write_ssd(folder: str | os.PathLike, structure: SystemStructure) -> Path:
                 typed = _element(connector, f"ssc:{k.type}")
                 if k.unit is not None:
                     typed.set("unit", k.unit)
+                if k.interval is not None:
+                    typed.set("intervalDecimal", repr(k.interval))
+            for clock in k.clocks:
+                _element(connector, "ssd:Clock", name=clock)
         if c.parameter_sets:
             bindings = _element(element, "ssd:ParameterBindings")
             for ps in c.parameter_sets:

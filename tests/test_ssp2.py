@@ -11,6 +11,7 @@ What the engine does not support is refused in one line naming the SSD, componen
 
 from __future__ import annotations
 
+import re
 import shutil
 from contextlib import ExitStack
 from pathlib import Path
@@ -20,7 +21,7 @@ from ssp_conformance.conformance import HERE
 
 import orchestrator
 from orchestrator import RunOptions
-from orchestrator.ssp import SSD_NAME, scan_scenario
+from orchestrator.ssp import SSD_NAME, scan_scenario, write_ssd
 from orchestrator.validate import check_scenario
 
 # /work/shared beside a checkout of /work/main, or seen from a worktree below /work/wt
@@ -151,3 +152,22 @@ def test_clock_connectors_are_read(tmp_path: Path) -> None:
     assert (a["tick"].type, a["tick"].interval, a["tick"].clocks) == ("Clock", 0.1, ())
     assert (a["y"].type, a["y"].clocks) == ("Float64", ("tick",))
     assert [p for p in reading.problems if "schema" in p or " line " in p] == []
+
+
+def test_a_structure_with_ssp_2_connectors_is_written_as_2_0_and_reads_back(tmp_path: Path) -> None:
+    """Read, written, read again: the SSD written is version 2.0 (its ssc:Float64 and ssc:Clock would
+    break the 1.0 schema), valid against the 2.0 schemas, with the same connectors."""
+    (tmp_path / "a").mkdir()
+    text = SSD.format(version="2.0", indices="", extra="""
+          <ssd:Connector name="tick" kind="input"><ssc:Clock intervalDecimal="0.1"/></ssd:Connector>
+          <ssd:Connector name="y" kind="output"><ssc:Float64/><ssd:Clock name="tick"/></ssd:Connector>""")
+    bindings = re.compile(r"<ssd:ParameterBindings>.*</ssd:ParameterBindings>", re.DOTALL)
+    (tmp_path / "a" / SSD_NAME).write_text(bindings.sub("", text))  # connectors only
+    first = scan_scenario(tmp_path / "a").structure
+    assert first is not None
+    write_ssd(tmp_path / "a", first)  # over the file read
+    assert 'version="2.0"' in (tmp_path / "a" / SSD_NAME).read_text()
+    again = scan_scenario(tmp_path / "a")
+    assert [p for p in again.problems if " line " in p] == []
+    assert again.structure is not None
+    assert again.structure.components[0].connectors == first.components[0].connectors
