@@ -206,7 +206,7 @@ class System:
             if type_ is None:
                 problems.append(f"{where}: {_unsupported(md, v)}")
                 continue
-            if k.type is not None and FMU_TYPES.get(k.type) != type_ and k.type != v.type:
+            if k.type is not None and FMU_TYPES.get(str(_exchanged(k.type))) != type_ and k.type != v.type:
                 problems.append(f"{where}: declared type {k.type} but the FMU's variable is {v.type}")
                 continue
             if k.unit is not None and _unit_name(v) is not None:

@@ -171,3 +171,16 @@ def test_a_structure_with_ssp_2_connectors_is_written_as_2_0_and_reads_back(tmp_
     assert [p for p in again.problems if " line " in p] == []
     assert again.structure is not None
     assert again.structure.components[0].connectors == first.components[0].connectors
+
+
+def test_ssc_float64_on_an_fmi_2_real_is_accepted(tmp_path: Path) -> None:
+    """FMI 2.0's Real is a 64-bit double: an SSP 2.0 file may type its connector ssc:Float64 (the
+    OMSimulator file with its Gain's output so typed runs to the values its test prints)."""
+    folder = tmp_path / "s"
+    shutil.copytree(HERE / "omsimulator" / "LinearTransformation", folder)
+    text = (folder / SSD_NAME).read_text()
+    declared = 'kind="output" description="Output signal connector">\n            <ssc:{}/>'
+    assert text.count(declared.format("Real")) == 1
+    (folder / SSD_NAME).write_text(text.replace(declared.format("Real"), declared.format("Float64")))
+    rows = orchestrator.run(folder, RunOptions(stop_time=1.0, step=0.01)).rows
+    assert (rows["Gain1.y"][-1], rows["Add1.u1"][-1]) == (0.0, 3.0)  # the conformance case's oracle
