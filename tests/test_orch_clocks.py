@@ -33,7 +33,8 @@ from fmpy import read_model_description
 import orchestrator
 from orchestrator import RunOptions
 from orchestrator.clocks import InputClock, due, input_clocks, next_tick
-from orchestrator.errors import UsageError
+from orchestrator.errors import ScenarioError, UsageError
+from orchestrator.export import export
 
 HERE = Path(__file__).resolve().parent
 FMUSIM = SHARED / "tools" / "fmusim" / "bin" / "fmusim"
@@ -187,3 +188,14 @@ def test_ticks_with_a_shift_are_counted_in_nanoseconds() -> None:
     assert next_tick([], 0, t0) is None
     assert [c.name for c in due([a, b], 1_400_000_000, t0)] == ["a", "b"]
     assert [c.name for c in due([a, b], 1_200_000_000, t0)] == ["b"]
+
+
+def test_export_of_a_clocked_scenario_is_refused_in_one_line(fmus: dict[str, Path], tmp_path: Path) -> None:
+    """The container (orchestrator/native) does not tick clocks: exporting would sample on the grid
+    silently, so it is refused, naming the component and the clock."""
+    folder, _ = scenario(tmp_path / "s", fmus["clocked"])
+    with pytest.raises(ScenarioError) as caught:
+        export(folder, tmp_path / "out.fmu", step=STEP, stop_time=0.99)
+    expected = "component 's': FMU 'Sampler.fmu' has FMI 3.0 clocks (tick), which the container does not tick"
+    assert expected in str(caught.value)
+    assert not (tmp_path / "out.fmu").exists()
