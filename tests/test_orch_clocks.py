@@ -199,3 +199,26 @@ def test_export_of_a_clocked_scenario_is_refused_in_one_line(fmus: dict[str, Pat
     expected = "component 's': FMU 'Sampler.fmu' has FMI 3.0 clocks (tick), which the container does not tick"
     assert expected in str(caught.value)
     assert not (tmp_path / "out.fmu").exists()
+
+
+@pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])
+def test_two_clocks_of_different_intervals_each_tick_on_their_own_schedule(
+        fmus: dict[str, Path], tmp_path: Path, master: str) -> None:
+    """A second Sampler with T = 0.15 s beside the first (0.1 s), step 0.04 s: the step is cut at
+    the ticks of both, each samples at its own k T (0.15 s: 0.15, 0.3, 0.45 ...), and a tick of one
+    is no tick of the other (their counts stay floor(t / T) + 1)."""
+    other = build_sampler(tmp_path / "slow", interval=0.15)
+    folder, ramp = scenario(tmp_path / "s", fmus["clocked"], stop=1.0)
+    shutil.copy(other, folder / "resources" / "Slow.fmu")
+    text = (folder / "SystemStructure.ssd").read_text()
+    end = "</ssd:Component>"
+    first = text[text.index('      <ssd:Component name="s"'):text.index(end) + len(end)]
+    second = first.replace('name="s"', 'name="r"').replace("resources/Sampler.fmu", "resources/Slow.fmu")
+    (folder / "SystemStructure.ssd").write_text(text.replace(first, first + "\n" + second))
+    ramp.write_text("time,s.u,r.u\n0,0,0\n10,10,10\n")
+    rows = run(folder, ramp, step=0.04, master=master)
+    t = rows["time"]
+    for name, interval in (("s", 0.1), ("r", 0.15)):
+        k = np.floor(np.round(t / interval, 9))
+        np.testing.assert_allclose(rows[f"{name}.y"], interval * k, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(rows[f"{name}.ticks"], k + 1)
