@@ -67,7 +67,15 @@ import numpy as np
 
 from . import files
 from .clocks import InputClock, due, next_tick
-from .errors import Interrupted, LoopError, NonFiniteError, SimulationError, TimeLimitError, terminate
+from .errors import (
+    Interrupted,
+    LoopError,
+    NonFiniteError,
+    SimulationError,
+    TimeLimitError,
+    UsageError,
+    terminate,
+)
 from .fmi import CALLS, FAILED, Instance, InstanceBase, MessageLog, interpreter_guard, trace
 from .inputs import InputSeries
 from .native import FUNCTIONS, Stepper
@@ -342,6 +350,9 @@ class Master:
         poll = stopper.deadline != math.inf  # no timer: compare the clock at each point
         stepper = None
         if self.compiled:
+            if self._all_clocks:  # orchestrator.run never asks this (_compiled): a direct caller did
+                raise UsageError("the compiled executor does not tick FMI 3.0 clocks: run this scenario with "
+                                 "the Python master (compiled=False)")
             stepper = Stepper(self.plan, self.instances)
             stack.callback(stepper.close)
         while k < n:

@@ -35,6 +35,7 @@ from orchestrator import RunOptions
 from orchestrator.clocks import InputClock, due, input_clocks, next_tick
 from orchestrator.errors import ScenarioError, UsageError
 from orchestrator.export import export
+from orchestrator.master import GaussSeidel
 
 HERE = Path(__file__).resolve().parent
 FMUSIM = SHARED / "tools" / "fmusim" / "bin" / "fmusim"
@@ -222,3 +223,11 @@ def test_two_clocks_of_different_intervals_each_tick_on_their_own_schedule(
         k = np.floor(np.round(t / interval, 9))
         np.testing.assert_allclose(rows[f"{name}.y"], interval * k, rtol=0, atol=1e-12)
         np.testing.assert_array_equal(rows[f"{name}.ticks"], k + 1)
+
+
+def test_a_compiled_master_built_directly_refuses_clocks(fmus: dict[str, Path], tmp_path: Path) -> None:
+    """orchestrator.run never asks the compiled executor to run clocks; a caller building the master
+    itself gets a UsageError rather than a run that never ticks."""
+    folder, _ = scenario(tmp_path / "s", fmus["clocked"])
+    with orchestrator.open_system(folder) as system, pytest.raises(UsageError, match="does not tick FMI 3.0"):
+        GaussSeidel(system, 0.0, 0.99, STEP, compiled=True).run()
