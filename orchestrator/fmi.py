@@ -10,11 +10,12 @@ on prepared arrays: no per-call conversion, and the GIL is kept, which a Python-
 (``fmi2OK`` ... ``fmi2Pending``).
 
 An FMI 3.0 FMU (``fmiVersion`` 3.x) is instantiated with fmpy's ``FMU3Slave`` (Co-Simulation,
-no event mode, no early return) and offers the same interface: the masters' ``get_real``,
-``set_real`` and ``do_step`` call ``fmi3GetFloat64``, ``fmi3SetFloat64`` and ``fmi3DoStep`` (its
-output arguments read and dropped: the engine has no event mode), parameters are set as Float64,
-Int32 or Boolean, and failures name the FMI 3.0 function and status (``fmi3DoStep returned
-fmi3Discard``).
+no early return; event mode used when it has clocks, :mod:`orchestrator.clocks`) and offers the
+same interface: the masters' ``get_real``, ``set_real`` and ``do_step`` call ``fmi3GetFloat64``,
+``fmi3SetFloat64`` and ``fmi3DoStep`` (its output arguments read: ``eventHandlingNeeded`` is what
+:meth:`Instance.event_requested` returns), parameters are set as Float64, Int32 or Boolean, and
+failures name the FMI 3.0 function and status (``fmi3DoStep returned fmi3Discard``). An instance
+in event mode is driven by :meth:`Instance.tick`.
 
 An FMI 1.0 Co-Simulation FMU is instantiated with fmpy's ``FMU1Slave``: its functions carry the
 model identifier as prefix (``<id>_fmiDoStep``), which the hot calls are bound to. FMI 1.0 has no
@@ -31,7 +32,7 @@ import os
 import select
 import signal
 import sys
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from ctypes import POINTER, byref, c_bool, c_double, c_int, c_size_t, c_uint, c_void_p
 from pathlib import Path
@@ -70,6 +71,7 @@ log = logging.getLogger(__name__)
 
 # A status at or above this is a failed call (fmi2Discard, fmi2Error, fmi2Fatal, fmi2Pending).
 FAILED = fmi2Discard
+UPDATES = 100  # fmi3UpdateDiscreteStates calls at one event before an FMU that never settles is an error
 _SETTERS = {"Real": "setReal", "Integer": "setInteger", "Enumeration": "setInteger", "Boolean": "setBoolean",
             "String": "setString"}
 _SETTERS3 = {"Float64": "setFloat64", "Int32": "setInt32", "Boolean": "setBoolean"}
@@ -217,6 +219,14 @@ class InstanceBase:
         """Terminate (if still running and usable) and free the instance; never raises."""
         raise NotImplementedError
 
+    def tick(self, time: float, clocks: Sequence[int]) -> None:
+        """An event at ``time``: the input clocks ``clocks`` (value references) active."""
+        raise NotImplementedError
+
+    def event_requested(self) -> bool:
+        """Whether the last step asked for event mode (FMI 3.0 ``eventHandlingNeeded``)."""
+        return False
+
 
 class Instance(InstanceBase):
     """One FMU instance: fmpy's slave and its hot functions bound once from the FMU's library."""
@@ -226,6 +236,8 @@ class Instance(InstanceBase):
         self.fmu = fmu
         self.fmi3 = isinstance(fmu, FMU3Slave)
         self.fmi1 = isinstance(fmu, FMU1Slave)
+        self.event_mode = False  # FMI 3.0 instantiated with eventModeUsed (set by open)
+        self.in_event_mode = False  # from exitInitializationMode (event mode used) to the first tick
         self.c = c_void_p(fmu.component)
         lib = ctypes.PyDLL(fmu.dll._name, handle=fmu.dll._handle)
         if self.fmi3:
@@ -268,10 +280,11 @@ class Instance(InstanceBase):
 
     @classmethod
     def open(cls, name: str, fmu_path: str | os.PathLike, guid: str, model_identifier: str, workdir: str,
-             messages: MessageLog, time: float, shared: bool = True) -> Instance:
+             messages: MessageLog, time: float, shared: bool = True, event_mode: bool = False) -> Instance:
         """Unpack ``fmu_path`` (:func:`orchestrator.fmucache.unpack_fmu`: its cache entry, shared by
         every instance of the FMU unless ``shared`` is False, or a folder in ``workdir``) and
-        instantiate it (fmi2Instantiate, or fmi3InstantiateCoSimulation for an FMI 3.0 FMU)."""
+        instantiate it (fmi2Instantiate, or fmi3InstantiateCoSimulation for an FMI 3.0 FMU, with
+        ``eventModeUsed`` = ``event_mode``: an FMU with clocks)."""
         try:
             unzipdir = unpack_fmu(fmu_path, os.path.join(workdir, name), shared)
         except OSError:
@@ -281,15 +294,16 @@ class Instance(InstanceBase):
             raise ScenarioError(f"component '{name}': FMU '{os.path.basename(fmu_path)}' cannot be "
                                 f"unpacked: {detail}") from exc
         try:
-            return cls._instantiate(name, unzipdir, guid, model_identifier, messages, time,
-                                    os.path.basename(fmu_path))
+            instance = cls._instantiate(name, unzipdir, guid, model_identifier, messages, time,
+                                        os.path.basename(fmu_path), event_mode)
         except BaseException:
             release(unzipdir)
             raise
+        return instance
 
     @classmethod
     def _instantiate(cls, name: str, unzipdir: str, guid: str, model_identifier: str, messages: MessageLog,
-                     time: float, fmu_name: str) -> Instance:
+                     time: float, fmu_name: str, event_mode: bool = False) -> Instance:
         """Load the unpacked FMU's library and instantiate it; a library the loader refuses (a missing
         symbol, a newer glibc or libstdc++, another architecture, no shared object) is one
         ScenarioError naming the FMU, the file and the loader's reason."""
@@ -308,7 +322,7 @@ class Instance(InstanceBase):
             os.chdir(cwd)  # fmpy changes into the binaries folder and, when the load fails, stays there
         try:
             if isinstance(fmu, FMU3Slave):
-                fmu.instantiate(logMessage=messages.logger3(name))
+                fmu.instantiate(logMessage=messages.logger3(name), eventModeUsed=event_mode)
             elif isinstance(fmu, FMU1Slave):
                 fmu.instantiate(functions=messages.callbacks1)
             else:
@@ -318,7 +332,9 @@ class Instance(InstanceBase):
             function = (_FMI3_FUNCTIONS if fmi3 else _FMI1_FUNCTIONS if kind is FMU1Slave else {}).get(
                 "fmi2Instantiate", "fmi2Instantiate")
             raise SimulationError(name, function, "NULL", time, messages.last.get(name, "")) from exc
-        return cls(name, fmu, messages)
+        instance = cls(name, fmu, messages)
+        instance.event_mode = event_mode
+        return instance
 
     # -- checked calls ------------------------------------------------------------------------
     def call(self, function: str, time: float, method: Callable[..., object], *args: object) -> None:
@@ -372,6 +388,38 @@ class Instance(InstanceBase):
             return  # FMI 1.0: fmiInitializeSlave (setup) left it ready to step
         prefix = "fmi3" if self.fmi3 else "fmi2"
         self.call(f"{prefix}ExitInitializationMode", time, self.fmu.exitInitializationMode)
+        self.in_event_mode = self.event_mode
+
+    def tick(self, time: float, clocks: Sequence[int]) -> None:
+        """FMI 3.0 Co-Simulation with event mode at ``time``: fmi3EnterEventMode (unless still in it
+        after initialization), fmi3SetClock of ``clocks`` active, fmi3UpdateDiscreteStates until
+        no more updates are needed (at most ``UPDATES`` times: an FMU that never settles is a
+        SimulationError), fmi3EnterStepMode. Inputs set before it hold; outputs read after it are
+        the clocked partition's."""
+        assert isinstance(self.fmu, FMU3Slave)  # System refuses clocks on other FMUs
+        if not self.in_event_mode:
+            self.call("fmi3EnterEventMode", time, self.fmu.enterEventMode)
+        self.in_event_mode = True
+        if clocks:
+            self.call("fmi3SetClock", time, self.fmu.setClock, list(clocks), [True] * len(clocks))
+        for _ in range(UPDATES):
+            try:
+                again, terminate, *_ = self.fmu.updateDiscreteStates()
+            except FMICallException as exc:
+                self.fail("fmi3UpdateDiscreteStates", exc.status, time)
+            if terminate:
+                raise SimulationError(self.name, "fmi3UpdateDiscreteStates", "terminateSimulation", time,
+                                      self.messages.last.get(self.name, ""))
+            if not again:
+                break
+        else:
+            raise SimulationError(self.name, "fmi3UpdateDiscreteStates", f"discreteStatesNeedUpdate after "
+                                  f"{UPDATES} calls", time, self.messages.last.get(self.name, ""))
+        self.call("fmi3EnterStepMode", time, self.fmu.enterStepMode)
+        self.in_event_mode = False
+
+    def event_requested(self) -> bool:
+        return self.fmi3 and bool(self._step_flags[0].value)
 
     def terminate(self, time: float) -> None:
         self.initialized = False

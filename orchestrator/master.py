@@ -24,6 +24,15 @@ reads or writes it in place (ctypes arrays aliasing the NumPy buffer), and a con
 gather ``values[inputs] = factor * values[sources] + offset``. The FMI calls themselves (instances,
 checked calls, statuses, cleanup) are :mod:`orchestrator.fmi`'s.
 
+FMI 3.0 clocks (:mod:`orchestrator.clocks`): an FMU with periodic input clocks is instantiated with
+event mode used, and both masters tick its clocks on schedule. A communication step that holds a
+tick is cut there (the FMUs step to the tick, the values are exchanged at it as at any
+communication point, then every instance whose clocks tick runs its event: fmi3EnterEventMode,
+fmi3SetClock, fmi3UpdateDiscreteStates, fmi3EnterStepMode, and its clocked outputs are passed
+on), so ticks land exactly where the master's step does not divide the interval; rows are still
+recorded at the grid points only. A tick at t0 is made right after initialization. An FMU asking
+for event mode after a step (``eventHandlingNeeded``) gets an event with no clock active.
+
 Which one runs (:func:`orchestrator.validate.choose_master`): ``--master``, else the one the SSD's
 algorithm annotation implies (libcosim's ``osp:FixedStepAlgorithm``: jacobi; OMSimulator's
 ``oms:FixedStepMaster``: gauss-seidel), else gauss-seidel.
@@ -57,7 +66,16 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from . import files
-from .errors import Interrupted, LoopError, NonFiniteError, SimulationError, TimeLimitError, terminate
+from .clocks import InputClock, due, next_tick
+from .errors import (
+    Interrupted,
+    LoopError,
+    NonFiniteError,
+    SimulationError,
+    TimeLimitError,
+    UsageError,
+    terminate,
+)
 from .fmi import CALLS, FAILED, Instance, InstanceBase, MessageLog, interpreter_guard, trace
 from .inputs import InputSeries
 from .native import FUNCTIONS, Stepper
@@ -197,7 +215,7 @@ def open_instance(comp: ComponentModel, workdir: str, messages: MessageLog, time
     """The real instance of ``comp``: its FMU extracted into ``workdir`` and instantiated."""
     cs = comp.model.coSimulation
     return Instance.open(comp.name, comp.fmu, comp.model.guid, cs.modelIdentifier, workdir, messages, time,
-                         shared=not cs.canBeInstantiatedOnlyOncePerProcess)
+                         shared=not cs.canBeInstantiatedOnlyOncePerProcess, event_mode=bool(comp.clocks))
 
 
 InstanceFactory = Callable[[ComponentModel, str, MessageLog, float], InstanceBase]
@@ -273,6 +291,8 @@ class Master:
         self.recorder: Recorder | None = None
         self.messages = MessageLog()
         self.stopper: Stopper | None = None  # while run() runs: the stop requests
+        self._clocked: list[tuple[InstanceBase, list[InputClock]]] = []  # instances with clocks (setup)
+        self._all_clocks: list[InputClock] = []
 
     @property
     def times(self) -> np.ndarray:
@@ -330,6 +350,9 @@ class Master:
         poll = stopper.deadline != math.inf  # no timer: compare the clock at each point
         stepper = None
         if self.compiled:
+            if self._all_clocks:  # orchestrator.run never asks this (_compiled): a direct caller did
+                raise UsageError("the compiled executor does not tick FMI 3.0 clocks: run this scenario with "
+                                 "the Python master (compiled=False)")
             stepper = Stepper(self.plan, self.instances)
             stack.callback(stepper.close)
         while k < n:
@@ -410,6 +433,10 @@ class Master:
             self.instances.append(instance)
             self._stop_if_asked(self.start_time)
         self._layout()
+        components = self.system.components.values()
+        self._clocked = [(inst, comp.clocks) for inst, comp in zip(self.instances, components, strict=True)
+                         if comp.clocks]
+        self._all_clocks = [c for _, clocks in self._clocked for c in clocks]
         self.recorder = Recorder(self.columns, self.n + 1, self.output, keep=self.keep or self.output is None,
                                  binary_copy=self.binary_copy)
 
@@ -429,11 +456,44 @@ class Master:
         self.recorder.append(self.values)
 
     def step(self, k: int) -> None:
-        """Advance every FMU from t_k to t_k+1 and record row t_k+1."""
-        t, t_next = (self._t0 + self._h * k) / NS_PER_S, (self._t0 + self._h * (k + 1)) / NS_PER_S
-        self._step_impl(t, t_next - t, t_next)
+        """Advance every FMU from t_k to t_k+1 and record row t_k+1; with clocks, the step is cut at
+        every tick inside it and the ticks are made there."""
+        start, end = self._t0 + self._h * k, self._t0 + self._h * (k + 1)
+        if not self._all_clocks:  # the common case: one step, no look for ticks
+            t, t_next = start / NS_PER_S, end / NS_PER_S
+            self._step_impl(t, t_next - t, t_next)
+        while self._all_clocks and start < end:
+            tick = next_tick(self._all_clocks, start, self._t0)
+            stop = end if tick is None or tick > end else tick
+            t, t_next = start / NS_PER_S, stop / NS_PER_S
+            self._step_impl(t, t_next - t, t_next)
+            self._events(stop)
+            start = stop
         assert self.recorder is not None  # setup() creates it
         self.recorder.append(self.values)
+
+    def _events(self, t_ns: int, initial: bool = False) -> None:
+        """The clock ticks at ``t_ns`` and the events the FMUs asked for: each such instance gets
+        its event (:meth:`InstanceBase.tick`), then its outputs are passed on (``_after_events``).
+        ``initial``: right after initialization, where every clocked instance is in event mode."""
+        t = t_ns / NS_PER_S
+        ticked = []
+        for inst, clocks in self._clocked:
+            active = [c.vr for c in due(clocks, t_ns, self._t0)]
+            if active or initial or inst.event_requested():
+                self._before_event(inst, t)
+                inst.tick(t, active)
+                ticked.append(inst)
+        if ticked:
+            self._after_events(ticked, t)
+
+    def _before_event(self, inst: InstanceBase, t: float) -> None:
+        """Before an instance's event at ``t``: its inputs hold the values at ``t`` (gauss-seidel
+        has set them at the communication point)."""
+
+    def _after_events(self, ticked: list[InstanceBase], t: float) -> None:
+        """After the events at ``t``: the clocked outputs reach the inputs they feed."""
+        raise NotImplementedError
 
     def terminate(self) -> None:
         """fmi2Terminate on every FMU (they are freed by the ExitStack)."""
@@ -561,6 +621,8 @@ class GaussSeidel(Master):
         for inst in self.instances:
             inst.exit_initialization(t0)
         self._propagate(t0)
+        if self._clocked:
+            self._events(self._t0, initial=True)
 
     def _step_impl(self, t: float, h: float, t_next: float) -> None:
         for inst in self.instances:
@@ -568,6 +630,9 @@ class GaussSeidel(Master):
         self.values[0] = t_next
         self._drive(t_next)
         self._propagate(t_next)
+
+    def _after_events(self, ticked: list[InstanceBase], t: float) -> None:
+        self._propagate(t)
 
 
 class Jacobi(Master):
@@ -588,6 +653,8 @@ class Jacobi(Master):
             inst.exit_initialization(t0)
             inst.read_outputs(t0)
         self._transfer_all()
+        if self._clocked:
+            self._events(self._t0, initial=True)
 
     def _step_impl(self, t: float, h: float, t_next: float) -> None:
         for inst in self.instances:
@@ -597,6 +664,14 @@ class Jacobi(Master):
         self.values[0] = t_next
         self._transfer_all()
         self._drive(t_next)
+
+    def _before_event(self, inst: InstanceBase, t: float) -> None:
+        inst.write_inputs(t)  # the values transferred at t, which the next step would set
+
+    def _after_events(self, ticked: list[InstanceBase], t: float) -> None:
+        for inst in ticked:
+            inst.read_outputs(t)
+        self._transfer_all()
 
 
 MASTERS: dict[str, type[Master]] = {"gauss-seidel": GaussSeidel, "jacobi": Jacobi}

@@ -1,21 +1,26 @@
 # SPDX-License-Identifier: BSD-2-Clause
-"""SSP 1.0 scenarios as one object model: frozen dataclasses read from and written to SSD/SSV
+"""SSP 1.0 and 2.0 scenarios as one object model: frozen dataclasses read from and written to SSD/SSV
 files (a ``.ssp`` archive or a folder holding ``SystemStructure.ssd``).
 
 Reading: the archive is unpacked safely and within bounds: only the SSD and what it references
 (its parameter files, the FMUs of its components) are extracted, no member may escape the folder,
 and :class:`Limits` bounds the number of members, the size of each member and of all together, and
 the compression ratio, for the archive and for every FMU in it (see ``Limits``). Every XML file is
-parsed (no entity expansion, no network) and validated against the SSP 1.0 schemas that fmpy
-ships, and the SSD is read into the dataclasses. fmpy's reader is used for parameter sets; the
-parts that ``fmpy.ssp.ssd.read_ssd`` drops (connector types, ``ssc:LinearTransformation``,
-``DefaultExperiment``, the tool annotations that hold the communication step) are read here, as
-are what other tools write beyond our own scenarios: nested systems (flattened once, here, into
-components named ``sub.component``), parameter bindings on systems, SSM parameter mappings, and
-files of ``version="2.0"`` (see :func:`scan_scenario`). Every problem names the file it is in.
+parsed (no entity expansion, no network) and validated against the schemas of its version: SSP
+1.0's that fmpy ships, or SSP 2.0's (``orchestrator/schemas/ssp2``, the standard's own, tag v2.0),
+and the SSD is read into the dataclasses. SSP 2.0 (same namespaces) adds what is read here: the
+FMI 3.0 connector types (Float64, Float32, the integer widths, Binary, Clock), clock connectors
+and their connections, and the kinds and arrays that are refused in one line each (structural
+parameters, array connectors, connections of array elements: see :func:`_connectors`). Read
+here too, beyond what ``fmpy.ssp.ssd.read_ssd`` keeps: connector types,
+``ssc:LinearTransformation``, ``DefaultExperiment``, the tool annotations that hold the
+communication step, and what other tools write beyond our own scenarios: nested systems
+(flattened once, here, into components named ``sub.component``), parameter bindings on systems,
+SSM parameter mappings, and OMSimulator's ``version="2.0"`` files. Every problem names the file it is in.
 
 Writing (lxml) the way every tool reads it (SPEC section 7): literal ``ssd:``/``ssc:``/``ssv:``
-prefixes, ``version="1.0"``, every connector declared with its causality and type, parameter
+prefixes, ``version="1.0"`` (``"2.0"`` only when a connector needs SSP 2.0: an FMI 3.0 type, a
+clock), every connector declared with its causality and type, parameter
 bindings on components (one ``.ssv`` each: libcosim applies only the first binding of a
 component), the communication step both where libcosim reads it (``osp:FixedStepAlgorithm
 baseStepSize``) and where OMSimulator does (``oms:FixedStepMaster stepSize``).
@@ -85,7 +90,16 @@ NS = {
 }
 OSP_ANNOTATION = "com.opensimulationplatform"
 OMS_ANNOTATION = "org.openmodelica"
-TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration", "Binary")
+VERSIONS = ("1.0", "2.0")
+SSP2_SCHEMAS = Path(__file__).resolve().parent / "schemas" / "ssp2"
+# The connector types of ssc:GTypeChoice (SSP 2.0 adds FMI 3.0's; an SSP 1.0 file has the first row).
+TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration", "Binary",
+         "Float64", "Float32", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64",
+         "Clock")
+# SSV value elements of SSP 2.0 -> the type the engine sets them as (SSP 1.0's name).
+SSV_TYPES = {"Real": "Real", "Float64": "Real", "Float32": "Real", "Integer": "Integer",
+             **{t: "Integer" for t in TYPES[8:16]}, "Boolean": "Boolean", "String": "String",
+             "Enumeration": "Enumeration", "Binary": "Binary"}
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # the date of every member pack_ssp writes (the earliest a zip holds)
 
 
@@ -111,12 +125,16 @@ class PortRef:
 @dataclass(frozen=True)
 class Connector:
     """A connector declared on a component: ``kind`` is the causality, ``type`` the ssc type,
-    ``unit`` the unit its type element declares (None: none)."""
+    ``unit`` the unit its type element declares (None: none). SSP 2.0: ``clocks`` the clocks it is
+    associated to (``ssd:Clock name``), ``interval`` the ``intervalDecimal`` of a Clock connector
+    (None: not given; the FMU's own applies)."""
 
     name: str
     kind: str
     type: str | None
     unit: str | None = None
+    clocks: tuple[str, ...] = ()
+    interval: float | None = None
 
 
 @dataclass(frozen=True)
@@ -543,20 +561,20 @@ def _inside(folder: Path, reference: str, where: str, problems: list[str],
 
 
 @functools.cache
-def _schema(name: str) -> etree.XMLSchema:
-    return etree.XMLSchema(file=str(Path(fmpy_ssd.__file__).parent / "schema" / name))
+def _schema(name: str, version: str = "1.0") -> etree.XMLSchema:
+    """The schema ``name`` of SSP ``version``: 2.0's from the standard, 1.0's as fmpy ships them."""
+    folder = SSP2_SCHEMAS if version == "2.0" else Path(fmpy_ssd.__file__).parent / "schema"
+    return etree.XMLSchema(file=str(folder / name))
 
 
-def _load(path: Path, schema: str, label: str,
-          notes: list[str] | None = None) -> tuple[etree._Element | None, list[str]]:
+def _load(path: Path, schema: str, label: str) -> tuple[etree._Element | None, list[str]]:
     """Parse one XML file and validate it against ``schema``; problems name ``label`` (the file)
     and the line. The root is None when the file is missing or not XML; a root that breaks the
     schema is still returned, so the checks after it can go on.
 
-    A file of ``version="2.0"`` (OMSimulator writes its SSD, SSV and SSM files so, ahead of SSP 2.0)
-    is read as SSP 1.0, which its version attribute alone keeps it from being: the version is taken
-    as "1.0" and a note naming the file goes to ``notes`` (every other part must still pass the
-    SSP 1.0 schema)."""
+    A file of ``version="2.0"`` (SSP 2.0; OMSimulator writes its SSD, SSV and SSM files so) is
+    validated against the SSP 2.0 schemas, any other against SSP 1.0's (whose pattern reports a
+    version it does not know)."""
     if not path.is_file():
         return None, [f"{label}: file is missing"]
     try:
@@ -565,11 +583,7 @@ def _load(path: Path, schema: str, label: str,
         return None, [f"{label}: broken XML: {_one_line(exc)}"]  # lxml's may span lines
     except (OSError, ValueError) as exc:  # lxml: undecodable bytes, unreadable file
         return None, [f"{label}: cannot be read: {_one_line(exc)}"]
-    if root.get("version", "").startswith("2.") and notes is not None:
-        notes.append(f"{label}: version {root.get('version')!r} read as SSP 1.0 (what OMSimulator writes; "
-                     "every element must still be valid SSP 1.0)")
-        root.set("version", "1.0")
-    validator = _schema(schema)
+    validator = _schema(schema, "2.0" if root.get("version") == "2.0" else "1.0")
     if validator.validate(root):
         return root, []
     return root, [f"{label} line {e.line}: {' '.join(e.message.split())}" for e in validator.error_log]
@@ -592,45 +606,48 @@ def _convert(type_: str, text: str | None) -> float | int | bool | str:
     return text
 
 
-def _parameter_set(fmpy_set: fmpy_ssd.ParameterSet, origin: str, prefix: str,
+def _parameter_set(element: etree._Element, origin: str, prefix: str,
                    problems: list[str], units: tuple[UnitDef, ...] = ()) -> ParameterSet:
-    """Convert fmpy's parameter set, stripping the binding's prefix from every name; parameters
-    that cannot be used are left out and reported in ``problems``."""
+    """The parameters of an ``ssv:ParameterSet`` element, stripping the binding's prefix from every
+    name; parameters that cannot be used are left out and reported in ``problems``. The value
+    element of SSP 2.0's FMI 3.0 types is set as its SSP 1.0 kind (``SSV_TYPES``: Float64 and
+    Float32 as Real, the integer widths as Integer); the System checks the value against the FMU's
+    variable."""
     parameters = []
-    for p in fmpy_set.parameters:
-        name = p.name
+    for p in element.findall("ssv:Parameters/ssv:Parameter", NS):
+        name = p.get("name", "")
+        value_element = next((v for v in p.findall("ssv:*", NS) if etree.QName(v).localname in SSV_TYPES),
+                             None)
+        type_ = SSV_TYPES[etree.QName(value_element).localname] if value_element is not None else None
+        value = value_element.get("value") if value_element is not None else None
         if prefix:
             if not name.startswith(prefix):
                 problems.append(f"{origin}: parameter '{name}' does not start with the prefix '{prefix}'")
                 continue
             name = name[len(prefix):]
-        if p.type is None:
+        if type_ is None or value_element is None:
             problems.append(f"{origin}: parameter '{name}' has no value element")
             continue
+        unit = value_element.get("unit") if type_ == "Real" else None
         try:
-            parameters.append(Parameter(name, p.type, _convert(p.type, p.value), getattr(p, "unit", None)))
+            parameters.append(Parameter(name, type_, _convert(type_, value), unit))
         except ValueError:
-            problems.append(f"{origin}: parameter '{name}': value {p.value!r} is not a valid {p.type}")
+            problems.append(f"{origin}: parameter '{name}': value {value!r} is not a valid {type_}")
     return ParameterSet(origin, tuple(parameters), units)
 
 
-def _read_ssv(path: Path, label: str, origin: str, prefix: str,
-              notes: list[str] | None = None) -> tuple[ParameterSet | None, list[str]]:
-    """One ``.ssv`` file: the parameters that can be used (None when the file breaks its schema,
-    which fmpy's reader needs) and the problems."""
-    root, problems = _load(path, "SystemStructureParameterValues.xsd", label, notes)
+def _read_ssv(path: Path, label: str, origin: str, prefix: str) -> tuple[ParameterSet | None, list[str]]:
+    """One ``.ssv`` file: the parameters that can be used (None when the file breaks its schema)
+    and the problems."""
+    root, problems = _load(path, "SystemStructureParameterValues.xsd", label)
     if root is None or problems:
         return None, problems
     units = tuple(read_units(root, "ssv:Units", NS).values())
-    try:
-        fmpy_set = fmpy_ssd.read_ssv(str(path), validate=False)
-    except Exception as exc:  # noqa: BLE001 - fmpy raises bare Exceptions; one line naming the file
-        return None, [f"{label}: cannot be read: {_one_line(exc)}"]
-    return _parameter_set(fmpy_set, origin, prefix, problems, units), problems
+    return _parameter_set(root, origin, prefix, problems, units), problems
 
 
 def read_parameter_set(path: str | os.PathLike, prefix: str = "") -> ParameterSet:
-    """Read and validate one ``.ssv`` file (fmpy's reader, after our own schema check)."""
+    """Read and validate one ``.ssv`` file."""
     parameter_set, problems = scan_parameter_set(path, prefix)
     if parameter_set is None or problems:
         raise ScenarioError(problems)
@@ -651,8 +668,8 @@ class Reading:
     ``structure`` is None when the SSD cannot be read at all. The checks that follow must treat
     two kinds of components as unknown: ``no_fmu``, whose FMU is missing or not an FMU, and
     ``partial``, some of whose parameter values could not be read (their start values are not all
-    known). ``notes``: what was read in a way the file did not say exactly (an SSD of version
-    "2.0" read as SSP 1.0), reported as warnings."""
+    known). ``notes``: what was read in a way the file did not say exactly (connections written
+    from an input to an output, system values that name nothing), reported as warnings."""
 
     structure: SystemStructure | None
     problems: tuple[str, ...] = ()
@@ -686,11 +703,11 @@ def scan_scenario(folder: Path, label: str | None = None, fmu_dirs: Iterable[Pat
     components they reach, in the standard's precedence (see :class:`_SystemReader`)."""
     label = label or str(folder / SSD_NAME)
     notes: list[str] = []
-    root_element, problems = _load(folder / SSD_NAME, "SystemStructureDescription.xsd", label, notes)
+    root_element, problems = _load(folder / SSD_NAME, "SystemStructureDescription.xsd", label)
     if root_element is None or (system := root_element.find("ssd:System", NS)) is None:
         return Reading(None, tuple(problems), notes=tuple(notes))
-    if root_element.get("version") != "1.0":
-        problems.append(f"{label}: version must be \"1.0\" (got {root_element.get('version')!r})")
+    if root_element.get("version") not in VERSIONS:
+        problems.append(f"{label}: version must be \"1.0\" or \"2.0\" (got {root_element.get('version')!r})")
     reader = _SystemReader(folder, label, problems, notes, tuple(fmu_dirs), root)
     reader.read(system, ())
     components, connections, values = reader.flatten()
@@ -858,6 +875,10 @@ class _SystemReader:
         if ends[1] is None or ends[3] is None:
             return  # the schema requires both connectors and has reported it
         shown = f"{'.'.join(e for e in ends[:2] if e)} -> {'.'.join(e for e in ends[2:] if e)}"
+        if element.get("startIndices") is not None or element.get("endIndices") is not None:
+            self.problems.append(f"{where}: connection {shown} joins elements of array connectors "
+                                 "(startIndices/endIndices, SSP 2.0): array connectors are not supported")
+            return
         transformation = element.find("ssc:LinearTransformation", NS)
         if element.find("ssc:*", NS) is not None and transformation is None:
             self.problems.append(f"{where}: connection {shown} has a transformation other than "
@@ -893,13 +914,13 @@ class _SystemReader:
                                self.root)
                 if file is not None:
                     ps, problems = _read_ssv(file, f"{self.label}: {origin}", origin,
-                                             prefix if strip_prefix else "", self.notes)
+                                             prefix if strip_prefix else "")
                     self.problems.extend(problems)
                     sets += [ps] if ps is not None else []
             for inline in binding.findall("ssd:ParameterValues/ssv:ParameterSet", NS):
                 inline_problems: list[str] = []
                 units = tuple(read_units(inline, "ssv:Units", NS).values())
-                sets.append(_parameter_set(fmpy_ssd._get_parameter_set(inline),
+                sets.append(_parameter_set(inline,
                                            f"{self.label} (inline values of '{_flat(path) or 'the system'}')",
                                            prefix if strip_prefix else "", inline_problems, units))
                 self.problems.extend(inline_problems)
@@ -922,8 +943,7 @@ class _SystemReader:
                            self.root)
             if file is None:
                 return {}
-            ssm, problems = _load(file, "SystemStructureParameterMapping.xsd", f"{self.label}: {reference}",
-                                  self.notes)
+            ssm, problems = _load(file, "SystemStructureParameterMapping.xsd", f"{self.label}: {reference}")
             self.problems.extend(problems)
             label = reference
         else:
@@ -1107,7 +1127,10 @@ class _SystemReader:
 
 
 def _connectors(element: etree._Element, where: str, problems: list[str]) -> dict[str, Connector]:
-    """The connectors an element (component or system) declares, by name."""
+    """The connectors an element (component or system) declares, by name. Of SSP 2.0's additions,
+    two are refused, one line each naming the element and the connector: a structural parameter
+    (it would change the FMU's structure, which an orchestrator of fixed FMUs cannot) and an array
+    connector (``ssc:Dimension``; the masters exchange scalars)."""
     connectors: dict[str, Connector] = {}
     for c in element.findall("ssd:Connectors/ssd:Connector", NS):
         name, kind = c.get("name"), c.get("kind")
@@ -1116,10 +1139,22 @@ def _connectors(element: etree._Element, where: str, problems: list[str]) -> dic
         if name in connectors:
             problems.append(f"{where}: connector '{name}' is declared more than once")
             continue
+        if kind == "structuralParameter":
+            problems.append(f"{where}: connector '{name}' is a structural parameter (SSP 2.0): not supported "
+                            "(the FMUs are run as they are built)")
+            continue
+        dimensions = c.findall("ssc:Dimension", NS)
+        if dimensions:
+            problems.append(f"{where}: connector '{name}' is an array ({len(dimensions)} ssc:Dimension): "
+                            "array connectors are not supported (connect scalar variables)")
+            continue
         type_ = next((t for t in TYPES if c.find(f"ssc:{t}", NS) is not None), None)
         typed = c.find(f"ssc:{type_}", NS)
-        unit = typed.get("unit") if type_ == "Real" and typed is not None else None
-        connectors[name] = Connector(name, kind, type_, unit)
+        unit = typed.get("unit") if type_ in ("Real", "Float64", "Float32") and typed is not None else None
+        interval = _number(typed.get("intervalDecimal"), None) if type_ == "Clock" and typed is not None \
+            else None
+        clocks = tuple(k.get("name", "") for k in c.findall("ssd:Clock", NS))
+        connectors[name] = Connector(name, kind, type_, unit, clocks, interval)
     return connectors
 
 
@@ -1284,6 +1319,14 @@ def write_ssv(path: str | os.PathLike, parameter_set: ParameterSet, name: str | 
     return path
 
 
+def _version(structure: SystemStructure) -> str:
+    """The SSP version a structure is written as: "1.0" (what every tool reads), or "2.0" when a
+    connector needs it (an FMI 3.0 type such as Float64 or Clock, a clock association)."""
+    needs_2 = any(k.type not in (*TYPES[:6], None) or k.clocks or k.interval is not None
+                  for c in structure.components for k in c.connectors)
+    return "2.0" if needs_2 else "1.0"
+
+
 def write_ssd(folder: str | os.PathLike, structure: SystemStructure) -> Path:
     """Write ``folder/SystemStructure.ssd`` and the ``.ssv`` file of every parameter set bound by a
     component (file named by its ``origin``); returns the SSD's path.
@@ -1294,7 +1337,8 @@ def write_ssd(folder: str | os.PathLike, structure: SystemStructure) -> Path:
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     nsmap = {prefix: NS[prefix] for prefix in ("ssd", "ssc", "ssv", "osp", "oms")}
-    root = _element(None, "ssd:SystemStructureDescription", nsmap, version="1.0", name=structure.name)
+    root = _element(None, "ssd:SystemStructureDescription", nsmap, version=_version(structure),
+                    name=structure.name)
     system = _element(root, "ssd:System", name=structure.name, description=structure.description)
     elements = _element(system, "ssd:Elements")
     for c in structure.components:
@@ -1308,6 +1352,10 @@ def write_ssd(folder: str | os.PathLike, structure: SystemStructure) -> Path:
                 typed = _element(connector, f"ssc:{k.type}")
                 if k.unit is not None:
                     typed.set("unit", k.unit)
+                if k.interval is not None:
+                    typed.set("intervalDecimal", repr(k.interval))
+            for clock in k.clocks:
+                _element(connector, "ssd:Clock", name=clock)
         if c.parameter_sets:
             bindings = _element(element, "ssd:ParameterBindings")
             for ps in c.parameter_sets:

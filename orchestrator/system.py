@@ -26,8 +26,9 @@ from fmpy.validation import validate_model_description
 from lxml import etree
 
 from . import fmucache
+from .clocks import InputClock, input_clocks
 from .errors import ScenarioError, option
-from .ssp import Component, Connection, Parameter, ParameterSet, PortRef, SystemStructure
+from .ssp import Component, Connection, Connector, Parameter, ParameterSet, PortRef, SystemStructure
 from .units import BASE, UnitDef, UnitError, conversion, convert, resolve, split_value
 
 __all__ = ["FMI3_TYPES", "ComponentModel", "Operation", "PortRef", "System", "ssp_type"]
@@ -62,6 +63,7 @@ class ComponentModel:
     start_values: dict[str, float | int | bool | str] = field(default_factory=dict)
     feedthrough: dict[str, set[str]] = field(default_factory=dict)
     origins: dict[str, str] = field(default_factory=dict)  # variable -> where its start value came from
+    clocks: list[InputClock] = field(default_factory=list)  # periodic input clocks the master ticks
 
     @property
     def variables(self) -> dict:
@@ -192,6 +194,10 @@ class System:
             if v is None:
                 problems.append(f"{where}: the FMU has no variable of that name")
                 continue
+            if v.type == "Clock" or k.type == "Clock":
+                if v.type != k.type:
+                    problems.append(f"{where}: declared type {k.type} but the FMU's variable is {v.type}")
+                continue  # ticked by the master (orchestrator.clocks), never exchanged as a value
             if v.causality != k.kind:
                 problems.append(f"{where}: declared kind '{k.kind}' but the FMU's causality is "
                                 f"'{v.causality}'")
@@ -200,7 +206,7 @@ class System:
             if type_ is None:
                 problems.append(f"{where}: {_unsupported(md, v)}")
                 continue
-            if k.type is not None and FMU_TYPES.get(k.type) != type_:
+            if k.type is not None and FMU_TYPES.get(str(_exchanged(k.type))) != type_ and k.type != v.type:
                 problems.append(f"{where}: declared type {k.type} but the FMU's variable is {v.type}")
                 continue
             if k.unit is not None and _unit_name(v) is not None:
@@ -219,13 +225,19 @@ class System:
         for output, deps in _dependencies(c.source, md, all_inputs).items():
             for d in deps:
                 feedthrough.setdefault(d, set()).add(output)
-        return ComponentModel(c.name, c.source, md, outputs, inputs, feedthrough=feedthrough)
+        clocks, clock_problems = input_clocks(f"{self.ssd}: component '{c.name}'", md, c.connectors, c.source)
+        problems.extend(clock_problems)
+        return ComponentModel(c.name, c.source, md, outputs, inputs, feedthrough=feedthrough, clocks=clocks)
 
     def _check_connections(self, problems: list[str]) -> None:
         declared = {c.name: {k.name: k for k in c.connectors} for c in self.structure.components}
         for con in self.structure.connections:
             start, end = con.start, con.end
             where = f"{self.ssd}: connection {con}"
+            ends = [declared.get(p.component, {}).get(p.connector) for p in (start, end)]
+            if any(k is not None and k.type == "Clock" for k in ends):
+                self._clock_connection(where, ends, problems)
+                continue
             bad = False
             for port, kind in ((start, "output"), (end, "input")):
                 if port.component not in declared:
@@ -241,8 +253,8 @@ class System:
                     bad = True
             if bad:
                 continue
-            t_start = declared[start.component][start.connector].type
-            t_end = declared[end.component][end.connector].type
+            t_start = _exchanged(declared[start.component][start.connector].type)
+            t_end = _exchanged(declared[end.component][end.connector].type)
             if t_start != t_end:
                 problems.append(f"{where}: type mismatch ({start} is {t_start}, {end} is {t_end})")
             elif t_start != "Real":
@@ -251,6 +263,20 @@ class System:
                 problems.append(f"{where}: input {end} is already connected to {self.links[end].start}")
             else:
                 self.links[end] = con
+
+    def _clock_connection(self, where: str, ends: list[Connector | None], problems: list[str]) -> None:
+        """An SSP 2.0 connection of Clock connectors. Between two periodic input clocks of equal
+        interval it states what the master does anyway (both tick together) and is accepted; any
+        other (an output or triggered clock driving another) is refused: the master ticks each
+        periodic input clock on its own schedule and propagates no clock."""
+        if any(k is None or k.type != "Clock" for k in ends):
+            problems.append(f"{where}: a Clock connector can only be connected to a Clock connector")
+            return
+        intervals = {k.interval for k in ends if k is not None}
+        if any(k is not None and k.kind != "input" for k in ends) or len(intervals) != 1 or None in intervals:
+            problems.append(f"{where}: only connections of two periodic input clocks of the same interval "
+                            "(intervalDecimal on both connectors) are supported: orchestrate ticks each "
+                            "input clock on its own schedule and does not propagate clocks")
 
     def _check_units(self, problems: list[str]) -> None:
         """A connection joins units of the same dimension where both ends declare one (the SSD
@@ -436,7 +462,8 @@ class System:
                 continue
             for v in comp.model.modelVariables:
                 ref = PortRef(comp.name, v.name)
-                if v.causality != "input" or ref in self.links or v.name in comp.start_values:
+                if v.causality != "input" or ref in self.links or v.name in comp.start_values or \
+                        v.type == "Clock":  # an input clock is ticked by the master
                     continue
                 where = f"{self.ssd}: component '{comp.name}', input '{v.name}'"
                 if v.start is None:
@@ -607,6 +634,12 @@ def _cycle(first: PortRef, succ: Mapping[PortRef, list[PortRef]]) -> list[PortRe
             path.append(q)
             stack.append(iter(succ[q]))
     raise AssertionError("a strongly connected part has a cycle through each of its ports")
+
+
+def _exchanged(ssc_type: str | None) -> str | None:
+    """An SSD connector type as the engine exchanges it: SSP 2.0's Float64 and Int32 are SSP 1.0's
+    Real and Integer (what FMI3_TYPES maps the FMU's variables to)."""
+    return FMI3_TYPES.get(ssc_type, ssc_type) if ssc_type in ("Float64", "Int32") else ssc_type
 
 
 def ssp_type(md: ModelDescription, var: ModelVariable) -> str | None:

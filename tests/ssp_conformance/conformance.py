@@ -73,7 +73,7 @@ SYSTEM_BINDING_IGNORED = ("OMSimulator 3's Python package applies the component'
 OMS_SCRIPT = "OpenModelica/OMSimulator testsuite/tests/simulation"
 CASES = [
     Case("LinearTransformation", "omsimulator/LinearTransformation", f"{OMS}/LinearTransformation",
-         {"Gain1.y": 0.0, "Add1.u1": 3.0}, warnings=("version '2.0' read as SSP 1.0",),
+         {"Gain1.y": 0.0, "Add1.u1": 3.0},
          oms_differs={"Add1.u1": 0.0, "Add1.y": 0.0},
          oms_why="OMSimulator 3 (b3cd4589) drops the connection's LinearTransformation offset (Add1.u1 = 0 "
                  "for Gain1.y = 0); the SSP formula factor * value + offset gives 3, as the newer "
@@ -86,7 +86,6 @@ CASES = [
          oms_why="OMSimulator 3 (b3cd4589, Nov 2025) predates LinearTransformation in parameter mappings "
                  "(added 2026) and applies the mapped values untransformed (Gain1.k = 2, Gain1.u = 2); the "
                  "newer OMSimulator's printed values and the SSP formula give 13 and 14",
-         warnings=("mappedEntry1.ssm: version '2.0' read as SSP 1.0",),
          features="system-level .ssv with an .ssm ParameterMapping with LinearTransformation",
          notes={"oracle": f"{OMS_SCRIPT}/LinearTransformation3.py"}),
     Case("toplevelparameter1", "omsimulator/toplevelparameter1", f"{OMS}/toplevelparameter1",

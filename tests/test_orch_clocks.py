@@ -1,0 +1,233 @@
+# SPDX-License-Identifier: BSD-2-Clause
+"""FMI 3.0 clocks driven by both masters: a periodic input clock ticked on schedule, in event mode.
+
+The FMU is ``Sampler`` (tests/clocked_fmu.py, C, compiled here): its clocked output ``y`` is its
+input ``u`` sampled at every tick of its input clock (interval T = 0.1 s), ``ticks`` counts the
+ticks, and ``y_grid`` is the unclocked sample-and-hold an FMI 2.0 FMU with a sample time makes: at
+the first communication point at or after each k T. With u(t) = t (an input file), the oracles
+are analytic: ``y(t) = T floor(t / T)`` and ``ticks(t) = floor(t / T) + 1`` (a tick at t0), and the
+unclocked sampler samples u at ``h ceil(k T / h)`` on the master's grid of step h. The second
+oracle is fmusim (the Modelica Reference FMUs' importer) running the same FMU with
+``--event-mode-used``, the clock activated from its CSV input at each tick.
+
+The case the issue asks to see: h = 0.03 s does not divide T. The clocked FMU samples at 0.1,
+0.2, ... exactly (the master cuts its step at each tick); the unclocked one at 0.12, 0.21, 0.3,
+0.42, ... (wrong by up to h).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+import shutil
+import subprocess
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from clocked_fmu import FEEDTHROUGH, INTERVAL, SHARED, build_sampler, scenario
+from fmpy import read_model_description
+
+import orchestrator
+from orchestrator import RunOptions
+from orchestrator.clocks import InputClock, due, input_clocks, next_tick
+from orchestrator.errors import ScenarioError, UsageError
+from orchestrator.export import export
+from orchestrator.master import GaussSeidel
+
+HERE = Path(__file__).resolve().parent
+FMUSIM = SHARED / "tools" / "fmusim" / "bin" / "fmusim"
+STEP = 0.03  # does not divide T = 0.1
+pytestmark = [pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler"),
+              pytest.mark.filterwarnings("ignore::orchestrator.errors.ScenarioWarning"),
+              pytest.mark.filterwarnings("ignore::orchestrator.EngineNote")]
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The clocked Sampler and its unclocked twin (the same C code, no clock declared)."""
+    folder = tmp_path_factory.mktemp("sampler")
+    return {"clocked": build_sampler(folder / "clocked"),
+            "unclocked": build_sampler(folder / "plain", clocked=False)}
+
+
+def run(folder: Path, ramp: Path, **options: object) -> np.ndarray:
+    options.setdefault("step", STEP)
+    return orchestrator.run(folder, RunOptions(input_file=ramp, **options)).rows  # type: ignore[arg-type]
+
+
+def sampled_at_ticks(t: np.ndarray) -> np.ndarray:
+    """u(t) = t sampled at the ticks k T and held: T floor(t / T) (to a nanosecond, as the grid)."""
+    return np.array([INTERVAL * math.floor(round(x / INTERVAL, 9)) for x in t])
+
+
+def sampled_on_grid(t: np.ndarray) -> np.ndarray:
+    """What the unclocked sampler holds at each row of the grid ``t``: u (= time) at the first grid
+    point at or after each k T, taken in the step that starts there, so seen from the next row."""
+    points = {min(s for s in t if s >= k * INTERVAL - 1e-12) for k in range(int(t[-1] / INTERVAL) + 1)}
+    return np.array([max((p for p in points if p < x - 1e-12), default=0.0) for x in t])
+
+
+@pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])
+def test_clocked_fmu_samples_at_the_ticks_when_the_step_does_not_divide_the_interval(
+        fmus: dict[str, Path], tmp_path: Path, master: str) -> None:
+    rows = run(*scenario(tmp_path / "s", fmus["clocked"]), master=master)
+    t = rows["time"]
+    assert len(t) == round(0.99 / STEP) + 1  # rows on the master's grid only
+    np.testing.assert_allclose(rows["s.y"], sampled_at_ticks(t), rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(rows["s.ticks"], [math.floor(round(x / INTERVAL, 9)) + 1 for x in t])
+
+
+def test_unclocked_sampler_on_the_masters_grid_samples_at_the_wrong_instants(
+        fmus: dict[str, Path], tmp_path: Path) -> None:
+    """The same C code without the clock, on the grid of 0.03 s: it samples u at 0.12, 0.21, 0.3,
+    0.42 ... (analytic: the first grid point at or after each k T), off the ticks by up to 0.02 s."""
+    rows = run(*scenario(tmp_path / "plain", fmus["unclocked"], clocked=False))
+    t = rows["time"]
+    np.testing.assert_allclose(rows["s.y_grid"], sampled_on_grid(t), rtol=0, atol=1e-12)
+    clocked = run(*scenario(tmp_path / "clocked", fmus["clocked"]))
+    error = np.abs(rows["s.y_grid"] - clocked["s.y"])
+    assert error.max() == pytest.approx(INTERVAL, abs=1e-12)  # at 0.12 it still holds u(0), not u(0.1)
+
+
+def test_where_the_grids_coincide_the_clocked_run_equals_the_unclocked_one(fmus: dict[str, Path],
+                                                                          tmp_path: Path) -> None:
+    """Step 0.02 s divides T: no step is cut, the unclocked output of the clocked run equals the
+    unclocked twin's bit for bit, and the clocked y equals it one row earlier (the event samples u
+    at the tick itself; the unclocked sampler in the step that starts there)."""
+    clocked = run(*scenario(tmp_path / "c", fmus["clocked"], stop=1.0), step=0.02)
+    plain = run(*scenario(tmp_path / "p", fmus["unclocked"], clocked=False, stop=1.0), step=0.02)
+    np.testing.assert_array_equal(clocked["s.y_grid"], plain["s.y_grid"])
+    np.testing.assert_array_equal(clocked["s.y"][:-1], plain["s.y_grid"][1:])
+
+
+@pytest.mark.skipif(not FMUSIM.is_file(), reason="no fmusim")
+def test_agrees_with_fmusim_in_event_mode(fmus: dict[str, Path], tmp_path: Path) -> None:
+    """fmusim activates the clock from a CSV column (1 at each tick; it cannot tick at t0, where
+    u = 0 = y anyway) and steps from tick to tick; at every row of orchestrate's run on the grid of
+    0.03 s, y equals fmusim's y after the last tick at or before it."""
+    ticks = [round(k * INTERVAL, 10) for k in range(1, 10)]
+    with (tmp_path / "in.csv").open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["time", "u", "tick"])
+        writer.writerow([0.0, 0.0, 0])
+        for x in ticks:
+            writer.writerows([[x, x, 0], [x, x, 1]])
+    subprocess.run([str(FMUSIM), "--interface-type", "cs", "--event-mode-used", "--stop-time", "0.9",
+                    "--output-interval", str(INTERVAL), "--input-file", str(tmp_path / "in.csv"),
+                    "--output-file", str(tmp_path / "out.csv"), str(fmus["clocked"])], check=True, timeout=60)
+    theirs = np.genfromtxt(tmp_path / "out.csv", delimiter=",", names=True)
+    after_tick = {round(float(r["time"]), 9): float(r["y"]) for r in theirs}  # the row after the event wins
+    assert [after_tick[x] for x in ticks] == pytest.approx(ticks, abs=1e-15)
+    rows = run(*scenario(tmp_path / "s", fmus["clocked"]))
+    for x, y in zip(rows["time"], rows["s.y"], strict=True):
+        last = max((k for k in after_tick if k <= x + 1e-12), default=0.0)
+        assert y == pytest.approx(after_tick[last], abs=1e-12), x
+
+
+@pytest.mark.skipif(not FEEDTHROUGH.is_file(), reason="no Modelica Reference FMUs (FMI 3.0)")
+def test_clocked_output_is_passed_on_at_the_tick(fmus: dict[str, Path], tmp_path: Path) -> None:
+    """s.y -> Reference Feedthrough: under gauss-seidel f's output equals y at every row (the value
+    set after the tick reaches f at the tick); under jacobi it is y at the start of the step that
+    ends at the row, which is the tick where a tick cut the step (0.12: y(0.1) = 0.1)."""
+    folder, ramp = scenario(tmp_path / "s", fmus["clocked"], feed=True)
+    rows = run(folder, ramp)
+    np.testing.assert_array_equal(rows["f.Float64_continuous_output"], rows["s.y"])
+    jacobi = run(folder, ramp, master="jacobi")
+    t = jacobi["time"][1:]
+    starts = np.maximum(t - STEP, INTERVAL * np.floor(np.round((t - 1e-9) / INTERVAL, 9)))  # a cut step's
+    np.testing.assert_allclose(jacobi["f.Float64_continuous_output"][1:], sampled_at_ticks(starts),
+                               rtol=0, atol=1e-12)
+
+
+def test_the_compiled_executor_leaves_clocks_to_the_python_master(fmus: dict[str, Path],
+                                                                 tmp_path: Path) -> None:
+    folder, ramp = scenario(tmp_path / "s", fmus["clocked"])
+    with pytest.raises(UsageError, match=r"compiled cannot run this scenario: FMI 3.0 clocks \(of s\) are "
+                                         "ticked by the Python master"):
+        run(folder, ramp, executor="compiled")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run(folder, ramp, executor="auto")
+    assert any("FMI 3.0 clocks (of s)" in str(w.message) for w in caught)
+
+
+def test_reference_clocks_model_is_refused_in_one_line() -> None:
+    """The Reference FMUs' Clocks (Scheduled Execution only, a third-party file): one line."""
+    md = read_model_description(str(HERE / "reference_clocks" / "modelDescription.xml"), validate=False)
+    clocks, problems = input_clocks("x.ssd: component 'c'", md)
+    assert clocks == [] and problems == [
+        "x.ssd: component 'c': the FMU has clocks (inClock1, inClock2, inClock3, outClock) but its "
+        "Co-Simulation interface has no event mode (hasEventMode): Scheduled Execution is not supported"]
+
+
+def test_unsupported_clocks_are_refused_one_line_each(fmus: dict[str, Path]) -> None:
+    """The Clocks model's variables as if it offered Co-Simulation with event mode: its triggered and
+    countdown input clocks and its output clock are each refused, naming the clock."""
+    xml = HERE / "reference_clocks" / "modelDescription.xml"
+    md = read_model_description(str(xml), validate=False)
+    md.coSimulation = read_model_description(str(fmus["clocked"]), validate=False).coSimulation
+    clocks, problems = input_clocks("x.ssd: component 'c'", md, fmu=xml)
+    assert [(c.name, c.vr, c.interval_ns) for c in clocks] == [("inClock1", 1001, 1_000_000_000)]
+    assert [re.search(r"'(\w+)'", p.split(": ", 2)[2]).group(1) for p in problems] == [  # type: ignore[union-attr]
+        "inClock2", "inClock3", "outClock"]
+    assert all("\n" not in p for p in problems)
+
+
+def test_ticks_with_a_shift_are_counted_in_nanoseconds() -> None:
+    """FMI 3.0: a periodic clock ticks at t0 + shift + k interval; the next tick strictly after a
+    time, and the clocks due at a time, in integer nanoseconds (t0 = 1 s, interval 0.3 s, shift 0.1 s:
+    1.1, 1.4, 1.7 s ...)."""
+    a = InputClock("a", 1, 300_000_000, 100_000_000)
+    b = InputClock("b", 2, 200_000_000)
+    t0 = 1_000_000_000
+    assert [a.tick_at_or_after(t, t0) for t in (0, 1_100_000_000, 1_100_000_001, 1_400_000_000)] == [
+        1_100_000_000, 1_100_000_000, 1_400_000_000, 1_400_000_000]
+    assert next_tick([a, b], 1_000_000_000, t0) == 1_100_000_000
+    assert next_tick([a, b], 1_100_000_000, t0) == 1_200_000_000
+    assert next_tick([], 0, t0) is None
+    assert [c.name for c in due([a, b], 1_400_000_000, t0)] == ["a", "b"]
+    assert [c.name for c in due([a, b], 1_200_000_000, t0)] == ["b"]
+
+
+def test_export_of_a_clocked_scenario_is_refused_in_one_line(fmus: dict[str, Path], tmp_path: Path) -> None:
+    """The container (orchestrator/native) does not tick clocks: exporting would sample on the grid
+    silently, so it is refused, naming the component and the clock."""
+    folder, _ = scenario(tmp_path / "s", fmus["clocked"])
+    with pytest.raises(ScenarioError) as caught:
+        export(folder, tmp_path / "out.fmu", step=STEP, stop_time=0.99)
+    expected = "component 's': FMU 'Sampler.fmu' has FMI 3.0 clocks (tick), which the container does not tick"
+    assert expected in str(caught.value)
+    assert not (tmp_path / "out.fmu").exists()
+
+
+@pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])
+def test_two_clocks_of_different_intervals_each_tick_on_their_own_schedule(
+        fmus: dict[str, Path], tmp_path: Path, master: str) -> None:
+    """A second Sampler with T = 0.15 s beside the first (0.1 s), step 0.04 s: the step is cut at
+    the ticks of both, each samples at its own k T (0.15 s: 0.15, 0.3, 0.45 ...), and a tick of one
+    is no tick of the other (their counts stay floor(t / T) + 1)."""
+    other = build_sampler(tmp_path / "slow", interval=0.15)
+    folder, ramp = scenario(tmp_path / "s", fmus["clocked"], stop=1.0)
+    shutil.copy(other, folder / "resources" / "Slow.fmu")
+    text = (folder / "SystemStructure.ssd").read_text()
+    end = "</ssd:Component>"
+    first = text[text.index('      <ssd:Component name="s"'):text.index(end) + len(end)]
+    second = first.replace('name="s"', 'name="r"').replace("resources/Sampler.fmu", "resources/Slow.fmu")
+    (folder / "SystemStructure.ssd").write_text(text.replace(first, first + "\n" + second))
+    ramp.write_text("time,s.u,r.u\n0,0,0\n10,10,10\n")
+    rows = run(folder, ramp, step=0.04, master=master)
+    t = rows["time"]
+    for name, interval in (("s", 0.1), ("r", 0.15)):
+        k = np.floor(np.round(t / interval, 9))
+        np.testing.assert_allclose(rows[f"{name}.y"], interval * k, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(rows[f"{name}.ticks"], k + 1)
+
+
+def test_a_compiled_master_built_directly_refuses_clocks(fmus: dict[str, Path], tmp_path: Path) -> None:
+    """orchestrator.run never asks the compiled executor to run clocks; a caller building the master
+    itself gets a UsageError rather than a run that never ticks."""
+    folder, _ = scenario(tmp_path / "s", fmus["clocked"])
+    with orchestrator.open_system(folder) as system, pytest.raises(UsageError, match="does not tick FMI 3.0"):
+        GaussSeidel(system, 0.0, 0.99, STEP, compiled=True).run()
