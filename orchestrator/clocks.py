@@ -10,7 +10,10 @@ clock otherwise:
 
 * input clocks of ``intervalVariability`` ``constant`` or ``fixed`` with an interval: the FMU's
   ``intervalDecimal``, or the SSD's (an SSP 2.0 ``ssc:Clock`` connector's ``intervalDecimal``; both
-  given must agree), and ``shiftDecimal`` (default 0): ticks at ``t0 + shift + j * interval``;
+  given must agree), and ``shiftDecimal`` (default 0): ticks at ``t0 + shift + j * interval``; a
+  ``fixed`` clock that neither gives is asked in Initialization Mode (``fmi3GetIntervalDecimal``,
+  ``fmi3GetShiftDecimal``), as FMI 3.0 (2.2.8) prescribes for an interval that depends on fixed
+  parameters (:meth:`InputClock.asked`);
 * its inputs unclocked (set in step mode, held through the tick: the clocked partition samples
   them) and its clocked outputs read after the tick.
 
@@ -44,12 +47,22 @@ PERIODIC = ("constant", "fixed")
 @dataclass(frozen=True)
 class InputClock:
     """A periodic input clock of one FMU: ``vr`` its value reference, ticks every ``interval_ns``
-    from ``shift_ns`` after the start time (integer nanoseconds)."""
+    from ``shift_ns`` after the start time (integer nanoseconds). ``interval_ns`` 0: a fixed clock
+    whose interval and shift the FMU gives in Initialization Mode (:meth:`asked`)."""
 
     name: str
     vr: int
     interval_ns: int
     shift_ns: int = 0
+
+    def asked(self, interval: float, shift: float) -> InputClock:
+        """This clock with the interval and shift (seconds) the FMU gave; ValueError naming the
+        clock when the interval is not positive and finite or the shift negative."""
+        if not (math.isfinite(interval) and _ns(interval) > 0 and math.isfinite(shift) and shift >= 0):
+            raise ValueError(f"input clock '{self.name}': the FMU gives interval {interval!r} s and shift "
+                             f"{shift!r} s (fmi3GetIntervalDecimal, fmi3GetShiftDecimal): the interval must "
+                             "be positive, the shift at least 0")
+        return InputClock(self.name, self.vr, _ns(interval), _ns(shift))
 
     def tick_at_or_after(self, t_ns: int, t0_ns: int) -> int:
         """The first tick at or after ``t_ns`` (a run started at ``t0_ns``)."""
@@ -130,6 +143,9 @@ def input_clocks(where: str, md: ModelDescription, declared: Iterable[Connector]
         elif ssd is not None and not math.isclose(ssd, interval, rel_tol=1e-12):
             problems.append(f"{where}: input clock '{v.name}': the SSD's intervalDecimal {ssd!r} differs "
                             f"from the FMU's {interval!r}")
+            continue
+        if interval is None and variability == "fixed":
+            clocks.append(InputClock(v.name, v.valueReference, 0))  # asked in Initialization Mode
             continue
         if interval is None or not math.isfinite(interval) or _ns(interval) <= 0:
             problems.append(f"{where}: input clock '{v.name}' has no positive interval (intervalDecimal, "

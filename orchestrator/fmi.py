@@ -58,7 +58,7 @@ from fmpy.fmi2 import (
     fmi2Fatal,
     fmi2Warning,
 )
-from fmpy.fmi3 import FMU3Slave
+from fmpy.fmi3 import FMU3Slave, fmi3ValueReference
 from lxml import etree
 
 from .errors import ScenarioError, SimulationError
@@ -221,6 +221,11 @@ class InstanceBase:
 
     def tick(self, time: float, clocks: Sequence[int]) -> None:
         """An event at ``time``: the input clocks ``clocks`` (value references) active."""
+        raise NotImplementedError
+
+    def clock_timing(self, time: float, vr: int) -> tuple[float, float]:
+        """The interval and shift (s) of the fixed input clock ``vr``, asked in Initialization Mode
+        (fmi3GetIntervalDecimal, fmi3GetShiftDecimal)."""
         raise NotImplementedError
 
     def event_requested(self) -> bool:
@@ -389,6 +394,14 @@ class Instance(InstanceBase):
         prefix = "fmi3" if self.fmi3 else "fmi2"
         self.call(f"{prefix}ExitInitializationMode", time, self.fmu.exitInitializationMode)
         self.in_event_mode = self.event_mode
+
+    def clock_timing(self, time: float, vr: int) -> tuple[float, float]:
+        assert isinstance(self.fmu, FMU3Slave)  # System refuses clocks on other FMUs
+        vrs = (fmi3ValueReference * 1)(vr)
+        interval, qualifier, shift = (c_double * 1)(), (c_int * 1)(), (c_double * 1)()
+        self.call("fmi3GetIntervalDecimal", time, self.fmu.getIntervalDecimal, vrs, interval, qualifier)
+        self.call("fmi3GetShiftDecimal", time, self.fmu.getShiftDecimal, vrs, shift)
+        return interval[0], shift[0]
 
     def tick(self, time: float, clocks: Sequence[int]) -> None:
         """FMI 3.0 Co-Simulation with event mode at ``time``: fmi3EnterEventMode (unless still in it

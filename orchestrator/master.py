@@ -450,10 +450,28 @@ class Master:
             inst.setup(t0, stop)
             inst.set_start_values(start_values, t0)
             self._stop_if_asked(t0)
+        self._ask_clocks(t0)
         self._drive(t0)
         self._initialize_impl(t0)
         assert self.recorder is not None  # setup() creates it
         self.recorder.append(self.values)
+
+    def _ask_clocks(self, t0: float) -> None:
+        """The interval and shift of each fixed clock that its FMU gives (in Initialization Mode,
+        the parameters set): asked once, before the first tick."""
+        asked = []
+        for inst, declared in self._clocked:
+            clocks = list(declared)  # the system's own stay as declared (a campaign reuses it)
+            for j, clock in enumerate(clocks):
+                if clock.interval_ns == 0:
+                    try:
+                        clocks[j] = clock.asked(*inst.clock_timing(t0, clock.vr))
+                    except ValueError as exc:
+                        raise SimulationError(inst.name, "fmi3GetIntervalDecimal", "an unusable interval", t0,
+                                              str(exc)) from None
+            asked.append((inst, clocks))
+        self._clocked = asked
+        self._all_clocks = [c for _, clocks in asked for c in clocks]
 
     def step(self, k: int) -> None:
         """Advance every FMU from t_k to t_k+1 and record row t_k+1; with clocks, the step is cut at

@@ -100,6 +100,11 @@ fmi3Status fmi3GetIntervalDecimal(fmi3Instance c, const fmi3ValueReference vr[],
     for (size_t i = 0; i < n; i++) {
         if (vr[i] != VR_TICK) return fmi3Error; intervals[i] = T_CLOCK; q[i] = fmi3IntervalUnchanged; }
     return fmi3OK; }
+fmi3Status fmi3GetShiftDecimal(fmi3Instance c, const fmi3ValueReference vr[], size_t n,
+        fmi3Float64 shifts[]) {
+    (void)c;
+    for (size_t i = 0; i < n; i++) { if (vr[i] != VR_TICK) return fmi3Error; shifts[i] = 0.0; }
+    return fmi3OK; }
 fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean* again, fmi3Boolean* terminate,
         fmi3Boolean* nominals, fmi3Boolean* values, fmi3Boolean* nextDefined, fmi3Float64* next) {
     Sampler* s = c;
@@ -127,7 +132,7 @@ UNUSED = ("InstantiateModelExchange InstantiateScheduledExecution GetFloat32 Get
           "GetNumberOfVariableDependencies GetVariableDependencies GetFMUState SetFMUState FreeFMUState "
           "SerializedFMUStateSize SerializeFMUState DeserializeFMUState GetDirectionalDerivative "
           "GetAdjointDerivative EnterConfigurationMode ExitConfigurationMode GetIntervalFraction "
-          "GetShiftDecimal GetShiftFraction SetIntervalDecimal SetIntervalFraction SetShiftDecimal "
+          "GetShiftFraction SetIntervalDecimal SetIntervalFraction SetShiftDecimal "
           "SetShiftFraction EvaluateDiscreteStates EnterContinuousTimeMode CompletedIntegratorStep SetTime "
           "SetContinuousStates GetContinuousStateDerivatives GetEventIndicators GetContinuousStates "
           "GetNominalsOfContinuousStates GetNumberOfEventIndicators GetNumberOfContinuousStates "
@@ -154,8 +159,7 @@ MODEL_DESCRIPTION = """<?xml version="1.0" encoding="UTF-8"?>
 
 
 MD_CLOCK = """
-    <Clock name="tick" valueReference="1" causality="input" intervalVariability="constant"
-      intervalDecimal="{interval!r}"/>"""
+    <Clock name="tick" valueReference="1" causality="input" intervalVariability="{variability}"{decimal}/>"""
 MD_CLOCKED = """
     <Float64 name="y" valueReference="3" causality="output" variability="discrete" clocks="1"/>
     <Float64 name="ticks" valueReference="5" causality="output" variability="discrete" clocks="1"/>"""
@@ -203,10 +207,12 @@ CONNECTION = """
 
 
 
-def build_sampler(dest: Path, interval: float = INTERVAL, clocked: bool = True) -> Path:
+def build_sampler(dest: Path, interval: float = INTERVAL, clocked: bool = True, fixed: bool = False) -> Path:
     """Compile and pack ``dest/Sampler.fmu`` (x86_64-linux binary) with the clock interval given;
     ``clocked`` False: the same code declaring no clock, no event mode and ``y_grid`` alone (the
-    unclocked sampler with a sample time, as an FMU without clocks is written)."""
+    unclocked sampler with a sample time, as an FMU without clocks is written). ``fixed``: the
+    clock is ``fixed`` without ``intervalDecimal``, its interval given by fmi3GetIntervalDecimal
+    only (as for an interval that depends on a parameter)."""
     dest.mkdir(parents=True, exist_ok=True)
     (dest / "sampler.c").write_text(SOURCE.replace("INTERVAL_VALUE", repr(interval)))
     (dest / "stubs.c").write_text(STUBS)
@@ -215,7 +221,9 @@ def build_sampler(dest: Path, interval: float = INTERVAL, clocked: bool = True) 
                     str(dest / "sampler.c"), str(dest / "stubs.c")], check=True, capture_output=True)
     fmu = dest / "Sampler.fmu"
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as zf:
-        parts = {"event_mode": ' hasEventMode="true"', "clock": MD_CLOCK.format(interval=interval),
+        parts = {"event_mode": ' hasEventMode="true"', "clock": MD_CLOCK.format(
+                     variability="fixed" if fixed else "constant",
+                     decimal="" if fixed else f'\n      intervalDecimal="{interval!r}"'),
                  "clocked": MD_CLOCKED, "clocked_outputs": CLOCKED_OUTPUTS} if clocked else dict.fromkeys(
                      ("event_mode", "clock", "clocked", "clocked_outputs"), "")
         zf.writestr("modelDescription.xml", MODEL_DESCRIPTION.format(token=TOKEN, **parts))

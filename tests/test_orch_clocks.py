@@ -23,6 +23,7 @@ import re
 import shutil
 import subprocess
 import warnings
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -231,3 +232,19 @@ def test_a_compiled_master_built_directly_refuses_clocks(fmus: dict[str, Path], 
     folder, _ = scenario(tmp_path / "s", fmus["clocked"])
     with orchestrator.open_system(folder) as system, pytest.raises(UsageError, match="does not tick FMI 3.0"):
         GaussSeidel(system, 0.0, 0.99, STEP, compiled=True).run()
+
+
+@pytest.mark.parametrize("interval", [0.1, 0.05])
+def test_a_fixed_clock_without_interval_is_asked_in_initialization_mode(tmp_path: Path,
+                                                                        interval: float) -> None:
+    """A ``fixed`` clock whose model description gives no intervalDecimal (its interval depends on
+    parameters): the master asks fmi3GetIntervalDecimal and fmi3GetShiftDecimal in Initialization
+    Mode (FMI 3.0, 2.2.8) and ticks on what the FMU answers, here the interval compiled into its
+    C code: with u(t) = t, y(t) = interval floor(t / interval) at every row of the 0.03 s grid."""
+    fmu = build_sampler(tmp_path / "fixed", interval=interval, fixed=True)
+    assert 'intervalVariability="fixed"' in zipfile.ZipFile(fmu).read("modelDescription.xml").decode()
+    rows = run(*scenario(tmp_path / "s", fmu))
+    t = rows["time"]
+    expected = [interval * math.floor(round(x / interval, 9)) for x in t]
+    np.testing.assert_allclose(rows["s.y"], expected, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(rows["s.ticks"], [math.floor(round(x / interval, 9)) + 1 for x in t])
