@@ -1119,7 +1119,7 @@ def _connectors(element: etree._Element, where: str, problems: list[str]) -> dic
         type_ = next((t for t in TYPES if c.find(f"ssc:{t}", NS) is not None), None)
         typed = c.find(f"ssc:{type_}", NS)
         unit = typed.get("unit") if type_ == "Real" and typed is not None else None
-        connectors[name] = Connector(name, kind, type_, unit)
+        connectors[name] = Connector(name, kind, type_, unit or None)  # unit="": none (OMSimulator writes it)
     return connectors
 
 
