@@ -326,7 +326,8 @@ def survey(oms_resources: Path | None, libcosim_data: Path | None, output: Path,
                 targets.append((f"libcosim {ssp.relative_to(libcosim_data / 'ssp')}", ssp, None))
         if demo_cases is not None:
             for ssd in sorted(demo_cases.glob("**/SystemStructure.ssd")):
-                targets.append((f"OSP demo-cases {ssd.parent.relative_to(demo_cases)}", ssd.parent, None))
+                targets.append((f"OSP demo-cases {ssd.parent.relative_to(demo_cases)}", ssd.parent,
+                                demo_cases))  # the proxyfmu variants reference '../<fmu>'
         for label, scenario, root in targets:
             print(label, file=sys.stderr)
             ok_before, why_before = _validate_line(before, scenario, root)
