@@ -171,7 +171,7 @@ docs-figure: build
 
 ## conformance: OMSimulator's and libcosim's whole SSP test resources and the OSP demo cases (fetched:
 ## OMS_RESOURCES is OMSimulator's testsuite/tests/resources, LIBCOSIM_DATA libcosim's tests/data,
-## DEMO_CASES open-simulation-platform/demo-cases, VICO_DATA Vico's test-data/data/ssp, ECOS_DATA
+## DEMO_CASES open-simulation-platform/demo-cases, VICO_DATA Vico's test-data/data, ECOS_DATA
 ## Ecos' data/ssp/1.0), validated and run before (main at 633067d) and after issue 43, and compared
 ## with OMSimulator 3 and libcosim -> docs/ssp-conformance.md (~15 min)
 conformance: build

@@ -159,6 +159,15 @@ CASES = [
          notes={"libcosim": "agrees at every step with our master, jacobi, which the file's "
                             "osp:FixedStepAlgorithm chooses (tests/test_ssp_algorithm.py; Fxg = 0.2 is "
                             "libcosim's value; gauss-seidel gives 0)"}),
+    Case("osp_dp_ship_proxyfmu", "osp-demo-cases/dp-ship/proxyfmu",
+         "open-simulation-platform/demo-cases dp-ship/proxyfmu", {"Thrust Allocation.Fxg": 0.2}, stop=1.0,
+         step=0.04, root="osp-demo-cases/dp-ship", libcosim=False,
+         omsimulator="the SSD references its FMUs in a sibling folder, which an archive cannot hold",
+         warnings=("is a libcosim proxy FMU on this host",),
+         features="libcosim proxy FMUs (proxyfmu://localhost?file=../<fmu>), run in process",
+         notes={"libcosim": "libcosimpy 0.11 cannot start libcosim's proxy server here (it ends with signal "
+                            "6); the same SSD with the FMUs referenced directly (osp_dp_ship) agrees with "
+                            "libcosim at every step"}),
 ]
 
 
@@ -337,7 +346,7 @@ def survey(oms_resources: Path | None, libcosim_data: Path | None, output: Path,
                                     if case.oms_differs else "agrees on every value"))
         cosim = (case.notes.get("libcosim", "agrees at every step with our jacobi master (inputs one step "
                                             "apart: libcosim reports the input used in the step ending at t)")
-                 if case.libcosim else "")
+                 if case.libcosim else case.notes.get("libcosim", ""))
         lines.append(f"| {case.name} | {case.features} | {oracle} | {oms} | {cosim} |")
     output.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return output
@@ -366,11 +375,12 @@ def _targets(oms_resources: Path | None, libcosim_data: Path | None, demo_cases:
     if demo_cases is not None:
         for ssd in sorted(demo_cases.glob("**/SystemStructure.ssd")):  # proxyfmu variants: '../<fmu>'
             targets.append((f"OSP demo-cases {ssd.parent.relative_to(demo_cases)}", ssd.parent, demo_cases))
-    for tool, folder in (others or {}).items():  # SSD folders and archives, as libcosim's
-        for ssd in sorted(folder.glob("**/SystemStructure.ssd")):
-            targets.append((f"{tool} {ssd.parent.relative_to(folder)}", ssd.parent, folder))
-        for ssp in sorted(folder.glob("**/*.ssp")):
-            targets.append((f"{tool} {ssp.relative_to(folder)}", ssp, None))
+    for tool, folder in (others or {}).items():  # as libcosim's: FMUs may be in a sibling of ssp/
+        base = folder / "ssp" if (folder / "ssp").is_dir() else folder
+        for ssd in sorted(base.glob("**/SystemStructure.ssd")):
+            targets.append((f"{tool} {ssd.parent.relative_to(base)}", ssd.parent, folder))
+        for ssp in sorted(base.glob("**/*.ssp")):
+            targets.append((f"{tool} {ssp.relative_to(base)}", ssp, None))
     return targets
 
 
@@ -508,7 +518,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--omsimulator", type=Path, help="OMSimulator's testsuite/tests/resources")
     parser.add_argument("--libcosim", type=Path, help="libcosim's tests/data")
     parser.add_argument("--demo-cases", type=Path, help="the OSP demo-cases repository")
-    parser.add_argument("--vico", type=Path, help="Vico's test-data/data/ssp")
+    parser.add_argument("--vico", type=Path, help="Vico's test-data/data")
     parser.add_argument("--ecos", type=Path, help="Ecos' data/ssp/1.0")
     parser.add_argument("--output", type=Path, default=REPO / "docs" / "ssp-conformance.md")
     args = parser.parse_args(argv)
