@@ -63,8 +63,8 @@ from lxml import etree
 from .errors import ScenarioError, SimulationError
 from .fmucache import release, unpack_fmu
 
-__all__ = ["CALLS", "FAILED", "LOAD_TIMEOUT", "Instance", "InstanceBase", "MessageLog", "fmi_version",
-           "interpreter_guard", "load_problem", "trace"]
+__all__ = ["CALLS", "FAILED", "LOAD_TIMEOUT", "Instance", "InstanceBase", "MessageLog", "failed_call",
+           "fmi_version", "interpreter_guard", "load_problem", "trace"]
 
 log = logging.getLogger(__name__)
 
@@ -79,6 +79,7 @@ _FMI3_FUNCTIONS = {"fmi2DoStep": "fmi3DoStep", "fmi2GetReal": "fmi3GetFloat64",
 _FMI3_STATUS = ("fmi3OK", "fmi3Warning", "fmi3Discard", "fmi3Error", "fmi3Fatal")
 # The FMI 1.0 name of each function the masters name by its FMI 2.0 name.
 _FMI1_FUNCTIONS = {"fmi2DoStep": "fmiDoStep", "fmi2GetReal": "fmiGetReal", "fmi2SetReal": "fmiSetReal",
+                   "fmi2GetInteger": "fmiGetInteger", "fmi2SetInteger": "fmiSetInteger",
                    "fmi2Instantiate": "fmiInstantiateSlave", "fmi2SetupExperiment": "fmiInitializeSlave",
                    "fmi2Terminate": "fmiTerminateSlave"}
 _FMI1_STATUS = ("fmiOK", "fmiWarning", "fmiDiscard", "fmiError", "fmiFatal", "fmiPending")
@@ -138,6 +139,12 @@ class MessageLog:
             log.debug("%s: %s", name, text)
 
 
+def failed_call(function: Callable[..., int] | None, default: str) -> str:
+    """The FMI function a batched call that failed made last (:meth:`InstanceBase.exchange`:
+    ``fmi2GetInteger`` when its integer part failed), else ``default``."""
+    return str(getattr(function, "failed", default))
+
+
 class InstanceBase:
     """What a master needs of an FMU instance, and the status handling written once.
 
@@ -186,14 +193,14 @@ class InstanceBase:
         if len(self.out_vr):
             status = (self.get_outputs or self.get_real)(self.c, self.out_vr, len(self.out_vr), self.out_ptr)
             if status >= FAILED:
-                self.fail("fmi2GetReal", status, time)
+                self.fail(failed_call(self.get_outputs, "fmi2GetReal"), status, time)
 
     def write_inputs(self, time: float) -> None:
         """fmi2SetReal of every connected input from ``in_ptr``."""
         if len(self.in_vr):
             status = (self.set_inputs or self.set_real)(self.c, self.in_vr, len(self.in_vr), self.in_ptr)
             if status >= FAILED:
-                self.fail("fmi2SetReal", status, time)
+                self.fail(failed_call(self.set_inputs, "fmi2SetReal"), status, time)
 
     def exchange(self, is_set: bool, ints: int) -> Callable[..., int]:
         """The batched call ``(c, vr, n, values)`` of a batch whose last ``ints`` values are Integer
@@ -208,11 +215,15 @@ class InstanceBase:
             raise ScenarioError(f"component '{self.name}': its instance exchanges no Integer values")
         buffer = (c_int * ints)()
 
+        names = ("fmi2SetReal", "fmi2SetInteger") if is_set else ("fmi2GetReal", "fmi2GetInteger")
+
         def call(c: object, vr: ctypes.Array, n: int, values: ctypes.Array) -> int:
             k = n - ints
+            call.failed = names[0]  # type: ignore[attr-defined]  # read by failed_call
             status = real(c, vr, k, values) if k else 0
             if status >= FAILED:
                 return status
+            call.failed = names[1]  # type: ignore[attr-defined]
             tail = ctypes.cast(ctypes.addressof(vr) + k * ctypes.sizeof(c_uint), POINTER(c_uint))
             if is_set:
                 buffer[:] = [int(x) for x in values[k:n]]

@@ -58,7 +58,7 @@ import numpy as np
 
 from . import files
 from .errors import Interrupted, LoopError, NonFiniteError, SimulationError, TimeLimitError, terminate
-from .fmi import CALLS, FAILED, Instance, InstanceBase, MessageLog, interpreter_guard, trace
+from .fmi import CALLS, FAILED, Instance, InstanceBase, MessageLog, failed_call, interpreter_guard, trace
 from .inputs import InputSeries
 from .native import FUNCTIONS, Stepper
 from .plan import MAX_TIME, NS_PER_S, Transfer, grid, make_plan, time_grid
@@ -549,7 +549,7 @@ class Master:
                 continue
             status = fn(inst.c, vr, n, ptr)
             if status >= FAILED:
-                inst.fail("fmi2SetReal" if is_set else "fmi2GetReal", status, t)
+                inst.fail(failed_call(fn, "fmi2SetReal" if is_set else "fmi2GetReal"), status, t)
 
 
 class GaussSeidel(Master):

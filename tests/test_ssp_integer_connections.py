@@ -124,3 +124,12 @@ def test_a_transformation_on_an_integer_connection_is_refused(tmp_path: Path) ->
     report = validate(bad / "integers.ssp")
     assert any("stair.counter -> a.Int32_input: a LinearTransformation on an Integer connection" in p.message
                for p in report.errors), report.errors
+
+
+@pytest.mark.parametrize("executor", ["python", "compiled"])
+def test_an_item_the_fmu_refuses_is_one_line_naming_fmi2SetInteger(chain: Path, executor: str) -> None:
+    """Past t = 2 s Stair's counter is 3, which Feedthrough's Enumeration (items 1, 2) refuses with
+    fmi2Error: the run stops there with one line naming the component, the call and the time."""
+    with pytest.raises(orchestrator.SimulationError) as caught:
+        orchestrator.run(chain, RunOptions(stop_time=3.5, step=0.5, executor=executor))
+    assert "a: fmi2SetInteger returned fmi2Error at t=2.000 s" in str(caught.value), str(caught.value)
