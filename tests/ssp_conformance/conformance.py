@@ -332,6 +332,8 @@ def survey(oms_resources: Path | None, libcosim_data: Path | None, output: Path,
              f"the SSD's algorithm annotation implies, and compared at the stop time with OMSimulator 3 (its "
              f"Python package) and at every step with libcosim (libcosimpy) on every Real input, output "
              f"and parameter both give. Do not edit by hand.", "",
+             f"Files that run: {sum(r[5].startswith('ok') for r in rows)} of {len(rows)} (main at {MAIN}: "
+             f"{sum(r[3] == 'runs' for r in rows)}; before issue 43: {sum(r[2] == 'ok' for r in rows)}).", "",
              "| file | validate before | run before | main at " + MAIN + " | validate after | run after "
              "| OMSimulator 3 | libcosim |",
              "|---|---|---|---|---|---|---|---|"]
