@@ -171,11 +171,13 @@ docs-figure: build
 
 ## conformance: OMSimulator's and libcosim's whole SSP test resources and the OSP demo cases (fetched:
 ## OMS_RESOURCES is OMSimulator's testsuite/tests/resources, LIBCOSIM_DATA libcosim's tests/data,
-## DEMO_CASES open-simulation-platform/demo-cases), validated and run before (main at 633067d) and
-## after issue 43, and compared with OMSimulator 3 and libcosim -> docs/ssp-conformance.md (~6 min)
+## DEMO_CASES open-simulation-platform/demo-cases, VICO_DATA Vico's test-data/data, ECOS_DATA
+## Ecos' data/ssp/1.0), validated and run before (main at 633067d) and after issue 43, and compared
+## with OMSimulator 3 and libcosim -> docs/ssp-conformance.md (~15 min)
 conformance: build
 	$(PY) tests/ssp_conformance/conformance.py $(if $(OMS_RESOURCES),--omsimulator $(OMS_RESOURCES)) \
-	  $(if $(LIBCOSIM_DATA),--libcosim $(LIBCOSIM_DATA)) $(if $(DEMO_CASES),--demo-cases $(DEMO_CASES))
+	  $(if $(LIBCOSIM_DATA),--libcosim $(LIBCOSIM_DATA)) $(if $(DEMO_CASES),--demo-cases $(DEMO_CASES)) \
+	  $(if $(VICO_DATA),--vico $(VICO_DATA)) $(if $(ECOS_DATA),--ecos $(ECOS_DATA))
 
 ## unit: the fast unit tests only (no FMU, no other tool, no 30 s reference)
 unit: $(DEV_STAMP)

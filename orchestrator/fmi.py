@@ -64,8 +64,8 @@ from lxml import etree
 from .errors import ScenarioError, SimulationError
 from .fmucache import release, unpack_fmu
 
-__all__ = ["CALLS", "FAILED", "LOAD_TIMEOUT", "Instance", "InstanceBase", "MessageLog", "fmi_version",
-           "interpreter_guard", "load_problem", "trace"]
+__all__ = ["CALLS", "FAILED", "LOAD_TIMEOUT", "Instance", "InstanceBase", "MessageLog", "failed_call",
+           "fmi_version", "interpreter_guard", "load_problem", "trace"]
 
 log = logging.getLogger(__name__)
 
@@ -81,6 +81,7 @@ _FMI3_FUNCTIONS = {"fmi2DoStep": "fmi3DoStep", "fmi2GetReal": "fmi3GetFloat64",
 _FMI3_STATUS = ("fmi3OK", "fmi3Warning", "fmi3Discard", "fmi3Error", "fmi3Fatal")
 # The FMI 1.0 name of each function the masters name by its FMI 2.0 name.
 _FMI1_FUNCTIONS = {"fmi2DoStep": "fmiDoStep", "fmi2GetReal": "fmiGetReal", "fmi2SetReal": "fmiSetReal",
+                   "fmi2GetInteger": "fmiGetInteger", "fmi2SetInteger": "fmiSetInteger",
                    "fmi2Instantiate": "fmiInstantiateSlave", "fmi2SetupExperiment": "fmiInitializeSlave",
                    "fmi2Terminate": "fmiTerminateSlave"}
 _FMI1_STATUS = ("fmiOK", "fmiWarning", "fmiDiscard", "fmiError", "fmiFatal", "fmiPending")
@@ -140,6 +141,12 @@ class MessageLog:
             log.debug("%s: %s", name, text)
 
 
+def failed_call(function: Callable[..., int] | None, default: str) -> str:
+    """The FMI function a batched call that failed made last (:meth:`InstanceBase.exchange`:
+    ``fmi2GetInteger`` when its integer part failed), else ``default``."""
+    return str(getattr(function, "failed", default))
+
+
 class InstanceBase:
     """What a master needs of an FMU instance, and the status handling written once.
 
@@ -154,6 +161,8 @@ class InstanceBase:
     do_step: Callable[..., int]
     get_real: Callable[..., int]
     set_real: Callable[..., int]
+    get_integer: Callable[..., int] | None = None  # fmi2GetInteger (FMI 1.0, 2.0): integer connections
+    set_integer: Callable[..., int] | None = None
 
     def __init__(self, name: str, messages: MessageLog) -> None:
         self.name = name
@@ -165,6 +174,8 @@ class InstanceBase:
         self.out_ptr = (c_double * 0)()
         self.in_vr = (c_uint * 0)()
         self.in_ptr = (c_double * 0)()
+        self.get_outputs: Callable[..., int] | None = None  # get_real, or exchange(False, n) (master)
+        self.set_inputs: Callable[..., int] | None = None
 
     def fail(self, function: str, status: int, time: float) -> NoReturn:
         """Raise the SimulationError of a failed call (after fmi2Fatal the instance is left alone)."""
@@ -182,16 +193,47 @@ class InstanceBase:
     def read_outputs(self, time: float) -> None:
         """fmi2GetReal of every output into ``out_ptr``."""
         if len(self.out_vr):
-            status = self.get_real(self.c, self.out_vr, len(self.out_vr), self.out_ptr)
+            status = (self.get_outputs or self.get_real)(self.c, self.out_vr, len(self.out_vr), self.out_ptr)
             if status >= FAILED:
-                self.fail("fmi2GetReal", status, time)
+                self.fail(failed_call(self.get_outputs, "fmi2GetReal"), status, time)
 
     def write_inputs(self, time: float) -> None:
         """fmi2SetReal of every connected input from ``in_ptr``."""
         if len(self.in_vr):
-            status = self.set_real(self.c, self.in_vr, len(self.in_vr), self.in_ptr)
+            status = (self.set_inputs or self.set_real)(self.c, self.in_vr, len(self.in_vr), self.in_ptr)
             if status >= FAILED:
-                self.fail("fmi2SetReal", status, time)
+                self.fail(failed_call(self.set_inputs, "fmi2SetReal"), status, time)
+
+    def exchange(self, is_set: bool, ints: int) -> Callable[..., int]:
+        """The batched call ``(c, vr, n, values)`` of a batch whose last ``ints`` values are Integer
+        or Enumeration variables: ``set_real``/``get_real`` on the others, then
+        ``fmi2SetInteger``/``fmi2GetInteger`` on those, through an int buffer (exact: a 32-bit int
+        is exact in float64); the plain real call when ``ints`` is 0."""
+        real = self.set_real if is_set else self.get_real
+        if not ints:
+            return real
+        integer = self.set_integer if is_set else self.get_integer
+        if integer is None:
+            raise ScenarioError(f"component '{self.name}': its instance exchanges no Integer values")
+        buffer = (c_int * ints)()
+
+        names = ("fmi2SetReal", "fmi2SetInteger") if is_set else ("fmi2GetReal", "fmi2GetInteger")
+
+        def call(c: object, vr: ctypes.Array, n: int, values: ctypes.Array) -> int:
+            k = n - ints
+            call.failed = names[0]  # type: ignore[attr-defined]  # read by failed_call
+            status = real(c, vr, k, values) if k else 0
+            if status >= FAILED:
+                return status
+            call.failed = names[1]  # type: ignore[attr-defined]
+            tail = ctypes.cast(ctypes.addressof(vr) + k * ctypes.sizeof(c_uint), POINTER(c_uint))
+            if is_set:
+                buffer[:] = [int(x) for x in values[k:n]]
+                return max(status, integer(c, tail, ints, buffer))
+            got = integer(c, tail, ints, buffer)
+            values[k:n] = [float(x) for x in buffer]
+            return max(status, got)
+        return call
 
     def native(self) -> tuple[int, int] | None:
         """The FMU's library handle (``dlopen``) and instance pointer, for the compiled executor to
@@ -249,11 +291,14 @@ class Instance(InstanceBase):
             self._bind_fmi3(lib)
         elif self.fmi1:
             prefix = f"{fmu.modelIdentifier}_fmi"
-            step, get, set_ = (getattr(lib, f"{prefix}{f}") for f in ("DoStep", "GetReal", "SetReal"))
+            step, get, set_, get_i, set_i = (getattr(lib, f"{prefix}{f}") for f in (
+                "DoStep", "GetReal", "SetReal", "GetInteger", "SetInteger"))
             step.argtypes, step.restype = [c_void_p, c_double, c_double, ctypes.c_char], c_int
             for f in (get, set_):
                 f.argtypes, f.restype = [c_void_p, POINTER(c_uint), c_size_t, POINTER(c_double)], c_int
-            self.get_real, self.set_real = get, set_
+            for f in (get_i, set_i):
+                f.argtypes, f.restype = [c_void_p, POINTER(c_uint), c_size_t, POINTER(c_int)], c_int
+            self.get_real, self.set_real, self.get_integer, self.set_integer = get, set_, get_i, set_i
             self.do_step = lambda c, t, h, new: step(c, t, h, b"\x01" if new else b"\x00")
         else:
             self.do_step = lib.fmi2DoStep
@@ -261,6 +306,9 @@ class Instance(InstanceBase):
             self.get_real, self.set_real = lib.fmi2GetReal, lib.fmi2SetReal
             for f in (lib.fmi2GetReal, lib.fmi2SetReal):
                 f.argtypes, f.restype = [c_void_p, POINTER(c_uint), c_size_t, POINTER(c_double)], c_int
+            self.get_integer, self.set_integer = lib.fmi2GetInteger, lib.fmi2SetInteger
+            for f in (lib.fmi2GetInteger, lib.fmi2SetInteger):
+                f.argtypes, f.restype = [c_void_p, POINTER(c_uint), c_size_t, POINTER(c_int)], c_int
 
     def _bind_fmi3(self, lib: ctypes.PyDLL) -> None:
         """The masters' FMI 2.0-shaped hot calls on fmi3GetFloat64, fmi3SetFloat64 and fmi3DoStep."""

@@ -76,7 +76,7 @@ from .errors import (
     UsageError,
     terminate,
 )
-from .fmi import CALLS, FAILED, Instance, InstanceBase, MessageLog, interpreter_guard, trace
+from .fmi import CALLS, FAILED, Instance, InstanceBase, MessageLog, failed_call, interpreter_guard, trace
 from .inputs import InputSeries
 from .native import FUNCTIONS, Stepper
 from .plan import MAX_TIME, NS_PER_S, Transfer, grid, make_plan, time_grid
@@ -537,8 +537,10 @@ class Master:
         self._driven_columns = [j for part in plan.components for j in part.columns]
         for inst, part in zip(self.instances, plan.components, strict=True):
             inst.out_vr, inst.out_ptr = self._vrs(part.outputs.vrs), self._view(part.outputs.slice)
+            inst.get_outputs = inst.exchange(False, part.outputs.ints)
             if part.inputs.vrs:
                 inst.in_vr, inst.in_ptr = self._vrs(part.inputs.vrs), self._view(part.inputs.slice)
+                inst.set_inputs = inst.exchange(True, part.inputs.ints)
             if part.driven.vrs:
                 d = part.driven
                 self._driven.append(Driven(inst, self._vrs(d.vrs), len(d.vrs), self._view(d.slice), d.slice,
@@ -546,7 +548,7 @@ class Master:
         ops = []
         for call in plan.propagation:
             inst, b = self.instances[call.batch.component], call.batch
-            function = inst.set_real if call.is_set else inst.get_real
+            function = inst.exchange(call.is_set, b.ints)
             copies, scaled = self._transfers(call.transfers)
             ops.append(Operation(call.is_set, inst, function, self._vrs(b.vrs), len(b.vrs),
                                  self._view(b.slice), copies, scaled))
@@ -625,7 +627,7 @@ class Master:
                 continue
             status = fn(inst.c, vr, n, ptr)
             if status >= FAILED:
-                inst.fail("fmi2SetReal" if is_set else "fmi2GetReal", status, t)
+                inst.fail(failed_call(fn, "fmi2SetReal" if is_set else "fmi2GetReal"), status, t)
 
 
 class GaussSeidel(Master):

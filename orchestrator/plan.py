@@ -33,14 +33,14 @@ from urllib.parse import quote
 
 import numpy as np
 
-from .system import ComponentModel, PortRef, System
+from .system import INTEGERS, ComponentModel, PortRef, System
 
 __all__ = ["MAX_TIME", "NS_PER_S", "PLAN_VERSION", "Batch", "Call", "GridError", "Plan", "PlanComponent",
            "Span", "StartCall", "Transfer", "grid", "make_plan", "start_calls", "time_grid"]
 
 NS_PER_S = 1_000_000_000
 MAX_TIME = (2**63 - 1) / NS_PER_S / 2  # s: t0 + n*h stays within int64 nanoseconds (292 years / 2)
-PLAN_VERSION = "2"
+PLAN_VERSION = "3"
 TYPE_LETTER = {"Real": "r", "Float64": "r", "Integer": "i", "Enumeration": "i", "Int32": "i", "Boolean": "b",
                "String": "s"}
 
@@ -96,11 +96,14 @@ class Transfer:
 @dataclass(frozen=True)
 class Batch:
     """One batched ``fmi2GetReal``/``fmi2SetReal`` of component ``component`` (its index in
-    :attr:`Plan.components`): value references ``vrs`` <-> ``values[start:start + len(vrs)]``."""
+    :attr:`Plan.components`): value references ``vrs`` <-> ``values[start:start + len(vrs)]``;
+    the last ``ints`` of them are Integer or Enumeration variables, exchanged with
+    ``fmi2GetInteger``/``fmi2SetInteger`` (a 32-bit int is exact in the float64 buffer)."""
 
     component: int
     vrs: tuple[int, ...]
     start: int
+    ints: int = 0
 
     @property
     def slice(self) -> slice:
@@ -280,7 +283,7 @@ def _value(type_: str, value: object) -> str:
 
 
 def _batch(b: Batch) -> str:
-    return " ".join(map(str, (b.component, b.start, len(b.vrs), *b.vrs)))
+    return " ".join(map(str, (b.component, b.start, len(b.vrs), b.ints, *b.vrs)))
 
 
 def _transfers(transfers: Sequence[Transfer]) -> str:
@@ -301,12 +304,18 @@ def _input_order(system: System, driven: set[PortRef]) -> tuple[list[PortRef], i
     for comp in system.components.values():
         for op in system.schedule:
             if op.kind == "set" and op.component == comp.name:
-                order += [PortRef(op.component, i) for i in op.inputs]
+                order += [PortRef(op.component, i) for i in _reals_first(comp, op.inputs)]
     n_connected = len(order)
     for comp in system.components.values():
         free = [p for p in (PortRef(comp.name, i) for i in comp.inputs) if p not in system.links]
         order += [p for p in free if p in driven] + [p for p in free if p not in driven]
     return order, n_connected
+
+
+def _reals_first(comp: ComponentModel, names: Iterable[str]) -> list[str]:
+    """``names`` with the Integer and Enumeration variables last (a batch's integer tail)."""
+    variables = comp.variables
+    return sorted(names, key=lambda n: variables[n].type in INTEGERS)
 
 
 def _start_values(comp: ComponentModel) -> dict[str, tuple[str, int, object]]:
@@ -343,7 +352,10 @@ def make_plan(system: System, start: float, stop: float, step: float, master: st
     def batch(comp: ComponentModel, ports: Sequence[PortRef]) -> Batch:
         first = slot[ports[0]] if ports else 0
         assert [slot[p] for p in ports] == list(range(first, first + len(ports)))  # laid out contiguous
-        return Batch(index[comp.name], _vrs(comp, [p.connector for p in ports]), first)
+        names = [p.connector for p in ports]
+        assert names == _reals_first(comp, names)  # the integers last
+        ints = sum(comp.variables[n].type in INTEGERS for n in names)
+        return Batch(index[comp.name], _vrs(comp, names), first, ints)
 
     def transfers(ports: Sequence[PortRef]) -> tuple[Transfer, ...]:
         links = [system.links[p] for p in ports]
@@ -366,7 +378,7 @@ def make_plan(system: System, start: float, stop: float, step: float, master: st
         if op.kind == "get":
             calls.append(Call(False, parts[index[comp.name]].outputs))
         else:
-            ports = [PortRef(op.component, i) for i in op.inputs]
+            ports = [PortRef(op.component, i) for i in _reals_first(comp, op.inputs)]
             calls.append(Call(True, batch(comp, ports), transfers(ports)))
     read = [op.component for op in system.schedule if op.kind == "get"]
     read += [name for name in system.components if name not in read]

@@ -107,6 +107,14 @@ class Columns:
             raise KeyError(name)
         return np.fromfile(self.folder / f"{names.index(name)}.f64", dtype=np.float64)
 
+    def part(self, name: str, start: int, count: int) -> np.ndarray:
+        """Rows ``start`` to ``start + count`` of column ``name`` (fewer at the end), read alone."""
+        names = self.dtype.names or ()
+        if name not in names:
+            raise KeyError(name)
+        return np.fromfile(self.folder / f"{names.index(name)}.f64", dtype=np.float64, count=max(count, 0),
+                           offset=8 * start)
+
 
 def open_columns(path: str | os.PathLike, folder: str | os.PathLike) -> Columns | np.ndarray:
     """The result CSV ``path`` as :class:`Columns` (its files in ``folder``, which the caller
@@ -145,19 +153,25 @@ def open_columns(path: str | os.PathLike, folder: str | os.PathLike) -> Columns 
     columns = Columns(names, rows, folder)
     if "time" not in names:
         raise ResultFileError(f"{path}: no 'time' column (columns: {', '.join(names)})")
-    _check_time(path, columns["time"])
+    if rows < 2:
+        _check_time(path, columns["time"])
+    for start in range(0, rows - 1, TIME_CHUNK):  # a chunk at a time, one row of overlap
+        _check_time(path, columns.part("time", start, TIME_CHUNK + 1), start)
     return columns
 
 
-def _check_time(path: Path, time: np.ndarray) -> None:
-    """ResultFileError unless ``time`` (of the result ``path``) has two rows or more and increases
-    strictly (naming the line where it does not)."""
+TIME_CHUNK = 1 << 16  # rows of a column file's time checked at once
+
+
+def _check_time(path: Path, time: np.ndarray, first: int = 0) -> None:
+    """ResultFileError unless ``time`` (of the result ``path``; ``first``: the row it starts at)
+    has two rows or more and increases strictly (naming the line where it does not)."""
     if len(time) < 2:
         raise ResultFileError(f"{path}: needs at least two rows (has {len(time)})")
     bad = np.flatnonzero(np.diff(time) <= 0)
     if len(bad):
         i = int(bad[0]) + 1
-        raise ResultFileError(f"{path}: column 'time' does not increase at line {i + 2} "
+        raise ResultFileError(f"{path}: column 'time' does not increase at line {first + i + 2} "
                               f"(t = {float(time[i])!r} after {float(time[i - 1])!r})")
 
 

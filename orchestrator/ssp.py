@@ -41,6 +41,7 @@ from contextlib import ExitStack
 from dataclasses import dataclass, field, replace
 from pathlib import Path, PurePosixPath
 from typing import overload
+from urllib.parse import parse_qs, urlsplit
 
 from fmpy.ssp import ssd as fmpy_ssd
 from lxml import etree
@@ -779,6 +780,16 @@ def _name(node: Node) -> str:
     return _flat((*node[0], node[1]))
 
 
+def _proxied(reference: str) -> str | None:
+    """The FMU file of a libcosim proxy FMU on this host (``proxyfmu://localhost?file=a.fmu``, the
+    file relative to the SSD); None for another host or no file."""
+    parts = urlsplit(reference)
+    files_ = parse_qs(parts.query).get("file")
+    if parts.hostname not in (None, "", "localhost", "127.0.0.1") or not files_:
+        return None
+    return files_[0]
+
+
 class _SystemReader:
     """Reads a system and its nested systems into flat components, connections and parameter sets.
 
@@ -839,11 +850,16 @@ class _SystemReader:
         reference = element.get("source", "")
         inside = None
         if reference.startswith("proxyfmu:"):
-            target = reference.partition("file=")[2] or reference
-            self.problems.append(f"{where}: source '{_shown(reference)}' is a libcosim proxy FMU (an FMU run "
-                                 f"in a separate process): not supported; reference the FMU file instead "
-                                 f"('{_shown(target)}')")
-        else:
+            target = _proxied(reference)
+            proxy = f"{where}: source '{_shown(reference)}' is a libcosim proxy FMU"
+            if target is None:
+                self.problems.append(f"{proxy} on another host (an FMU run in a separate process there): "
+                                     "not supported")
+            else:
+                self.notes.append(f"{proxy} on this host: its FMU '{_shown(target)}' runs in this process "
+                                  "(libcosim runs it in a separate one; the values are the same)")
+                reference = target
+        if inside is None and not reference.startswith("proxyfmu:"):
             inside = _inside(self.folder, reference, f"{where}: source", self.problems, self.root)
         source = self.folder / reference if inside is None else inside
         if inside is not None and not _fmu_file(source):
@@ -1154,7 +1170,7 @@ def _connectors(element: etree._Element, where: str, problems: list[str]) -> dic
         interval = _number(typed.get("intervalDecimal"), None) if type_ == "Clock" and typed is not None \
             else None
         clocks = tuple(k.get("name", "") for k in c.findall("ssd:Clock", NS))
-        connectors[name] = Connector(name, kind, type_, unit, clocks, interval)
+        connectors[name] = Connector(name, kind, type_, unit or None, clocks, interval)  # unit="": none
     return connectors
 
 

@@ -31,13 +31,14 @@ from .errors import ScenarioError, option
 from .ssp import Component, Connection, Connector, Parameter, ParameterSet, PortRef, SystemStructure
 from .units import BASE, UnitDef, UnitError, conversion, convert, resolve, split_value
 
-__all__ = ["FMI3_TYPES", "ComponentModel", "Operation", "PortRef", "System", "ssp_type"]
+__all__ = ["FMI3_TYPES", "INTEGERS", "ComponentModel", "Operation", "PortRef", "System", "ssp_type"]
 
 FMU_TYPES = {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean", "String": "String",
              "Enumeration": "Enumeration"}
 # FMI 3.0 scalar types and the SSP 1.0 type they are exchanged and set as (SSP 1.0 predates FMI
 # 3.0; SSP tools connect ssc:Real to Float64); the other FMI 3.0 types are refused where used.
 FMI3_TYPES = {"Float64": "Real", "Int32": "Integer", "Boolean": "Boolean"}
+INTEGERS = ("Integer", "Enumeration")  # SSP types exchanged as integers (exact in float64)
 SETTABLE = ("parameter", "input")
 
 
@@ -53,7 +54,9 @@ class Operation:
 
 @dataclass
 class ComponentModel:
-    """One FMU instance: its model description and the values to apply before initialization."""
+    """One FMU instance: its model description and the values to apply before initialization;
+    ``outputs`` and ``inputs`` are those exchanged and recorded: every Real connector, then the
+    Integer and Enumeration ones a connection uses."""
 
     name: str
     fmu: Path
@@ -218,7 +221,7 @@ class System:
                 if replace(declared, name="") != replace(own, name=""):
                     problems.append(f"{where}: declared unit {k.unit} but the FMU's variable is in "
                                     f"{own.name}")
-            if type_ == "Real":  # recorded and exchanged; other types are checked, not recorded
+            if type_ == "Real":  # recorded and exchanged (integers a connection uses: _integer_link)
                 (outputs if k.kind == "output" else inputs if k.kind == "input" else []).append(k.name)
         feedthrough: dict[str, set[str]] = {}
         all_inputs = {v.name for v in md.modelVariables if v.causality == "input"}
@@ -255,14 +258,44 @@ class System:
                 continue
             t_start = _exchanged(declared[start.component][start.connector].type)
             t_end = _exchanged(declared[end.component][end.connector].type)
-            if t_start != t_end:
+            integers = {t_start, t_end} <= set(INTEGERS)
+            if t_start != t_end and not integers:
                 problems.append(f"{where}: type mismatch ({start} is {t_start}, {end} is {t_end})")
-            elif t_start != "Real":
-                problems.append(f"{where}: only Real connections are supported ({start} is {t_start})")
+            elif t_start != "Real" and not integers:
+                problems.append(f"{where}: only Real, Integer and Enumeration connections are supported "
+                                f"({start} is {t_start})")
             elif end in self.links:
                 problems.append(f"{where}: input {end} is already connected to {self.links[end].start}")
-            else:
+            elif integers and self._integer_link(con, where, t_start, t_end, problems):
                 self.links[end] = con
+            elif not integers:
+                self.links[end] = con
+
+    def _integer_link(self, con: Connection, where: str, t_start: str | None, t_end: str | None,
+                      problems: list[str]) -> bool:
+        """Whether an Integer or Enumeration connection can run: its value is exchanged exactly (an
+        FMI 1.0/2.0 Integer is a 32-bit int, exact in the float64 value buffer) and copied
+        unchanged; its ports join the component's exchanged inputs and outputs (after the Real
+        ones). Integer <-> Enumeration passes the number, as OMSimulator does (a warning: the
+        FMU must accept it as an item)."""
+        comps = [self.components.get(p.component) for p in (con.start, con.end)]
+        if con.transformed:
+            problems.append(f"{where}: a LinearTransformation on an {t_start} connection (SSP 1.0 defines it "
+                            "for Real connections only)")
+            return False
+        if any(c is not None and c.model.fmiVersion.startswith("3.") for c in comps):
+            problems.append(f"{where}: {t_start} connections of FMI 3.0 FMUs are not supported yet "
+                            "(FMI 1.0 and 2.0 are)")
+            return False
+        if t_start != t_end:
+            self.warnings.append(f"{where}: {con.start} is {t_start}, {con.end} is {t_end}: the integer "
+                                 "value is passed unchanged (as OMSimulator passes it; the FMU must accept "
+                                 "it as an item)")
+        for comp, port, kind in ((comps[0], con.start, "outputs"), (comps[1], con.end, "inputs")):
+            names = getattr(comp, kind) if comp is not None else None
+            if names is not None and port.connector not in names:
+                names.append(port.connector)
+        return True
 
     def _clock_connection(self, where: str, ends: list[Connector | None], problems: list[str]) -> None:
         """An SSP 2.0 connection of Clock connectors. Between two periodic input clocks of equal
@@ -330,6 +363,26 @@ class System:
         if fmu is not None:
             tables.append({u.name: _definition(u) for u in fmu.unitDefinitions if u.baseUnit is not None})
         return resolve(name, *tables)
+
+    def _given_unit(self, name: str, units: Iterable[UnitDef], fmu: ModelDescription, label: str) -> UnitDef:
+        """The unit a parameter value is given in (:meth:`_resolve`); a name in brackets that no file
+        defines (``[m]``: Embrace's SSVs write units so, defining ``m``) is read as the name inside,
+        with a warning (once per file and name); UnitError when neither resolves."""
+        try:
+            return self._resolve(name, units, fmu=fmu)
+        except UnitError:
+            inner = name[1:-1] if name.startswith("[") and name.endswith("]") else None
+            if inner is None:
+                raise
+            try:
+                found = self._resolve(inner, units, fmu=fmu)
+            except UnitError:
+                raise UnitError(f"unknown unit '{name}' (nor '{inner}' without the brackets)") from None
+        note = (f"{label}: the unit '{name}', which no file defines, is read as '{inner}' (the name in "
+                "brackets)")
+        if note not in self.warnings:
+            self.warnings.append(note)
+        return found
 
     def _port_unit(self, ref: PortRef) -> UnitDef | None:
         """The unit of a connected port: its SSD connector's, else its FMU variable's (None: neither)."""
@@ -423,9 +476,10 @@ class System:
             problems.append(f"{label}: {ref} is {var.type} but the value given is {p.type}")
         else:
             value = float(p.value) if type_ == "Real" else p.value
-            if p.unit is not None and type_ == "Real":
+            if p.unit is not None and type_ == "Real" and p.unit != _unit_name(var):
                 try:
-                    given, own = self._resolve(p.unit, units, fmu=comp.model), _unit_def(comp.model, var)
+                    given = self._given_unit(p.unit, units, comp.model, label)
+                    own = _unit_def(comp.model, var)
                 except UnitError as exc:
                     problems.append(f"{label}: {ref} = {p.value!r} {p.unit}: {exc}")
                     return

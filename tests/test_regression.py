@@ -282,3 +282,45 @@ def test_compare_a_column_at_a_time_gives_the_whole_files_verdict(tmp_path: Path
         out = capsys.readouterr().out
         assert out.split("\n", 2)[2] == expected + "\n", name
         assert "| p.y |" in out and "REGRESSION: 1 of 2 signals" in out
+
+
+@pytest.mark.parametrize("chunk", [7, 1 << 16])
+def test_compare_streamed_a_chunk_at_a_time_gives_the_whole_arrays_figures(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, chunk: int) -> None:
+    """Two files on the same uniform grid are compared a chunk of rows at a time (issue 44: memory
+    O(columns), not O(rows)); the oracle is the comparison of the whole arrays (fmpy's
+    validate_signal tube): every signal's verdict and figures, whether it passes or not, with a
+    quiet phase, a time tolerance (the chunks overlap by it), a flat reference, a value that is not
+    finite and chunks of 7 rows (every chunk boundary inside a window)."""
+    from orchestrator.regress import tubes
+    from orchestrator.results import open_columns
+
+    monkeypatch.setattr(tubes, "CHUNK", chunk)
+    rng = np.random.default_rng(7)
+    shaky = np.sin(T) + 0.04 * rng.standard_normal(len(T))
+    broken = np.cos(T)
+    broken[500] = np.nan
+    reference = table(T, p__y=np.sin(T), p__u=np.cos(3 * T), p__f=np.ones(len(T)), p__n=np.cos(T))
+    result = table(T, p__y=shaky, p__u=np.cos(3 * T + 0.03), p__f=np.ones(len(T)) + 1e-4, p__n=broken)
+    tolerances = Tolerances({"p.y": Tolerance(atol=0.1, quiet_atol=0.01, dt=0.05),
+                             "p.u": Tolerance(rtol=0.02, dt=0.03), "p.f": Tolerance(atol=1e-3),
+                             "p.n": Tolerance(atol=0.1)}, quiet_until=1.0)
+    files = []
+    for name, data in (("result", result), ("baseline", reference)):
+        folder = tmp_path / name
+        folder.mkdir()
+        files.append(open_columns(write(tmp_path / f"{name}.csv", data), folder))
+    streamed = compare(*files, tolerances, keep_passed=False)
+    whole = compare(result, reference, tolerances)
+    assert [c.name for c in streamed.checks] == [c.name for c in whole.checks] == ["p.y", "p.u", "p.f", "p.n"]
+    chunked = [tubes._check_streamed(c.name, *files, tolerances.of(c.name), 1.0) for c in whole.checks]
+    for mine, theirs in zip(chunked, whole.checks, strict=True):
+        assert mine is not None
+        assert (mine.n_out, mine.first_out, mine.worst_time) == (theirs.n_out, theirs.first_out,
+                                                                theirs.worst_time), mine.name
+        for a, b in ((mine.width, theirs.width), (mine.worst_excess, theirs.worst_excess),
+                     (mine.max_deviation, theirs.max_deviation)):
+            assert a == b or math.isclose(a, b, rel_tol=1e-12), (mine.name, a, b)
+    assert [c.passed for c in whole.checks] == [False, True, True, False]  # the cases are real
+    assert [c.passed for c in streamed.checks] == [c.passed for c in whole.checks]
+    assert streamed.passed == whole.passed and streamed.grid == whole.grid

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import shutil
 from contextlib import ExitStack
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -120,18 +121,38 @@ def test_libcosim_refuses_the_fmi1_file_we_run(results) -> None:
 
 
 def test_refused_where_the_engine_cannot_run_it(tmp_path) -> None:
-    """A proxy FMU source and a folder reaching outside itself without --root are one line each."""
+    """A folder reaching outside itself without --root, and a proxy FMU on another host, are one
+    line each."""
     demo = HERE / "libcosim" / "ssp" / "demo"
     folder = tmp_path / "libcosim"
     shutil.copytree(HERE / "libcosim", folder)
     report = validate(folder / "ssp" / "demo")
     assert [e.message for e in report.errors if "climbs out" in e.message and "--root" in e.message]
     ssd = folder / "ssp" / "demo" / "SystemStructure.ssd"
-    proxy = 'source="proxyfmu://localhost?file=../../fmi2/CraneController.fmu"'
+    proxy = 'source="proxyfmu://example.org:9090?file=../../fmi2/CraneController.fmu"'
     ssd.write_text(ssd.read_text().replace('source="../../fmi2/CraneController.fmu"', proxy))
     errors = [e.message for e in validate(ssd.parent, root=folder).errors]
-    assert len(errors) == 1 and "proxy FMU" in errors[0] and "'../../fmi2/CraneController.fmu'" in errors[0]
+    assert len(errors) == 1 and "proxy FMU on another host" in errors[0], errors
     assert demo.is_dir()
+
+
+def test_a_proxy_fmu_on_this_host_runs_its_fmu_in_process(tmp_path, results) -> None:
+    """libcosim's demo/proxy (``proxyfmu://localhost?file=...``: libcosim runs that FMU in a child
+    process): a warning, and the same values as the demo that references the FMU directly, which
+    libcosim's own run matches (test_libcosim_runs_the_demo_loop_as_our_jacobi_master)."""
+    case = BY_NAME["libcosim_demo"]
+    folder = tmp_path / "libcosim"
+    shutil.copytree(HERE / "libcosim", folder)
+    ssd = folder / "ssp" / "demo" / "SystemStructure.ssd"
+    proxy = 'source="proxyfmu://localhost?file=../../fmi2/CraneController.fmu"'
+    ssd.write_text(ssd.read_text().replace('source="../../fmi2/CraneController.fmu"', proxy))
+    report = validate(ssd.parent, root=folder)
+    assert report.ok, report.errors
+    assert [p.message for p in report.problems if "runs in this process" in p.message]
+    options = RunOptions(stop_time=case.stop, step=case.step, root=folder)
+    proxied = orchestrator.run(ssd.parent, options).rows
+    direct = orchestrator.run(HERE / case.path, replace(options, root=_root(case))).rows
+    assert proxied.tobytes() == direct.tobytes()
 
 
 def _loop(folder: Path, gain: float) -> Path:

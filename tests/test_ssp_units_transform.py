@@ -241,3 +241,28 @@ def test_value_in_a_unit_only_the_fmu_defines(tmp_path: Path) -> None:
     assert validate(folder).ok
     result = orchestrator.run(folder, RunOptions(step=0.01))
     assert result.provenance["start_values"]["f.Float64_fixed_parameter"] == pytest.approx(200.0, rel=1e-15)
+
+
+def test_a_value_in_a_unit_written_in_brackets(tmp_path: Path) -> None:
+    """Embrace's SSVs give values in ``[m]`` and define ``m`` (no file defines ``[m]``; OMSimulator's
+    own test prints the pipe lengths they give): read as the unit inside the brackets, with a
+    warning, so -1 [km/s2] is -1000 m/s2, then 2 * -1000 + 1 (5.3.2); before, "unknown unit"."""
+    scenario = bouncing_ball_mapped(tmp_path / "s", suppress=False)
+    ssd = scenario / "SystemStructure.ssd"
+    ssd.write_text(ssd.read_text().replace('unit="km/s2"/>', 'unit="[km/s2]"/>'))
+    report = validate(scenario)
+    assert report.ok, report.errors
+    assert [p.message for p in report.problems if "'[km/s2]', which no file defines, is read as 'km/s2'"
+            in p.message], report.problems
+    rows = orchestrator.run(scenario, RunOptions(step=0.01)).rows
+    np.testing.assert_allclose(rows["ball.v"], (2 * -1000.0 + 1) * rows["time"], rtol=1e-9, atol=1e-12)
+
+
+def test_an_empty_unit_attribute_is_no_unit(tmp_path: Path) -> None:
+    """``<ssc:Real unit=""/>`` (OMSimulator's acvs file writes it) declares no unit: the connection
+    to an input in K is not judged and passes the value unchanged (before: "unit mismatch ... is in
+    1"); with a unit on both ends the conversion still applies."""
+    scenario = feedthrough_pair(tmp_path / "s", "", "K", ">")
+    assert validate(scenario).ok
+    rows = orchestrator.run(scenario, RunOptions(step=0.01)).rows
+    np.testing.assert_allclose(rows["b.Float64_continuous_input"], 1.0, rtol=0)

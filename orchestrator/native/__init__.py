@@ -58,7 +58,8 @@ MINGW_FLAGS = tuple(
     "-std=c11 -O2 -shared -g0 -Wall -Wextra -Wno-format-truncation -ffp-contract=off -static-libgcc -s "
     "-Wl,--no-insert-timestamp".split()
 )
-FUNCTIONS = ("fmi2DoStep", "fmi2GetReal", "fmi2SetReal")  # what a step of the executor calls, by code
+# what a step of the executor calls, by code (core.h's enum function)
+FUNCTIONS = ("fmi2DoStep", "fmi2GetReal", "fmi2SetReal", "fmi2SetInteger", "fmi2GetInteger")
 WHY = 4096
 
 

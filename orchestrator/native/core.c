@@ -24,11 +24,11 @@
 #include <string.h>
 
 static const char *const NAMES2[FUNCTIONS] = {
-    "fmi2DoStep", "fmi2GetReal", "fmi2SetReal", "fmi2SetInteger", "fmi2SetBoolean", "fmi2SetString",
+    "fmi2DoStep", "fmi2GetReal", "fmi2SetReal", "fmi2SetInteger", "fmi2GetInteger", "fmi2SetBoolean", "fmi2SetString",
     "fmi2SetupExperiment", "fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2Terminate",
     "fmi2Reset", "fmi2Instantiate"};
 static const char *const NAMES3[FUNCTIONS] = {
-    "fmi3DoStep", "fmi3GetFloat64", "fmi3SetFloat64", "fmi3SetInt32", "fmi3SetBoolean", "fmi3SetString",
+    "fmi3DoStep", "fmi3GetFloat64", "fmi3SetFloat64", "fmi3SetInt32", "fmi3GetInt32", "fmi3SetBoolean", "fmi3SetString",
     "fmi3EnterInitializationMode", "fmi3EnterInitializationMode", "fmi3ExitInitializationMode",
     "fmi3Terminate", "fmi3Reset", "fmi3InstantiateCoSimulation"};
 static const char *const STATUS2[] = {"fmi2OK", "fmi2Warning", "fmi2Discard", "fmi2Error", "fmi2Fatal",
@@ -57,7 +57,8 @@ struct symbol {
 #define S(field, name, lifecycle) {name, offsetof(struct fmu, field), lifecycle}
 static const struct symbol SYMBOLS2[] = {
     S(do_step2, "fmi2DoStep", 0),        S(get_real2, "fmi2GetReal", 0),
-    S(set_real2, "fmi2SetReal", 0),      S(set_integer2, "fmi2SetInteger", 1),
+    S(set_real2, "fmi2SetReal", 0),      S(set_integer2, "fmi2SetInteger", 0),
+    S(get_integer2, "fmi2GetInteger", 0),
     S(set_boolean2, "fmi2SetBoolean", 1), S(set_string2, "fmi2SetString", 1),
     S(setup2, "fmi2SetupExperiment", 1), S(enter2, "fmi2EnterInitializationMode", 1),
     S(exit2, "fmi2ExitInitializationMode", 1), S(terminate2, "fmi2Terminate", 1),
@@ -172,16 +173,45 @@ static void transfer_plain_first(double *v, const struct transfer *t, size_t n) 
     }
 }
 
-static int get_batch(struct core *x, const struct batch *b, double t) {
-    if (!b->n) return 0;
+/* The integer tail of a batch (FMI 2.0 Integer and Enumeration variables, which the plan allows
+   only there): fmi2GetInteger/fmi2SetInteger through an int buffer, in chunks; a 32-bit int is
+   exact in the float64 value buffer. */
+#define CHUNK 64
+static int integers(struct core *x, const struct batch *b, int set, double t) {
     struct fmu *f = &x->fmus[b->component];
-    return check(x, b->component, GET_REAL, get_real(f, b->vr, b->n, x->values + b->start), t);
+    size_t first = b->n - b->ints;
+    int buffer[CHUNK];
+    if (!f->get_integer2 || !f->set_integer2) return check(x, b->component, set ? SET_INTEGER : GET_INTEGER,
+                                                           fmi2Error, t); /* FMI 3.0: not in a plan */
+    for (size_t j = 0; j < b->ints; j += CHUNK) {
+        size_t m = b->ints - j < CHUNK ? b->ints - j : CHUNK;
+        const unsigned int *vr = b->vr + first + j;
+        double *v = x->values + b->start + first + j;
+        int s;
+        if (set) {
+            for (size_t i = 0; i < m; i++) buffer[i] = (int)v[i];
+            s = check(x, b->component, SET_INTEGER, f->set_integer2(f->instance, vr, m, buffer), t);
+        } else {
+            s = check(x, b->component, GET_INTEGER, f->get_integer2(f->instance, vr, m, buffer), t);
+            for (size_t i = 0; !s && i < m; i++) v[i] = buffer[i];
+        }
+        if (s) return s;
+    }
+    return 0;
+}
+
+static int get_batch(struct core *x, const struct batch *b, double t) {
+    size_t n = b->n - b->ints;
+    struct fmu *f = &x->fmus[b->component];
+    int s = n ? check(x, b->component, GET_REAL, get_real(f, b->vr, n, x->values + b->start), t) : 0;
+    return s || !b->ints ? s : integers(x, b, 0, t);
 }
 
 static int set_batch(struct core *x, const struct batch *b, double t) {
-    if (!b->n) return 0;
+    size_t n = b->n - b->ints;
     struct fmu *f = &x->fmus[b->component];
-    return check(x, b->component, SET_REAL, set_real(f, b->vr, b->n, x->values + b->start), t);
+    int s = n ? check(x, b->component, SET_REAL, set_real(f, b->vr, n, x->values + b->start), t) : 0;
+    return s || !b->ints ? s : integers(x, b, 1, t);
 }
 
 int core_propagate(struct core *x, double t) {

@@ -17,7 +17,7 @@
 /* The FMI functions a failure names, as the engine's Python master names them (FMI 2.0) and as
    fmu_function names them for the FMU's own version. */
 enum function {
-    DO_STEP, GET_REAL, SET_REAL, SET_INTEGER, SET_BOOLEAN, SET_STRING, SETUP_EXPERIMENT, ENTER_INITIALIZATION,
+    DO_STEP, GET_REAL, SET_REAL, SET_INTEGER, GET_INTEGER, SET_BOOLEAN, SET_STRING, SETUP_EXPERIMENT, ENTER_INITIALIZATION,
     EXIT_INITIALIZATION, TERMINATE, RESET, INSTANTIATE, FUNCTIONS
 };
 
@@ -39,6 +39,7 @@ struct fmu {
     fmi2GetRealTYPE *get_real2;
     fmi2SetRealTYPE *set_real2;
     fmi2SetIntegerTYPE *set_integer2;
+    fmi2GetIntegerTYPE *get_integer2;
     fmi2SetBooleanTYPE *set_boolean2;
     fmi2SetStringTYPE *set_string2;
     fmi2SetupExperimentTYPE *setup2;

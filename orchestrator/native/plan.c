@@ -2,7 +2,7 @@
 /* The plan reader: the text orchestrator/plan.py writes (Plan.text), one record per line,
    space-separated tokens; reals as C99 hexadecimal floats (exact), strings "=" and percent-encoded.
 
-     plan 2 =<guid>                       version and the container's GUID
+     plan 3 =<guid>                       version and the container's GUID
      master gauss-seidel|jacobi
      grid <t0 ns> <h ns> <n steps>
      sizes <values> <components> <start calls> <propagation calls> <exposed variables>
@@ -14,7 +14,7 @@
      transfers <n> (<dst> <src> <factor> <offset>)*           every connection (jacobi)
      exposed <vr> o|i|p ...                                   the container's variables
 
-   A batch is <component> <first slot> <n> <vr>*. Every index is checked against the sizes, so a
+   A batch is <component> <first slot> <n> <integers among them, last> <vr>*. Every index is checked against the sizes, so a
    damaged plan is one message naming its line, never an access outside an array. */
 
 #define _GNU_SOURCE
@@ -94,6 +94,7 @@ static void read_batch(struct reader *r, const struct plan *p, struct batch *b) 
     b->component = (int)count(r, p->ncomponents ? p->ncomponents - 1 : 0);
     b->start = count(r, p->nvalues);
     b->n = count(r, p->nvalues - b->start);
+    b->ints = count(r, b->n);
     b->vr = array(b->n, sizeof *b->vr, r);
     for (size_t j = 0; j < b->n && !r->error; j++) b->vr[j] = (unsigned int)count(r, UINT32_MAX);
 }

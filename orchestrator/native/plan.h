@@ -9,13 +9,14 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define PLAN_VERSION "2"
+#define PLAN_VERSION "3"
 #define PLAN_TEXT 4096
 
-/* One batched get or set of a component: value references vr <-> values[start .. start + n). */
+/* One batched get or set of a component: value references vr <-> values[start .. start + n); the
+   last `ints` are FMI 2.0 Integer or Enumeration variables (fmi2GetInteger/fmi2SetInteger). */
 struct batch {
     int component;
-    size_t start, n;
+    size_t start, n, ints;
     unsigned int *vr;
 };
 

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 from fmpy.util import validate_signal
+from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
 from .. import files, open_system
 from ..errors import UsageError
@@ -383,20 +384,11 @@ def compare(result: np.ndarray | Columns, baseline: np.ndarray | Columns,
         One :class:`SignalCheck` per compared signal and what else was found.
     """
     tolerances = tolerances or Tolerances()
-    columns = [n for n in _fields(baseline) if n != "time"]
-    unknown = [n for n in signals or () if n not in columns]
-    if unknown:
-        raise RegressionError(f"{baseline_name}: no column {', '.join(unknown)} "
-                              f"(columns: {', '.join(columns)})")
-    names = list(signals) if signals is not None else columns
-    have = set(_fields(result))
-    missing = [n for n in columns if n not in have]
-    extra = [n for n in _fields(result) if n != "time" and n not in set(columns)]
+    if not keep_passed and isinstance(result, Columns) and isinstance(baseline, Columns) \
+            and _same_uniform_grid(result, baseline):
+        return _compare_streamed(result, baseline, tolerances, result_name, baseline_name, signals)
+    names, have, missing, extra, problems = _signals(result, baseline, signals, result_name, baseline_name)
     required = list(signals) if signals is not None else []
-    problems = []
-    if not any(n in have for n in names):
-        problems.append(f"{result_name} has none of the {len(names)} signal(s) of {baseline_name}: "
-                        "nothing compared")
     t_ref, t_res = baseline["time"], result["time"]
     eps = 1e-9 * max(1.0, abs(float(t_ref[-1])))
     if t_res[0] > t_ref[0] + eps or t_res[-1] < t_ref[-1] - eps:
@@ -423,6 +415,145 @@ def compare(result: np.ndarray | Columns, baseline: np.ndarray | Columns,
             checks.append(check)
     return Comparison(result_name, baseline_name, tolerances, checks, missing, extra, problems, grid,
                       required)
+
+
+def _signals(result: np.ndarray | Columns, baseline: np.ndarray | Columns, signals: Sequence[str] | None,
+             result_name: str, baseline_name: str
+             ) -> tuple[list[str], set[str], list[str], list[str], list[str]]:
+    """The signals to compare, the result's columns, the baseline's columns the result lacks, the
+    result's columns the baseline lacks and the problems found so far (RegressionError for a chosen
+    signal the baseline does not have)."""
+    columns = [n for n in _fields(baseline) if n != "time"]
+    unknown = [n for n in signals or () if n not in columns]
+    if unknown:
+        raise RegressionError(f"{baseline_name}: no column {', '.join(unknown)} "
+                              f"(columns: {', '.join(columns)})")
+    names = list(signals) if signals is not None else columns
+    have = set(_fields(result))
+    missing = [n for n in columns if n not in have]
+    extra = [n for n in _fields(result) if n != "time" and n not in set(columns)]
+    problems = []
+    if not any(n in have for n in names):
+        problems.append(f"{result_name} has none of the {len(names)} signal(s) of {baseline_name}: "
+                        "nothing compared")
+    return names, have, missing, extra, problems
+
+
+CHUNK = 1 << 16  # rows of each array a streamed comparison holds at once
+
+
+def _same_uniform_grid(result: Columns, baseline: Columns) -> bool:
+    """Both files have the same times, on a uniform grid (every step within 1e-6 of the first): then
+    :func:`_tube` is a running minimum and maximum, which :func:`_compare_streamed` computes a chunk
+    at a time."""
+    n = len(baseline)
+    if len(result) != n or n < 3:
+        return False
+    t0, t1 = baseline.part("time", 0, 2)
+    h = t1 - t0
+    for start in range(0, n, CHUNK):
+        t = baseline.part("time", start, CHUNK + 1)  # one row more: the step across chunks
+        if not np.array_equal(t, result.part("time", start, CHUNK + 1)) or \
+                not (np.abs(np.diff(t) - h) <= 1e-6 * h).all():
+            return False
+    return True
+
+
+def _compare_streamed(result: Columns, baseline: Columns, tolerances: Tolerances, result_name: str,
+                      baseline_name: str, signals: Sequence[str] | None) -> Comparison:
+    """:func:`compare` of two column files on the same uniform grid, ``CHUNK`` rows at a time
+    (memory: a few chunks, whatever the length). A signal outside its tube is checked again by
+    :func:`_check` on whole arrays, for its figures and plots."""
+    names, have, missing, extra, problems = _signals(result, baseline, signals, result_name, baseline_name)
+    checks = []
+    for name in (n for n in names if n in have):
+        check = _check_streamed(name, result, baseline, tolerances.of(name), tolerances.quiet_until)
+        if check is None:
+            problems.append(f"{baseline_name}: column '{name}' has non-finite values")
+        elif check.passed:
+            checks.append(check)
+        else:
+            t = baseline["time"]
+            checks.append(_check(name, t, result[name], baseline[name], tolerances.of(name),
+                                 tolerances.quiet_until))
+    return Comparison(result_name, baseline_name, tolerances, checks, missing, extra, problems,
+                      f"the baseline's {len(baseline)} times", list(signals) if signals is not None else [])
+
+
+def _check_streamed(name: str, result: Columns, baseline: Columns, tol: Tolerance,
+                    quiet_until: float) -> SignalCheck | None:
+    """:func:`_check` a chunk at a time, without arrays (None: the baseline has non-finite values).
+    On a uniform grid of step h, :func:`_tube`'s band (fmpy's ``validate_signal`` on the reference
+    padded with its end values, resampled onto its own grid) is the running minimum and maximum of
+    the padded reference over 2 round(dt / h) + 1 samples, minus and plus the width."""
+    n = len(baseline)
+    quiet = 0
+    low, high = math.inf, -math.inf
+    for start in range(0, n, CHUNK):
+        t, y_ref = baseline.part("time", start, CHUNK), baseline.part(name, start, CHUNK)
+        if not np.isfinite(y_ref).all():
+            return None
+        if tol.quiet_atol is not None:
+            quiet += int(np.count_nonzero(t <= quiet_until))
+        rest = y_ref[t > quiet_until] if tol.quiet_atol is not None else y_ref
+        if len(rest):
+            low, high = min(low, float(rest.min())), max(high, float(rest.max()))
+    width = max(tol.atol, tol.rtol * (high - low)) if quiet < n else 0.0
+    t0, t1 = baseline.part("time", 0, 2)
+    half = int(round(tol.dt / (t1 - t0)))
+    stats = _Out()
+    for first, end, w in ((0, quiet, tol.quiet_atol or 0.0), (quiet, n, width)):
+        if end > first:
+            _band_out(result, baseline, name, first, end, w, half, stats)
+    return SignalCheck(name, tol, width, stats.n_out, stats.first_out, stats.worst_time,
+                       stats.worst_excess if stats.n_out else 0.0, stats.deviation, *(np.empty(0),) * 5)
+
+
+@dataclass
+class _Out:
+    """What a streamed check gathers: samples out, the first time out, the worst excess (the first
+    of equal ones) and its time, the largest deviation."""
+
+    n_out: int = 0
+    first_out: float | None = None
+    worst_time: float | None = None
+    worst_excess: float = -math.inf
+    deviation: float = 0.0
+
+
+def _band_out(result: Columns, baseline: Columns, name: str, first: int, end: int, width: float,
+              half: int, out: _Out) -> None:
+    """Samples ``first`` to ``end`` (one band) against the tube of half-width ``width``: the padded
+    reference (its end values once more on each side, as :func:`_tube` pads it) filtered in chunks
+    with ``half`` samples of overlap on each side ('reflect' at the padded ends, as scipy there)."""
+    m = end - first
+    for a in range(0, m, CHUNK):
+        b = min(a + CHUNK, m)
+        t = baseline.part("time", first + a, b - a)
+        y, y_ref = result.part(name, first + a, b - a), baseline.part(name, first + a, b - a)
+        if m == 1:
+            lower, upper = y_ref - width, y_ref + width
+        else:
+            lo, hi = max(0, a + 1 - half), min(m + 2, b + 1 + half)  # padded indices p = sample + 1
+            inner = baseline.part(name, first + max(lo - 1, 0), min(hi - 1, m) - max(lo - 1, 0))
+            padded = np.concatenate((inner[:1] if lo == 0 else inner[:0], inner,
+                                     inner[-1:] if hi == m + 2 else inner[:0]))
+            size = 2 * half + 1
+            lower = minimum_filter1d(padded, size, mode="reflect")[a + 1 - lo:b + 1 - lo] - width
+            upper = maximum_filter1d(padded, size, mode="reflect")[a + 1 - lo:b + 1 - lo] + width
+        finite = np.isfinite(y)
+        excess = np.where(finite, np.maximum(lower - y, y - upper), np.inf)
+        outside = excess > 0
+        count = int(np.count_nonzero(outside))
+        if count:
+            if out.first_out is None:
+                out.first_out = float(t[np.argmax(outside)])
+            worst = int(np.argmax(excess))
+            if excess[worst] > out.worst_excess:
+                out.worst_excess, out.worst_time = float(excess[worst]), float(t[worst])
+            out.n_out += count
+        deviation = np.where(finite, np.abs(y - y_ref), np.inf)
+        out.deviation = max(out.deviation, float(deviation.max()))
 
 
 def _points(t_ref: np.ndarray, t_res: np.ndarray,

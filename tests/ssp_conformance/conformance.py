@@ -28,12 +28,14 @@ import subprocess
 import sys
 import tempfile
 import zipfile
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
 BEFORE = "633067d"  # main before issue 43 (issue 32's table was against 5287c35)
+MAIN = "725f1cb"  # main before issue 43's second part (Integer connections, proxy FMUs, Vico, Ecos)
 OMSIMULATOR = Path(os.environ.get("OMSIMULATOR_HOME", REPO.parent / "shared" / "tools" / "omsimulator"))
 
 
@@ -156,6 +158,15 @@ CASES = [
          notes={"libcosim": "agrees at every step with our master, jacobi, which the file's "
                             "osp:FixedStepAlgorithm chooses (tests/test_ssp_algorithm.py; Fxg = 0.2 is "
                             "libcosim's value; gauss-seidel gives 0)"}),
+    Case("osp_dp_ship_proxyfmu", "osp-demo-cases/dp-ship/proxyfmu",
+         "open-simulation-platform/demo-cases dp-ship/proxyfmu", {"Thrust Allocation.Fxg": 0.2}, stop=1.0,
+         step=0.04, root="osp-demo-cases/dp-ship", libcosim=False,
+         omsimulator="the SSD references its FMUs in a sibling folder, which an archive cannot hold",
+         warnings=("is a libcosim proxy FMU on this host",),
+         features="libcosim proxy FMUs (proxyfmu://localhost?file=../<fmu>), run in process",
+         notes={"libcosim": "libcosimpy 0.11 cannot start libcosim's proxy server here (it ends with signal "
+                            "6); the same SSD with the FMUs referenced directly (osp_dp_ship) agrees with "
+                            "libcosim at every step"}),
 ]
 
 
@@ -295,65 +306,36 @@ def _short(text: str, scenario: Path | None = None) -> str:
 
 
 def survey(oms_resources: Path | None, libcosim_data: Path | None, output: Path,
-           demo_cases: Path | None = None) -> Path:
-    """Validate and run every SSD of OMSimulator's test resources, libcosim's test data and the OSP
-    demo cases, before (main at BEFORE) and now, compare with OMSimulator 3 and libcosim, and write
-    the table."""
-    rows = []
+           demo_cases: Path | None = None, others: Mapping[str, Path] | None = None) -> Path:
+    """Validate and run every SSD of OMSimulator's test resources, libcosim's test data, the OSP
+    demo cases and ``others`` (tool name -> an SSP test-data folder: Vico's, Ecos'), before (main at
+    BEFORE and at MAIN) and now, compare with OMSimulator 3 and libcosim, and write the table."""
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
-        before = tmp / "before"
-        before.mkdir()
-        archive = subprocess.run(["git", "-C", str(REPO), "archive", BEFORE, "orchestrator"],
-                                 capture_output=True, check=True).stdout
-        subprocess.run(["tar", "-x", "-C", str(before)], input=archive, check=True)
-        targets: list[tuple[str, Path, Path | None]] = []
-        if oms_resources is not None:
-            for ssd in sorted(oms_resources.glob("*/SystemStructure.ssd")):
-                folder = ssd.parent
-                archive_path = tmp / f"{folder.name}.ssp"
-                with zipfile.ZipFile(archive_path, "w", zipfile.ZIP_DEFLATED) as zf:
-                    for path in sorted(folder.rglob("*")):
-                        if path.is_file():
-                            zf.write(path, path.relative_to(folder).as_posix())
-                targets.append((f"OMSimulator {folder.name}", archive_path, None))
-        if libcosim_data is not None:
-            for ssd in sorted(libcosim_data.glob("ssp/**/SystemStructure.ssd")):
-                targets.append((f"libcosim {ssd.parent.relative_to(libcosim_data / 'ssp')}", ssd.parent,
-                                libcosim_data))
-            for ssp in sorted(libcosim_data.glob("ssp/**/*.ssp")):
-                targets.append((f"libcosim {ssp.relative_to(libcosim_data / 'ssp')}", ssp, None))
-        if demo_cases is not None:
-            for ssd in sorted(demo_cases.glob("**/SystemStructure.ssd")):
-                targets.append((f"OSP demo-cases {ssd.parent.relative_to(demo_cases)}", ssd.parent, None))
-        for label, scenario, root in targets:
-            print(label, file=sys.stderr)
-            ok_before, why_before = _validate_line(before, scenario, root)
-            ok_now, why_now = _validate_line(None, scenario, root)
-            run, run_before, agree_oms, agree_cosim = "", "", "", ""
-            stop, step = _span(scenario, root)
-            before_csv = tmp / "before.csv"
-            before_csv.unlink(missing_ok=True)
-            if ok_before and stop is not None:
-                done, why = _run_line(before, scenario, root, stop, step, before_csv)
-                run_before = "ok" if done else f"fails: {_short(why, scenario)}"
-            if ok_now:
-                run, agree_oms, agree_cosim = _measure(scenario, root, label, before_csv)
-            rows.append((label, "ok" if ok_before else f"refused: {_short(why_before, scenario)}", run_before,
-                         "ok" if ok_now else f"refused: {_short(why_now, scenario)}", run, agree_oms,
-                         agree_cosim))
+        engines = {}
+        for commit in (BEFORE, MAIN):
+            engines[commit] = tmp / commit
+            engines[commit].mkdir()
+            archive = subprocess.run(["git", "-C", str(REPO), "archive", commit, "orchestrator"],
+                                     capture_output=True, check=True).stdout
+            subprocess.run(["tar", "-x", "-C", str(engines[commit])], input=archive, check=True)
+        rows = [_row(label, scenario, root, engines[BEFORE], engines[MAIN], tmp)
+                for label, scenario, root in _targets(oms_resources, libcosim_data, demo_cases, others, tmp)]
     lines = ["# SSP conformance: other tools' test files, before and after issue 43", "",
              f"Generated by `make conformance` (tests/ssp_conformance/conformance.py): every SSD of "
              f"OMSimulator's `testsuite/tests/resources` (packed into an archive as its CMake does), "
-             f"of libcosim's `tests/data/ssp` and of the OSP `demo-cases`, validated and run by the "
-             f"engine of main at {BEFORE} (before) and by this one (after), run for 1 s (the SSD's stop "
-             f"time when shorter) at a 10 ms step (the SSD's when given) under the master the SSD's "
-             f"algorithm annotation implies, and compared at the stop time with OMSimulator 3 (its "
+             f"of libcosim's `tests/data/ssp`, of the OSP `demo-cases`, of Vico's `test-data/data/ssp` "
+             f"and of Ecos' `data/ssp/1.0`, validated and run by the engine of main at {BEFORE} (before "
+             f"issue 43), at {MAIN} (before its second part) and by this one (after), run for 1 s "
+             f"(the SSD's stop time when shorter) at a 10 ms step (the SSD's when given) under the master "
+             f"the SSD's algorithm annotation implies, and compared at the stop time with OMSimulator 3 (its "
              f"Python package) and at every step with libcosim (libcosimpy) on every Real input, output "
              f"and parameter both give. Do not edit by hand.", "",
-             "| file | validate before | run before | validate after | run after | OMSimulator 3 "
-             "| libcosim |",
-             "|---|---|---|---|---|---|---|"]
+             f"Files that run: {sum(r[5].startswith('ok') for r in rows)} of {len(rows)} (main at {MAIN}: "
+             f"{sum(r[3] == 'runs' for r in rows)}; before issue 43: {sum(r[2] == 'ok' for r in rows)}).", "",
+             "| file | validate before | run before | main at " + MAIN + " | validate after | run after "
+             "| OMSimulator 3 | libcosim |",
+             "|---|---|---|---|---|---|---|---|"]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     lines += ["", "## The conformance set in `make test`", "",
               "Copied into `tests/ssp_conformance/` and checked by `tests/test_ssp_conformance.py` against "
@@ -365,10 +347,69 @@ def survey(oms_resources: Path | None, libcosim_data: Path | None, output: Path,
                                     if case.oms_differs else "agrees on every value"))
         cosim = (case.notes.get("libcosim", "agrees at every step with our jacobi master (inputs one step "
                                             "apart: libcosim reports the input used in the step ending at t)")
-                 if case.libcosim else "")
+                 if case.libcosim else case.notes.get("libcosim", ""))
         lines.append(f"| {case.name} | {case.features} | {oracle} | {oms} | {cosim} |")
     output.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return output
+
+
+def _targets(oms_resources: Path | None, libcosim_data: Path | None, demo_cases: Path | None,
+             others: Mapping[str, Path] | None, tmp: Path) -> list[tuple[str, Path, Path | None]]:
+    """(label, scenario, --root) of every file the survey measures (OMSimulator's folders packed into
+    archives in ``tmp`` as its CMake packs them)."""
+    targets: list[tuple[str, Path, Path | None]] = []
+    if oms_resources is not None:
+        for ssd in sorted(oms_resources.glob("*/SystemStructure.ssd")):
+            folder = ssd.parent
+            archive_path = tmp / f"{folder.name}.ssp"
+            with zipfile.ZipFile(archive_path, "w", zipfile.ZIP_DEFLATED) as zf:
+                for path in sorted(folder.rglob("*")):
+                    if path.is_file():
+                        zf.write(path, path.relative_to(folder).as_posix())
+            targets.append((f"OMSimulator {folder.name}", archive_path, None))
+    if libcosim_data is not None:
+        for ssd in sorted(libcosim_data.glob("ssp/**/SystemStructure.ssd")):
+            targets.append((f"libcosim {ssd.parent.relative_to(libcosim_data / 'ssp')}", ssd.parent,
+                            libcosim_data))
+        for ssp in sorted(libcosim_data.glob("ssp/**/*.ssp")):
+            targets.append((f"libcosim {ssp.relative_to(libcosim_data / 'ssp')}", ssp, None))
+    if demo_cases is not None:
+        for ssd in sorted(demo_cases.glob("**/SystemStructure.ssd")):  # proxyfmu variants: '../<fmu>'
+            targets.append((f"OSP demo-cases {ssd.parent.relative_to(demo_cases)}", ssd.parent, demo_cases))
+    for tool, folder in (others or {}).items():  # as libcosim's: FMUs may be in a sibling of ssp/
+        base = folder / "ssp" if (folder / "ssp").is_dir() else folder
+        for ssd in sorted(base.glob("**/SystemStructure.ssd")):
+            targets.append((f"{tool} {ssd.parent.relative_to(base)}", ssd.parent, folder))
+        for ssp in sorted(base.glob("**/*.ssp")):
+            targets.append((f"{tool} {ssp.relative_to(base)}", ssp, None))
+    return targets
+
+
+def _row(label: str, scenario: Path, root: Path | None, before: Path, main: Path,
+         tmp: Path) -> tuple[str, ...]:
+    """One row of the table: validated and run by the engines ``before`` and ``main``, then by this
+    one and compared with the other tools."""
+    print(label, file=sys.stderr)
+    ok_before, why_before = _validate_line(before, scenario, root)
+    ok_now, why_now = _validate_line(None, scenario, root)
+    run, run_before, agree_oms, agree_cosim = "", "", "", ""
+    stop, step = _span(scenario, root)
+    before_csv = tmp / "before.csv"
+    before_csv.unlink(missing_ok=True)
+    if ok_before and stop is not None:
+        done, why = _run_line(before, scenario, root, stop, step, before_csv)
+        run_before = "ok" if done else f"fails: {_short(why, scenario)}"
+    ok_main, why_main = _validate_line(main, scenario, root)
+    if ok_main and stop is not None:
+        ok_main, why_main = _run_line(main, scenario, root, stop, step, tmp / "main.csv")
+        why_main = "" if ok_main else f"fails: {_short(why_main, scenario)}"
+    elif not ok_main:
+        why_main = f"refused: {_short(why_main, scenario)}"
+    if ok_now:
+        run, agree_oms, agree_cosim = _measure(scenario, root, label, before_csv)
+    return (label, "ok" if ok_before else f"refused: {_short(why_before, scenario)}", run_before,
+            "runs" if ok_main else why_main, "ok" if ok_now else f"refused: {_short(why_now, scenario)}", run,
+            agree_oms, agree_cosim)
 
 
 def _span(scenario: Path, root: Path | None) -> tuple[float | None, float]:
@@ -416,7 +457,7 @@ def _measure(scenario: Path, root: Path | None, label: str,
                              f"{k} {a:g} vs {b:g}" for k, (a, b) in list(wrong.items())[:3]))
         except Exception as exc:  # noqa: BLE001
             agree_oms = f"does not run it: {_short(' '.join(str(exc).split()))[:120]}"
-    if label.startswith(("libcosim", "OSP")):  # files written for libcosim
+    if label.startswith(("libcosim", "OSP", "Vico", "Ecos")):  # files written for libcosim (or its heirs)
         try:
             agree_cosim = _libcosim_agreement(scenario, case, [f"{c}.{v}" for c, v in names], before)
         except Exception as exc:  # noqa: BLE001
@@ -478,11 +519,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--omsimulator", type=Path, help="OMSimulator's testsuite/tests/resources")
     parser.add_argument("--libcosim", type=Path, help="libcosim's tests/data")
     parser.add_argument("--demo-cases", type=Path, help="the OSP demo-cases repository")
+    parser.add_argument("--vico", type=Path, help="Vico's test-data/data")
+    parser.add_argument("--ecos", type=Path, help="Ecos' data/ssp/1.0")
     parser.add_argument("--output", type=Path, default=REPO / "docs" / "ssp-conformance.md")
     args = parser.parse_args(argv)
     if args.omsimulator is None and args.libcosim is None:
         parser.error("give --omsimulator and/or --libcosim (folders of the fetched repositories)")
-    print(survey(args.omsimulator, args.libcosim, args.output, args.demo_cases))
+    others = {tool: folder for tool, folder in (("Vico", args.vico), ("Ecos", args.ecos)) if folder}
+    print(survey(args.omsimulator, args.libcosim, args.output, args.demo_cases, others))
     return 0
 
 
