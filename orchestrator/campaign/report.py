@@ -113,14 +113,20 @@ def colour_norm(values: Sequence[float], log: bool):  # -> matplotlib Normalize
     if log and positive:
         low, high = min(positive), max(positive)
         return LogNorm(low, high) if high > low else LogNorm(low / 2.0, high * 2.0)
+    return Normalize(*_linear_range(finite))
+
+
+def _linear_range(finite: Sequence[float]) -> tuple[float, float]:
+    """A linear colour scale's (low, high) over ``finite``: from 0 when none is negative, a single
+    value widened around itself, (0, 1) for none."""
     if not finite:
-        return Normalize(0.0, 1.0)
+        return 0.0, 1.0
     low, high = min(finite), max(finite)
     if low >= 0.0:
         low = 0.0
     if high <= low:
         high = low + (abs(low) if low else 1.0)
-    return Normalize(low, high)
+    return low, high
 
 
 FAILED_COLOUR = "#d62728"
