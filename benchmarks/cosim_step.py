@@ -55,7 +55,7 @@ from pathlib import Path
 import orchestrator
 from orchestrator.experiments.scenarios import FMI3_SUFFIX, SCENARIO_DIR, build_scenarios, component_sources
 from orchestrator.fmi import interpreter_guard
-from orchestrator.master import BLOCK, MASTERS
+from orchestrator.master import BLOCK, MASTERS, Master
 from orchestrator.native import Stepper
 from orchestrator.ssp import pack_ssp
 
@@ -122,12 +122,7 @@ def loop(scenario: Path, stop: float, master: str, overrides: Mapping[str, objec
         m.setup(stack)
         stack.callback(m.recorder.close)
         if instrument:
-            for inst in m.instances:
-                for name in FUNCTIONS:
-                    setattr(inst, name, timed((inst.name, name), getattr(inst, name)))
-            values = m.values
-            m._layout()  # rebuild the call table with the wrapped functions
-            m.values[:] = values
+            _instrument(m, timed)
         m.initialize()
         for cell in inside.values():
             cell[:] = [0, 0]
@@ -148,6 +143,17 @@ def loop(scenario: Path, stop: float, master: str, overrides: Mapping[str, objec
         m.terminate()
         outputs = [f"{c.name}.{o}" for c in system.components.values() for o in c.outputs]
     return {"cpu": cpu, "steps": n, "outputs": outputs, "inside": {k: tuple(v) for k, v in inside.items()}}
+
+
+def _instrument(m: Master, timed: Callable[[tuple[str, str], Callable[..., int]], Callable[..., int]]
+                ) -> None:
+    """Wrap every FMI function of the master's instances with ``timed`` and rebuild its call table."""
+    for inst in m.instances:
+        for name in FUNCTIONS:
+            setattr(inst, name, timed((inst.name, name), getattr(inst, name)))
+    values = m.values
+    m._layout()  # rebuild the call table with the wrapped functions
+    m.values[:] = values
 
 
 def build_before(revision: str, names: list[str], dest: Path) -> dict[str, Path]:
@@ -243,6 +249,13 @@ def report(scenario: str, stop: float, master: str, repeat: int, bias: float, st
     through = best["now, through pythonfmu"]
     print(f"  the shim's direct calls: {through / best['now']:.2f}x "
           f"({us(through).strip()} -> {us(best['now']).strip()} us/step)")
+    _print_breakdown(breakdown, configurations, us)
+
+
+def _print_breakdown(breakdown: dict[str, dict[tuple[str, str], float]], configurations: list[str],
+                     us: Callable[[float], str]) -> None:
+    """Per component, the CPU per communication step of each FMI function in every instrumented
+    configuration (``us``: ns of the run -> us per step, formatted)."""
     components = sorted({c for b in breakdown.values() for c, _ in b})
     measured = [label for label in configurations if label in breakdown]
     print(f"  FMU breakdown, CPU us per communication step: {' / '.join(measured)}")
@@ -251,9 +264,13 @@ def report(scenario: str, stop: float, master: str, repeat: int, bias: float, st
         for name in FUNCTIONS:
             figures = [breakdown[label].get((component, name)) for label in measured]
             if any(f is not None for f in figures):
-                cells.append(f"{FMI_NAMES[name]} " + " / ".join(us(f).strip() if f is not None else "-"
-                                                               for f in figures))
+                cells.append(f"{FMI_NAMES[name]} " + _figures(figures, us))
         print(f"    {component:11s} " + "   ".join(cells))
+
+
+def _figures(figures: list[float | None], us: Callable[[float], str]) -> str:
+    """One function's figures of the configurations, ``a / b / -``."""
+    return " / ".join(us(f).strip() if f is not None else "-" for f in figures)
 
 
 def main(argv: list[str] | None = None) -> int:

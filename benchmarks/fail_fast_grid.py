@@ -19,11 +19,12 @@ differs between the builds is listed.
 from __future__ import annotations
 
 import argparse
+import itertools
 import statistics
 import sys
 import time
 from collections import defaultdict
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +35,9 @@ from orchestrator.errors import SimulationError
 REPO = Path(__file__).resolve().parent.parent
 SCENARIO = Path("build", "ssp", "example1_no_fault.ssp")
 LAWS = {0: "fixed-time", 1: "finite-time"}
+
+
+Costs = dict[str, dict[tuple[str, str], list[float]]]  # build -> (law, outcome) -> CPU s of each run
 
 
 def outcome(archive: Path, x1: float, x2: float, mode: int) -> tuple[str, float]:
@@ -63,36 +67,50 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not archive.is_file():
             parser.error(f"{archive}: not built (run 'make build' in its checkout)")
     values = [float(v) for v in np.linspace(-10.0, 10.0, args.num)]
-    costs: dict[str, dict[tuple[str, str], list[float]]] = {name: defaultdict(list) for name in builds}
-    differ = []
-    wall = time.perf_counter()
-    for mode, law in LAWS.items():
-        for x1 in values:
-            for x2 in values:
-                found = {}
-                for name, archive in builds.items():
-                    found[name], cpu = outcome(archive, x1, x2, mode)
-                    costs[name][law, found[name]].append(cpu)
-                if len(set(found.values())) > 1:
-                    differ.append((law, x1, x2, found))
-        print(f"{law}: done ({time.perf_counter() - wall:.0f} s)", file=sys.stderr)
-    groups = sorted({group for per in costs.values() for group in per})
-    print(f"| law | outcome | runs | {' | '.join(f'{n}: median / max / total CPU' for n in builds)} |")
-    print(f"|---|---|---|{'---|' * len(builds)}")
-    for law, found in groups:
-        cells = []
-        for name in builds:
-            cpu = costs[name].get((law, found), [])
-            cells.append(f"{1e3 * statistics.median(cpu):.0f} ms / {1e3 * max(cpu):.0f} ms / {sum(cpu):.1f} s"
-                         if cpu else "-")
-        runs = max(len(costs[name].get((law, found), [])) for name in builds)
-        print(f"| {law} | {found} | {runs} | {' | '.join(cells)} |")
-    totals = " | ".join(f"{sum(sum(c) for c in costs[name].values()):.1f} s" for name in builds)
-    print(f"| all | | {2 * args.num ** 2} | {totals} |")
+    costs, differ = _run_grid(builds, values)
+    _print_costs(costs, builds, args.num)
     print(f"runs whose outcome differs between the builds: {len(differ)}")
     for law, x1, x2, found in differ:
         print(f"  {law} x1(0) = {x1:g}, x2(0) = {x2:g}: {found}")
     return 0
+
+
+def _run_grid(builds: Mapping[str, Path], values: Sequence[float]) -> tuple[Costs, list[tuple]]:
+    """Every grid point with each law in each build: the CPU seconds by build, law and outcome, and
+    the points whose outcome differs between the builds."""
+    costs: Costs = {name: defaultdict(list) for name in builds}
+    differ = []
+    wall = time.perf_counter()
+    for mode, law in LAWS.items():
+        for x1, x2 in itertools.product(values, values):
+            found = {}
+            for name, archive in builds.items():
+                found[name], cpu = outcome(archive, x1, x2, mode)
+                costs[name][law, found[name]].append(cpu)
+            if len(set(found.values())) > 1:
+                differ.append((law, x1, x2, found))
+        print(f"{law}: done ({time.perf_counter() - wall:.0f} s)", file=sys.stderr)
+    return costs, differ
+
+
+def _print_costs(costs: Costs, builds: Mapping[str, Path], num: int) -> None:
+    """The Markdown table: per law and outcome, the runs and each build's median, largest and total CPU."""
+    groups = sorted({group for per in costs.values() for group in per})
+    print(f"| law | outcome | runs | {' | '.join(f'{n}: median / max / total CPU' for n in builds)} |")
+    print(f"|---|---|---|{'---|' * len(builds)}")
+    for law, found in groups:
+        cells = [_cpu_cell(costs[name].get((law, found), [])) for name in builds]
+        runs = max(len(costs[name].get((law, found), [])) for name in builds)
+        print(f"| {law} | {found} | {runs} | {' | '.join(cells)} |")
+    totals = " | ".join(f"{sum(sum(c) for c in costs[name].values()):.1f} s" for name in builds)
+    print(f"| all | | {2 * num ** 2} | {totals} |")
+
+
+def _cpu_cell(cpu: Sequence[float]) -> str:
+    """median / max / total of the runs' CPU times ("-" for none)."""
+    if not cpu:
+        return "-"
+    return f"{1e3 * statistics.median(cpu):.0f} ms / {1e3 * max(cpu):.0f} ms / {sum(cpu):.1f} s"
 
 
 if __name__ == "__main__":

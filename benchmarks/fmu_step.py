@@ -84,13 +84,7 @@ def measure_fmpy(path: Path, steps: int, method: int | None = None) -> tuple[flo
         step_times, io_times = [], []
         for k in range(steps):
             start = time.perf_counter_ns()
-            out = dict(zip(outputs, fmu.getReal([vr[n] for n in outputs]), strict=True))
-            values = fmpy_inputs(md.modelName, inputs, k)
-            if "Plant" in md.modelName:  # under a PD law, as in the C host
-                values["uf"] += -20.0 * out["x1"] - 10.0 * out["x2"]
-            if values:
-                fmu.setReal([vr[n] for n in values], list(values.values()))
-                fmu.getReal([vr[n] for n in outputs])  # direct-feedthrough outputs for the new inputs
+            _exchange(fmu, md.modelName, vr, inputs, outputs, k)
             middle = time.perf_counter_ns()
             fmu.doStep(currentCommunicationPoint=k * H, communicationStepSize=H)
             end = time.perf_counter_ns()
@@ -100,6 +94,19 @@ def measure_fmpy(path: Path, steps: int, method: int | None = None) -> tuple[flo
     finally:
         fmu.freeInstance()
     return statistics.median(step_times) / 1e3, statistics.median(io_times) / 1e3
+
+
+def _exchange(fmu: FMU2Slave, model: str, vr: dict[str, int], inputs: list[str], outputs: list[str],
+              k: int) -> None:
+    """Step k's exchange as a master does it: get the outputs, set the inputs (a plant's under a PD
+    law, as in the C host), get the direct-feedthrough outputs for the new inputs."""
+    out = dict(zip(outputs, fmu.getReal([vr[n] for n in outputs]), strict=True))
+    values = fmpy_inputs(model, inputs, k)
+    if "Plant" in model:
+        values["uf"] += -20.0 * out["x1"] - 10.0 * out["x2"]
+    if values:
+        fmu.setReal([vr[n] for n in values], list(values.values()))
+        fmu.getReal([vr[n] for n in outputs])
 
 
 def compile_host(where: Path) -> Path:
@@ -133,6 +140,17 @@ def measure_c(host: Path, path: Path, steps: int) -> tuple[float, float]:
     return float(figures["cpu_ns_per_step"]) / 1e3, float(figures["median_ns_per_step"]) / 1e3
 
 
+def _measure(host: Path, path: Path, name: str, options: argparse.Namespace) -> float:
+    """Print the FMU's line (and, with --rk4, its RK4 line for a plant); its CPU us per step in C."""
+    cpu, wall = measure_c(host, path, options.steps)
+    step, io = measure_fmpy(path, options.steps)
+    print(f"{name:<32}{cpu:>12.2f}{wall:>9.2f}{step:>13.1f}{io:>13.1f}")
+    if options.rk4 and "Plant" in name:
+        step, io = measure_fmpy(path, options.steps, method=1)
+        print(f"{name + ' RK4':<32}{'-':>12}{'-':>9}{step:>13.1f}{io:>13.1f}")
+    return cpu
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print one line per FMU (and per earlier FMU with ``--before``), then the controller's share."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -153,16 +171,8 @@ def main(argv: list[str] | None = None) -> int:
         for label, where in sets:
             for model in FMU_SCRIPTS:
                 path = where / f"{model}.fmu"
-                if not path.is_file():
-                    continue
-                cpu, wall = measure_c(host, path, options.steps)
-                step, io = measure_fmpy(path, options.steps)
-                name = label + model
-                share[name] = cpu
-                print(f"{name:<32}{cpu:>12.2f}{wall:>9.2f}{step:>13.1f}{io:>13.1f}")
-                if options.rk4 and "Plant" in model:
-                    step, io = measure_fmpy(path, options.steps, method=1)
-                    print(f"{name + ' RK4':<32}{'-':>12}{'-':>9}{step:>13.1f}{io:>13.1f}")
+                if path.is_file():
+                    share[label + model] = _measure(host, path, label + model, options)
         controllers = {n: v for n, v in share.items() if "FixedTimeController" in n}
         for name, cpu in controllers.items():
             verdict = "within" if cpu <= GOAL_US else "above"

@@ -138,6 +138,11 @@ def _positive(name: str, value: float, index: int | None = None) -> Problem | No
     return None
 
 
+# The per-step tuples (length n) and the scalar reals of ControllerParameters.
+_PER_STEP = ("k", "q", "a", "kappa", "rho", "rho_bar")
+_REALS = ("alpha", "beta", "a_bar", "gamma_gain", "gamma_power", "d_r", "r0", "width", "sample_time", "b_max")
+
+
 @dataclass(frozen=True)
 class ControllerParameters:
     """Gains of the backstepping law for a plant of order n = len(q).
@@ -175,16 +180,27 @@ class ControllerParameters:
     nn_term: bool = True
 
     def __post_init__(self) -> None:
-        per_step = ("k", "q", "a", "kappa", "rho", "rho_bar")
-        for name in per_step + ("centers",):
+        self._coerce()
+        problems = self._parse_choices()
+        problems += self._shape_problems()
+        problems += self._exponent_problems()
+        problems += self._sign_problems()
+        if not self.centers or not all(math.isfinite(c) for c in self.centers):
+            problems.append(Problem("centers", None, "{name} must be a non-empty list of finite numbers"))
+        if problems:
+            raise ParameterError(problems)
+
+    def _coerce(self) -> None:
+        """Tuples of floats and floats from whatever sequences and numbers the caller gave."""
+        for name in _PER_STEP + ("centers",):
             object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
         eta0 = self.eta0 if self.eta0 is not None else (0.0,) * len(self.q)
         object.__setattr__(self, "eta0", tuple(float(v) for v in eta0))
-        reals: tuple[str, ...] = ("alpha", "beta", "a_bar", "gamma_gain", "gamma_power", "d_r", "r0", "width")
-        reals += ("sample_time", "b_max")
-        for name in reals:
+        for name in _REALS:
             object.__setattr__(self, name, float(getattr(self, name)))
 
+    def _parse_choices(self) -> list[Problem]:
+        """``mode``, ``discretization`` and ``nn_term`` as their types; a problem for each that is none."""
         problems: list[Problem] = []
         try:
             object.__setattr__(self, "mode", Mode.parse(self.mode))
@@ -199,19 +215,44 @@ class ControllerParameters:
         else:
             problems.append(Problem("nn_term", None,
                                     f"{{name}} must be 1 (on) or 0 (off) (got {self.nn_term!r})"))
+        return problems
+
+    def _shape_problems(self) -> list[Problem]:
+        """At least one step, and n entries in every per-step tuple."""
+        problems: list[Problem] = []
         n = len(self.q)
         if n < 1:
             problems.append(Problem("q", None, "{name} must have at least one entry (plant order n >= 1)"))
-        for name in per_step + ("eta0",):
+        for name in _PER_STEP + ("eta0",):
             if len(getattr(self, name)) != n:
                 problems.append(Problem(name, None, f"{{name}} must have n = {n} entries "
                                                     f"(got {len(getattr(self, name))})"))
+        return problems
+
+    def _exponent_problems(self) -> list[Problem]:
+        """The exponents' ranges: alpha > 1, 0.5 < beta < 1."""
+        problems: list[Problem] = []
         if not (self.alpha > 1.0 and math.isfinite(self.alpha)):
             problems.append(Problem("alpha", None,
                                     f"{{name}} must satisfy {{name}} > 1 (got {self.alpha!r})"))
         if not 0.5 < self.beta < 1.0:
             problems.append(Problem("beta", None,
                                     f"{{name}} must satisfy 0.5 < {{name}} < 1 (got {self.beta!r})"))
+        return problems
+
+    def _sign_problems(self) -> list[Problem]:
+        """Gains that must be positive (only those the mode and discretization use), the rest >= 0."""
+        found = self._positive_problems()
+        assert self.eta0 is not None  # filled by _coerce
+        at_least_zero: list[tuple[str, int | None, float]] = [
+            (name, None, getattr(self, name)) for name in ("gamma_gain", "d_r", "gamma_power", "r0")]
+        at_least_zero += [("eta0", i, v) for i, v in enumerate(self.eta0, 1)]
+        return found + [Problem(name, i, f"{{name}} must satisfy {{name}} >= 0 (got {value!r})")
+                        for name, i, value in at_least_zero if not (math.isfinite(value) and value >= 0.0)]
+
+    def _positive_problems(self) -> list[Problem]:
+        """The gains that must be > 0: ``k`` only in fixed-time mode, ``sample_time`` and ``b_max``
+        only when semi-implicit."""
         gains: tuple[str, ...] = ("q", "a", "kappa", "rho", "rho_bar")
         if self.mode == FIXED_TIME:
             gains = ("k",) + gains
@@ -219,17 +260,7 @@ class ControllerParameters:
                  for i, value in enumerate(getattr(self, name), start=1)]
         used = ("a_bar", "width") + (("sample_time", "b_max") if self.discretization == SEMI_IMPLICIT else ())
         found += [_positive(name, getattr(self, name)) for name in used]
-        assert self.eta0 is not None  # filled above
-        at_least_zero: list[tuple[str, int | None, float]] = [
-            (name, None, getattr(self, name)) for name in ("gamma_gain", "d_r", "gamma_power", "r0")]
-        at_least_zero += [("eta0", i, v) for i, v in enumerate(self.eta0, 1)]
-        found += [Problem(name, i, f"{{name}} must satisfy {{name}} >= 0 (got {value!r})")
-                  for name, i, value in at_least_zero if not (math.isfinite(value) and value >= 0.0)]
-        problems += [p for p in found if p is not None]
-        if not self.centers or not all(math.isfinite(c) for c in self.centers):
-            problems.append(Problem("centers", None, "{name} must be a non-empty list of finite numbers"))
-        if problems:
-            raise ParameterError(problems)
+        return [p for p in found if p is not None]
 
     @property
     def n(self) -> int:

@@ -24,7 +24,7 @@ from ..cli import (
     warn,
 )
 from ..errors import UsageError
-from .design import read_design
+from .design import Design, read_design
 from .report import write_report
 from .sweep import DASHBOARD, SCHEDULER_ENV, CampaignInterrupted, CampaignSummary, sweep
 from .worker import Metrics
@@ -126,23 +126,7 @@ def _describe(s: CampaignSummary) -> str:
 
 
 def _sweep(args: argparse.Namespace, metrics: Metrics | None) -> int:
-    design = read_design(args.design)
-    extra = parse_overrides(args.set)
-    changes: dict[str, Any] = {}
-    if extra:
-        changes["fixed"] = {**design.fixed, **extra}
-    for name in ("stop_time", "step", "timeout"):
-        value = getattr(args, name)
-        if value is not None:
-            if not math.isfinite(value) or (value <= 0 and name != "stop_time"):
-                raise UsageError(
-                    f"--{name.replace('_', '-')} must be {'positive and ' if name != 'stop_time' else ''}"
-                    f"finite (got {value!r})"
-                )
-            if name != "timeout":
-                changes[name] = value
-    if changes:
-        design = replace(design, **changes)
+    design = _design(args)
     if args.workers is not None and args.workers < 1:
         raise UsageError("--workers must be at least 1")
     if args.workers is not None and args.scheduler:
@@ -175,6 +159,33 @@ def _sweep(args: argparse.Namespace, metrics: Metrics | None) -> int:
             file=sys.stderr,
         )
         return 130
+    return _finish(args, summary)
+
+
+def _design(args: argparse.Namespace) -> Design:
+    """The design file's design with the command line's --set, --stop-time and --step on top (and
+    --timeout checked: the sweep takes it apart)."""
+    design = read_design(args.design)
+    extra = parse_overrides(args.set)
+    changes: dict[str, Any] = {}
+    if extra:
+        changes["fixed"] = {**design.fixed, **extra}
+    for name in ("stop_time", "step", "timeout"):
+        value = getattr(args, name)
+        if value is not None:
+            if not math.isfinite(value) or (value <= 0 and name != "stop_time"):
+                raise UsageError(
+                    f"--{name.replace('_', '-')} must be {'positive and ' if name != 'stop_time' else ''}"
+                    f"finite (got {value!r})"
+                )
+            if name != "timeout":
+                changes[name] = value
+    return replace(design, **changes) if changes else design
+
+
+def _finish(args: argparse.Namespace, summary: CampaignSummary) -> int:
+    """Say how the sweep went (lost workers, runs not run), draw the report if asked; the exit
+    status: 0 when every run is ok."""
     if not args.quiet:
         print(_describe(summary))
     for worker, runs in summary.lost_workers.items():

@@ -143,21 +143,26 @@ def sample_points(ranges: Mapping[str, tuple[float, float]], n: int, method: str
 
 def _axis(where: str, spec: object) -> list[float]:
     if isinstance(spec, Mapping):
-        unknown = set(spec) - {"start", "stop", "num"}
-        if unknown or not {"start", "stop", "num"} <= set(spec):
-            raise DesignError(f"{where}: a range needs exactly start, stop and num (got {sorted(spec)})")
-        num = spec["num"]
-        if isinstance(num, bool) or not isinstance(num, int) or num < 1:
-            raise DesignError(f"{where}: num must be a positive integer (got {num!r})")
-        if num > MAX_POINTS:
-            raise DesignError(f"{where}: num = {num} is more than a design may have in all ({MAX_POINTS})")
-        start, stop = _number(f"{where}.start", spec["start"]), _number(f"{where}.stop", spec["stop"])
-        return [float(v) for v in np.linspace(start, stop, num)]
+        return _range(where, spec)
     if isinstance(spec, list) and spec:
         # an integer stays one (a mode, a discretization): the table then writes 1, not 1.0
         return [v if isinstance(v, int) and not isinstance(v, bool) else _number(f"{where}[{i}]", v)
                 for i, v in enumerate(spec)]
     raise DesignError(f"{where}: expected a list of values or {{start, stop, num}} (got {spec!r})")
+
+
+def _range(where: str, spec: Mapping[str, object]) -> list[float]:
+    """A grid axis given as ``{start, stop, num}``: ``num`` evenly spaced values, both ends included."""
+    unknown = set(spec) - {"start", "stop", "num"}
+    if unknown or not {"start", "stop", "num"} <= set(spec):
+        raise DesignError(f"{where}: a range needs exactly start, stop and num (got {sorted(spec)})")
+    num = spec["num"]
+    if isinstance(num, bool) or not isinstance(num, int) or num < 1:
+        raise DesignError(f"{where}: num must be a positive integer (got {num!r})")
+    if num > MAX_POINTS:
+        raise DesignError(f"{where}: num = {num} is more than a design may have in all ({MAX_POINTS})")
+    start, stop = _number(f"{where}.start", spec["start"]), _number(f"{where}.stop", spec["stop"])
+    return [float(v) for v in np.linspace(start, stop, num)]
 
 
 def _read_table(where: str, path: Path) -> tuple[list[str], list[tuple[float, ...]]]:
@@ -174,12 +179,16 @@ def _read_table(where: str, path: Path) -> tuple[list[str], list[tuple[float, ..
     except (OSError, ValueError) as exc:  # pyarrow.ArrowInvalid is a ValueError
         raise DesignError(f"{where}: cannot read {path}: {str(exc).splitlines()[0]}") from exc
     columns = list(table.column_names)
-    rows = []
     for name in columns:
         column = table.column(name)
         if column.null_count or not (pat.is_integer(column.type) or pat.is_floating(column.type)):
             raise DesignError(f"{path}: column '{name}' must hold numbers in every row")
-    data = [table.column(n).to_pylist() for n in columns]
+    return columns, _table_rows(path, columns, [table.column(n).to_pylist() for n in columns])
+
+
+def _table_rows(path: Path, columns: Sequence[str], data: Sequence[list]) -> list[tuple[float, ...]]:
+    """The table's rows as tuples of finite numbers, its columns ``data`` given as lists."""
+    rows = []
     for i, row in enumerate(zip(*data, strict=True)):
         rows.append(
             tuple(
@@ -189,7 +198,7 @@ def _read_table(where: str, path: Path) -> tuple[list[str], list[tuple[float, ..
         )
     if not rows:
         raise DesignError(f"{path}: the table has no rows")
-    return columns, rows
+    return rows
 
 
 def _load(path: Path) -> dict:
@@ -224,6 +233,9 @@ def _count(path: Path, data: Mapping[str, object]) -> None:
         raise DesignError(f"{path}: {total} points, more than a design may have ({MAX_POINTS}); split it")
 
 
+_Part = tuple[list[str], list[tuple[float, ...]]]
+
+
 def read_design(path: str | os.PathLike) -> Design:
     """Read a TOML (``.toml``) or JSON (``.json``) design; raises DesignError naming file and key."""
     path = Path(path)
@@ -233,8 +245,37 @@ def read_design(path: str | os.PathLike) -> Design:
         raise DesignError(
             f"{path}: unknown key(s) {', '.join(sorted(unknown))} (allowed: {', '.join(sorted(_TOP_KEYS))})"
         )
-    parts: list[tuple[list[str], list[tuple[float, ...]]]] = []
+    parts = _parts(path, data)
+    total = math.prod(len(rows) for _, rows in parts)
+    if total > MAX_POINTS:
+        raise DesignError(f"{path}: {total} points, more than a design may have ({MAX_POINTS}); split it")
+    columns = _columns(path, parts)
+    points = [
+        tuple(itertools.chain.from_iterable(combo))
+        for combo in itertools.product(*(rows for _, rows in parts))
+    ]
+    fixed = _fixed(path, data.get("fixed", {}), columns)
+    experiment = _experiment(path, data)
+    plots = _plots(path, data.get("plots", []))
+    labels = data.get("labels", {})
+    if not isinstance(labels, dict) or not all(isinstance(v, dict) for v in labels.values()):
+        raise DesignError(f"{path}: [labels] must map a column to {{value = label}} tables")
+    return Design(
+        source=str(path),
+        columns=tuple(columns),
+        points=tuple(points),
+        fixed=fixed,
+        master=str(data.get("master", "gauss-seidel")),
+        description=str(data.get("description", "")),
+        plots=tuple(plots),
+        labels={k: {str(a): str(b) for a, b in v.items()} for k, v in labels.items()},
+        **experiment,
+    )
 
+
+def _parts(path: Path, data: Mapping[str, object]) -> list[_Part]:
+    """The design's sections that vary something, each as (names, points): grid, sample, table."""
+    parts: list[_Part] = []
     grid = data.get("grid", {})
     if not isinstance(grid, dict):
         raise DesignError(f"{path}: [grid] must be a table of name = values")
@@ -242,46 +283,60 @@ def read_design(path: str | os.PathLike) -> Design:
     if grid:
         axes = {name: _axis(f"{path}: grid '{name}'", spec) for name, spec in grid.items()}
         parts.append((list(axes), grid_points(axes)))
-
     sample = data.get("sample")
     if sample is not None:
-        where = f"{path}: [sample]"
-        if not isinstance(sample, dict) or set(sample) - {"method", "n", "seed", "ranges"}:
-            raise DesignError(f"{where}: expected method, n, seed and ranges")
-        method, n, seed = sample.get("method", "lhs"), sample.get("n"), sample.get("seed")
-        if method not in ("lhs", "random"):
-            raise DesignError(f"{where}: method must be 'lhs' or 'random' (got {method!r})")
-        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-            raise DesignError(f"{where}: n must be a positive integer (got {n!r})")
-        if n > MAX_POINTS:
-            raise DesignError(f"{where}: n = {n} is more than a design may have in all ({MAX_POINTS})")
-        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-            raise DesignError(
-                f"{where}: seed must be a non-negative integer, so the sample is reproducible (got {seed!r})"
-            )
-        ranges = sample.get("ranges")
-        if not isinstance(ranges, dict) or not ranges:
-            raise DesignError(f"{where}: ranges must map each parameter to [low, high]")
-        boxes = {}
-        for name, r in ranges.items():
-            if not (isinstance(r, list) and len(r) == 2):
-                raise DesignError(f"{where} ranges '{name}': expected [low, high] (got {r!r})")
-            low, high = _number(f"{where} ranges '{name}'", r[0]), _number(f"{where} ranges '{name}'", r[1])
-            if not low < high:
-                raise DesignError(f"{where} ranges '{name}': low must be below high (got {r!r})")
-            boxes[name] = (low, high)
-        sampled = sample_points(boxes, n, method, seed)
-        parts.append((list(boxes), [tuple(float(v) for v in p) for p in sampled]))
-
+        parts.append(_sample(f"{path}: [sample]", sample))
     table = data.get("table")
     if table is not None:
         if not isinstance(table, dict) or set(table) != {"file"} or not isinstance(table["file"], str):
             raise DesignError(f'{path}: [table] must give file = "points.csv" (or .parquet)')
         parts.append(_read_table(f"{path}: [table]", path.parent / table["file"]))
+    return parts
 
-    total = math.prod(len(rows) for _, rows in parts)
-    if total > MAX_POINTS:
-        raise DesignError(f"{path}: {total} points, more than a design may have ({MAX_POINTS}); split it")
+
+def _sample(where: str, sample: object) -> _Part:
+    """The ``[sample]`` section's points, its settings checked first."""
+    if not isinstance(sample, dict) or set(sample) - {"method", "n", "seed", "ranges"}:
+        raise DesignError(f"{where}: expected method, n, seed and ranges")
+    method, n, seed = _sampling(where, sample.get("method", "lhs"), sample.get("n"), sample.get("seed"))
+    boxes = _boxes(where, sample.get("ranges"))
+    sampled = sample_points(boxes, n, method, seed)
+    return list(boxes), [tuple(float(v) for v in p) for p in sampled]
+
+
+def _sampling(where: str, method: object, n: object, seed: object) -> tuple[str, int, int]:
+    """The sample's method, size and seed; DesignError unless the method is known, ``n`` a positive
+    count within the limit and ``seed`` a non-negative integer (a sample must be reproducible)."""
+    if method not in ("lhs", "random"):
+        raise DesignError(f"{where}: method must be 'lhs' or 'random' (got {method!r})")
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise DesignError(f"{where}: n must be a positive integer (got {n!r})")
+    if n > MAX_POINTS:
+        raise DesignError(f"{where}: n = {n} is more than a design may have in all ({MAX_POINTS})")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise DesignError(
+            f"{where}: seed must be a non-negative integer, so the sample is reproducible (got {seed!r})"
+        )
+    return str(method), n, seed
+
+
+def _boxes(where: str, ranges: object) -> dict[str, tuple[float, float]]:
+    """The ``[sample]`` ranges as name -> (low, high), low below high."""
+    if not isinstance(ranges, dict) or not ranges:
+        raise DesignError(f"{where}: ranges must map each parameter to [low, high]")
+    boxes = {}
+    for name, r in ranges.items():
+        if not (isinstance(r, list) and len(r) == 2):
+            raise DesignError(f"{where} ranges '{name}': expected [low, high] (got {r!r})")
+        low, high = _number(f"{where} ranges '{name}'", r[0]), _number(f"{where} ranges '{name}'", r[1])
+        if not low < high:
+            raise DesignError(f"{where} ranges '{name}': low must be below high (got {r!r})")
+        boxes[name] = (low, high)
+    return boxes
+
+
+def _columns(path: Path, parts: Sequence[_Part]) -> list[str]:
+    """The varied names of all sections in order, each a valid name varied in one section only."""
     columns: list[str] = []
     for names, _ in parts:
         for name in names:
@@ -290,12 +345,11 @@ def read_design(path: str | os.PathLike) -> Design:
             if name in columns:
                 raise DesignError(f"{path}: '{name}' varies in two sections")
             columns.append(name)
-    points = [
-        tuple(itertools.chain.from_iterable(combo))
-        for combo in itertools.product(*(rows for _, rows in parts))
-    ]
+    return columns
 
-    fixed = data.get("fixed", {})
+
+def _fixed(path: Path, fixed: object, columns: Sequence[str]) -> dict[str, object]:
+    """The ``[fixed]`` overrides: one value per COMPONENT.VARIABLE that no section varies."""
     if not isinstance(fixed, dict):
         raise DesignError(f"{path}: [fixed] must be a table of name = value")
     for name, value in fixed.items():
@@ -307,7 +361,11 @@ def read_design(path: str | os.PathLike) -> Design:
             raise DesignError(f"{path}: '{name}' is both fixed and varied")
         if isinstance(value, (list, dict)):
             raise DesignError(f"{path}: fixed '{name}': expected one value (got {value!r})")
+    return dict(fixed)
 
+
+def _experiment(path: Path, data: Mapping[str, object]) -> dict[str, float]:
+    """The top-level stop_time, step and timeout that are given; step and timeout positive."""
     experiment = {}
     for key in ("stop_time", "step", "timeout"):
         if key in data:
@@ -315,7 +373,11 @@ def read_design(path: str | os.PathLike) -> Design:
             if value <= 0 and key != "stop_time":
                 raise DesignError(f"{path}: {key} must be positive (got {value!r})")
             experiment[key] = value
-    plots = data.get("plots", [])
+    return experiment
+
+
+def _plots(path: Path, plots: object) -> list[dict]:
+    """The ``[[plots]]`` tables, each of a known kind (the report checks the rest)."""
     if not isinstance(plots, list) or not all(isinstance(p, dict) for p in plots):
         raise DesignError(f"{path}: plots must be an array of tables ([[plots]])")
     for i, p in enumerate(plots):
@@ -323,17 +385,4 @@ def read_design(path: str | os.PathLike) -> Design:
             raise DesignError(
                 f"{path}: plots[{i}].kind must be one of {', '.join(PLOT_KINDS)} (got {p.get('kind')!r})"
             )
-    labels = data.get("labels", {})
-    if not isinstance(labels, dict) or not all(isinstance(v, dict) for v in labels.values()):
-        raise DesignError(f"{path}: [labels] must map a column to {{value = label}} tables")
-    return Design(
-        source=str(path),
-        columns=tuple(columns),
-        points=tuple(points),
-        fixed=dict(fixed),
-        master=str(data.get("master", "gauss-seidel")),
-        description=str(data.get("description", "")),
-        plots=tuple(plots),
-        labels={k: {str(a): str(b) for a, b in v.items()} for k, v in labels.items()},
-        **experiment,
-    )
+    return plots

@@ -113,14 +113,20 @@ def colour_norm(values: Sequence[float], log: bool):  # -> matplotlib Normalize
     if log and positive:
         low, high = min(positive), max(positive)
         return LogNorm(low, high) if high > low else LogNorm(low / 2.0, high * 2.0)
+    return Normalize(*_linear_range(finite))
+
+
+def _linear_range(finite: Sequence[float]) -> tuple[float, float]:
+    """A linear colour scale's (low, high) over ``finite``: from 0 when none is negative, a single
+    value widened around itself, (0, 1) for none."""
     if not finite:
-        return Normalize(0.0, 1.0)
+        return 0.0, 1.0
     low, high = min(finite), max(finite)
     if low >= 0.0:
         low = 0.0
     if high <= low:
         high = low + (abs(low) if low else 1.0)
-    return Normalize(low, high)
+    return low, high
 
 
 FAILED_COLOUR = "#d62728"
@@ -173,6 +179,12 @@ def _empty_note(ax, metric: str, counts: Mapping[str, int]) -> None:
             fontsize="small", wrap=True)
 
 
+def _panel_label(title: str, shown: int, counts: Mapping[str, int]) -> str:
+    """A panel's legend entry: its title, how many runs it shows and why the others are not."""
+    missing = _not_shown(counts)
+    return f"{title or 'runs'} ({shown}" + (f" shown; {missing})" if missing else ")")
+
+
 def _scatter(ax, spec: Mapping, panels: list[tuple[str, list[Row]]]) -> None:
     x, metric = spec["x"], spec["metric"]
     total = dict.fromkeys(("shown", "failed", "infinite", "undefined"), 0)
@@ -180,13 +192,12 @@ def _scatter(ax, spec: Mapping, panels: list[tuple[str, list[Row]]]) -> None:
         ok = [r for r in rows if r["status"] == "ok" and math.isfinite(_value(r, metric))]
         counts = outcomes(rows, metric)
         total = {k: total[k] + counts[k] for k in total}
-        missing = _not_shown(counts)
         ax.plot(
             [_value(r, x) for r in ok],
             [_value(r, metric) for r in ok],
             ".",
             alpha=0.7,
-            label=f"{title or 'runs'} ({len(ok)}" + (f" shown; {missing})" if missing else ")"),
+            label=_panel_label(title, len(ok), counts),
         )
     if spec.get("log") and total["shown"]:
         ax.set_yscale("log")
@@ -205,11 +216,10 @@ def _histogram(ax, spec: Mapping, panels: list[tuple[str, list[Row]]]) -> None:
         values = [v for v in values if math.isfinite(v)]
         counts = outcomes(rows, metric)
         total = {k: total[k] + counts[k] for k in total}
-        missing = _not_shown(counts)
         if values:  # outlines, not filled bars: no group hides another
             ax.hist(
                 values, bins=int(spec.get("bins", 30)), histtype="step", linewidth=1.5,
-                label=f"{title or 'runs'} ({len(values)}" + (f" shown; {missing})" if missing else ")"),
+                label=_panel_label(title, len(values), counts),
             )
     ax.set_xlabel(metric)
     ax.set_ylabel("runs")
@@ -299,24 +309,55 @@ def _by_group(rows: Sequence[Row], meta: Mapping, metrics: Sequence[str]) -> lis
         "| group | runs | ok | failed | timed out |" + head,
         "|---" * (5 + 2 * len(metrics)) + "|",
     ]
-    for title, group in panels:
-        cells = [title, str(len(group))] + [
-            str(sum(r["status"] == s for r in group)) for s in ("ok", "failed", "timeout")
-        ]
-        for m in metrics:
-            values = [_value(r, m) for r in group if r["status"] == "ok" and not math.isnan(_value(r, m))]
-            cells += [_fmt(float(np.median(values))), _fmt(max(values))] if values else ["-", "-"]
-        lines.append("| " + " | ".join(cells) + " |")
+    lines += [_group_row(title, group, metrics) for title, group in panels]
     return lines + [""]
+
+
+def _group_row(title: str, group: Sequence[Row], metrics: Sequence[str]) -> str:
+    """One group's row: its counts by status, the median and largest of each metric over its
+    finished runs."""
+    cells = [title, str(len(group))] + [
+        str(sum(r["status"] == s for r in group)) for s in ("ok", "failed", "timeout")
+    ]
+    for m in metrics:
+        values = [_value(r, m) for r in group if r["status"] == "ok" and not math.isnan(_value(r, m))]
+        cells += [_fmt(float(np.median(values))), _fmt(max(values))] if values else ["-", "-"]
+    return "| " + " | ".join(cells) + " |"
 
 
 def _summary(rows: Sequence[Row], meta: Mapping, figures: Sequence[tuple[str, str]], table: Path) -> str:
     params = [c for c in meta.get("columns", []) if c not in ("stop_time", "step")]
     metrics = list(meta.get("metrics", []))
+    finite_metrics = _finite_metrics(rows, metrics)
+    lines = _heading(rows, meta, table) + _metric_table(rows, finite_metrics)
+    lines += _never_defined(rows, [m for m in metrics if m not in finite_metrics])
+    worst_by = _plotted_metrics(meta, metrics) or finite_metrics[:1]
+    for m in worst_by:
+        lines += _worst_runs(rows, m, params)
+    lines += _by_group(rows, meta, worst_by)
+    lines += _failures(rows, params)
+    if figures:
+        lines += ["## Figures", ""] + [f"![{title}]({name})" for title, name in figures] + [""]
+    return "\n".join(lines)
+
+
+def _finite_metrics(rows: Sequence[Row], metrics: Sequence[str]) -> list[str]:
+    """The metrics finite in at least one finished run, in order."""
+    return [m for m in metrics if any(math.isfinite(_value(r, m)) for r in rows if r["status"] == "ok")]
+
+
+def _plotted_metrics(meta: Mapping, metrics: Sequence[str]) -> list[str]:
+    """The campaign's metrics that its plots show, in the plots' order, each once."""
+    plotted = dict.fromkeys(str(p["metric"]) for p in meta.get("plots", []) if p.get("metric"))
+    return [m for m in plotted if m in metrics]
+
+
+def _heading(rows: Sequence[Row], meta: Mapping, table: Path) -> list[str]:
+    """The summary's title, its sources and the count of runs by status."""
     status = {s: sum(r["status"] == s for r in rows) for s in ("ok", "failed", "timeout")}
     wall = sum(_value(r, "wall_time") for r in rows if math.isfinite(_value(r, "wall_time")))
     expected = meta.get("runs", len(rows))
-    lines = [
+    return [
         f"# Campaign: {meta.get('description') or Path(str(meta.get('design', table))).stem}",
         "",
         f"Design `{meta.get('design', '?')}`, scenarios "
@@ -327,73 +368,83 @@ def _summary(rows: Sequence[Row], meta: Mapping, figures: Sequence[tuple[str, st
         f"{status['timeout']} timed out; {wall:.0f} s of run time in total.",
         "",
     ]
-    finite_metrics = [
-        m for m in metrics if any(math.isfinite(_value(r, m)) for r in rows if r["status"] == "ok")
+
+
+def _metric_table(rows: Sequence[Row], metrics: Sequence[str]) -> list[str]:
+    """Min, median and max of each metric over the finished runs, with its infinite and undefined
+    counts; nothing without a metric finite somewhere."""
+    if not metrics:
+        return []
+    lines = [
+        "## Metrics over the finished runs",
+        "",
+        "| metric | min | median | max | infinite | undefined |",
+        "|---|---|---|---|---|---|",
     ]
-    if finite_metrics:
-        lines += [
-            "## Metrics over the finished runs",
-            "",
-            "| metric | min | median | max | infinite | undefined |",
-            "|---|---|---|---|---|---|",
-        ]
-        for m in finite_metrics:
-            values = np.array([_value(r, m) for r in rows if r["status"] == "ok"])
-            undefined = int(np.isnan(values).sum())
-            values = values[~np.isnan(values)]
-            ok = values[np.isfinite(values)]
-            lines.append(
-                f"| {m} | {ok.min():.4g} | {np.median(ok):.4g} | {ok.max():.4g} | "
-                f"{int(np.isinf(values).sum())} | {undefined} |"
-            )
-        lines.append("")
+    for m in metrics:
+        values = np.array([_value(r, m) for r in rows if r["status"] == "ok"])
+        undefined = int(np.isnan(values).sum())
+        values = values[~np.isnan(values)]
+        ok = values[np.isfinite(values)]
+        lines.append(
+            f"| {m} | {ok.min():.4g} | {np.median(ok):.4g} | {ok.max():.4g} | "
+            f"{int(np.isinf(values).sum())} | {undefined} |"
+        )
+    return lines + [""]
+
+
+def _never_defined(rows: Sequence[Row], candidates: Sequence[str]) -> list[str]:
+    """The line naming the metrics (of ``candidates``) undefined in every finished run: not a failure."""
     finished = sum(r["status"] == "ok" for r in rows)
-    never = [m for m in metrics if m not in finite_metrics and finished
+    never = [m for m in candidates if finished
              and all(math.isnan(_value(r, m)) for r in rows if r["status"] == "ok")]
-    if never:
-        lines += [f"Undefined (NaN) in every one of the {finished} finished runs, not failed: "
-                  + ", ".join(f"`{m}`" for m in never)
-                  + " (a metric after an event that comes after the horizon has no value).", ""]
-    worst_by = list(dict.fromkeys(str(p["metric"]) for p in meta.get("plots", []) if p.get("metric")))
-    worst_by = [m for m in worst_by if m in metrics] or finite_metrics[:1]
-    for m in worst_by:
-        worst = _worst(rows, m)
-        if not worst:
-            continue
-        lines += [
-            f"## Worst runs by {m}",
-            "",
-            "| run | scenario | " + " | ".join(params) + f" | {m} |",
-            "|---" * (len(params) + 3) + "|",
-        ]
-        lines += [
-            f"| {r['run']} | {r['scenario']} | "
-            + " | ".join(_fmt(r.get(p)) for p in params)
-            + f" | {_fmt(r.get(m))} |"
-            for r in worst
-        ]
-        lines.append("")
-    lines += _by_group(rows, meta, worst_by)
+    if not never:
+        return []
+    return [f"Undefined (NaN) in every one of the {finished} finished runs, not failed: "
+            + ", ".join(f"`{m}`" for m in never)
+            + " (a metric after an event that comes after the horizon has no value).", ""]
+
+
+def _worst_runs(rows: Sequence[Row], metric: str, params: Sequence[str]) -> list[str]:
+    """The table of the finished runs largest in ``metric``, with their parameters."""
+    worst = _worst(rows, metric)
+    if not worst:
+        return []
+    lines = [
+        f"## Worst runs by {metric}",
+        "",
+        "| run | scenario | " + " | ".join(params) + f" | {metric} |",
+        "|---" * (len(params) + 3) + "|",
+    ]
+    lines += [
+        f"| {r['run']} | {r['scenario']} | "
+        + " | ".join(_fmt(r.get(p)) for p in params)
+        + f" | {_fmt(r.get(metric))} |"
+        for r in worst
+    ]
+    return lines + [""]
+
+
+def _failures(rows: Sequence[Row], params: Sequence[str]) -> list[str]:
+    """The table of failed and timed-out runs with their reasons, the first ``FAILURES_LISTED``."""
     bad = [r for r in rows if r["status"] != "ok"]
-    if bad:
-        lines += [
-            f"## Failed and timed-out runs ({len(bad)})",
-            "",
-            "| run | scenario | " + " | ".join(params) + " | status | reason |",
-            "|---" * (len(params) + 4) + "|",
-        ]
-        lines += [
-            f"| {r['run']} | {r['scenario']} | "
-            + " | ".join(_fmt(r.get(p)) for p in params)
-            + f" | {r['status']} | {_fmt(r['reason'])} |"
-            for r in bad[:FAILURES_LISTED]
-        ]
-        if len(bad) > FAILURES_LISTED:
-            lines.append(f"\nand {len(bad) - FAILURES_LISTED} more (see the table).")
-        lines.append("")
-    if figures:
-        lines += ["## Figures", ""] + [f"![{title}]({name})" for title, name in figures] + [""]
-    return "\n".join(lines)
+    if not bad:
+        return []
+    lines = [
+        f"## Failed and timed-out runs ({len(bad)})",
+        "",
+        "| run | scenario | " + " | ".join(params) + " | status | reason |",
+        "|---" * (len(params) + 4) + "|",
+    ]
+    lines += [
+        f"| {r['run']} | {r['scenario']} | "
+        + " | ".join(_fmt(r.get(p)) for p in params)
+        + f" | {r['status']} | {_fmt(r['reason'])} |"
+        for r in bad[:FAILURES_LISTED]
+    ]
+    if len(bad) > FAILURES_LISTED:
+        lines.append(f"\nand {len(bad) - FAILURES_LISTED} more (see the table).")
+    return lines + [""]
 
 
 def write_report(table: str | os.PathLike, out: str | os.PathLike) -> Path:

@@ -21,7 +21,7 @@ import sys
 import time
 import warnings
 import zipfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,7 +36,7 @@ from .worker import FAILED, OK, TIMEOUT, Metrics, RunOutcome, RunSpec, run_varia
 
 if TYPE_CHECKING:
     import numpy as np
-    from distributed import Client
+    from distributed import Client, Future
 
 __all__ = ["SCHEDULER_ENV", "CampaignInterrupted", "CampaignSummary", "check_address", "connect",
            "late_events", "plan", "sweep"]
@@ -111,11 +111,7 @@ def plan(
         raise UsageError(
             f"{design.source}: unknown master '{design.master}' (choose from {', '.join(MASTERS)})"
         )
-    names = [Path(s).stem if Path(s).is_file() else Path(s).resolve().name for s in scenarios]
-    if len(set(names)) != len(names):
-        raise UsageError(
-            f"two scenarios share the name {sorted(n for n in names if names.count(n) > 1)[0]!r}"
-        )
+    names = _scenario_names(scenarios)
     archives: dict[str, bytes] = {}
     specs: list[RunSpec] = []
     variants = design.variants()
@@ -124,17 +120,12 @@ def plan(
         data = _archive_bytes(Path(scenario))
         digest = hashlib.sha256(data).hexdigest()
         archives[digest] = data
-        first = {k: v for k, v in variants[0].items() if k not in EXPERIMENT_KEYS} if variants else {}
-        with open_system(scenario, overrides={**design.fixed, **first}, limits=limits) as system:
-            ex = system.structure.experiment
-            default_stop = design.stop_time if design.stop_time is not None else ex.stop_time
-            default_step = design.step if design.step is not None else ex.step if ex.step is not None \
-                else DEFAULT_STEP
+        default_stop, default_step, ssd = _experiment(scenario, design, variants, limits)
         for variant in variants:
             stop = variant.get("stop_time", default_stop)
             if stop is None:
                 raise ScenarioError(
-                    f"{system.ssd}: no stopTime in DefaultExperiment; give stop_time in {design.source}"
+                    f"{ssd}: no stopTime in DefaultExperiment; give stop_time in {design.source}"
                 )
             step = variant.get("step", default_step)
             overrides = {**design.fixed, **{k: v for k, v in variant.items() if k not in EXPERIMENT_KEYS}}
@@ -155,22 +146,38 @@ def plan(
     return archives, specs
 
 
+def _scenario_names(scenarios: Sequence[str | os.PathLike]) -> list[str]:
+    """Each scenario's name in the table (an archive's stem, a folder's name); UsageError when two
+    share one."""
+    names = [Path(s).stem if Path(s).is_file() else Path(s).resolve().name for s in scenarios]
+    if len(set(names)) != len(names):
+        raise UsageError(
+            f"two scenarios share the name {sorted(n for n in names if names.count(n) > 1)[0]!r}"
+        )
+    return names
+
+
+def _experiment(scenario: str | os.PathLike, design: Design, variants: Sequence[Mapping[str, object]],
+                limits: Limits) -> tuple[float | None, float, str]:
+    """The stop time and step a run of ``scenario`` has where its variant gives none (the design's,
+    else the scenario's DefaultExperiment, else the default step), and its SSD's path. The scenario
+    is opened with the first variant's values (a bad name fails here, before anything runs)."""
+    first = {k: v for k, v in variants[0].items() if k not in EXPERIMENT_KEYS} if variants else {}
+    with open_system(scenario, overrides={**design.fixed, **first}, limits=limits) as system:
+        ex = system.structure.experiment
+        default_stop = design.stop_time if design.stop_time is not None else ex.stop_time
+        default_step = design.step if design.step is not None else ex.step if ex.step is not None \
+            else DEFAULT_STEP
+    return default_stop, default_step, system.ssd
+
+
 def check_address(scheduler: str | None, dashboard: str) -> None:
     """Before anything runs: UsageError for a scheduler address Dask cannot parse (``tcp://HOST:PORT``)
     or a dashboard address that is not HOST:PORT with a host this machine resolves (distributed
     gave a traceback for either, after the campaign had been planned)."""
-    from distributed.comm.addressing import parse_address, parse_host_port
-
     address = scheduler or os.environ.get(SCHEDULER_ENV) or None
     if address:
-        where = option("scheduler") if scheduler else f"${SCHEDULER_ENV}"
-        try:
-            scheme, location = parse_address(address)
-            if scheme in ("tcp", "tls"):
-                parse_host_port(location)
-        except (ValueError, TypeError) as exc:
-            raise UsageError(f"{where} {address!r}: not a Dask scheduler address such as tcp://HOST:PORT "
-                             f"({exc})") from None
+        _check_scheduler(address, option("scheduler") if scheduler else f"${SCHEDULER_ENV}")
         return
     host, sep, port = dashboard.rpartition(":")
     if not sep or not port.isdigit() or int(port) > 65535:
@@ -182,20 +189,37 @@ def check_address(scheduler: str | None, dashboard: str) -> None:
                          f"({getattr(exc, 'strerror', None) or exc})") from None
 
 
+def _check_scheduler(address: str, where: str) -> None:
+    """UsageError, naming ``where`` the address came from, unless Dask can parse it."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        scheme, location = parse_address(address)
+        if scheme in ("tcp", "tls"):
+            parse_host_port(location)
+    except (ValueError, TypeError) as exc:
+        raise UsageError(f"{where} {address!r}: not a Dask scheduler address such as tcp://HOST:PORT "
+                         f"({exc})") from None
+
+
 def late_events(specs: Sequence[RunSpec], metrics: Metrics | None) -> list[str]:
     """What a ScenarioWarning says of runs that stop before an event of ``metrics.events`` (e.g. a
     fault time after the horizon: the metrics after the fault are then undefined, not failed)."""
-    found = []
-    for event, names in (metrics.events.items() if metrics is not None else ()):
-        at = {s.index: float(cast(float, s.overrides[event])) for s in specs if event in s.overrides}
-        late = [s for s in specs if s.index in at and at[s.index] >= s.stop_time]
-        if late:
-            times = [at[s.index] for s in late]
-            stops = ", ".join(f"{t:g}" for t in sorted({s.stop_time for s in late})[:3])
-            found.append(f"{len(late)} of {len(specs)} runs stop (t = {stops} s) "
-                         f"at or before their {event} ({min(times):g} .. {max(times):g} s): "
-                         f"{', '.join(names)} will be undefined (NaN) for them; a later stop time covers it")
-    return found
+    events = metrics.events.items() if metrics is not None else ()
+    return [text for event, names in events if (text := _late_event(specs, event, names))]
+
+
+def _late_event(specs: Sequence[RunSpec], event: str, names: Sequence[str]) -> str:
+    """What :func:`late_events` says of one event (the parameter giving its time), or ""."""
+    at = {s.index: float(cast(float, s.overrides[event])) for s in specs if event in s.overrides}
+    late = [s for s in specs if s.index in at and at[s.index] >= s.stop_time]
+    if not late:
+        return ""
+    times = [at[s.index] for s in late]
+    stops = ", ".join(f"{t:g}" for t in sorted({s.stop_time for s in late})[:3])
+    return (f"{len(late)} of {len(specs)} runs stop (t = {stops} s) "
+            f"at or before their {event} ({min(times):g} .. {max(times):g} s): "
+            f"{', '.join(names)} will be undefined (NaN) for them; a later stop time covers it")
 
 
 @contextmanager
@@ -296,6 +320,12 @@ def _resume(folder: Path, columns: list[str], specs: list[RunSpec], resume: bool
             f"{path}: its columns differ from this campaign's (another design?); use another "
             "--out, or --force to start again"
         )
+    _check_own_runs(path, rows, specs)
+    return [r for r in rows if r["status"] in (OK, FAILED)]
+
+
+def _check_own_runs(path: Path, rows: Sequence[dict], specs: Sequence[RunSpec]) -> None:
+    """UsageError unless each row of the earlier table is a run of this campaign, at its place."""
     ids = {s.run_id: s.index for s in specs}
     foreign = [r for r in rows if r["run_id"] not in ids or ids[r["run_id"]] != r["run"]]
     if foreign:
@@ -303,7 +333,6 @@ def _resume(folder: Path, columns: list[str], specs: list[RunSpec], resume: bool
             f"{path}: {len(foreign)} rows are not runs of this campaign (run {foreign[0]['run']}: "
             "scenario, design or master changed); use another --out, or --force to start again"
         )
-    return [r for r in rows if r["status"] in (OK, FAILED)]
 
 
 def _number(value: object) -> int | float:
@@ -334,6 +363,84 @@ def _write_trajectory(folder: Path, spec: RunSpec, data: np.ndarray) -> None:
     assert names is not None  # a result is a structured array, one field per column
     table = pa.table({name: data[name] for name in names})
     pq.write_table(table, folder / f"run-{spec.index:05d}-{spec.run_id}.parquet")
+
+
+def _meta(design: Design, metrics: Sequence[str], specs: Sequence[RunSpec]) -> dict[str, object]:
+    """The campaign's record (campaign.json, and the parquet table's metadata): the design, the
+    metrics and the scenarios' archive digests."""
+    return {
+        "design": design.source,
+        "description": design.description,
+        "columns": list(design.columns),
+        "fixed": dict(design.fixed),
+        "master": design.master,
+        "plots": list(design.plots),
+        "labels": dict(design.labels),
+        "metrics": list(metrics),
+        "scenarios": {s.scenario: s.digest for s in specs},
+        "runs": len(specs),
+    }
+
+
+def _start_journal(out: Path, columns: list[str], meta: dict[str, object], kept: list[dict]) -> Journal:
+    """The campaign's table started with the rows ``kept`` from before, and campaign.json written;
+    OutputError naming the file that cannot be written."""
+    journal = Journal(out, columns, meta)
+    try:
+        journal.start(kept)
+        (out / META_NAME).write_text(json.dumps(meta, indent=2, default=str) + "\n", encoding="utf-8")
+    except OSError as exc:
+        raise OutputError(f"{exc.filename or out}: {exc.strerror or exc}") from exc
+    return journal
+
+
+def _left_to_run(specs: Sequence[RunSpec], kept: Sequence[dict]) -> tuple[list[RunSpec], dict[str, int]]:
+    """The runs not among the rows ``kept`` from before, and those rows counted by status."""
+    done = {r["run_id"] for r in kept}
+    counts = {OK: 0, FAILED: 0, TIMEOUT: 0}
+    for r in kept:
+        counts[r["status"]] += 1
+    return [s for s in specs if s.run_id not in done], counts
+
+
+def _warn_late_events(specs: Sequence[RunSpec], metrics: Metrics | None) -> None:
+    """A ScenarioWarning, at the caller of :func:`sweep`, for each event some runs stop before."""
+    for message in late_events(specs, metrics):
+        warnings.warn(message, ScenarioWarning, stacklevel=3)
+
+
+def _submit(client: Client, todo: Sequence[RunSpec], metrics: Metrics | None,
+            by_key: dict[object, RunSpec]) -> list[Future]:
+    """One task per run, in order; ``by_key`` learns which run each task key is."""
+    futures = []
+    for spec in todo:
+        future = client.submit(run_variant, spec, metrics, key=f"run-{spec.index}-{spec.run_id}", pure=False)
+        by_key[future.key] = spec
+        futures.append(future)
+    return futures
+
+
+def _record(out: Path, journal: Journal, spec: RunSpec, outcome: RunOutcome, params: Sequence[str]) -> None:
+    """The run's row into the table, its kept trajectory (if any) into ``out/trajectories/``."""
+    if outcome.trajectory is not None:
+        _write_trajectory(out / TRAJECTORY_DIR, spec, outcome.trajectory)
+    journal.append(_row(spec, outcome, params))
+
+
+def _outcome(future: Future, spec: RunSpec) -> RunOutcome | str:
+    """The run's outcome (a failed row when it killed every worker it ran on: an FMU crash), or why
+    the cluster did not finish it (the scheduler lost, ...: no row); the future released."""
+    from distributed import KilledWorker
+
+    try:
+        return future.result()
+    except KilledWorker as exc:
+        reason = " ".join(f"worker lost: {type(exc).__name__}: {exc}".split())
+        return RunOutcome(spec.index, FAILED, reason, float("nan"))
+    except Exception as exc:  # noqa: BLE001 - the cluster, not the run: not run, no row
+        return " ".join(f"{type(exc).__name__}: {exc}".split())
+    finally:
+        future.release()
 
 
 def sweep(
@@ -368,49 +475,16 @@ def sweep(
         raise UsageError(f"{option('out')} {out}: not a folder (the campaign writes runs.csv, runs.parquet "
                          "and campaign.json into it)")
     check_address(scheduler, dashboard)
-    if not isinstance(design, Design):
-        design = read_design(design)
+    design = design if isinstance(design, Design) else read_design(design)
     archives, specs = plan(scenarios, design, timeout=timeout, keep_every=keep_every, limits=limits)
-    for message in late_events(specs, metrics):
-        warnings.warn(message, ScenarioWarning, stacklevel=2)
+    _warn_late_events(specs, metrics)
     params = [c for c in design.columns if c not in EXPERIMENT_KEYS]
     names = list(metrics.names) if metrics is not None else []
-    columns = [
-        "run",
-        "run_id",
-        "scenario",
-        *params,
-        "stop_time",
-        "step",
-        "status",
-        "reason",
-        "wall_time",
-        *names,
-    ]
-    meta = {
-        "design": design.source,
-        "description": design.description,
-        "columns": list(design.columns),
-        "fixed": dict(design.fixed),
-        "master": design.master,
-        "plots": list(design.plots),
-        "labels": dict(design.labels),
-        "metrics": names,
-        "scenarios": {s.scenario: s.digest for s in specs},
-        "runs": len(specs),
-    }
+    columns = ["run", "run_id", "scenario", *params, "stop_time", "step", "status", "reason", "wall_time",
+               *names]
     kept = _resume(out, columns, specs, resume, force)
-    journal = Journal(out, columns, meta)
-    try:
-        journal.start(kept)
-        (out / META_NAME).write_text(json.dumps(meta, indent=2, default=str) + "\n", encoding="utf-8")
-    except OSError as exc:
-        raise OutputError(f"{exc.filename or out}: {exc.strerror or exc}") from exc
-    done = {r["run_id"] for r in kept}
-    todo = [s for s in specs if s.run_id not in done]
-    counts = {OK: 0, FAILED: 0, TIMEOUT: 0}
-    for r in kept:
-        counts[r["status"]] += 1
+    journal = _start_journal(out, columns, _meta(design, names, specs), kept)
+    todo, counts = _left_to_run(specs, kept)
     n_workers = 0
     phase = [0.0, 0.0]  # perf_counter at the first submission and at the last row
     not_run: list[tuple[RunSpec, str]] = []  # what the cluster did not finish, and why
@@ -436,7 +510,7 @@ def sweep(
     if not todo:
         journal.finish()
         return summary()
-    from distributed import KilledWorker, as_completed
+    from distributed import as_completed
     from tqdm import tqdm
 
     from .plugin import ScenarioPlugin
@@ -450,7 +524,6 @@ def sweep(
         smoothing=0.1,
         dynamic_ncols=True,
     )
-    futures = []
     try:
         by_key: dict[object, RunSpec] = {}
         with (
@@ -461,27 +534,14 @@ def sweep(
             client.register_plugin(ScenarioPlugin(archives, limits), name=f"orchestrate-campaign-{plugin}")
             n_workers = len(client.scheduler_info(n_workers=-1)["workers"])
             phase[0] = phase[1] = time.perf_counter()
-            for spec in todo:
-                future = client.submit(
-                    run_variant, spec, metrics, key=f"run-{spec.index}-{spec.run_id}", pure=False
-                )
-                by_key[future.key] = spec
-                futures.append(future)
+            futures = _submit(client, todo, metrics, by_key)
             for future in as_completed(futures):
                 spec = by_key[future.key]
-                try:
-                    outcome = future.result()
-                except KilledWorker as exc:  # the run killed every worker it ran on (an FMU crash)
-                    reason = " ".join(f"worker lost: {type(exc).__name__}: {exc}".split())
-                    outcome = RunOutcome(spec.index, FAILED, reason, float("nan"))
-                except Exception as exc:  # noqa: BLE001 - the cluster, not the run: not run, no row
-                    not_run.append((spec, " ".join(f"{type(exc).__name__}: {exc}".split())))
-                    future.release()
+                outcome = _outcome(future, spec)
+                if isinstance(outcome, str):
+                    not_run.append((spec, outcome))
                     continue
-                future.release()
-                if outcome.trajectory is not None:
-                    _write_trajectory(out / TRAJECTORY_DIR, spec, outcome.trajectory)
-                journal.append(_row(spec, outcome, params))
+                _record(out, journal, spec, outcome, params)
                 counts[outcome.status] += 1
                 bar.set_postfix(failed=counts[FAILED] + counts[TIMEOUT], refresh=False)
                 bar.update()

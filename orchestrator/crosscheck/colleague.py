@@ -51,14 +51,19 @@ PYTHON_PROBE = (
 def _covered() -> tuple[list[str], list[str]]:
     """Existing directories and files to cover (this interpreter's prefixes and the repository's
     virtual environment and runtime cache included, wherever they are)."""
-    dirs = {p for pattern in DIRECTORY_PATTERNS for p in glob.glob(pattern) if Path(p).is_dir()}
-    dirs |= {sys.prefix, sys.base_prefix, str(REPO / ".venv"), str(REPO / "build" / "runtime")}
-    dirs = {d for d in dirs if Path(d).is_dir() and d not in ("/usr", "/usr/local", "/")}
-    dirs = {d for d in dirs if not any(Path(d).is_relative_to(o) and d != o for o in dirs)}  # outermost
+    dirs = _covered_directories()
     found = (Path(p) for pattern in FILE_PATTERNS for p in glob.glob(pattern))
     files = {str(p.resolve()) for p in found if p.is_file()}
     files = {f for f in files if not any(Path(f).is_relative_to(d) for d in dirs)}  # under a tmpfs already
     return sorted(dirs), sorted(files)
+
+
+def _covered_directories() -> set[str]:
+    """The outermost existing directories that hold a Python (never /, /usr, /usr/local themselves)."""
+    dirs = {p for pattern in DIRECTORY_PATTERNS for p in glob.glob(pattern) if Path(p).is_dir()}
+    dirs |= {sys.prefix, sys.base_prefix, str(REPO / ".venv"), str(REPO / "build" / "runtime")}
+    dirs = {d for d in dirs if Path(d).is_dir() and d not in ("/usr", "/usr/local", "/")}
+    return {d for d in dirs if not any(Path(d).is_relative_to(o) and d != o for o in dirs)}  # outermost
 
 
 @functools.cache

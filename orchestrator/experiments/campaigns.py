@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, cast
 
 import numpy as np
@@ -149,44 +149,57 @@ def claim_headlines(
             _mode_name(r.get("controller.mode", default_mode))
         ] = r
 
-    def settled(r: Mapping[str, Any] | None) -> bool:
-        return r is not None and r["status"] == "ok" and math.isfinite(float(r["settling_time"]))
-
     lines = []
     for mode in ("fixed-time", "finite-time"):
         runs = [s[mode] for s in by_state.values() if mode in s]
-        if not runs:
-            continue
-        failed = [r for r in runs if r["status"] != "ok"]
-        never = [r for r in runs if r["status"] == "ok" and not settled(r)]
-        times = [float(r["settling_time"]) for r in runs if settled(r)]
-        radius = [
-            max(abs(float(r["plant.x1_0"])), abs(float(r["plant.x2_0"]))) for r in runs if not settled(r)
-        ]
-        safe = min(radius) if radius else math.inf
-        inside = [max(abs(float(r["plant.x1_0"])), abs(float(r["plant.x2_0"]))) for r in runs]
-        largest = max((d for d in inside if d < safe), default=math.nan)
-        text = (
-            f"{mode}: {len(runs)} initial states, {len(failed)} diverge (run fails), {len(never)} never "
-            f"enter the band, {len(times)} settle"
-        )
-        if times:
-            text += f" within {min(times):.3f} .. {max(times):.3f} s"
-        text += f"; every state with max(|x1(0)|, |x2(0)|) <= {largest:g} settles."
-        lines.append(text)
+        if runs:
+            lines.append(_law_headline(mode, runs))
     if len(lines) < 2:
         return lines
-    only_fixed = sum(
-        settled(s.get("fixed-time")) and not settled(s.get("finite-time")) for s in by_state.values()
-    )
-    only_finite = sum(
-        settled(s.get("finite-time")) and not settled(s.get("fixed-time")) for s in by_state.values()
-    )
+    only_fixed = _only_settles("fixed-time", "finite-time", by_state.values())
+    only_finite = _only_settles("finite-time", "fixed-time", by_state.values())
     lines.append(
         f"States where only the fixed-time law settles: {only_fixed}; only the finite-time law: "
         f"{only_finite}."
     )
     return lines
+
+
+def _settled(r: Mapping[str, Any] | None) -> bool:
+    """The run finished and entered the band for good."""
+    return r is not None and r["status"] == "ok" and math.isfinite(float(r["settling_time"]))
+
+
+def _only_settles(law: str, other: str, states: Iterable[Mapping[str, Mapping[str, Any]]]) -> int:
+    """How many initial states (each law -> its run) settle under ``law`` and not under ``other``."""
+    return sum(_settled(s.get(law)) and not _settled(s.get(other)) for s in states)
+
+
+def _settling_square(runs: Sequence[Mapping[str, Any]]) -> float:
+    """The largest max(|x1(0)|, |x2(0)|) of the runs' initial states below which every run settles."""
+    safe = min((_reach(r) for r in runs if not _settled(r)), default=math.inf)
+    return max((_reach(r) for r in runs if _reach(r) < safe), default=math.nan)
+
+
+def _reach(r: Mapping[str, Any]) -> float:
+    """The run's initial state's distance from the origin in the max norm."""
+    return max(abs(float(r["plant.x1_0"])), abs(float(r["plant.x2_0"])))
+
+
+def _law_headline(mode: str, runs: Sequence[Mapping[str, Any]]) -> str:
+    """One law's line of :func:`claim_headlines`: its runs by outcome, the span of settling times,
+    the largest square of initial states that all settle."""
+    failed = [r for r in runs if r["status"] != "ok"]
+    never = [r for r in runs if r["status"] == "ok" and not _settled(r)]
+    times = [float(r["settling_time"]) for r in runs if _settled(r)]
+    largest = _settling_square(runs)
+    text = (
+        f"{mode}: {len(runs)} initial states, {len(failed)} diverge (run fails), {len(never)} never "
+        f"enter the band, {len(times)} settle"
+    )
+    if times:
+        text += f" within {min(times):.3f} .. {max(times):.3f} s"
+    return text + f"; every state with max(|x1(0)|, |x2(0)|) <= {largest:g} settles."
 
 
 def fault_headlines(

@@ -7,8 +7,11 @@ import argparse
 import os
 import sys
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import cast
+
+import numpy as np
 
 from fmu_src.toolchain.build import PLATFORM_NAMES, BuildError
 
@@ -17,7 +20,7 @@ from ..errors import OrchestratorError, ScenarioError, UsageError
 from ..provenance import read_provenance, summary
 from ..results import read_result
 from . import report
-from .metrics import format_table, tracking_metrics
+from .metrics import TrackingMetrics, format_table, tracking_metrics
 from .scenarios import SCENARIO_DIR, build_scenarios
 
 __all__ = ["register"]
@@ -97,35 +100,51 @@ def _metrics(args: argparse.Namespace) -> int:
     rows, notes = [], []
     for path in args.results:
         data = read_result(path)
-        names = data.dtype.names or ()  # a result is a structured array: never None
-        missing = [c for c in (args.signal, args.reference) if c not in names]
-        if missing:
-            columns = ", ".join(n for n in names if n != "time")
-            raise ScenarioError(f"{path}: no column {', '.join(missing)} (choose with --signal and "
-                                f"--reference; columns: {columns})")
+        _check_columns(path, data, args)
         record = read_provenance(path)
         _check_grid(path, record)
-        try:
-            m = tracking_metrics(data["time"], data[args.signal], data[args.reference],
-                                 data["controller.v"] if "controller.v" in names else None,
-                                 data["actuator.uf"] if "actuator.uf" in names else None, band=args.band)
-        except ValueError as exc:
-            raise ScenarioError(f"{path}: {exc}") from exc
         label = _label(path, args.results)
-        rows.append((label, m))
+        rows.append((label, _result_metrics(path, data, args)))
         notes.append(f"{label}: {summary(record)}")
-        if record is not None and record.get("status") != "complete":
-            span = f"{record.get('start_time')} .. {record.get('stop_time')} s"
-            warn(f"{path}: partial result ({record.get('status')} at t = {record.get('last_time')} s of "
-                 f"{span}): the metrics cover only the rows written")
-        elif record is not None and float(data["time"][-1]) < float(cast("float | str", record["stop_time"])):
-            warn(f"{path}: ends at t = {data['time'][-1]:g} s, before the run's stop time "
-                 f"{record['stop_time']} s: the metrics cover only the rows written")
+        _warn_partial(path, data, record)
     print(format_table(rows))
     if not quiet():
         print()
         print("\n".join(notes))
     return 0
+
+
+def _check_columns(path: Path, data: np.ndarray, args: argparse.Namespace) -> None:
+    """ScenarioError naming the result's columns when --signal or --reference is not one."""
+    names = data.dtype.names or ()  # a result is a structured array: never None
+    missing = [c for c in (args.signal, args.reference) if c not in names]
+    if missing:
+        columns = ", ".join(n for n in names if n != "time")
+        raise ScenarioError(f"{path}: no column {', '.join(missing)} (choose with --signal and "
+                            f"--reference; columns: {columns})")
+
+
+def _result_metrics(path: Path, data: np.ndarray, args: argparse.Namespace) -> TrackingMetrics:
+    """The tracking metrics of one result's --signal against --reference (with the controller's v
+    and the actuator's output where the result has them)."""
+    names = data.dtype.names or ()
+    try:
+        return tracking_metrics(data["time"], data[args.signal], data[args.reference],
+                                data["controller.v"] if "controller.v" in names else None,
+                                data["actuator.uf"] if "actuator.uf" in names else None, band=args.band)
+    except ValueError as exc:
+        raise ScenarioError(f"{path}: {exc}") from exc
+
+
+def _warn_partial(path: Path, data: np.ndarray, record: Mapping[str, object] | None) -> None:
+    """Warn when the result's run did not complete or its rows end before its stop time."""
+    if record is not None and record.get("status") != "complete":
+        span = f"{record.get('start_time')} .. {record.get('stop_time')} s"
+        warn(f"{path}: partial result ({record.get('status')} at t = {record.get('last_time')} s of "
+             f"{span}): the metrics cover only the rows written")
+    elif record is not None and float(data["time"][-1]) < float(cast("float | str", record["stop_time"])):
+        warn(f"{path}: ends at t = {data['time'][-1]:g} s, before the run's stop time "
+             f"{record['stop_time']} s: the metrics cover only the rows written")
 
 
 def _label(path: Path, paths: list[Path]) -> str:

@@ -277,19 +277,28 @@ def main(argv: Sequence[str] | None = None) -> int:
     with ProcessPoolExecutor(args.workers, initializer=_load_compiled, initargs=(compiled,)) as pool:
         results = list(pool.map(_job, jobs, chunksize=4))
     for n in (1, 2):
-        mine = [(job, r) for job, r in zip(jobs, results, strict=True) if job[0] == n]
-        counts = Counter(s.outcome for _, (s, _) in mine)
-        false = [(job[1], s.reason) for job, (s, ref) in mine if ref is not None and ref.outcome == "settled"]
-        diverging = [s.cpu for _, (s, ref) in mine if s.outcome == "diverged"]
-        settled_peaks = [s.peaks for _, (s, _) in mine if s.outcome != "diverged"]
-        print(f"Example {n}: {dict(counts)}; false divergences {len(false)}; "
-              f"CPU per diverging run median {np.median(diverging) * 1e3 if diverging else math.nan:.1f} ms, "
-              f"max {max(diverging, default=math.nan) * 1e3:.1f} ms; largest |x1|, |x2|, |z| of the others "
-              f"{[max(p[i] for p in settled_peaks) for i in range(3)] if settled_peaks else '-'}")
-        for x0, reason in false[:10]:
-            print(f"  false: {x0}: {reason[:160]}")
+        _print_example(n, [(job, r) for job, r in zip(jobs, results, strict=True) if job[0] == n])
     workdir.cleanup()
     return 0
+
+
+def _costs(mine: Sequence[tuple[tuple, tuple]]) -> str:
+    """The CPU time of a diverging run (median, largest) and the largest |x1|, |x2|, |z| of the rest."""
+    diverging = [s.cpu for _, (s, ref) in mine if s.outcome == "diverged"]
+    settled_peaks = [s.peaks for _, (s, _) in mine if s.outcome != "diverged"]
+    return (f"CPU per diverging run median {np.median(diverging) * 1e3 if diverging else math.nan:.1f} ms, "
+            f"max {max(diverging, default=math.nan) * 1e3:.1f} ms; largest |x1|, |x2|, |z| of the others "
+            f"{[max(p[i] for p in settled_peaks) for i in range(3)] if settled_peaks else '-'}")
+
+
+def _print_example(n: int, mine: Sequence[tuple[tuple, tuple]]) -> None:
+    """Example ``n``'s line (outcomes, false divergences, CPU of a diverging run, the peaks of the
+    others) and its first false divergences; ``mine``: its (job, (sampled run, reference run))."""
+    counts = Counter(s.outcome for _, (s, _) in mine)
+    false = [(job[1], s.reason) for job, (s, ref) in mine if ref is not None and ref.outcome == "settled"]
+    print(f"Example {n}: {dict(counts)}; false divergences {len(false)}; {_costs(mine)}")
+    for x0, reason in false[:10]:
+        print(f"  false: {x0}: {reason[:160]}")
 
 
 if __name__ == "__main__":

@@ -67,7 +67,7 @@ def tracking_figure(result: np.ndarray, units: Mapping[str, str | None],
                     record: Mapping[str, object] | None) -> matplotlib.figure.Figure | None:
     """The tracking figure of ``result`` (the caller closes it), or None when it has no
     ``plant.y`` and ``reference.yd``."""
-    names = [n for n in result.dtype.names or () if n != "time"]
+    names = _signals(result)
     if not all(c in names for c in TRACKING):
         return None
     import matplotlib.pyplot as plt
@@ -79,10 +79,7 @@ def tracking_figure(result: np.ndarray, units: Mapping[str, str | None],
     zoom = bool(first.sum() > 2 and t[-1] > t[0] + 2.0)  # a panel on the first second
     panels = 2 + bool(control) + zoom
     fig, axes = plt.subplots(panels, 1, figsize=(10.5, 2.6 * panels), layout="constrained")
-    axes = list(axes)
-    for ax in axes[1:]:
-        if ax is not axes[1] or not zoom:
-            ax.sharex(axes[0])
+    axes = _shared_time(list(axes), zoom)
     _outputs(axes[0], result, t, fault, units)
     if zoom:
         _first_second(axes.pop(1), result, t, first, fault, units)
@@ -93,6 +90,20 @@ def tracking_figure(result: np.ndarray, units: Mapping[str, str | None],
         ax.grid(True, alpha=0.3)
     axes[-1].set_xlabel("time (s)")
     return fig
+
+
+def _signals(result: np.ndarray) -> list[str]:
+    """The result's columns besides time."""
+    return [n for n in result.dtype.names or () if n != "time"]
+
+
+def _shared_time(axes: list[Axes], zoom: bool) -> list[Axes]:
+    """The panels sharing the first one's time axis, all but the zoom on the first second (the
+    second panel, where there is one)."""
+    for ax in axes[1:]:
+        if ax is not axes[1] or not zoom:
+            ax.sharex(axes[0])
+    return axes
 
 
 def _outputs(ax: Axes, result: np.ndarray, t: np.ndarray, fault: float | None,

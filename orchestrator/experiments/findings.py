@@ -125,45 +125,63 @@ def nn_term(rows: Sequence[Row]) -> Summary:
     integral of v^2 and the median and largest ratio of the MAE (off over on)."""
     header = ("scenario", "NN term", "runs", "ok", "settled", "median settling (s)", "max settling (s)",
               "median peak abs(v)", "median int v^2 dt", "median MAE", CAP_COLUMN)
-    lines = []
+
     def switch(r: Row) -> tuple[str, str]:
         return str(r["scenario"]), "on" if value(r, "controller.nn_term") else "off"
 
-    for (scenario, on), runs in _groups(rows, switch).items():
-        settled = [r for r in runs if _settled(r)]
-        times = [value(r, "settling_time") for r in settled]
-        ok = sum(r["status"] == "ok" for r in runs)
-        lines.append((scenario, on, str(len(runs)), str(ok), str(len(settled)),
-                      _cell(_stat(times, np.median)), _cell(_stat(times, np.max)),
-                      *(_cell(_stat([value(r, m) for r in settled], np.median), ".4g")
-                        for m in ("peak_v", "energy_v", "mae")), rows_cap_cell(runs)))
+    lines = [_nn_switch_line(scenario, on, runs) for (scenario, on), runs in _groups(rows, switch).items()]
     paired_header = ("scenario", "initial states", "settle with both", "only with the term", "only without",
                      "median settling change (s)", "max abs settling change (s)", "median ratio int v^2 dt",
                      "median ratio MAE", "max ratio MAE")
     paired, parts = [], []
     for scenario in sorted({str(r["scenario"]) for r in rows}):
-        states: dict[tuple[float, float], dict[bool, Row]] = {}
-        for r in rows:
-            if r["scenario"] == scenario:
-                states.setdefault((value(r, "plant.x1_0"), value(r, "plant.x2_0")), {})[
-                    bool(value(r, "controller.nn_term"))] = r
-        both = [s for s in states.values() if _settled(s.get(True)) and _settled(s.get(False))]
-        only_on = sum(_settled(s.get(True)) and not _settled(s.get(False)) for s in states.values())
-        only_off = sum(_settled(s.get(False)) and not _settled(s.get(True)) for s in states.values())
-        change = [value(s[False], "settling_time") - value(s[True], "settling_time") for s in both]
-        ratio = [value(s[False], "energy_v") / value(s[True], "energy_v") for s in both]
-        mae = [value(s[False], "mae") / value(s[True], "mae") for s in both]
-        median, largest = _stat(change, np.median), _stat(np.abs(change), np.max)
-        energy, mae_median, mae_max = _stat(ratio, np.median), _stat(mae, np.median), _stat(mae, np.max)
-        paired.append((scenario, str(len(states)), str(len(both)), str(only_on), str(only_off),
-                       _cell(median, ".3g"), _cell(largest, ".3g"), _cell(energy, ".4g"),
-                       _cell(mae_median, ".4g"), _cell(mae_max, ".4g")))
-        parts.append(f"{scenario}: of {len(states)} initial states {len(both)} settle with and without the "
-                     f"term, {only_on} only with it, {only_off} only without; settling changes by "
-                     f"{_cell(largest)} s at most (median {_cell(median)} s), int v^2 dt by a median factor "
-                     f"{_cell(energy, '.4g')}, the MAE by a median factor {_cell(mae_median, '.4g')} "
-                     f"(at most {_cell(mae_max, '.4g')})")
+        line, part = _nn_paired(scenario, [r for r in rows if r["scenario"] == scenario])
+        paired.append(line)
+        parts.append(part)
     return [_table(header, lines), _table(paired_header, paired)], "; ".join(parts) + "."
+
+
+def _nn_switch_line(scenario: str, on: str, runs: Sequence[Row]) -> tuple[str, ...]:
+    """The row of :func:`nn_term`'s first table for one scenario and switch."""
+    settled = [r for r in runs if _settled(r)]
+    times = [value(r, "settling_time") for r in settled]
+    ok = sum(r["status"] == "ok" for r in runs)
+    return (scenario, on, str(len(runs)), str(ok), str(len(settled)),
+            _cell(_stat(times, np.median)), _cell(_stat(times, np.max)),
+            *(_cell(_stat([value(r, m) for r in settled], np.median), ".4g")
+              for m in ("peak_v", "energy_v", "mae")), rows_cap_cell(runs))
+
+
+def _by_state(rows: Sequence[Row]) -> dict[tuple[float, float], dict[bool, Row]]:
+    """The runs by initial state (x1(0), x2(0)), then by the NN term's switch."""
+    states: dict[tuple[float, float], dict[bool, Row]] = {}
+    for r in rows:
+        states.setdefault((value(r, "plant.x1_0"), value(r, "plant.x2_0")), {})[
+            bool(value(r, "controller.nn_term"))] = r
+    return states
+
+
+def _nn_paired(scenario: str, rows: Sequence[Row]) -> tuple[tuple[str, ...], str]:
+    """:func:`nn_term`'s paired row of one scenario's ``rows`` (the runs with and without the term
+    from each initial state side by side), and its sentence."""
+    states = _by_state(rows)
+    both = [s for s in states.values() if _settled(s.get(True)) and _settled(s.get(False))]
+    only_on = sum(_settled(s.get(True)) and not _settled(s.get(False)) for s in states.values())
+    only_off = sum(_settled(s.get(False)) and not _settled(s.get(True)) for s in states.values())
+    change = [value(s[False], "settling_time") - value(s[True], "settling_time") for s in both]
+    ratio = [value(s[False], "energy_v") / value(s[True], "energy_v") for s in both]
+    mae = [value(s[False], "mae") / value(s[True], "mae") for s in both]
+    median, largest = _stat(change, np.median), _stat(np.abs(change), np.max)
+    energy, mae_median, mae_max = _stat(ratio, np.median), _stat(mae, np.median), _stat(mae, np.max)
+    line = (scenario, str(len(states)), str(len(both)), str(only_on), str(only_off),
+            _cell(median, ".3g"), _cell(largest, ".3g"), _cell(energy, ".4g"),
+            _cell(mae_median, ".4g"), _cell(mae_max, ".4g"))
+    part = (f"{scenario}: of {len(states)} initial states {len(both)} settle with and without the "
+            f"term, {only_on} only with it, {only_off} only without; settling changes by "
+            f"{_cell(largest)} s at most (median {_cell(median)} s), int v^2 dt by a median factor "
+            f"{_cell(energy, '.4g')}, the MAE by a median factor {_cell(mae_median, '.4g')} "
+            f"(at most {_cell(mae_max, '.4g')})")
+    return line, part
 
 
 # The scenario of each example in the study's campaigns, and its controller's gains.
@@ -251,25 +269,7 @@ def nn_grid(rows: Sequence[Row]) -> Summary:
         for r in runs:
             key = tuple(value(r, p) for p in NN_GRID)
             points.setdefault(key, {})[bool(value(r, "controller.nn_term"))] = r
-        counts = dict.fromkeys(totals, 0)
-        best: tuple[float, tuple[float, ...]] | None = None
-        for key, pair in points.items():
-            on, off = pair.get(True), pair.get(False)
-            if on is None or off is None:
-                continue
-            counts["points"] += 1
-            ok_on, ok_off = _settled(on), _settled(off)
-            if not ok_on and not ok_off:
-                counts["fail"] += 1
-            elif not ok_on:
-                counts["destabilised"] += 1
-            elif not ok_off:
-                counts["stabilised"] += 1
-            else:
-                ratio = value(on, "mae") / value(off, "mae")
-                counts["helps" if ratio < 1 - EFFECT else "hurts" if ratio > 1 + EFFECT else "none"] += 1
-                if best is None or ratio < best[0]:
-                    best = (ratio, key)
+        counts, best = _nn_effects(points)
         where, settling = "-", "-"
         if best is not None:
             ratio, key = best
@@ -292,6 +292,39 @@ def nn_grid(rows: Sequence[Row]) -> Summary:
                  f"{totals['destabilised']} (only the run without it settles), stabilises it at "
                  f"{totals['stabilised']}, and neither run settles at {totals['fail']}")
     return [_table(header, lines)], "; ".join(parts) + "."
+
+
+def _nn_effects(
+    points: Mapping[tuple[float, ...], Mapping[bool, Row]]
+) -> tuple[dict[str, int], tuple[float, tuple[float, ...]] | None]:
+    """:func:`nn_grid`'s counts over the grid points (each the runs with, True, and without the
+    term): paired points, helped, no effect, hurt, destabilised, stabilised, neither settles; and
+    the point with the smallest MAE ratio on / off where both settle (ratio, point), if any."""
+    counts = dict.fromkeys(("points", "helps", "none", "hurts", "destabilised", "stabilised", "fail"), 0)
+    best: tuple[float, tuple[float, ...]] | None = None
+    for key, pair in points.items():
+        on, off = pair.get(True), pair.get(False)
+        if on is None or off is None:
+            continue
+        counts["points"] += 1
+        effect, ratio = _nn_effect(on, off)
+        counts[effect] += 1
+        if ratio is not None and (best is None or ratio < best[0]):
+            best = (ratio, key)
+    return counts, best
+
+
+def _nn_effect(on: Row, off: Row) -> tuple[str, float | None]:
+    """What the term does at one grid point (its runs with and without it): fail (neither settles),
+    destabilised, stabilised, or, where both settle, helps, none or hurts, with the MAE ratio on / off
+    (None where not both settle)."""
+    ok_on, ok_off = _settled(on), _settled(off)
+    if not ok_on:
+        return ("destabilised" if ok_off else "fail"), None
+    if not ok_off:
+        return "stabilised", None
+    ratio = value(on, "mae") / value(off, "mae")
+    return ("helps" if ratio < 1 - EFFECT else "hurts" if ratio > 1 + EFFECT else "none"), ratio
 
 
 def _values(values: set[float]) -> str:

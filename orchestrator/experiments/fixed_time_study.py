@@ -318,6 +318,58 @@ def panel_norm(grid: np.ndarray, log: bool):  # -> matplotlib Normalize
     return Normalize(low - pad, high + pad)
 
 
+def _draw_map_panel(ax, cells: Sequence[Cell], value: str, log: bool, caps: Sequence[tuple[float, float]],
+                    counts: dict[str, int]):  # -> matplotlib QuadMesh
+    """One panel of :func:`draw_maps` with its own colour scale: the heat map, the diverged and
+    never-settled states marked, the cap states outlined (each counted into ``counts``); the mesh,
+    for the colour bar."""
+    from matplotlib.patches import Rectangle
+
+    xs, ys, grid = _grid(cells, value)
+    norm = panel_norm(grid, log)
+    dx = (xs[1] - xs[0]) if len(xs) > 1 else 1.0
+    dy = (ys[1] - ys[0]) if len(ys) > 1 else 1.0
+    mesh = ax.pcolormesh(xs, ys, np.ma.masked_invalid(grid), shading="nearest", cmap="viridis", norm=norm)
+    for c in cells:
+        fill = {"diverged": DIVERGED_COLOUR, "never": NEVER_COLOUR}.get(c.outcome)
+        if fill and value != "peak_v":
+            ax.add_patch(Rectangle((c.x1_0 - dx / 2, c.x2_0 - dy / 2), dx, dy, color=fill, lw=0))
+        if c.outcome == "diverged":
+            ax.plot(c.x1_0, c.x2_0, "x", color="black", markersize=3.5, mew=0.8)
+            counts["diverged"] += 1
+        elif c.outcome == "never":
+            ax.plot(c.x1_0, c.x2_0, "o", mfc="none", color="black", markersize=3.5, mew=0.8)
+            counts["never"] += 1
+    for x, y in caps:
+        ax.add_patch(Rectangle((x - dx / 2, y - dy / 2), dx, dy, fill=False, ec="white", lw=0.9))
+        counts["cap"] += 1
+    ax.set_xlim(xs[0] - dx / 2, xs[-1] + dx / 2)
+    ax.set_ylim(ys[0] - dy / 2, ys[-1] + dy / 2)
+    return mesh
+
+
+def _map_legend(counts: Mapping[str, int], value: str) -> list:
+    """The legend's entries of :func:`draw_maps`: only what some panel shows (for peak |v| the
+    failed states are markers, not fills)."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    handles = []
+    if counts["diverged"]:
+        handles.append(
+            Patch(color=DIVERGED_COLOUR, label="diverged (x)") if value != "peak_v"
+            else Line2D([], [], ls="", marker="x", color="black", label="diverged: peak before failing (x)")
+        )
+    if counts["never"]:
+        handles.append(
+            Patch(color=NEVER_COLOUR, label=f"never settled within {HORIZON:g} s (o)") if value != "peak_v"
+            else Line2D([], [], ls="", marker="o", mfc="none", color="black", label="never settled (o)")
+        )
+    if counts["cap"]:
+        handles.append(Patch(fill=False, ec="black", label="semi-implicit cap binds at t = 0 (outlined)"))
+    return handles
+
+
 def draw_maps(
     panels: Sequence[tuple[str, Sequence[Cell]]],
     value: str,
@@ -337,8 +389,6 @@ def draw_maps(
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.lines import Line2D
-    from matplotlib.patches import Patch, Rectangle
 
     columns = min(3, len(panels))
     rows = math.ceil(len(panels) / columns)
@@ -347,45 +397,14 @@ def draw_maps(
     )
     counts = {"diverged": 0, "never": 0, "cap": 0}
     for ax, (name, cells) in zip(axes.flat, panels, strict=False):
-        xs, ys, grid = _grid(cells, value)
-        norm = panel_norm(grid, log)
-        dx = (xs[1] - xs[0]) if len(xs) > 1 else 1.0
-        dy = (ys[1] - ys[0]) if len(ys) > 1 else 1.0
-        mesh = ax.pcolormesh(xs, ys, np.ma.masked_invalid(grid), shading="nearest", cmap="viridis", norm=norm)
-        for c in cells:
-            fill = {"diverged": DIVERGED_COLOUR, "never": NEVER_COLOUR}.get(c.outcome)
-            if fill and value != "peak_v":
-                ax.add_patch(Rectangle((c.x1_0 - dx / 2, c.x2_0 - dy / 2), dx, dy, color=fill, lw=0))
-            if c.outcome == "diverged":
-                ax.plot(c.x1_0, c.x2_0, "x", color="black", markersize=3.5, mew=0.8)
-                counts["diverged"] += 1
-            elif c.outcome == "never":
-                ax.plot(c.x1_0, c.x2_0, "o", mfc="none", color="black", markersize=3.5, mew=0.8)
-                counts["never"] += 1
-        for x, y in (caps or {}).get(name, ()):
-            ax.add_patch(Rectangle((x - dx / 2, y - dy / 2), dx, dy, fill=False, ec="white", lw=0.9))
-            counts["cap"] += 1
-        ax.set_xlim(xs[0] - dx / 2, xs[-1] + dx / 2)
-        ax.set_ylim(ys[0] - dy / 2, ys[-1] + dy / 2)
+        mesh = _draw_map_panel(ax, cells, value, log, (caps or {}).get(name, ()), counts)
         ax.set_title(name, fontsize="small")
         ax.set_xlabel("x1(0)")
         ax.set_ylabel("x2(0)")
         fig.colorbar(mesh, ax=ax, label=label, shrink=0.9, extend="neither")
     for ax in list(axes.flat)[len(panels):]:
         ax.set_visible(False)
-    handles = []
-    if counts["diverged"]:
-        handles.append(
-            Patch(color=DIVERGED_COLOUR, label="diverged (x)") if value != "peak_v"
-            else Line2D([], [], ls="", marker="x", color="black", label="diverged: peak before failing (x)")
-        )
-    if counts["never"]:
-        handles.append(
-            Patch(color=NEVER_COLOUR, label=f"never settled within {HORIZON:g} s (o)") if value != "peak_v"
-            else Line2D([], [], ls="", marker="o", mfc="none", color="black", label="never settled (o)")
-        )
-    if counts["cap"]:
-        handles.append(Patch(fill=False, ec="black", label="semi-implicit cap binds at t = 0 (outlined)"))
+    handles = _map_legend(counts, value)
     if handles:
         fig.legend(
             handles=handles, loc="outside lower center", ncol=len(handles), fontsize="small", frameon=False
@@ -500,6 +519,12 @@ def _read_continuous(path: Path) -> dict[tuple[int, str], list[Cell]]:
     return continuous
 
 
+def _continuous_jobs(states: int) -> list[tuple[int, int, float, float]]:
+    """The continuous law's runs: (example, mode, x1(0), x2(0)) over a ``states`` x ``states`` grid."""
+    values = np.linspace(-10.0, 10.0, states).tolist()
+    return [(n, int(m), a, b) for n in SCENARIOS for m in LAWS for a in values for b in values]
+
+
 def run_study(
     out: Path,
     docs: Path | None,
@@ -521,62 +546,40 @@ def run_study(
     else:
         rows = _campaign(designs, build, out, workers, states)
     sampled_time = time.perf_counter() - started
-    values = np.linspace(-10.0, 10.0, continuous_states).tolist()
-    jobs = [(n, int(m), a, b) for n in SCENARIOS for m in LAWS for a in values for b in values]
-    if report_only:
-        continuous = _read_continuous(out / CONTINUOUS_NAME)
-    else:
+    jobs = _continuous_jobs(continuous_states)
+    if not report_only:
         with ProcessPoolExecutor(workers) as pool:
             results = list(pool.map(continuous_cell, jobs, chunksize=4))
         _write_continuous(out / CONTINUOUS_NAME, jobs, results)
-        continuous = _read_continuous(out / CONTINUOUS_NAME)
+    continuous = _read_continuous(out / CONTINUOUS_NAME)
     configurations, saturated = _configurations(rows, continuous)
     bounds = {n: study_bounds(EXAMPLES[n].controller) for n in SCENARIOS}
     figures: list[str] = []
     for number in SCENARIOS:
-        example = EXAMPLES[number]
-        tag = f"example{number}" if number == 1 else "pendulum"
-        panels = [
-            (f"{law}, {sampling}", configurations[(number, law, sampling)])
-            for law in LAWS.values() for sampling in SAMPLINGS
-        ]
-        caps = {
-            f"{law}, semi-implicit": [
-                (c.x1_0, c.x2_0) for c in configurations[(number, law, "semi-implicit")]
-                if cap_binds(example, int(mode), c.x1_0, c.x2_0)
-            ]
-            for mode, law in LAWS.items()
-        }
-        name = f"{tag}_settling.png"
-        draw_maps(panels, "settling", "settling time (s), band 0.05", out / name, caps=caps,
-                  title=f"{example.name}: settling time from x(0) (continuous law: "
-                        f"{continuous_states} x {continuous_states} grid)")
-        figures.append(name)
-        name = f"{tag}_peak_v.png"
-        draw_maps(panels, "peak_v", "peak abs(v)", out / name, log=True, title=f"{example.name}: peak abs(v)")
-        figures.append(name)
-        name = f"{tag}_distribution.png"
-        draw_distributions(panels, out / name, title=f"{example.name}: settling-time distribution")
-        figures.append(name)
-        limits = sorted({u for n, u in saturated if n == number})
-        sat_panels = [(f"u_max = {u:g}", saturated[(number, u)]) for u in limits]
-        sat_states = {(c.x1_0, c.x2_0) for _, cells in sat_panels for c in cells}  # its grid
-        unlimited = configurations[(number, "fixed-time", "explicit")]
-        sat_panels.append(("no limit", [c for c in unlimited if (c.x1_0, c.x2_0) in sat_states]))
-        name = f"{tag}_saturation.png"
-        draw_maps(sat_panels, "settling", "settling time (s), band 0.05", out / name,
-                  title=f"{example.name}: fixed-time law, explicit sampling, actuator limit u_max")
-        figures.append(name)
-    sat_configs = {
-        (n, "fixed-time", f"explicit, u_max = {u:g}"): cells for (n, u), cells in sorted(saturated.items())
-    }  # on the saturation design's grid (11 x 11)
+        figures += _study_figures(number, configurations, saturated, out, continuous_states)
     timing_path = out / TIMING_NAME
     if not report_only:  # the figures' time counts with the continuous law's
         timing = {"wall": time.perf_counter() - started, "sampled": sampled_time, "runs": len(rows),
                   "continuous_runs": len(jobs), "workers": workers}
         timing_path.write_text(json.dumps(timing), encoding="utf-8")
     timing = json.loads(timing_path.read_text(encoding="utf-8"))
-    text = "\n\n".join([
+    text = _study_text(timing, states, continuous_states, configurations, saturated, bounds)
+    (out / "study.md").write_text(text + "\n".join(f"![{f}]({f})" for f in figures) + "\n", encoding="utf-8")
+    if docs is not None:
+        _copy_to_docs(docs, out, text, figures)
+    return text
+
+
+def _study_text(timing: Mapping[str, Any], states: int, continuous_states: int,
+                configurations: Mapping[tuple[int, str, str], list[Cell]],
+                saturated: Mapping[tuple[int, float], list[Cell]],
+                bounds: Mapping[int, FixedTimeBound]) -> str:
+    """The study's Markdown before its figures: how long it took, the table of each law and
+    sampling, the saturation table, T_m of eq. (83)."""
+    sat_configs = {
+        (n, "fixed-time", f"explicit, u_max = {u:g}"): cells for (n, u), cells in sorted(saturated.items())
+    }  # on the saturation design's grid (11 x 11)
+    return "\n\n".join([
         "# The fixed-time claim, measured",
         f"Wall time {timing['wall']:.0f} s ({timing['sampled']:.0f} s for the {timing['runs']} co-simulation "
         f"runs, {timing['wall'] - timing['sampled']:.0f} s for the {timing['continuous_runs']} runs of the "
@@ -590,16 +593,58 @@ def run_study(
         "T_m of eq. (83) (Example 1; the pendulum's gains give the same c and c_hat):",
         bound_table(bounds[1]),
     ]) + "\n\n"
-    (out / "study.md").write_text(text + "\n".join(f"![{f}]({f})" for f in figures) + "\n", encoding="utf-8")
-    if docs is not None:  # the table and the README's figures; the others are named, not copied
-        docs.mkdir(parents=True, exist_ok=True)
-        links = [f"![{f}]({f})" for f in DOC_FIGURES] + [
-            f"`{(out / f).as_posix()}`" for f in figures if f not in DOC_FIGURES
+
+
+def _cap_states(
+    example: Example, number: int, configurations: Mapping[tuple[int, str, str], list[Cell]]
+) -> dict[str, list[tuple[float, float]]]:
+    """Per semi-implicit panel of example ``number``, the initial states where the cap binds at t = 0."""
+    return {
+        f"{law}, semi-implicit": [
+            (c.x1_0, c.x2_0) for c in configurations[(number, law, "semi-implicit")]
+            if cap_binds(example, int(mode), c.x1_0, c.x2_0)
         ]
-        (docs / "study.md").write_text(text + "\n".join(links) + "\n", encoding="utf-8")
-        for f in DOC_FIGURES:
-            (docs / f).write_bytes((out / f).read_bytes())
-    return text
+        for mode, law in LAWS.items()
+    }
+
+
+def _study_figures(number: int, configurations: Mapping[tuple[int, str, str], list[Cell]],
+                   saturated: Mapping[tuple[int, float], list[Cell]], out: Path,
+                   continuous_states: int) -> list[str]:
+    """Example ``number``'s four figures in ``out`` (settling and peak maps per law and sampling,
+    the settling-time distribution, the saturation maps); their file names."""
+    example = EXAMPLES[number]
+    tag = f"example{number}" if number == 1 else "pendulum"
+    panels = [
+        (f"{law}, {sampling}", configurations[(number, law, sampling)])
+        for law in LAWS.values() for sampling in SAMPLINGS
+    ]
+    caps = _cap_states(example, number, configurations)
+    names = [f"{tag}_settling.png", f"{tag}_peak_v.png", f"{tag}_distribution.png", f"{tag}_saturation.png"]
+    draw_maps(panels, "settling", "settling time (s), band 0.05", out / names[0], caps=caps,
+              title=f"{example.name}: settling time from x(0) (continuous law: "
+                    f"{continuous_states} x {continuous_states} grid)")
+    draw_maps(panels, "peak_v", "peak abs(v)", out / names[1], log=True, title=f"{example.name}: peak abs(v)")
+    draw_distributions(panels, out / names[2], title=f"{example.name}: settling-time distribution")
+    limits = sorted({u for n, u in saturated if n == number})
+    sat_panels = [(f"u_max = {u:g}", saturated[(number, u)]) for u in limits]
+    sat_states = {(c.x1_0, c.x2_0) for _, cells in sat_panels for c in cells}  # its grid
+    unlimited = configurations[(number, "fixed-time", "explicit")]
+    sat_panels.append(("no limit", [c for c in unlimited if (c.x1_0, c.x2_0) in sat_states]))
+    draw_maps(sat_panels, "settling", "settling time (s), band 0.05", out / names[3],
+              title=f"{example.name}: fixed-time law, explicit sampling, actuator limit u_max")
+    return names
+
+
+def _copy_to_docs(docs: Path, out: Path, text: str, figures: Sequence[str]) -> None:
+    """The study's table and the README's figures into ``docs``; the other figures named, not copied."""
+    docs.mkdir(parents=True, exist_ok=True)
+    links = [f"![{f}]({f})" for f in DOC_FIGURES] + [
+        f"`{(out / f).as_posix()}`" for f in figures if f not in DOC_FIGURES
+    ]
+    (docs / "study.md").write_text(text + "\n".join(links) + "\n", encoding="utf-8")
+    for f in DOC_FIGURES:
+        (docs / f).write_bytes((out / f).read_bytes())
 
 
 @dataclass(frozen=True)

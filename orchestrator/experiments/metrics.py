@@ -153,21 +153,27 @@ def tracking_metrics(
     sum_e2 = float(np.sum(error * error))
     sum_y2 = float(np.sum(y * y))
     mse = sum_e2 / t.size
-    v_abs, uf_abs = (None if signal is None else np.abs(_signal(name, signal, t.size))
-                     for name, signal in (("v", v), ("uf", uf)))
-    peaks = [None if a is None else float(np.max(a)) for a in (v_abs, uf_abs)]
     return TrackingMetrics(
         rae=math.sqrt(sum_e2 / sum_y2) if sum_y2 > 0.0 else math.nan,
         mse=mse,
         rmse=math.sqrt(mse),
         mae=float(np.mean(np.abs(error))),
         settling_time=settling_time(t, error, band),
-        peak_v=peaks[0],
-        peak_uf=peaks[1],
-        effort_v=None if v_abs is None else held_integral(t, v_abs),
-        energy_v=None if v_abs is None else held_integral(t, v_abs * v_abs),
-        effort_uf=None if uf_abs is None else held_integral(t, uf_abs),
+        **_effort(t, v, uf),
     )
+
+
+def _effort(t: np.ndarray, v: ArrayLike | None, uf: ArrayLike | None) -> dict[str, float | None]:
+    """The peaks and held integrals of |v| (and v^2) and |uf|; None for a signal not given."""
+    v_abs, uf_abs = (None if signal is None else np.abs(_signal(name, signal, t.size))
+                     for name, signal in (("v", v), ("uf", uf)))
+    return {
+        "peak_v": None if v_abs is None else float(np.max(v_abs)),
+        "peak_uf": None if uf_abs is None else float(np.max(uf_abs)),
+        "effort_v": None if v_abs is None else held_integral(t, v_abs),
+        "energy_v": None if v_abs is None else held_integral(t, v_abs * v_abs),
+        "effort_uf": None if uf_abs is None else held_integral(t, uf_abs),
+    }
 
 
 def _cell(value: float | None, spec: str) -> str:

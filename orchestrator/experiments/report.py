@@ -16,7 +16,7 @@ import math
 import os
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -196,11 +196,7 @@ def write_report(out: str | os.PathLike = DEFAULT_OUT, stop_time: float | None =
                                                            for s in SMOOTH.values()]), strict=True))
         study = settling_study(archives[STUDY_SCENARIO], study_values, study_horizon, processes)
         settings = {s: _experiment(archives[s]) for s in CASES.values()}
-        units = {}
-        for (example, method), scenario in CASES.items():
-            if method == "fixed-time":
-                with open_system(archives[scenario]) as system:
-                    units[example] = provenance.column_units(system)
+        units = _units(archives)
     figures = _figures(results, out, units)
     elapsed = time.perf_counter() - started
 
@@ -210,37 +206,8 @@ def write_report(out: str | os.PathLike = DEFAULT_OUT, stop_time: float | None =
              "orchestrator (gauss-seidel master, outputs propagated in dependency order at every "
              "communication point).", ""]
     lines += [_provenance_line(), ""]
-    lines += ["## Settings", "",
-              "| example | method | scenario | horizon (s) | grid / step (s) | alpha | beta |",
-              "|---|---|---|---|---|---|---|"]
-    for (example, method), scenario in CASES.items():
-        stop, step, p = settings[scenario]
-        horizon = stop_time if stop_time is not None else stop
-        lines.append(f"| {example} | {method} | {scenario} | {horizon:g} | {step:g} | {p['alpha']} "
-                     f"| {p['beta']} |")
-    lines += ["", "Metrics are computed on every communication point (uniform grid, step above) over the "
-              "whole run, e = y - yd (SPEC section 4); the plant integrates with RK4 sub-steps inside each "
-              "communication step, the controller output is held over the step (zero-order hold).", ""]
-
-    lines += ["## Metrics beside the paper's Tables 1-2", "",
-              "| example | method | RAE | MSE | RMSE | MAE "
-              "| paper RAE | paper MSE | paper RMSE | paper MAE |",
-              "|---|---|---|---|---|---|---|---|---|---|"]
-    for (example, method), m in metrics.items():
-        paper = PAPER_TABLE[(example, method)]
-        lines.append(f"| {example} | {method} | {m.rae:.4f} | {m.mse:.4f} | {m.rmse:.4f} | {m.mae:.4f} | "
-                     + " | ".join(f"{v:.4f}" for v in paper) + " |")
-    lines += ["", "Settling time (band 0.05) and peaks:", "",
-              format_table([(f"Example {e}, {method}", m) for (e, method), m in metrics.items()]), ""]
-    for example in sorted({e for e, _ in metrics}):
-        fixed, finite = metrics[(example, "fixed-time")], metrics[(example, "finite-time")]
-        ahead = fixed.rmse < finite.rmse and fixed.mae < finite.mae
-        verdict = "ahead of" if ahead else "NOT ahead of"
-        lines.append(f"Example {example}: the fixed-time controller is {verdict} "
-                     f"the finite-time one on these runs (RMSE {fixed.rmse:.4f} vs {finite.rmse:.4f}, "
-                     f"MAE {fixed.mae:.4f} vs {finite.mae:.4f}).")
-    lines.append("")
-
+    lines += _settings_section(settings, stop_time)
+    lines += _metrics_section(metrics)
     lines += _discretization_section(results, smooth, out)
     lines += _study_section(study, study_values, study_horizon)
     if campaigns is not None:
@@ -255,6 +222,56 @@ def write_report(out: str | os.PathLike = DEFAULT_OUT, stop_time: float | None =
     path = out / "report.md"
     path.write_text("\n".join(lines), encoding="utf-8")
     return path
+
+
+def _units(archives: Mapping[str, Path]) -> dict[int, dict[str, str | None]]:
+    """Per example, the units of its fixed-time scenario's columns (for the figures' axes)."""
+    units = {}
+    for (example, method), scenario in CASES.items():
+        if method == "fixed-time":
+            with open_system(archives[scenario]) as system:
+                units[example] = provenance.column_units(system)
+    return units
+
+
+def _settings_section(settings: Mapping[str, tuple[float | None, float, dict[str, object]]],
+                      stop_time: float | None) -> list[str]:
+    """The report's settings: per example and method, the scenario, horizon, step and exponents."""
+    lines = ["## Settings", "",
+             "| example | method | scenario | horizon (s) | grid / step (s) | alpha | beta |",
+             "|---|---|---|---|---|---|---|"]
+    for (example, method), scenario in CASES.items():
+        stop, step, p = settings[scenario]
+        horizon = stop_time if stop_time is not None else stop
+        lines.append(f"| {example} | {method} | {scenario} | {horizon:g} | {step:g} | {p['alpha']} "
+                     f"| {p['beta']} |")
+    return lines + ["", "Metrics are computed on every communication point (uniform grid, step above) "
+                    "over the whole run, e = y - yd (SPEC section 4); the plant integrates with RK4 "
+                    "sub-steps inside each communication step, the controller output is held over the "
+                    "step (zero-order hold).", ""]
+
+
+def _metrics_section(metrics: Mapping[tuple[int, str], TrackingMetrics]) -> list[str]:
+    """The metrics beside the paper's Tables 1-2, settling and peaks, and per example whether the
+    fixed-time law is ahead."""
+    lines = ["## Metrics beside the paper's Tables 1-2", "",
+             "| example | method | RAE | MSE | RMSE | MAE "
+             "| paper RAE | paper MSE | paper RMSE | paper MAE |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for (example, method), m in metrics.items():
+        paper = PAPER_TABLE[(example, method)]
+        lines.append(f"| {example} | {method} | {m.rae:.4f} | {m.mse:.4f} | {m.rmse:.4f} | {m.mae:.4f} | "
+                     + " | ".join(f"{v:.4f}" for v in paper) + " |")
+    lines += ["", "Settling time (band 0.05) and peaks:", "",
+              format_table([(f"Example {e}, {method}", m) for (e, method), m in metrics.items()]), ""]
+    for example in sorted({e for e, _ in metrics}):
+        fixed, finite = metrics[(example, "fixed-time")], metrics[(example, "finite-time")]
+        ahead = fixed.rmse < finite.rmse and fixed.mae < finite.mae
+        verdict = "ahead of" if ahead else "NOT ahead of"
+        lines.append(f"Example {example}: the fixed-time controller is {verdict} "
+                     f"the finite-time one on these runs (RMSE {fixed.rmse:.4f} vs {finite.rmse:.4f}, "
+                     f"MAE {fixed.mae:.4f} vs {finite.mae:.4f}).")
+    return lines + [""]
 
 
 def _discretization_section(results: dict[tuple[int, str], np.ndarray], smooth: dict[int, np.ndarray],

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ..campaign import read_design, read_table, sweep
+from ..campaign import Metrics, read_design, read_table, sweep
 from ..campaign.report import write_report
 from . import findings
 from .campaigns import RESEARCH, TRACKING
@@ -211,6 +211,25 @@ def write_page(tables: Mapping[Question | Finding, Sequence[Mapping[str, Any]]],
     return text
 
 
+def _scenarios_and_metrics(question: Question | Finding) -> tuple[tuple[str, ...], Metrics]:
+    """The scenarios a question or finding is swept over, and the metrics its table needs."""
+    if isinstance(question, Question):
+        return (question.scenario,), TRACKING
+    return question.scenarios, RESEARCH
+
+
+def _campaign(name: str, scenario: str, metrics: Metrics, out: Path, args: argparse.Namespace) -> None:
+    """Design ``name`` (on the --states grid where it varies the initial state) swept over
+    ``scenario`` into ``out``, with its campaign report."""
+    design = read_design(CAMPAIGNS / f"{name}.toml")
+    if "plant.x1_0" in design.columns:
+        design = on_grid(design, args.states)
+    summary = sweep([args.build / "ssp" / f"{scenario}.ssp"], design, out,
+                    metrics=metrics_for(metrics, scenario_sampling(scenario)), workers=args.workers,
+                    force=True)
+    write_report(summary.parquet, out / "report")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the research campaigns (or redraw from their tables) and write the page."""
     parser = argparse.ArgumentParser(prog="python -m orchestrator.experiments.research",
@@ -229,17 +248,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     everything: tuple[Question | Finding, ...] = (*QUESTIONS, *FINDINGS, EQ84)
     for question in everything:
         folder = args.out / question.design
-        scenarios, metrics = ((question.scenario,), TRACKING) if isinstance(question, Question) else (
-            question.scenarios, RESEARCH)
+        scenarios, metrics = _scenarios_and_metrics(question)
         if not args.report_only and not any(q.design == question.design for q in tables):
             for s in scenarios:  # one sweep per scenario: its semi-implicit cap (caps.metrics_for)
-                design = read_design(CAMPAIGNS / f"{question.design}.toml")
-                if "plant.x1_0" in design.columns:
-                    design = on_grid(design, args.states)
-                summary = sweep([args.build / "ssp" / f"{s}.ssp"], design, folder / s,
-                                metrics=metrics_for(metrics, scenario_sampling(s)), workers=args.workers,
-                                force=True)
-                write_report(summary.parquet, folder / s / "report")
+                _campaign(question.design, s, metrics, folder / s, args)
         tables[question] = [r for s in scenarios for r in read_table(folder / s / "runs.parquet")[0]]
     timing = args.out / "wall_time.json"  # the campaigns' time, for a page redrawn with --report-only
     if not args.report_only:

@@ -183,10 +183,7 @@ def simulate(plant: Plant, params: ControllerParameters, h: float, stop: float,
         peak = max(peak, abs(v))
         if t >= 0.1:
             peak_late = max(peak_late, abs(v))
-        for i, (z, zeta) in enumerate(zip(terms.z, terms.zeta, strict=True)):
-            if z != 0.0:
-                counted[i] += 1
-                capped[i] += abs(abs(zeta) - abs(z) / bh) <= RELATIVE * abs(z) / bh
+        _count_caps(terms.z, terms.zeta, bh, capped, counted)
         times.append(t)
         errors.append(abs(x[0] - yd[0]))
         if record is not None:
@@ -198,17 +195,35 @@ def simulate(plant: Plant, params: ControllerParameters, h: float, stop: float,
                            tuple(c / max(m, 1) for c, m in zip(capped, counted, strict=True)))
         controller.advance(x, yd, h)
         for _ in range(SUBSTEPS):
-            k1 = plant.rhs(x, v)
-            k2 = plant.rhs([a + dt / 2 * b for a, b in zip(x, k1, strict=True)], v)
-            k3 = plant.rhs([a + dt / 2 * b for a, b in zip(x, k2, strict=True)], v)
-            k4 = plant.rhs([a + dt * b for a, b in zip(x, k3, strict=True)], v)
-            x = [a + dt / 6 * (b + 2 * c + 2 * d + e)
-                 for a, b, c, d, e in zip(x, k1, k2, k3, k4, strict=True)]
-    outside = [t for t, e in zip(times, errors, strict=True) if e > BAND]
-    settling = 0.0 if not outside else (math.inf if outside[-1] == times[-1] else outside[-1] + h)
+            x = _rk4_step(plant, x, v, dt)
     late = errors[len(errors) // 2:]
-    return Outcome("ok", times[-1], settling, sum(late) / len(late), max(late), peak, peak_late,
-                   tuple(c / max(m, 1) for c, m in zip(capped, counted, strict=True)))
+    return Outcome("ok", times[-1], _settling(times, errors, h), sum(late) / len(late), max(late), peak,
+                   peak_late, tuple(c / max(m, 1) for c, m in zip(capped, counted, strict=True)))
+
+
+def _count_caps(z: Sequence[float], zeta: Sequence[float], bh: float, capped: list[int],
+                counted: list[int]) -> None:
+    """Count, per step, the samples with z_i != 0 (``counted``) and those where |zeta_i| is the
+    semi-implicit cap |z_i| / (b_max h) to within :data:`RELATIVE` (``capped``)."""
+    for i, (z_i, zeta_i) in enumerate(zip(z, zeta, strict=True)):
+        if z_i != 0.0:
+            counted[i] += 1
+            capped[i] += abs(abs(zeta_i) - abs(z_i) / bh) <= RELATIVE * abs(z_i) / bh
+
+
+def _rk4_step(plant: Plant, x: list[float], v: float, dt: float) -> list[float]:
+    """The plant's state after one classical Runge-Kutta step of ``dt``, the input ``v`` held."""
+    k1 = plant.rhs(x, v)
+    k2 = plant.rhs([a + dt / 2 * b for a, b in zip(x, k1, strict=True)], v)
+    k3 = plant.rhs([a + dt / 2 * b for a, b in zip(x, k2, strict=True)], v)
+    k4 = plant.rhs([a + dt * b for a, b in zip(x, k3, strict=True)], v)
+    return [a + dt / 6 * (b + 2 * c + 2 * d + e) for a, b, c, d, e in zip(x, k1, k2, k3, k4, strict=True)]
+
+
+def _settling(times: Sequence[float], errors: Sequence[float], h: float) -> float:
+    """The sample after the last one outside the band (0: never outside; inf: outside at the end)."""
+    outside = [t for t, e in zip(times, errors, strict=True) if e > BAND]
+    return 0.0 if not outside else (math.inf if outside[-1] == times[-1] else outside[-1] + h)
 
 
 def _run(args: tuple[Plant, Tuning, float, float]) -> Outcome:

@@ -43,6 +43,8 @@ from .suite import (
 from .tubes import (
     BASELINE_GRID,
     TOLERANCES_NAME,
+    Tolerance,
+    Tolerances,
     compare,
     format_comparison,
     load_tolerances,
@@ -239,40 +241,63 @@ def _baseline(args: argparse.Namespace) -> int:
         return interrupted
     failed = [o for o in outcomes if o.status == ERROR]
     width = max(len(c.name) for c in cases)
+    # every acceptance checked before the first baseline is written
     plans = {i: review.accepted(o, acceptance) for i, o in enumerate(outcomes) if o.status != ERROR}
-    pending = []
-    for i, o in enumerate(outcomes):
-        if o.status == ERROR:
-            continue
-        label = ("new" if o.comparison is None else "unchanged" if not review.moved(o)
-                 else "moved" if o.status == PASS else "CHANGED")
-        table, done = plans[i]
-        if table is not None:
-            try:
-                write_baseline(table, o.case.baseline)
-            except OSError as exc:
-                raise OutputError(f"{o.case.baseline}: {exc}") from None
-        print(f"{label:<10}  {o.case.name:<{width}}  {done if label == 'new' else review.review_message(o)}")
-        for text in review.signal_lines(o) if label in ("moved", "CHANGED") else []:
-            print(text)
-        if done and label != "new":
-            print(f"{'':<10}  {'':<{width}}  {done}")
-        elif not done and label in ("moved", "CHANGED"):
-            pending.append(o.case.name)
+    pending = [outcomes[i].case.name for i, plan in plans.items()
+               if not _write_one_baseline(outcomes[i], plan, width)]
     if args.review is not None:
-        heading = (f"baseline review: {len(outcomes)} scenarios, {len(pending)} with changes not accepted "
-                   f"({seconds:.1f} s)")
-        shown = [_as_review(o) for o in outcomes]
-        title, labels = "Baseline review", {**LABELS, PASS: "OK", FAIL: "CHANGED"}
-        path = _write("review", lambda: write_report(shown, args.review, title, heading, "new run", labels))
-        if path:
-            print(f"review: {path}")
+        _write_review(outcomes, args.review, len(pending), seconds)
+    return _left_out(failed, pending)
+
+
+def _left_out(failed: Sequence[Outcome], pending: Sequence[str]) -> int:
+    """Name the scenarios whose baseline was not written (run failed, change not accepted); the
+    exit status: 1 when a run failed."""
     if failed:
         print(f"no baseline written for {', '.join(o.case.name for o in failed)}: the run failed (above)")
     if pending:
         print(f"not accepted: {', '.join(pending)} (accept with --accept NAME, --accept NAME:SIGNAL or "
               "--accept-all)")
     return 1 if failed else 0
+
+
+def _write_one_baseline(o: Outcome, plan: tuple[np.ndarray | None, str], width: int) -> bool:
+    """Write the run's baseline as ``plan`` (the table to write, what was done) says and print one
+    line for it (and its signals, where it moved or changed); False when a change waits for
+    acceptance."""
+    label = _baseline_label(o)
+    table, done = plan
+    if table is not None:
+        try:
+            write_baseline(table, o.case.baseline)
+        except OSError as exc:
+            raise OutputError(f"{o.case.baseline}: {exc}") from None
+    print(f"{label:<10}  {o.case.name:<{width}}  {done if label == 'new' else review.review_message(o)}")
+    for text in review.signal_lines(o) if label in ("moved", "CHANGED") else []:
+        print(text)
+    if done and label != "new":
+        print(f"{'':<10}  {'':<{width}}  {done}")
+    return bool(done) or label not in ("moved", "CHANGED")
+
+
+def _baseline_label(o: Outcome) -> str:
+    """How the new run stands to the old baseline: new, unchanged, moved (within the tubes) or CHANGED."""
+    if o.comparison is None:
+        return "new"
+    if not review.moved(o):
+        return "unchanged"
+    return "moved" if o.status == PASS else "CHANGED"
+
+
+def _write_review(outcomes: Sequence[Outcome], target: Path, pending: int, seconds: float) -> None:
+    """The baseline review as an HTML report at ``target``: what each new run changes."""
+    heading = (f"baseline review: {len(outcomes)} scenarios, {pending} with changes not accepted "
+               f"({seconds:.1f} s)")
+    shown = [_as_review(o) for o in outcomes]
+    title, labels = "Baseline review", {**LABELS, PASS: "OK", FAIL: "CHANGED"}
+    path = _write("review", lambda: write_report(shown, target, title, heading, "new run", labels))
+    if path:
+        print(f"review: {path}")
 
 
 def _as_review(o: Outcome) -> Outcome:
@@ -293,23 +318,34 @@ def _compare(args: argparse.Namespace) -> int:
         shutil.rmtree(folder, ignore_errors=True)
 
 
+def _tolerance_overrides(texts: Sequence[str], tolerances: Tolerances, columns: Sequence[str],
+                         baseline: Path) -> dict[str, Tolerance]:
+    """The --tol options as signal -> tolerance; UsageError naming a signal the baseline lacks."""
+    overrides = dict(parse_tolerance(text, tolerances) for text in texts)
+    unknown = [n for n in overrides if n not in columns]
+    if unknown:
+        raise UsageError(f"--tol: no signal {', '.join(unknown)} in {baseline} "
+                         f"(signals: {', '.join(columns)})")
+    return overrides
+
+
+def _chosen_signals(patterns: Sequence[str], columns: Sequence[str], baseline: Path) -> list[str]:
+    """The signals of ``columns`` that the --signal patterns match; UsageError for a pattern that
+    matches none."""
+    unmatched = [p for p in patterns if not fnmatch.filter(columns, p)]
+    if unmatched:
+        raise UsageError(f"--signal: no signal of {baseline} matches {', '.join(unmatched)} "
+                         f"(signals: {', '.join(columns)})")
+    return [n for n in columns if any(fnmatch.fnmatchcase(n, p) for p in patterns)]
+
+
 def _compare_files(args: argparse.Namespace, result: Columns | np.ndarray,
                    baseline: Columns | np.ndarray) -> int:
     tolerances = load_tolerances(args.tolerances).for_scenario(args.baseline.stem) if args.tolerances \
         else tolerances_beside(args.baseline)
     columns = [n for n in baseline.dtype.names or () if n != "time"]
-    overrides = dict(parse_tolerance(text, tolerances) for text in args.tol)
-    unknown = [n for n in overrides if n not in columns]
-    if unknown:
-        raise UsageError(f"--tol: no signal {', '.join(unknown)} in {args.baseline} "
-                         f"(signals: {', '.join(columns)})")
-    signals = None
-    if args.signal:
-        unmatched = [p for p in args.signal if not fnmatch.filter(columns, p)]
-        if unmatched:
-            raise UsageError(f"--signal: no signal of {args.baseline} matches {', '.join(unmatched)} "
-                             f"(signals: {', '.join(columns)})")
-        signals = [n for n in columns if any(fnmatch.fnmatchcase(n, p) for p in args.signal)]
+    overrides = _tolerance_overrides(args.tol, tolerances, columns, args.baseline)
+    signals = _chosen_signals(args.signal, columns, args.baseline) if args.signal else None
     comparison = compare(result, baseline, tolerances.with_overrides(overrides), str(args.result),
                          str(args.baseline), signals=signals, keep_passed=False)
     print(f"result:   {args.result}: {summary(read_provenance(args.result))}")

@@ -55,20 +55,26 @@ def junit_xml(outcomes: Sequence[Outcome], seconds: float, name: str = SUITE_NAM
     for o in outcomes:
         case = etree.SubElement(suite, "testcase", classname=_text(o.case.group), name=_text(o.case.name),
                                 time=_seconds(o.seconds))
-        if o.status == FAIL:
-            failure = etree.SubElement(case, "failure", type="regression", message=_text(o.message))
-            failure.text = _text(format_comparison(o.comparison) if o.comparison is not None else o.message)
-        elif o.status == ERROR:
-            error = etree.SubElement(case, "error", type="error", message=_text(o.message))
-            error.text = _text(o.detail or o.message)
-        elif o.status == NOT_RUN:
-            etree.SubElement(case, "skipped", message=_text(o.message))
+        _verdict(case, o)
         out = etree.SubElement(case, "system-out")
         out.text = _text(f"scenario: {o.case.scenario}\nbaseline: {o.case.baseline}\n{o.message}\n")
         if o.warnings:
             err = etree.SubElement(case, "system-err")
             err.text = _text("".join(f"warning: {w}\n" for w in o.warnings))
     return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
+
+
+def _verdict(case: etree._Element, o: Outcome) -> None:
+    """The test case's failure (the comparison's table), error (its detail) or skipped element;
+    nothing for a pass."""
+    if o.status == FAIL:
+        failure = etree.SubElement(case, "failure", type="regression", message=_text(o.message))
+        failure.text = _text(format_comparison(o.comparison) if o.comparison is not None else o.message)
+    elif o.status == ERROR:
+        error = etree.SubElement(case, "error", type="error", message=_text(o.message))
+        error.text = _text(o.detail or o.message)
+    elif o.status == NOT_RUN:
+        etree.SubElement(case, "skipped", message=_text(o.message))
 
 
 def write_junit(outcomes: Sequence[Outcome], seconds: float, path: str | os.PathLike) -> Path:

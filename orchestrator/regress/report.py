@@ -21,7 +21,7 @@ from .. import files
 from ..cli import version_line
 from .figures import signal_png
 from .suite import ERROR, FAIL, LABELS, NOT_RUN, PASS, Outcome
-from .tubes import SignalCheck, tube_text
+from .tubes import Comparison, SignalCheck, tube_text
 
 __all__ = ["REPORT_NAME", "write_report"]
 
@@ -119,34 +119,39 @@ def _section(o: Outcome, ids: _Ids, label: str, labels: Mapping[str, str], budge
              f'<p>{_e(o.message)}</p>',
              f'<p class="meta">scenario {_e(o.case.scenario)} &middot; baseline {_e(o.case.baseline)}'
              f'{" &middot; " + _e(f"{o.seconds:.1f} s") if o.status != NOT_RUN else ""}</p>']
-    c = o.comparison
-    if c is not None:
-        parts.append(f'<p class="meta">tolerances: {_e(c.tolerances.source)}; compared at {_e(c.grid)}</p>')
-        failed = sorted(c.failed, key=lambda s: -s.severity)
-        shown = min(MAX_FIGURES, budget[0], len(failed))
-        budget[0] -= shown
-        drawn = {s.name for s in failed[:shown]}
-        heads = ["signal", "tube &plusmn;", "max |deviation|", "first out (s)", "worst beyond tube",
-                 "samples out"]
-        parts += ['<table class="signals"><thead><tr>' + "".join(f"<th>{h}</th>" for h in heads)
-                  + "</tr></thead><tbody>", *_signal_rows(o, ids, drawn), "</tbody></table>"]
-        notes = [*c.problems]
-        skipped = [n for n in c.missing if n not in c.required]
-        if skipped:
-            notes.append(f"not in the run (not compared): {', '.join(skipped)}")
-        if c.extra:
-            notes.append(f"not in the baseline (not compared): {', '.join(c.extra)}")
-        if len(failed) > shown:
-            notes.append(f"{len(failed) - shown} more signals outside their tubes are listed, not drawn "
-                         f"(at most {MAX_FIGURES} figures a scenario, {MAX_REPORT_FIGURES} a report)")
-        parts += [f"<p>{_e(n)}</p>" for n in notes]
-        parts += [_figure(o, s, ids, label) for s in failed[:shown]]
+    if o.comparison is not None:
+        parts += _comparison_parts(o, o.comparison, ids, label, budget)
     if o.detail:
         parts.append(f"<pre>{_e(o.detail)}</pre>")
     if o.warnings:
         parts.append("<p>warnings:</p><ul>" + "".join(f"<li>{_e(w)}</li>" for w in o.warnings) + "</ul>")
     parts.append('<p><a href="#summary">back to the summary</a></p></section>')
     return "\n".join(parts)
+
+
+def _comparison_parts(o: Outcome, c: Comparison, ids: _Ids, label: str, budget: list[int]) -> list[str]:
+    """A scenario section's comparison: the signals' table, notes on what was not compared, and a
+    figure per signal outside its tube while the report's ``budget`` of figures lasts."""
+    parts = [f'<p class="meta">tolerances: {_e(c.tolerances.source)}; compared at {_e(c.grid)}</p>']
+    failed = sorted(c.failed, key=lambda s: -s.severity)
+    shown = min(MAX_FIGURES, budget[0], len(failed))
+    budget[0] -= shown
+    drawn = {s.name for s in failed[:shown]}
+    heads = ["signal", "tube &plusmn;", "max |deviation|", "first out (s)", "worst beyond tube",
+             "samples out"]
+    parts += ['<table class="signals"><thead><tr>' + "".join(f"<th>{h}</th>" for h in heads)
+              + "</tr></thead><tbody>", *_signal_rows(o, ids, drawn), "</tbody></table>"]
+    notes = [*c.problems]
+    skipped = [n for n in c.missing if n not in c.required]
+    if skipped:
+        notes.append(f"not in the run (not compared): {', '.join(skipped)}")
+    if c.extra:
+        notes.append(f"not in the baseline (not compared): {', '.join(c.extra)}")
+    if len(failed) > shown:
+        notes.append(f"{len(failed) - shown} more signals outside their tubes are listed, not drawn "
+                     f"(at most {MAX_FIGURES} figures a scenario, {MAX_REPORT_FIGURES} a report)")
+    parts += [f"<p>{_e(n)}</p>" for n in notes]
+    return parts + [_figure(o, s, ids, label) for s in failed[:shown]]
 
 
 def _summary_row(o: Outcome, ids: _Ids, labels: Mapping[str, str]) -> str:

@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import UsageError
 from ..results import read_result
 from .suite import Case, Outcome
-from .tubes import tube_text
+from .tubes import SignalCheck, tube_text
 
 __all__ = ["Acceptance", "accepted", "moved", "parse_accept", "review_message", "signal_lines"]
 
@@ -71,15 +71,8 @@ def signal_lines(o: Outcome) -> list[str]:
     lines = []
     width = max((len(n) for n in [*(s.name for s in c.checks), *c.missing, *c.extra]), default=0)
     for s in sorted(c.checks, key=lambda s: (s.passed, -s.severity, -s.max_deviation, s.name)):
-        if s.max_deviation == 0:
-            continue
-        where = f"max change {s.max_deviation:.3g}"
-        if s.passed:
-            lines.append(f"  {s.name:<{width}}  {where}, inside its tube +-{tube_text(s)}")
-        else:
-            lines.append(f"  {s.name:<{width}}  {where}, outside its tube +-{tube_text(s)} from t = "
-                         f"{s.first_out:.3f} s ({s.n_out} of {len(s.time)} samples, worst "
-                         f"{s.worst_excess:.3g} beyond at t = {s.worst_time:.3f} s)")
+        if s.max_deviation != 0:
+            lines.append(_moved_line(s, width))
     lines += [f"  {n:<{width}}  removed (in the baseline, not in this run)" for n in c.missing]
     lines += [f"  {n:<{width}}  new (not in the baseline)" for n in c.extra]
     lines += [f"  problem: {p}" for p in c.problems]
@@ -87,6 +80,16 @@ def signal_lines(o: Outcome) -> list[str]:
     if same:
         lines.append(f"  {same} signal(s) unchanged")
     return lines
+
+
+def _moved_line(s: SignalCheck, width: int) -> str:
+    """:func:`signal_lines`' line of a signal that moved: by how much, inside or outside its tube."""
+    where = f"max change {s.max_deviation:.3g}"
+    if s.passed:
+        return f"  {s.name:<{width}}  {where}, inside its tube +-{tube_text(s)}"
+    return (f"  {s.name:<{width}}  {where}, outside its tube +-{tube_text(s)} from t = "
+            f"{s.first_out:.3f} s ({s.n_out} of {len(s.time)} samples, worst "
+            f"{s.worst_excess:.3g} beyond at t = {s.worst_time:.3f} s)")
 
 
 def review_message(o: Outcome) -> str:
@@ -123,13 +126,25 @@ def accepted(o: Outcome, acceptance: Acceptance) -> tuple[np.ndarray | None, str
         return (candidate, f"written {case.baseline}") if moved(o) else (None, "")
     if not signals:
         return None, ""
-    old = read_result(case.baseline)
+    merged = _merged(case, candidate, signals)
+    return merged, f"written {case.baseline} ({', '.join(sorted(signals))} accepted)"
+
+
+def _check_accepted(case: Case, candidate: np.ndarray, signals: frozenset[str]) -> None:
+    """UsageError naming the first accepted signal the new run does not have."""
     have = set(candidate.dtype.names or ())
     unknown = sorted(signals - have)
     if unknown:
         signals_text = ", ".join(n for n in candidate.dtype.names or () if n != "time")
         raise UsageError(f"--accept {case.name}:{unknown[0]}: no signal '{unknown[0]}' in this run of "
                          f"{case.name} (signals: {signals_text})")
+
+
+def _merged(case: Case, candidate: np.ndarray, signals: frozenset[str]) -> np.ndarray:
+    """The baseline of ``case`` with the accepted ``signals`` taken from the new run ``candidate``;
+    UsageError for a signal the run lacks or times that differ from the baseline's."""
+    old = read_result(case.baseline)
+    _check_accepted(case, candidate, signals)
     if len(old) != len(candidate) or not np.array_equal(old["time"], candidate["time"]):
         raise UsageError(f"--accept {case.name}:SIGNAL: the new run's times differ from those of "
                          f"{case.baseline} ({len(candidate)} rows against {len(old)}): accept the whole "
@@ -139,4 +154,4 @@ def accepted(o: Outcome, acceptance: Acceptance) -> tuple[np.ndarray | None, str
     merged = np.zeros(len(old), dtype=[(n, np.float64) for n in names])
     for n in names:
         merged[n] = candidate[n] if n in signals else old[n]
-    return merged, f"written {case.baseline} ({', '.join(sorted(signals))} accepted)"
+    return merged

@@ -132,30 +132,52 @@ def find_cases(paths: Iterable[str | os.PathLike], baselines: str | os.PathLike 
     cases: list[Case] = []
     problems: list[str] = []
     for given in paths:
-        path = Path(given)
-        if not path.exists() and (os.sep in str(given) or path.suffix):
-            problems.append(f"{given}: no such file or folder")
-            continue
-        if not path.exists():  # a name: the scenario built into build/ssp/NAME.ssp
-            try:
-                path = resolve_scenario(str(given))
-            except ScenarioError as exc:
-                problems.append(str(exc))
-                continue
-        if _is_scenario(path):
-            found, group = [path], str(path.parent)
-        elif path.is_dir():
-            found, group = _walk(path), str(path)
-            if not found:
-                problems.append(f"{path}: no scenarios in it (.ssp archives or folders holding {SSD_NAME})")
-        else:
-            problems.append(f"{path}: not a scenario (an .ssp archive or a folder holding {SSD_NAME})")
-            continue
-        for scenario in found:
-            name = scenario.stem if scenario.is_file() else scenario.name
-            folder = Path(baselines) if baselines is not None else scenario.parent / BASELINES
-            where = scenario.parent.relative_to(path) if scenario != path else Path()
-            cases.append(Case(name, scenario, folder / f"{name}.csv", (Path(group) / where).as_posix()))
+        cases += _cases_of(given, baselines, problems)
+    unique = _distinct(cases, problems)
+    if problems:
+        raise UsageError("\n".join(problems) if len(problems) == 1 else
+                         f"{len(problems)} problems:\n" + "\n".join(f"  - {p}" for p in problems))
+    if not unique:
+        raise UsageError("no scenarios given")
+    return unique
+
+
+def _cases_of(given: str | os.PathLike, baselines: str | os.PathLike | None,
+              problems: list[str]) -> list[Case]:
+    """The cases one path of :func:`find_cases` names; what is wrong with it appended to ``problems``."""
+    path = Path(given)
+    if not path.exists() and (os.sep in str(given) or path.suffix):
+        problems.append(f"{given}: no such file or folder")
+        return []
+    if not path.exists():  # a name: the scenario built into build/ssp/NAME.ssp
+        try:
+            path = resolve_scenario(str(given))
+        except ScenarioError as exc:
+            problems.append(str(exc))
+            return []
+    if _is_scenario(path):
+        found, group = [path], str(path.parent)
+    elif path.is_dir():
+        found, group = _walk(path), str(path)
+        if not found:
+            problems.append(f"{path}: no scenarios in it (.ssp archives or folders holding {SSD_NAME})")
+    else:
+        problems.append(f"{path}: not a scenario (an .ssp archive or a folder holding {SSD_NAME})")
+        return []
+    return [_case(scenario, path, group, baselines) for scenario in found]
+
+
+def _case(scenario: Path, given: Path, group: str, baselines: str | os.PathLike | None) -> Case:
+    """The case of ``scenario``, found under the path ``given`` (its group: where it was found)."""
+    name = scenario.stem if scenario.is_file() else scenario.name
+    folder = Path(baselines) if baselines is not None else scenario.parent / BASELINES
+    where = scenario.parent.relative_to(given) if scenario != given else Path()
+    return Case(name, scenario, folder / f"{name}.csv", (Path(group) / where).as_posix())
+
+
+def _distinct(cases: Sequence[Case], problems: list[str]) -> list[Case]:
+    """Each case once (a scenario named twice runs once); two scenarios that would write one
+    baseline appended to ``problems``."""
     seen: dict[Path, Case] = {}
     unique = []
     for case in cases:
@@ -165,11 +187,6 @@ def find_cases(paths: Iterable[str | os.PathLike], baselines: str | os.PathLike 
         elif other.scenario.resolve() != case.scenario.resolve():
             problems.append(f"{other.scenario} and {case.scenario} would share the baseline {case.baseline}: "
                             "rename one, or give each its own baselines folder")
-    if problems:
-        raise UsageError("\n".join(problems) if len(problems) == 1 else
-                         f"{len(problems)} problems:\n" + "\n".join(f"  - {p}" for p in problems))
-    if not unique:
-        raise UsageError("no scenarios given")
     return unique
 
 
@@ -183,27 +200,32 @@ def check_setup(cases: Sequence[Case], *, need_baseline: bool, allow_stale: bool
     UsageError
         One line per problem.
     """
-    problems = []
-    for case in cases:
-        if need_baseline and not case.baseline.is_file():
-            problems.append(f"{case.scenario}: no baseline {case.baseline} (write it with 'orchestrate "
-                            f"baseline {case.scenario}')")
-        elif case.baseline.is_file():
-            try:
-                read_result(case.baseline)
-            except OrchestratorError as exc:
-                problems.append(str(exc))
-        if case.tolerances.is_file():
-            try:
-                load_tolerances(case.tolerances)
-            except OrchestratorError as exc:
-                problems.append(str(exc))
-        if not allow_stale:
-            problems += [f"{case.scenario}: {p}" for p in scenario_checks(case.scenario)]
+    problems = [p for case in cases for p in _setup_problems(case, need_baseline, allow_stale)]
     problems = list(dict.fromkeys(problems))  # a tolerance file shared by many scenarios: once
     if problems:
         raise UsageError(problems[0] if len(problems) == 1 else
                          f"{len(problems)} problems:\n" + "\n".join(f"  - {p}" for p in problems))
+
+
+def _setup_problems(case: Case, need_baseline: bool, allow_stale: bool) -> list[str]:
+    """What :func:`check_setup` finds wrong with one case: its baseline, its tolerances, its build."""
+    problems = []
+    if need_baseline and not case.baseline.is_file():
+        problems.append(f"{case.scenario}: no baseline {case.baseline} (write it with 'orchestrate "
+                        f"baseline {case.scenario}')")
+    elif case.baseline.is_file():
+        try:
+            read_result(case.baseline)
+        except OrchestratorError as exc:
+            problems.append(str(exc))
+    if case.tolerances.is_file():
+        try:
+            load_tolerances(case.tolerances)
+        except OrchestratorError as exc:
+            problems.append(str(exc))
+    if not allow_stale:
+        problems += [f"{case.scenario}: {p}" for p in scenario_checks(case.scenario)]
+    return problems
 
 
 def tolerances_of(case: Case) -> Tolerances:
@@ -450,28 +472,51 @@ def _run_isolated(cases: Sequence[Case], jobs: int, settings: Settings,
     context = multiprocessing.get_context("spawn")  # no fork of a process holding threads or FMUs
     pending = list(enumerate(cases))
     started = 0
-    while pending or any(w.index is not None for w in workers):
+    while pending or _busy(workers):
         workers[:] = [w for w in workers if w.process.is_alive() or w.index is not None]
-        while pending and len(workers) < jobs:
-            started += 1
-            # SIGINT blocked while a worker starts and until the caller knows it: a Ctrl-C during
-            # its imports waits for _serve to ignore it (no traceback from the worker), and the
-            # parent, which gets its own at once after, ends every worker it started
-            held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-            try:
-                workers.append(_Worker(context, settings, started))
-            finally:
-                signal.pthread_sigmask(signal.SIG_SETMASK, held)
-        for worker in workers:
-            if worker.index is None and pending:
-                worker.give(*pending.pop(0))
-        busy = [w for w in workers if w.index is not None]
+        started = _top_up(workers, jobs, pending, context, settings, started)
+        busy = _busy(workers)
         multiprocessing.connection.wait([*(w.conn for w in busy), *(w.process.sentinel for w in busy)])
-        for worker in busy:
-            index = worker.index
-            outcome = worker.outcome(cases[index]) if index is not None else None
-            if index is not None and outcome is not None:
-                finish(index, outcome)
+        _collect(busy, cases, finish)
+
+
+def _top_up(workers: list[_Worker], jobs: int, pending: list[tuple[int, Case]],
+            context: multiprocessing.context.SpawnContext, settings: Settings, started: int) -> int:
+    """Up to ``jobs`` workers while scenarios are pending, each idle one given the next scenario;
+    the number of workers started so far."""
+    while pending and len(workers) < jobs:
+        started += 1
+        _start_worker(workers, context, settings, started)
+    for worker in workers:
+        if worker.index is None and pending:
+            worker.give(*pending.pop(0))
+    return started
+
+
+def _busy(workers: Sequence[_Worker]) -> list[_Worker]:
+    """The workers running a scenario."""
+    return [w for w in workers if w.index is not None]
+
+
+def _start_worker(workers: list[_Worker], context: multiprocessing.context.SpawnContext, settings: Settings,
+                  number: int) -> None:
+    """Worker ``number`` into ``workers``, SIGINT blocked while it starts and until it is there: a
+    Ctrl-C during its imports waits for _serve to ignore it (no traceback from the worker), and the
+    parent, which gets its own at once after, ends every worker it started."""
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        workers.append(_Worker(context, settings, number))
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+
+
+def _collect(busy: Sequence[_Worker], cases: Sequence[Case], finish: Callable[[int, Outcome], None]) -> None:
+    """``finish`` each case whose worker has its outcome (finished, or died on it)."""
+    for worker in busy:
+        index = worker.index
+        outcome = worker.outcome(cases[index]) if index is not None else None
+        if index is not None and outcome is not None:
+            finish(index, outcome)
 
 
 def scenario_line(outcome: Outcome, width: int = 0) -> str:

@@ -141,13 +141,17 @@ def load_tolerances(path: str | os.PathLike) -> Tolerances:
         raise RegressionError(f"{path}: quiet_until must be a number of seconds (got {quiet_until!r})")
     default = _tolerance(data["default"], f"{path}: default") if "default" in data else Tolerance(rtol=0.01)
     tubes = {name: _tolerance(entry, f"{path}: signal '{name}'") for name, entry in signals.items()}
-    scenarios = data.get("scenarios", {})
+    own = _scenario_tubes(path, data.get("scenarios", {}))
+    return Tolerances(tubes, default, float(quiet_until), str(path), own)
+
+
+def _scenario_tubes(path: Path, scenarios: object) -> dict[str, dict[str, Tolerance]]:
+    """The tolerance file's ``scenarios``: each scenario's own tubes by signal (its ``about`` is text)."""
     if not isinstance(scenarios, Mapping) or not all(isinstance(v, Mapping) for v in scenarios.values()):
         raise RegressionError(f"{path}: 'scenarios' must map scenario names to objects of signals")
-    own = {scenario: {name: _tolerance(entry, f"{path}: scenario '{scenario}', signal '{name}'")
-                      for name, entry in entries.items() if name != "about"}
-           for scenario, entries in scenarios.items()}
-    return Tolerances(tubes, default, float(quiet_until), str(path), own)
+    return {scenario: {name: _tolerance(entry, f"{path}: scenario '{scenario}', signal '{name}'")
+                       for name, entry in entries.items() if name != "about"}
+            for scenario, entries in scenarios.items()}
 
 
 def parse_tolerance(text: str, base: Tolerances) -> tuple[str, Tolerance]:
@@ -387,13 +391,13 @@ def compare(result: np.ndarray | Columns, baseline: np.ndarray | Columns,
     if not keep_passed and isinstance(result, Columns) and isinstance(baseline, Columns) \
             and _same_uniform_grid(result, baseline):
         return _compare_streamed(result, baseline, tolerances, result_name, baseline_name, signals)
-    names, have, missing, extra, problems = _signals(result, baseline, signals, result_name, baseline_name)
+    names, missing, extra = _signal_names(result, baseline, signals, baseline_name)
     required = list(signals) if signals is not None else []
+    have = set(_fields(result))
     t_ref, t_res = baseline["time"], result["time"]
     eps = 1e-9 * max(1.0, abs(float(t_ref[-1])))
-    if t_res[0] > t_ref[0] + eps or t_res[-1] < t_ref[-1] - eps:
-        problems.append(f"{result_name} covers t = {t_res[0]:g} .. {t_res[-1]:g} s but {baseline_name} "
-                        f"runs over t = {t_ref[0]:g} .. {t_ref[-1]:g} s (compared where both have rows)")
+    problems = _coverage_problems(any(n in have for n in names), len(names), t_res, t_ref, eps,
+                                  result_name, baseline_name)
     at_ref, at_res, grid = _points(t_ref, t_res, eps)
     if len(at_ref) < 2:
         problems.append(f"{result_name} and {baseline_name} have fewer than two times in common")
@@ -401,41 +405,72 @@ def compare(result: np.ndarray | Columns, baseline: np.ndarray | Columns,
                           required=required)
     t = t_ref[at_ref]
     checks = []
-    for n in names:
-        if n in have:
-            y_ref = np.asarray(baseline[n], dtype=float)[at_ref]
-            if not np.isfinite(y_ref).all():
-                problems.append(f"{baseline_name}: column '{n}' has non-finite values")
-                continue
-            y = result[n][at_res] if at_res is not None else np.interp(t, t_res, result[n])
-            check = _check(n, t, y, y_ref, tolerances.of(n), tolerances.quiet_until)
-            if check.passed and not keep_passed:
-                none = np.empty(0)
-                check = replace(check, time=none, value=none, reference=none, lower=none, upper=none)
-            checks.append(check)
+    for n in (n for n in names if n in have):
+        y_ref = np.asarray(baseline[n], dtype=float)[at_ref]
+        if not np.isfinite(y_ref).all():
+            problems.append(f"{baseline_name}: column '{n}' has non-finite values")
+            continue
+        y = result[n][at_res] if at_res is not None else np.interp(t, t_res, result[n])
+        checks.append(_check_column(n, y, y_ref, t, tolerances, keep_passed))
     return Comparison(result_name, baseline_name, tolerances, checks, missing, extra, problems, grid,
                       required)
 
 
-def _signals(result: np.ndarray | Columns, baseline: np.ndarray | Columns, signals: Sequence[str] | None,
-             result_name: str, baseline_name: str
-             ) -> tuple[list[str], set[str], list[str], list[str], list[str]]:
-    """The signals to compare, the result's columns, the baseline's columns the result lacks, the
-    result's columns the baseline lacks and the problems found so far (RegressionError for a chosen
-    signal the baseline does not have)."""
+def _signal_names(result: np.ndarray | Columns, baseline: np.ndarray | Columns, signals: Sequence[str] | None,
+                  baseline_name: str) -> tuple[list[str], list[str], list[str]]:
+    """The signals to compare (``signals``, each a baseline column, or every baseline column), the
+    baseline's columns the result lacks and the result's the baseline lacks."""
     columns = [n for n in _fields(baseline) if n != "time"]
     unknown = [n for n in signals or () if n not in columns]
     if unknown:
         raise RegressionError(f"{baseline_name}: no column {', '.join(unknown)} "
                               f"(columns: {', '.join(columns)})")
     names = list(signals) if signals is not None else columns
-    have = set(_fields(result))
-    missing = [n for n in columns if n not in have]
-    extra = [n for n in _fields(result) if n != "time" and n not in set(columns)]
+    return (names, *_unshared(_fields(result), columns))
+
+
+def _unshared(result: Sequence[str], baseline: Sequence[str]) -> tuple[list[str], list[str]]:
+    """The baseline's signals the result lacks, and the result's (besides time) the baseline lacks."""
+    have = set(result)
+    missing = [n for n in baseline if n not in have]
+    extra = [n for n in result if n != "time" and n not in set(baseline)]
+    return missing, extra
+
+
+def _coverage_problems(any_signal: bool, signals: int, t_res: np.ndarray, t_ref: np.ndarray, eps: float,
+                       result_name: str, baseline_name: str) -> list[str]:
+    """What the result lacks as a whole: every one of the ``signals`` signals (``any_signal`` False),
+    part of the baseline's time span."""
     problems = []
-    if not any(n in have for n in names):
-        problems.append(f"{result_name} has none of the {len(names)} signal(s) of {baseline_name}: "
+    if not any_signal:
+        problems.append(f"{result_name} has none of the {signals} signal(s) of {baseline_name}: "
                         "nothing compared")
+    if t_res[0] > t_ref[0] + eps or t_res[-1] < t_ref[-1] - eps:
+        problems.append(f"{result_name} covers t = {t_res[0]:g} .. {t_res[-1]:g} s but {baseline_name} "
+                        f"runs over t = {t_ref[0]:g} .. {t_ref[-1]:g} s (compared where both have rows)")
+    return problems
+
+
+def _check_column(name: str, y: np.ndarray, y_ref: np.ndarray, t: np.ndarray, tolerances: Tolerances,
+                  keep_passed: bool) -> SignalCheck:
+    """The check of the result's ``y`` against the baseline's ``y_ref`` at times ``t``; without its
+    arrays when it passes and ``keep_passed`` is False."""
+    check = _check(name, t, y, y_ref, tolerances.of(name), tolerances.quiet_until)
+    if check.passed and not keep_passed:
+        none = np.empty(0)
+        check = replace(check, time=none, value=none, reference=none, lower=none, upper=none)
+    return check
+
+
+def _signals(result: Columns, baseline: Columns, signals: Sequence[str] | None, result_name: str,
+             baseline_name: str) -> tuple[list[str], set[str], list[str], list[str], list[str]]:
+    """:func:`_signal_names`, the result's columns and the problem of a result with none of the
+    signals (a streamed comparison's: the grids are the same, so the time span is)."""
+    names, missing, extra = _signal_names(result, baseline, signals, baseline_name)
+    have = set(_fields(result))
+    first = result.part("time", 0, 1)  # the same times: only the first is read, for the span check
+    problems = _coverage_problems(any(n in have for n in names), len(names), first, first, 0.0, result_name,
+                                  baseline_name)
     return names, have, missing, extra, problems
 
 
@@ -599,18 +634,24 @@ def tube_text(check: SignalCheck) -> str:
     return f"{check.width:.3g}{quiet}"
 
 
+def _failed_table(failed: Sequence[SignalCheck]) -> list[str]:
+    """The Markdown table of the signals outside their tubes, the worst first (none: no lines)."""
+    if not failed:
+        return []
+    lines = ["", "| signal | tube +- | first out (s) | worst at (s) | beyond tube | max abs deviation "
+             "| samples out |", "|---|---|---|---|---|---|---|"]
+    for s in sorted(failed, key=lambda s: -s.severity):
+        lines.append(f"| {s.name} | {tube_text(s)} | {s.first_out:.3f} | {s.worst_time:.3f} | "
+                     f"{s.worst_excess:.3g} | {s.max_deviation:.3g} | {s.n_out} of {len(s.time)} |")
+    return lines + [""]
+
+
 def format_comparison(comparison: Comparison) -> str:
     """A Markdown table of the signals outside their tubes, then what is missing; one summary line."""
     c = comparison
     lines = [f"compare {c.result} with {c.baseline} (tolerances: {c.tolerances.source})"]
     failed = c.failed
-    if failed:
-        lines += ["", "| signal | tube +- | first out (s) | worst at (s) | beyond tube | max abs deviation "
-                  "| samples out |", "|---|---|---|---|---|---|---|"]
-        for s in sorted(failed, key=lambda s: -s.severity):
-            lines.append(f"| {s.name} | {tube_text(s)} | {s.first_out:.3f} | {s.worst_time:.3f} | "
-                         f"{s.worst_excess:.3g} | {s.max_deviation:.3g} | {s.n_out} of {len(s.time)} |")
-        lines.append("")
+    lines += _failed_table(failed)
     for p in c.problems:
         lines.append(f"problem: {p}")
     if c.lost:
