@@ -186,7 +186,7 @@ def test_the_guid_follows_the_shims_bytes_not_its_comments(fmus: dict, tmp_path:
     comment (the same binary) does not."""
     guid = fmpy.read_model_description(str(fmus["Reference"])).guid
     root = source_copy(tmp_path)
-    shim = root / "fmu_src" / "toolchain" / "shim" / "fmi2_shim.c"
+    shim = root / "fmu_src" / "toolchain" / "shim" / "fmi2_functions.c"
     shim.write_text(shim.read_text() + "\n/* changed */\n")
     same = build_fmu("Reference", tmp_path / "comment", root=root)
     assert fmpy.read_model_description(str(same)).guid == guid

@@ -88,8 +88,10 @@ BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
 BUILD_FORMAT = "8"
 SHIM_DIR = Path("fmu_src", "toolchain", "shim")  # relative to the source root
-SHIM_SOURCES = ("fmi2_shim.c", "start_python.c", "guard.c", "platform.c")
-SHIM_HEADERS = ("start_python.h", "fmi2_types.h", "guard.h", "platform.h")
+# The shim laid out as the Modelica Reference FMUs lay theirs out (shim.h says what each file holds).
+SHIM_SOURCES = ("fmi2_functions.c", "guard.c", "cosimulation.c", "loader.c", "pool.c", "log.c", "resources.c",
+                "start_python.c", "platform.c")
+SHIM_HEADERS = ("shim.h", "start_python.h", "fmi2_types.h", "guard.h", "platform.h", "fmi3.h")
 # No debug info, build id or symbol table, so the bytes depend only on source, compiler and flags;
 # the runtime's libraries are found by soname through $ORIGIN/python/lib (see the shim's header).
 SHIM_FLAGS = tuple(

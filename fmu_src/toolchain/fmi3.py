@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: BSD-2-Clause
 """The FMI 3.0 Co-Simulation variant of a built FMI 2.0 FMU: same model code, runtime and pythonfmu
-binary, with the FMI 3.0 layer of the shim (``shim/fmi3_shim.c``) in front.
+binary, with the FMI 3.0 layer of the shim (``shim/fmi3_functions.c`` and the files beside it) in front.
 
 The FMI 2.0 archive is the source: its members move from ``binaries/linux64/`` to
 ``binaries/x86_64-linux/`` and from ``binaries/win64/`` to ``binaries/x86_64-windows/`` (FMI 3.0's
@@ -59,7 +59,7 @@ FMI3_PLATFORM = "binaries/x86_64-linux/"
 # FMI 2.0 platform folder -> FMI 3.0 platform tuple, and the binaries' suffix
 PLATFORM_TUPLES = {FMI2_PLATFORM: (FMI3_PLATFORM, ".so"),
                    "binaries/win64/": ("binaries/x86_64-windows/", ".dll")}
-FMI3_SHIM_SOURCES = (*SHIM_SOURCES, "fmi3_shim.c")
+FMI3_SHIM_SOURCES = (*SHIM_SOURCES, "fmi3_functions.c", "fmi3_values.c", "fmi3_refused.c")
 TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
 # FMI 2.0 type attributes that FMI 3.0 keeps on the variable element (String's start is a child).
 TYPE_ATTRIBUTES = ("declaredType", "quantity", "unit", "displayUnit", "relativeQuantity", "min", "max",

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: BSD-2-Clause */
-/* FMI 2.0 types and the shim's list of FMI 2.0 functions, shared by fmi2_shim.c and fmi3_shim.c
+/* FMI 2.0 types and the shim's list of FMI 2.0 functions, shared by the FMI 2.0 files (shim.h) and the FMI 3.0 layer (fmi3.h)
    (the FMI 3.0 layer calls the FMI 2.0 functions of the same shared object). */
 
 #ifndef FTC_FMI2_TYPES_H
