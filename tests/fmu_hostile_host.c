@@ -402,7 +402,7 @@ static struct result two_threads(void) {
 /* The nonsense scenarios: a NULL array or entry, a count beyond any array, a time that cannot be, a
    capability the model description does not declare. */
 static const char *const NONSENSE[] = {
-    "debug-null-categories", "debug-null-entry", "setup-stop-before-start", "setup-start-nan", "setup-start-inf",
+    "debug-null-categories", "debug-null-entry", "debug-categories-beyond", "setup-stop-before-start", "setup-start-nan", "setup-start-inf",
     "setup-stop-inf", "setup-tolerance-nan", "setup-tolerance-negative", "get-null-vr", "get-null-values",
     "set-null-values", "get-count-beyond", "get-integer-null-vr", "get-boolean-null-values",
     "set-string-null-entry", "get-state-null", "set-state-null", "get-state-undeclared-size", "deserialize-null",
@@ -428,6 +428,11 @@ static int nonsense_call(component c, const char *name) {
         int (*f)(component, int, size_t, const char **) =
             fn(version == 2 ? "fmi2SetDebugLogging" : "fmi3SetDebugLogging");
         return f(c, 1, 2, strcmp(name, "debug-null-entry") ? NULL : categories);
+    }
+    if (!strcmp(name, "debug-categories-beyond")) { /* 2^40 names in an array of 2: none may be read */
+        int (*f)(component, int, size_t, const char **) =
+            fn(version == 2 ? "fmi2SetDebugLogging" : "fmi3SetDebugLogging");
+        return f(c, 1, (size_t)1 << 40, categories);
     }
     if (!strncmp(name, "setup-", 6)) { /* start, stop, tolerance */
         double start = 0, stop = 1, tolerance = 1e-6;

@@ -45,7 +45,7 @@ import sys
 import tempfile
 import uuid
 import zipfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -65,6 +65,7 @@ from .runtime import (
     runtime_members,
     stdlib_closure,
 )
+from .variable_table import TABLE_SOURCE, variable_table
 
 __all__ = ["EXTENSIONS", "FMU_SCRIPTS", "PLATFORM_NAMES", "BuildError", "build_all", "build_fmu",
            "build_inputs", "build_sources", "buildable_platforms", "c_compiler", "compile_extension",
@@ -86,12 +87,12 @@ FMU_SCRIPTS = {
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
-BUILD_FORMAT = "8"
+BUILD_FORMAT = "9"
 SHIM_DIR = Path("fmu_src", "toolchain", "shim")  # relative to the source root
 # The shim laid out as the Modelica Reference FMUs lay theirs out (shim.h says what each file holds).
 SHIM_SOURCES = ("fmi2_functions.c", "guard.c", "cosimulation.c", "loader.c", "pool.c", "log.c", "resources.c",
                 "start_python.c", "platform.c")
-SHIM_HEADERS = ("shim.h", "start_python.h", "fmi2_types.h", "guard.h", "platform.h", "fmi3.h")
+SHIM_HEADERS = ("shim.h", "start_python.h", "fmi2_types.h", "description.h", "platform.h", "fmi3.h")
 # No debug info, build id or symbol table, so the bytes depend only on source, compiler and flags;
 # the runtime's libraries are found by soname through $ORIGIN/python/lib (see the shim's header).
 SHIM_FLAGS = tuple(
@@ -122,8 +123,7 @@ WIN_IMPORTS = {
     "api-ms-win-crt-runtime-l1-1-0.dll": ("_errno",),
     "VCRUNTIME140.dll": ("memcpy", "memmove", "memset"),
 }
-DESCRIPTION_COPY = "_modelDescription.xml"  # guard.h's DESCRIPTION_SUFFIX
-# guard.h's IDENTITY_FILE: the resources folder names its FMU (GUID / instantiation token), so that
+# description.h's IDENTITY_FILE: the resources folder names its FMU (GUID / instantiation token), so that
 # the shim never runs another FMU's model from a resource location the host gives it
 IDENTITY_FILE = "resources/fmu_identity.txt"
 PLATFORMS = (("linux64", ".so"), ("win64", ".dll"))  # FMI 2.0 platform folders, binary suffix
@@ -133,7 +133,7 @@ LAUNCHER_SOURCE = "bundled_python.c"
 LAUNCHER_FLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra")
 # The build's own code (fmu_src/): a change to it rebuilds every FMU.
 BUILD_CODE = ("build.py", "fmi3.py", "runtime.py", "runtime_pins.txt", "runtime_win64.py",
-              "runtime_pins_win64.txt", "licences.py")
+              "runtime_pins_win64.txt", "licences.py", "variable_table.py")
 # C extension modules bundled with the FMUs that import them (dotted name -> C source, relative to
 # the source root): built against the runtime's headers for the stable ABI, so that one binary
 # loads in the FMU's runtime and in a host's Python alike. -ffp-contract=off: no fused
@@ -313,12 +313,12 @@ def _mingw_version() -> str:
         return "none"
 
 
-def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequence[str],
-             libraries: Sequence[str], what: Path, windows: str = "") -> bytes:
-    """Compile ``sources`` (in ``work``) into a shared object against the runtime's headers; its
-    bytes (the same for the same sources, compiler, flags and runtime). ``what`` names the sources
-    in the error. ``windows``: the DLL's file name, cross-compiled with mingw-w64 against the same
-    headers with the Windows pyconfig.h."""
+def _objects(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequence[str], what: Path,
+             windows: str = "") -> tuple[str, list[str | Path], list[bytes]]:
+    """Compile each of ``sources`` (in ``work``) to an object against the runtime's headers (with
+    the Windows pyconfig.h for ``windows``), each once for the same bytes of it and of the headers
+    beside it (nine FMUs share one shim's objects). The compiler, the inputs every step shares,
+    and the objects' bytes (also written beside their sources)."""
     compiler = mingw() if windows else c_compiler()[0]
     if windows:
         headers = work / "include"
@@ -328,11 +328,7 @@ def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequen
         includes = [f"-I{headers}"]
     else:
         includes = [f"-I{d}" for d in runtime.include_dirs]
-    out = windows or "out.so"
     version = _mingw_version() if windows else c_compiler()[1]
-    # Content-addressed, in two steps: each source compiled to an object once for the same bytes
-    # of it and of the headers beside it (nine FMUs share one shim's objects), then linked into
-    # the named library; the build is reproducible, so a kept product is the one it would make.
     header_files = sorted(p for p in work.rglob("*.h") if p.is_file())
     here = Path(__file__).resolve().parent  # the build's code and the runtimes' pins
     common: list[str | Path] = [version, *(here / n for n in BUILD_CODE),
@@ -342,9 +338,22 @@ def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequen
         command = [compiler, *flags, *includes, "-c", "-o", f"{source}.o", source]
         objects.append(_kept(runtime, work, command, f"{source}.o", what,
                              [*common, _relative(command, work), work / source]))
-    command = [compiler, *flags, "-o", out, *(f"{source}.o" for source in sources), *libraries]
     for source, data in zip(sources, objects, strict=True):
         (work / f"{source}.o").write_bytes(data)
+    return compiler, common, objects
+
+
+def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequence[str],
+             libraries: Sequence[str], what: Path, windows: str = "") -> bytes:
+    """Compile ``sources`` (in ``work``) into a shared object against the runtime's headers; its
+    bytes (the same for the same sources, compiler, flags and runtime). ``what`` names the sources
+    in the error. ``windows``: the DLL's file name, cross-compiled with mingw-w64 against the same
+    headers with the Windows pyconfig.h."""
+    # Content-addressed, in two steps: the objects (_objects), then the link into the named
+    # library; the build is reproducible, so a kept product is the one it would make.
+    compiler, common, _ = _objects(work, runtime, flags, sources, what, windows)
+    out = windows or "out.so"
+    command = [compiler, *flags, "-o", out, *(f"{source}.o" for source in sources), *libraries]
     return _kept(runtime, work, command, out, what,
                  [*common, _relative(command, work), *(work / f"{source}.o" for source in sources),
                   *(work / lib for lib in sorted(os.listdir(work)) if lib.endswith(".a"))])
@@ -374,24 +383,44 @@ def _kept(runtime: Runtime, work: Path, command: list[str], out: str, what: Path
     return binary
 
 
-def compile_shim(root: Path, runtime: Runtime, where: Path, sources: Sequence[str] = SHIM_SOURCES,
-                 defines: Sequence[str] = (), windows: str = "") -> bytes:
-    """Compile the FMI shim (``sources`` of ``fmu_src/toolchain/shim``, ``-D`` ``defines``) against
-    the runtime's headers; returns the shared object's bytes (the same for the same sources,
-    compiler and runtime). ``windows``: the DLL's name (``<model>.dll``), cross-compiled for 64-bit
-    Windows instead."""
+def _shim_work(root: Path, where: Path, sources: Sequence[str], defines: Sequence[str],
+               windows: str) -> tuple[Path, list[str]]:
+    """The shim's work folder under ``where`` holding ``sources`` and the headers, and its flags."""
     work = where / ("shim-win64" if windows else "shim")
-    work.mkdir(parents=True)
+    work.mkdir(parents=True, exist_ok=True)
     for name in (*sources, *SHIM_HEADERS):
         source = root / SHIM_DIR / name
         if not source.is_file():
             raise BuildError(f"FMI shim source not found: {source}")
         shutil.copyfile(source, work / name)
-    if windows:
-        flags = [*MINGW_FLAGS, *(f"-D{d}" for d in defines)]
-        return _compile(work, runtime, flags, sources, (), root / SHIM_DIR, windows)
-    flags = [*SHIM_FLAGS, *(f"-D{d}" for d in defines)]
-    return _compile(work, runtime, flags, sources, SHIM_LIBS, root / SHIM_DIR)
+    return work, [*(MINGW_FLAGS if windows else SHIM_FLAGS), *(f"-D{d}" for d in defines)]
+
+
+def shim_digest(root: Path, runtime: Runtime, where: Path, sources: Sequence[str] = SHIM_SOURCES,
+                defines: Sequence[str] = (), windows: str = "") -> str:
+    """A digest of the shim's compiled objects (all but the per-FMU variable table): what the
+    FMU's GUID is made from, since the table is made from the model description that holds it.
+    The same for the same code: a changed comment leaves it, a changed message changes it."""
+    work, flags = _shim_work(root, where, sources, defines, windows)
+    _, _, objects = _objects(work, runtime, flags, sources, root / SHIM_DIR, windows)
+    return stamps.digest(*(hashlib.sha256(data).hexdigest() for data in objects))
+
+
+def compile_shim(root: Path, runtime: Runtime, where: Path, description: bytes,
+                 sources: Sequence[str] = SHIM_SOURCES, defines: Sequence[str] = (),
+                 windows: str = "") -> bytes:
+    """Compile the FMI shim (``sources`` of ``fmu_src/toolchain/shim``, ``-D`` ``defines``) against
+    the runtime's headers, with the variable table of the model description ``description``
+    (:func:`variable_table`, an object of its own) linked in; returns the shared object's bytes (the
+    same for the same sources, description, compiler and runtime). ``windows``: the DLL's name
+    (``<model>.dll``), cross-compiled for 64-bit Windows instead."""
+    work, flags = _shim_work(root, where, sources, defines, windows)
+    try:
+        (work / TABLE_SOURCE).write_bytes(variable_table(description))
+    except (ValueError, ElementTree.ParseError) as error:
+        raise BuildError(f"the variable table of the shim: {error}") from error
+    libraries = () if windows else SHIM_LIBS
+    return _compile(work, runtime, flags, [*sources, TABLE_SOURCE], libraries, root / SHIM_DIR, windows)
 
 
 def _extension_work(source: Path, work: Path, root: Path) -> None:
@@ -602,7 +631,7 @@ def _normalized_description(xml: bytes, digest: str, model: str) -> bytes:
 
 
 def _write_normalized(raw_fmu: Path, target: Path, bundle: Bundle, digest: str, native: dict[str, bytes],
-                      platforms: Sequence[str]) -> None:
+                      platforms: Sequence[str], link: Callable[[bytes], dict[str, bytes]]) -> None:
     """Copy the archive with the shim in front of pythonfmu's binaries of ``platforms`` (the others
     dropped), the runtimes and the licences added, a deterministic description, fixed timestamps
     and sorted entries."""
@@ -625,9 +654,7 @@ def _write_normalized(raw_fmu: Path, target: Path, bundle: Bundle, digest: str, 
     except ValueError as error:
         raise BuildError(str(error)) from error
     entries[IDENTITY_FILE] = identity(entries["modelDescription.xml"])
-    # the shim's guard reads it beside the binary: hosts may unpack only binaries/ and resources/
-    for platform, _ in chosen:
-        entries[f"binaries/{platform}/{bundle.model}{DESCRIPTION_COPY}"] = entries["modelDescription.xml"]
+    entries.update(link(entries["modelDescription.xml"]))  # the shims, with the final variable table
     entries.update(_bytecode(entries))
     write_archive(target, entries)
 
@@ -752,10 +779,12 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT, platforms: Sequenc
     with tempfile.TemporaryDirectory(prefix=f"ftc_build_{model}_") as tmp:
         runtime = _ensure_runtime()
         native = _runtime(bundle, windows)
-        native[f"binaries/linux64/{model}.so"] = compile_shim(root, runtime, Path(tmp))
+        # the shims are linked once the model description (their variable table) is final
+        shims = {f"binaries/linux64/{model}.so": ""}
         if windows:
-            dll = f"{model}.dll"
-            native[f"binaries/win64/{dll}"] = compile_shim(root, runtime, Path(tmp), windows=dll)
+            shims[f"binaries/win64/{model}.dll"] = f"{model}.dll"
+        for name, dll in shims.items():
+            native[name] = shim_digest(root, runtime, Path(tmp), windows=dll).encode()
         native["documentation/licenses/pythonfmu-LICENSE.txt"] = _licence("pythonfmu")
         if FMATH_MODULE in bundle.modules:
             native[f"documentation/licenses/{FMATH_LICENSE.name}"] = (root / FMATH_LICENSE).read_bytes()
@@ -788,7 +817,14 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT, platforms: Sequenc
                 raise BuildError(
                     f"pythonfmu could not build {model} from {bundle.script}: {error}"
                 ) from error
-        _write_normalized(Path(raw), target, bundle, digest, native, platforms)
+        for name in shims:
+            del native[name]
+
+        def link(description: bytes) -> dict[str, bytes]:
+            return {name: compile_shim(root, runtime, Path(tmp), description, windows=dll)
+                    for name, dll in shims.items()}
+
+        _write_normalized(Path(raw), target, bundle, digest, native, platforms, link)
     stamps.record(target, key, stamps.source_digests(fmu_sources(bundle, root), root), root, platforms)
     return target
 

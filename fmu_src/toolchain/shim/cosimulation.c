@@ -111,69 +111,103 @@ struct direct {
     PyObject *log_queue; /* the list pythonfmu forwards to the host's logger */
     PyObject *stale;     /* the key "_fmu_stale" */
     PyObject *names;     /* tuple: value reference -> variable name (None if not direct) */
-    const unsigned char *kinds; /* value reference -> KIND_* (bytes owned by `binding`) */
+    unsigned char *kinds; /* value reference -> KIND_*: where the slave's and the table's agree */
     size_t n;            /* number of value references covered */
     int feedthrough;     /* some output depends directly on an input */
     PyObject *binding;   /* the tuple the slave handed over, owning the objects above */
 };
 
+static void free_direct(struct direct *d) {
+    if (!d) return;
+    if (d->binding) py.decref(d->binding);
+    free(d->kinds);
+    free(d);
+}
+
 void release_binding(struct instance *i) {
     if (!i->direct) return;
     int gil = py.gil_ensure();
-    py.decref(i->direct->binding);
+    free_direct(i->direct);
     py.gil_release(gil);
-    free(i->direct);
     i->direct = NULL;
 }
 
-/* Asks the slave just constructed in this thread (under the name pythonfmu keeps) for its binding,
-   and gives it the instance's name; leaves i->direct NULL (every call forwarded) for slaves that
-   do not offer one, such as plain pythonfmu slaves, and when FTC_FMU_DIRECT is "0". */
-void bind_direct(struct instance *i) {
-    if (!py.ready) return;
-    int gil = py.gil_ensure();
+static int is_binding(PyObject *binding) {
+    return binding && py.tuple_size(binding) == 9 && py.as_long(py.tuple_item(binding, 0)) == DIRECT_PROTOCOL;
+}
+
+/* The kind of variable `vr` (the FMI 2.0 value reference) in the build's table (description.h): a
+   Real input or output, else KIND_NONE. */
+static unsigned char table_kind(unsigned vr) {
+    const struct ftc_variable *v = ftc_variable(&ftc_description, vr + FTC_VR_OFFSET);
+    if (!v || v->type != 'r') return KIND_NONE;
+    return v->causality == 'i' ? KIND_INPUT : v->causality == 'o' ? KIND_OUTPUT : KIND_NONE;
+}
+
+/* The direct path on `binding` (taken over), or NULL (then released): the slave's kinds kept
+   only where the build's table agrees, so that the direct path serves no variable the guard
+   does not know as that Real input or output. */
+static struct direct *direct_of(PyObject *binding) {
+    struct direct *d = calloc(1, sizeof *d);
+    if (!d) {
+        py.decref(binding);
+        return NULL;
+    }
+    d->binding = binding;
+    PyObject *kinds = py.tuple_item(binding, 6);
+    const unsigned char *offered = (const unsigned char *)py.bytes_string(kinds);
+    d->n = offered ? (size_t)py.bytes_size(kinds) : 0;
+    d->kinds = offered ? malloc(d->n + 1) : NULL;
+    if (!d->kinds || py.error()) {
+        free_direct(d);
+        return NULL;
+    }
+    for (size_t vr = 0; vr < d->n; vr++) d->kinds[vr] = offered[vr] == table_kind((unsigned)vr) ? offered[vr] : KIND_NONE;
+    d->dict = py.tuple_item(binding, 1);
+    d->do_step = py.tuple_item(binding, 2);
+    d->refresh = py.tuple_item(binding, 3);
+    d->log_queue = py.tuple_item(binding, 4);
+    d->names = py.tuple_item(binding, 5);
+    d->feedthrough = py.is_true(py.tuple_item(binding, 7)) == 1;
+    d->stale = py.tuple_item(binding, 8);
+    if (py.error()) {
+        free_direct(d);
+        return NULL;
+    }
+    return d;
+}
+
+/* The binding the slave just constructed in this thread (under the name pythonfmu keeps) offers
+   (a new reference), or NULL; gives the slave the instance's name. */
+static PyObject *claim_binding(struct instance *i) {
     PyObject *sys = py.import("sys"), *claim = NULL, *binding = NULL, *model_name = NULL, *name = NULL;
     if (sys) claim = py.getattr(sys, "_ftc_fmu_claim");
     if (claim) model_name = py.from_string(model);
     if (model_name) name = py.from_string(i->pooled->name);
     if (name) binding = py.call2(claim, model_name, name, NULL);
-    if (binding && py.tuple_size(binding) == 9 && py.as_long(py.tuple_item(binding, 0)) == DIRECT_PROTOCOL) {
+    if (is_binding(binding)) {
         PyObject *key = py.from_string("instance_name"), *renamed = py.from_string(i->name);
         i->pooled->renamable = key && renamed && py.dict_set(py.tuple_item(binding, 1), key, renamed) == 0;
         if (key) py.decref(key);
         if (renamed) py.decref(renamed);
     }
-    if (!i->direct_allowed && binding) {
-        py.decref(binding);
-        binding = NULL;
-    }
-    struct direct *d = NULL;
-    if (binding && py.tuple_size(binding) == 9 && py.as_long(py.tuple_item(binding, 0)) == DIRECT_PROTOCOL) {
-        d = calloc(1, sizeof *d);
-        PyObject *kinds = py.tuple_item(binding, 6);
-        if (d) {
-            d->dict = py.tuple_item(binding, 1);
-            d->do_step = py.tuple_item(binding, 2);
-            d->refresh = py.tuple_item(binding, 3);
-            d->log_queue = py.tuple_item(binding, 4);
-            d->names = py.tuple_item(binding, 5);
-            d->kinds = (const unsigned char *)py.bytes_string(kinds);
-            d->n = (size_t)py.bytes_size(kinds);
-            d->feedthrough = py.is_true(py.tuple_item(binding, 7)) == 1;
-            d->stale = py.tuple_item(binding, 8);
-            d->binding = binding;
-            binding = NULL; /* owned by d */
-        }
-        if (!d || !d->kinds || py.error()) {
-            if (d && d->binding) py.decref(d->binding);
-            free(d);
-            d = NULL;
-        }
-    }
-    if (py.error()) py.clear_error();
-    PyObject *owned[] = {binding, name, model_name, claim, sys};
+    PyObject *owned[] = {name, model_name, claim, sys};
     for (size_t k = 0; k < sizeof owned / sizeof owned[0]; k++)
         if (owned[k]) py.decref(owned[k]);
+    return binding;
+}
+
+/* Asks the slave just constructed for its binding and gives it the instance's name; leaves
+   i->direct NULL (every call forwarded) for slaves that do not offer one, such as plain pythonfmu
+   slaves, and when FTC_FMU_DIRECT is "0". */
+void bind_direct(struct instance *i) {
+    if (!py.ready) return;
+    int gil = py.gil_ensure();
+    PyObject *binding = claim_binding(i);
+    struct direct *d = NULL;
+    if (i->direct_allowed && is_binding(binding)) d = direct_of(binding);
+    else if (binding) py.decref(binding);
+    if (py.error()) py.clear_error();
     py.gil_release(gil);
     i->direct = d;
 }

@@ -99,12 +99,12 @@ fmi2Component ftc_instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     if (!instanceName) problem = "instanceName is NULL";
     else if (fmuType != fmi2CoSimulation) problem = "this FMU is a Co-Simulation FMU only";
     else if (!fmuGUID) problem = "the GUID (instantiation token) is NULL";
-    else if (strcmp(fmuGUID, description.token) != 0) {
+    else if (strcmp(fmuGUID, ftc_description.token) != 0) {
         snprintf(note, sizeof note, "the GUID (instantiation token) %s is not this FMU's %s (modelDescription.xml)",
-                 fmuGUID, description.token);
+                 fmuGUID, ftc_description.token);
         problem = note;
     }
-    int found = problem ? 0 : ftc_resources(&description, fmuResourceLocation, resources, sizeof resources, note,
+    int found = problem ? 0 : ftc_resources(&ftc_description, fmu_root, fmuResourceLocation, resources, sizeof resources, note,
                                             sizeof note);
     if (found < 0) problem = note;
 #ifdef _WIN32
@@ -227,9 +227,9 @@ EXPORT void fmi2FreeInstance(fmi2Component c) {
 #define FMU_STATE "FMUstate"
 #endif
 #define CAN_GET_AND_SET                                                                                      \
-    CHECK(check_capability(i, function, description.can_get_and_set_state, "canGetAndSet" FMU_STATE "=\"false\""))
+    CHECK(check_capability(i, function, ftc_description.can_get_and_set_state, "canGetAndSet" FMU_STATE "=\"false\""))
 #define CAN_SERIALIZE                                                                                        \
-    CHECK(check_capability(i, function, description.can_get_and_set_state && description.can_serialize_state,  \
+    CHECK(check_capability(i, function, ftc_description.can_get_and_set_state && ftc_description.can_serialize_state,  \
                            "canSerialize" FMU_STATE "=\"false\""))
 #define ARGS_fmi2GetFMUstate CAN_GET_AND_SET; CHECK(check_pointer(i, function, state, "the FMUstate pointer"))
 #define ARGS_fmi2SetFMUstate CAN_GET_AND_SET; CHECK(check_pointer(i, function, state, "the FMUstate"))
@@ -250,15 +250,15 @@ EXPORT void fmi2FreeInstance(fmi2Component c) {
     CHECK(check_pointer(i, function, bytes, "the byte array"));                                              \
     CHECK(check_pointer(i, function, state, "the FMUstate pointer"))
 #define ARGS_fmi2GetDirectionalDerivative                                                                    \
-    CHECK(check_capability(i, function, description.directional_derivatives,                                 \
+    CHECK(check_capability(i, function, ftc_description.directional_derivatives,                                 \
                            "providesDirectionalDerivative=\"false\""));                                     \
     CHECK(check_array(i, function, nUnknown, unknown, dvUnknown, "unknowns"));                               \
     CHECK(check_array(i, function, nKnown, known, dvKnown, "knowns"))
 #define ARGS_fmi2SetRealInputDerivatives                                                                     \
-    CHECK(check_capability(i, function, description.interpolate_inputs, "canInterpolateInputs=\"false\""));  \
+    CHECK(check_capability(i, function, ftc_description.interpolate_inputs, "canInterpolateInputs=\"false\""));  \
     CHECK(check_array(i, function, n, vr, order && value ? value : NULL, "input derivatives"))
 #define ARGS_fmi2GetRealOutputDerivatives                                                                    \
-    CHECK(check_capability(i, function, description.output_derivative_order > 0,                             \
+    CHECK(check_capability(i, function, ftc_description.output_derivative_order > 0,                             \
                            "maxOutputDerivativeOrder=\"0\""));                                              \
     CHECK(check_array(i, function, n, vr, order && value ? value : NULL, "output derivatives"))
 #define ARGS_fmi2CancelStep (void)function

@@ -87,9 +87,9 @@ fmi2Status check_references(struct instance *i, const char *function, const fmi2
                  !vr ? "value reference" : "value");
         return refuse(i, function, reason);
     }
-    if (n > description.n) { /* the arrays cannot be that long: not read */
+    if (n > ftc_description.n) { /* the arrays cannot be that long: not read */
         snprintf(reason, sizeof reason, "%zu value references, more than the model's %zu variables", n,
-                 description.n);
+                 ftc_description.n);
         return refuse(i, function, reason);
     }
     if (set && type == 3) /* a NULL string would reach pythonfmu's std::string */
@@ -99,7 +99,7 @@ fmi2Status check_references(struct instance *i, const char *function, const fmi2
                 return refuse(i, function, reason);
             }
     for (size_t k = 0; k < n; k++) {
-        const struct ftc_variable *v = ftc_variable(&description, vr[k] + FTC_VR_OFFSET);
+        const struct ftc_variable *v = ftc_variable(&ftc_description, vr[k] + FTC_VR_OFFSET);
         const char *problem = NULL;
         if (!v) {
             snprintf(reason, sizeof reason, "no variable has the value reference %u", vr[k] + FTC_VR_OFFSET);
@@ -134,7 +134,7 @@ fmi2Status ftc_allowed(fmi2Component c, const char *function, int in_error) {
     return c ? allowed_in(c, function, ANY_STATE, in_error) : fmi2Error;
 }
 
-size_t ftc_variable_count(void) { return description.n; }
+size_t ftc_variable_count(void) { return ftc_description.n; }
 
 /* ---- Arguments ---------------------------------------------------------------------------------
 
@@ -153,6 +153,8 @@ size_t ftc_variable_count(void) { return description.n; }
 fmi2Status check_categories(struct instance *i, const char *function, size_t n,
                                    const fmi2String categories[]) {
     REFUSE_IF(n > 0 && !categories, "%zu categories given, but the categories array is NULL", n);
+    REFUSE_IF(n > ftc_description.log_categories, "%zu categories given, more than the model's %zu log categories", n,
+              ftc_description.log_categories);
     for (size_t k = 0; k < n; k++) REFUSE_IF(!categories[k], "categories[%zu] is NULL, not a category name", k);
     return fmi2OK;
 }
@@ -184,6 +186,6 @@ fmi2Status check_pointer(struct instance *i, const char *function, const void *p
 fmi2Status check_array(struct instance *i, const char *function, size_t n, const void *references,
                               const void *values, const char *what) {
     REFUSE_IF(n > 0 && (!references || !values), "%zu %s asked for, but an array is NULL", n, what);
-    REFUSE_IF(n > description.n, "%zu %s, more than the model's %zu variables", n, what, description.n);
+    REFUSE_IF(n > ftc_description.n, "%zu %s, more than the model's %zu variables", n, what, ftc_description.n);
     return fmi2OK;
 }

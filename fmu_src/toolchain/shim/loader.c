@@ -29,7 +29,7 @@ static void *inner;           /* handle of <model>_pythonfmu.so */
 char model[256];
 static char failure[TEXT];    /* the one message of a failed load() */
 char python_info[TEXT];
-struct ftc_model description;
+char fmu_root[TEXT];
 
 #ifndef _WIN32
 /* Loads a library of the runtime by soname, globally: one already in the process is reused, else
@@ -59,51 +59,55 @@ static int bundled_home(const char *library, char home[TEXT]) {
     return ftc_is_file(zip);
 }
 
-/* Makes Python available if needed, then opens pythonfmu's binary. Called once, under load_lock. */
-static int load(void) {
-    char self[TEXT];
-    if (ftc_library_file((void *)&load, self, sizeof self) != 0) {
+/* The shim's own file `self`, its folder `dir`, the model identifier and the FMU's folder. */
+static int locate(char self[TEXT], char dir[TEXT]) {
+    if (ftc_library_file((void *)&locate, self, TEXT) != 0) {
         snprintf(failure, TEXT, "fmi2 shim: cannot find its own file (dladdr failed)");
         return -1;
     }
-    char dir[TEXT];
-    snprintf(dir, sizeof dir, "%s", self);
+    snprintf(dir, TEXT, "%s", self);
     char *slash = strrchr(dir, '/');
-    const char *base = slash ? slash + 1 : dir;
-    snprintf(model, sizeof model, "%s", base);
+    snprintf(model, sizeof model, "%s", slash ? slash + 1 : dir);
     char *dot = strrchr(model, '.');
     if (dot && strcmp(dot, SHIM_SUFFIX) == 0) *dot = '\0';
     if (slash) *slash = '\0';
-    else snprintf(dir, sizeof dir, ".");
-    char why[TEXT];
-    if (ftc_read_model(self, &description, why, sizeof why) != 0) {
-        snprintf(failure, TEXT, "%s: %s", model, why);
+    else snprintf(dir, TEXT, ".");
+    if (ftc_fmu_root(self, fmu_root, sizeof fmu_root) != 0) {
+        snprintf(failure, TEXT, "%s: the shim %s is not in an unpacked FMU (binaries/<platform>/)", model, self);
         return -1;
     }
+    return 0;
+}
 
-    void *python = NULL; /* NULL: every library of the process */
-    int own; /* Python is an FMU's bundled runtime (this one's or another's), not the host's */
+/* Where the runtime and pythonfmu's binary are loaded from: `runtime` (the python/ folder) and
+   `inner_dir`. Windows: copies in the user's cache (see ftc_cached_copy), so that the host can
+   delete the folder it unpacked once it has freed the instances and this library; where there is
+   no cache, and on POSIX, the unpacked folder `dir` itself. */
+static void runtime_folders(const char *dir, char runtime[TEXT + 16], char inner_dir[TEXT]) {
+    snprintf(runtime, TEXT + 16, "%s/%s", dir, RUNTIME_DIR);
+    snprintf(inner_dir, TEXT, "%s", dir);
 #ifdef _WIN32
-    /* Windows has no global symbol namespace: the bundled python311.dll is loaded by its full
-       path where no module of the process exports Python (a Python host's own serves
-       otherwise); then what pythonfmu's binary imports by name and the process lacks: the
-       stable-ABI forwarder python3.dll (to whichever python311.dll is loaded) and the MSVC
-       runtime. A DLL of that name already in the process is the one every import binds to. */
-    /* The runtime and pythonfmu's binary are loaded from copies in the user's cache (see
-       ftc_cached_copy), so that the host can delete the folder it unpacked once it has freed the
-       instances and this library; where there is no cache, from that folder as before. */
-    char runtime[TEXT + 16], inner_dir[TEXT], file[TEXT + 64];
-    snprintf(runtime, sizeof runtime, "%s/%s", dir, RUNTIME_DIR);
+    char file[TEXT + 64], cached_runtime[TEXT + 16], cached_inner[TEXT];
     snprintf(file, sizeof file, "%s%s", model, INNER_SUFFIX);
-    int cached = ftc_cached_copy(runtime, NULL, runtime, sizeof runtime) == 0 &&
-                 ftc_cached_copy(dir, file, inner_dir, sizeof inner_dir) == 0;
-    if (!cached) {
-        snprintf(runtime, sizeof runtime, "%s/%s", dir, RUNTIME_DIR);
-        snprintf(inner_dir, sizeof inner_dir, "%s", dir);
+    if (ftc_cached_copy(runtime, NULL, cached_runtime, sizeof cached_runtime) == 0 &&
+        ftc_cached_copy(dir, file, cached_inner, sizeof cached_inner) == 0) {
+        snprintf(runtime, TEXT + 16, "%s", cached_runtime);
+        snprintf(inner_dir, TEXT, "%s", cached_inner);
     }
+#endif
+}
+
+#ifdef _WIN32
+/* Windows has no global symbol namespace: the bundled python311.dll is loaded by its full path
+   where no module of the process exports Python (a Python host's own serves otherwise); then what
+   pythonfmu's binary imports by name and the process lacks: the stable-ABI forwarder python3.dll
+   (to whichever python311.dll is loaded) and the MSVC runtime. A DLL of that name already in the
+   process is the one every import binds to. `*python`: the library (NULL: the process's). */
+static int open_python(const char *runtime, void **python) {
+    char file[TEXT + 64];
     if (!ftc_library_symbol(NULL, "Py_IsInitialized")) {
         snprintf(file, sizeof file, "%s/%s", runtime, FTC_LIBPYTHON);
-        if (!(python = ftc_library_open(file, 1))) {
+        if (!(*python = ftc_library_open(file, 1))) {
             snprintf(failure, TEXT, "%s: cannot load the bundled %s: %s", model, file, ftc_library_error(file));
             return -1;
         }
@@ -116,62 +120,64 @@ static int load(void) {
             return -1;
         }
     }
+    return 0;
+}
 #else
-    if (!ftc_library_symbol(NULL, "Py_IsInitialized")) {
-        char zlib[TEXT + 64], expat[TEXT + 64];
-        snprintf(zlib, sizeof zlib, "%s/%s/fallback/libz.so.1", dir, RUNTIME_DIR);
-        snprintf(expat, sizeof expat, "%s/%s/fallback/libexpat.so.1", dir, RUNTIME_DIR);
-        if (!load_runtime_library("libz.so.1", zlib) || !load_runtime_library("libexpat.so.1", expat) ||
-            !(python = load_runtime_library(FTC_LIBPYTHON, NULL)))
-            return -1;
-    }
-#endif
-    int (*is_initialized)(void) = (int (*)(void))ftc_library_symbol(python, "Py_IsInitialized");
-    if (!is_initialized) {
-        snprintf(failure, TEXT, "%s: %s has no Py_IsInitialized: not a libpython", model, FTC_LIBPYTHON);
+/* libpython by its soname where the process has no Python, zlib and expat (which it links)
+   before it. `*python`: the library (NULL: every library of the process). */
+static int open_python(const char *runtime, void **python) {
+    if (ftc_library_symbol(NULL, "Py_IsInitialized")) return 0;
+    char zlib[TEXT + 64], expat[TEXT + 64];
+    snprintf(zlib, sizeof zlib, "%s/fallback/libz.so.1", runtime);
+    snprintf(expat, sizeof expat, "%s/fallback/libexpat.so.1", runtime);
+    if (!load_runtime_library("libz.so.1", zlib) || !load_runtime_library("libexpat.so.1", expat) ||
+        !(*python = load_runtime_library(FTC_LIBPYTHON, NULL)))
         return -1;
-    }
+    return 0;
+}
+#endif
+
+/* Starts the interpreter `python` if nobody has: the FMU's bundled runtime isolated
+   (start_python.c), a host's own libpython as a host would. `*own`: Python is an FMU's bundled
+   runtime (this one's or another's), not the host's. */
+static int start(void **python, int (*is_initialized)(void), int *own) {
     /* The shims of two FMUs may start at once in different threads: the second may find the
        libpython the first loaded before the first started it. So whether Python is an FMU's own
        runtime is decided by the file that defines it (<home>/lib/libpython... beside
        <home>/python311.zip), whoever loaded it, and a lock on that file makes the first start it
        completely before the other looks. */
-    char library[TEXT];
+    char library[TEXT], home[TEXT], reason[TEXT];
     if (ftc_library_file((void *)is_initialized, library, sizeof library) != 0)
         snprintf(library, sizeof library, "%s", FTC_LIBPYTHON);
 #ifdef _WIN32
-    if (!python) python = ftc_library_loaded(library); /* the host's: symbols are per DLL */
+    if (!*python) *python = ftc_library_loaded(library); /* the host's: symbols are per DLL */
 #endif
-    char home[TEXT];
-    own = bundled_home(library, home);
+    *own = bundled_home(library, home);
     int lock = ftc_file_lock(library);
     int status = 0;
-    if (!is_initialized()) {
-        if (own) {
-            char reason[TEXT];
-            status = ftc_start_python(python, home, reason, sizeof reason);
-            if (status != 0)
-                snprintf(failure, TEXT, "%s: cannot start the bundled Python in %s: %s", model, home, reason);
-        } else { /* the host loaded a libpython of its own without starting it: start that one */
-            void (*initialize)(int) = (void (*)(int))ftc_library_symbol(python, "Py_InitializeEx");
-            void *(*save_thread)(void) = (void *(*)(void))ftc_library_symbol(python, "PyEval_SaveThread");
-            if (initialize && save_thread) {
-                initialize(0); /* 0: keep the host's signal handlers */
-                save_thread();
-            }
-            status = is_initialized() ? 0 : -1;
-            if (status != 0) snprintf(failure, TEXT, "%s: cannot initialize the host's Python (%s)", model, library);
+    if (!is_initialized() && *own) {
+        status = ftc_start_python(*python, home, reason, sizeof reason);
+        if (status != 0) snprintf(failure, TEXT, "%s: cannot start the bundled Python in %s: %s", model, home, reason);
+    } else if (!is_initialized()) { /* the host loaded a libpython of its own without starting it */
+        void (*initialize)(int) = (void (*)(int))ftc_library_symbol(*python, "Py_InitializeEx");
+        void *(*save_thread)(void) = (void *(*)(void))ftc_library_symbol(*python, "PyEval_SaveThread");
+        if (initialize && save_thread) {
+            initialize(0); /* 0: keep the host's signal handlers */
+            save_thread();
         }
+        status = is_initialized() ? 0 : -1;
+        if (status != 0) snprintf(failure, TEXT, "%s: cannot initialize the host's Python (%s)", model, library);
     }
     ftc_file_unlock(lock);
-    if (status != 0) return -1;
+    return status;
+}
 
+/* Opens pythonfmu's binary from `inner_dir` and resolves its FMI 2.0 functions. */
+static int open_inner(const char *self, const char *inner_dir, const char *runtime) {
     char path[TEXT + 300];
-#ifdef _WIN32
     snprintf(path, sizeof path, "%s/%s%s", inner_dir, model, INNER_SUFFIX);
+#ifdef _WIN32
     int first = !ftc_library_loaded(path); /* else a former load of this folder kept its files */
-#else
-    snprintf(path, sizeof path, "%s/%s%s", dir, model, INNER_SUFFIX);
 #endif
     inner = ftc_library_open(path, 0);
     if (!inner) {
@@ -184,22 +190,38 @@ static int load(void) {
         ftc_keep_files(runtime);
     }
     ftc_keep_own_file(self);
+#else
+    (void)self, (void)runtime;
 #endif
     inner_fmi2Instantiate = (fmi2Component(*)(fmi2String, fmi2Type, fmi2String, fmi2String,
                                                const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean))
         ftc_library_symbol(inner, "fmi2Instantiate");
     inner_fmi2FreeInstance = (void (*)(fmi2Component))ftc_library_symbol(inner, "fmi2FreeInstance");
-    if (!inner_fmi2Instantiate || !inner_fmi2FreeInstance) {
-        snprintf(failure, TEXT, "%s: %s lacks fmi2Instantiate or fmi2FreeInstance", model, path);
-        return -1;
-    }
-    int complete = 1;
+    int complete = inner_fmi2Instantiate && inner_fmi2FreeInstance;
 #define RESOLVE(name, params, args) complete &= (*(void **)(&inner_##name) = ftc_library_symbol(inner, #name)) != NULL;
     FMI2_FORWARDED(RESOLVE)
+#undef RESOLVE
     if (!complete) {
         snprintf(failure, TEXT, "%s: %s lacks an FMI 2.0 function", model, path);
         return -1;
     }
+    return 0;
+}
+
+/* Makes Python available if needed, then opens pythonfmu's binary. Called once, under load_lock. */
+static int load(void) {
+    char self[TEXT], dir[TEXT], runtime[TEXT + 16], inner_dir[TEXT];
+    if (locate(self, dir) != 0) return -1;
+    runtime_folders(dir, runtime, inner_dir);
+    void *python = NULL; /* NULL: every library of the process */
+    if (open_python(runtime, &python) != 0) return -1;
+    int (*is_initialized)(void) = (int (*)(void))ftc_library_symbol(python, "Py_IsInitialized");
+    if (!is_initialized) {
+        snprintf(failure, TEXT, "%s: %s has no Py_IsInitialized: not a libpython", model, FTC_LIBPYTHON);
+        return -1;
+    }
+    int own = 0;
+    if (start(&python, is_initialized, &own) != 0 || open_inner(self, inner_dir, runtime) != 0) return -1;
 #ifndef _WIN32 /* the double free below is pythonfmu's on Linux (its binary cannot be unloaded there) */
     atexit(unload); /* after pythonfmu's static destructors were registered: runs before them */
 #endif

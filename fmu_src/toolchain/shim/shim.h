@@ -57,7 +57,7 @@
 #include <stddef.h>
 
 #include "fmi2_types.h"
-#include "guard.h"
+#include "description.h"
 #include "platform.h"
 #include "start_python.h"
 
@@ -137,7 +137,7 @@ struct instance {
 /* ---- loader.c: Python and pythonfmu's binary, loaded once */
 extern char model[256];        /* model identifier: the shim's file name without .so */
 extern char python_info[TEXT]; /* "Python X.Y.Z bundled with the FMU" or "of the host process" */
-extern struct ftc_model description; /* the model description's token and variables */
+extern char fmu_root[TEXT];    /* the unpacked FMU: <root>/binaries/<platform>/<model>.so */
 /* Loads Python and pythonfmu's binary at the first call (once per process, under a lock); 0 when
    they are ready, else -1 and `why` points at the one message of the failed load. */
 int ftc_load(const char **why);
