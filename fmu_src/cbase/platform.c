@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: BSD-2-Clause */
-/* The shim's portability layer (platform.h): POSIX and Windows. */
+/* The project's portability layer (platform.h): POSIX and Windows. */
 
 #ifndef _WIN32
 #define _GNU_SOURCE

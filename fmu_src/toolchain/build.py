@@ -34,7 +34,6 @@ variants: ``fmu_src.toolchain.fmi3``, built on this module).
 from __future__ import annotations
 
 import ast
-import functools
 import hashlib
 import importlib.metadata
 import os
@@ -54,6 +53,7 @@ from xml.etree import ElementTree
 import pythonfmu
 from pythonfmu import FmuBuilder
 
+from .. import cbase
 from . import runtime_win64, stamps
 from .controller_doc import controller_documentation
 from .licences import documentation, generation_tool
@@ -91,22 +91,18 @@ BUILD_FORMAT = "9"
 SHIM_DIR = Path("fmu_src", "toolchain", "shim")  # relative to the source root
 # The shim laid out as the Modelica Reference FMUs lay theirs out (shim.h says what each file holds).
 SHIM_SOURCES = ("fmi2_functions.c", "guard.c", "cosimulation.c", "loader.c", "pool.c", "log.c", "resources.c",
-                "start_python.c", "platform.c")
-SHIM_HEADERS = ("shim.h", "start_python.h", "fmi2_types.h", "description.h", "platform.h", "fmi3.h")
-# No debug info, build id or symbol table, so the bytes depend only on source, compiler and flags;
-# the runtime's libraries are found by soname through $ORIGIN/python/lib (see the shim's header).
-SHIM_FLAGS = tuple(
-    "-std=c11 -O2 -fPIC -shared -fvisibility=hidden -g0 -Wall -Wextra -Wno-format-truncation "
-    "-Wl,--build-id=none -s -Wl,--enable-new-dtags".split()
-) + ("-Wl,-rpath,$ORIGIN/python/lib",)
+                "start_python.c")
+SHIM_HEADERS = ("shim.h", "start_python.h", "fmi2_calls.h", "description.h", "fmi3.h")
+CBASE_DIR = Path("fmu_src", "cbase")  # the lower C layer (platform.c, the FMI headers), relative to the root
+# The shared flags (fmu_src/cbase: no debug info, build id or symbol table, so the bytes depend only
+# on source, compiler and flags); the runtime's libraries are found by soname through
+# $ORIGIN/python/lib (see the shim's header).
+SHIM_FLAGS = (*cbase.REPRODUCIBLE_FLAGS, "-fPIC", "-shared", "-fvisibility=hidden", "-Wl,--enable-new-dtags",
+              "-Wl,-rpath,$ORIGIN/python/lib")
 SHIM_LIBS = ("-ldl", "-pthread")
 # The Windows shim: mingw-w64, linked against the system's KERNEL32 and msvcrt.dll only; no time
 # stamp in the PE header, so the bytes depend only on sources, compiler and flags.
-MINGW = "x86_64-w64-mingw32-gcc"
-MINGW_FLAGS = tuple(
-    "-std=c11 -O2 -shared -g0 -Wall -Wextra -Wno-format-truncation -static-libgcc -s "
-    "-Wl,--no-insert-timestamp".split()
-)
+MINGW_FLAGS = (*cbase.REPRODUCIBLE_MINGW_FLAGS, "-shared")
 WIN_PYCONFIG = Path("fmu_src", "toolchain", "shim", "win64", "pyconfig.h")  # relative to the source root
 # Windows extension modules: no C runtime of their own, python3.dll (stable ABI) and the Universal
 # C Runtime imported as python311.dll imports it: only its exact math (sqrt, fabs, floor, fmod;
@@ -271,45 +267,27 @@ def collect_bundle(model: str, root: Path = REPO_ROOT) -> Bundle:
 
 
 def c_compiler() -> tuple[str, str]:
-    """The system C compiler (``$CC``, else ``cc``, else ``gcc`` from PATH) and its version line."""
-    for name in (os.environ.get("CC"), "cc", "gcc"):
-        path = shutil.which(name) if name else None
-        if path:
-            return path, _version_line(path)
-    raise BuildError(
-        "no C compiler (CC, cc or gcc on PATH) to build the FMI shim binaries/linux64/<model>.so; "
-        "install one, e.g. apt-get install gcc"
-    )
-
-
-@functools.cache
-def _version_line(compiler: str) -> str:
-    """The first line of ``compiler --version`` (read once per compiler and process)."""
+    """The system C compiler and its version line (fmu_src/cbase.c_compiler)."""
     try:
-        version = subprocess.run([compiler, "--version"], capture_output=True, text=True, check=True)
-    except (OSError, subprocess.CalledProcessError) as error:
-        raise BuildError(f"C compiler {compiler} does not run: {error}") from error
-    return version.stdout.partition("\n")[0]
+        return cbase.c_compiler("to build the FMI shim binaries/linux64/<model>.so")
+    except cbase.CompilerError as error:
+        raise BuildError(str(error)) from error
 
 
 def mingw() -> str:
-    """The mingw-w64 cross compiler for 64-bit Windows (``$MINGW_CC``, else x86_64-w64-mingw32-gcc)."""
-    name = os.environ.get("MINGW_CC") or MINGW
-    path = shutil.which(name)
-    if not path:
-        raise BuildError(
-            f"no mingw-w64 cross compiler ({name}) to build binaries/win64: install it "
-            "(Debian: apt-get install gcc-mingw-w64-x86-64, or 'make windows-tools' as root)")
-    return path
+    """The mingw-w64 cross compiler for 64-bit Windows (fmu_src/cbase.mingw)."""
+    try:
+        return cbase.mingw("to build binaries/win64")[0]
+    except cbase.CompilerError as error:
+        raise BuildError(str(error)) from error
 
 
-@functools.cache
 def _mingw_version() -> str:
     """The cross compiler's version (a new one rebuilds the FMUs, as a new system compiler does);
     'none' where there is none (only linux64 can then be built)."""
     try:
-        return subprocess.run([mingw(), "-dumpfullversion"], capture_output=True, text=True).stdout.strip()
-    except BuildError:
+        return cbase.mingw("")[1]
+    except cbase.CompilerError:
         return "none"
 
 
@@ -388,12 +366,20 @@ def _shim_work(root: Path, where: Path, sources: Sequence[str], defines: Sequenc
     """The shim's work folder under ``where`` holding ``sources`` and the headers, and its flags."""
     work = where / ("shim-win64" if windows else "shim")
     work.mkdir(parents=True, exist_ok=True)
-    for name in (*sources, *SHIM_HEADERS):
-        source = root / SHIM_DIR / name
+    for source in shim_files(root, sources):  # one flat folder: the includes name files only
         if not source.is_file():
             raise BuildError(f"FMI shim source not found: {source}")
-        shutil.copyfile(source, work / name)
+        shutil.copyfile(source, work / source.name)
     return work, [*(MINGW_FLAGS if windows else SHIM_FLAGS), *(f"-D{d}" for d in defines)]
+
+
+def shim_files(root: Path, sources: Sequence[str] = SHIM_SOURCES) -> list[Path]:
+    """The files the shim is compiled from: ``sources`` and the headers of ``fmu_src/toolchain/shim``,
+    and the lower C layer's (``fmu_src/cbase``: platform.c, the official FMI headers)."""
+    layer = root / CBASE_DIR
+    return [*(root / SHIM_DIR / n for n in (*sources, *SHIM_HEADERS)),
+            *(layer / n for n in (*cbase.PLATFORM_SOURCES, *cbase.PLATFORM_HEADERS)),
+            *(layer / "fmi" / h.name for h in sorted(cbase.FMI_HEADERS.glob("*.h")))]
 
 
 def shim_digest(root: Path, runtime: Runtime, where: Path, sources: Sequence[str] = SHIM_SOURCES,
@@ -402,6 +388,7 @@ def shim_digest(root: Path, runtime: Runtime, where: Path, sources: Sequence[str
     FMU's GUID is made from, since the table is made from the model description that holds it.
     The same for the same code: a changed comment leaves it, a changed message changes it."""
     work, flags = _shim_work(root, where, sources, defines, windows)
+    sources = [*sources, *cbase.PLATFORM_SOURCES]
     _, _, objects = _objects(work, runtime, flags, sources, root / SHIM_DIR, windows)
     return stamps.digest(*(hashlib.sha256(data).hexdigest() for data in objects))
 
@@ -420,7 +407,8 @@ def compile_shim(root: Path, runtime: Runtime, where: Path, description: bytes,
     except (ValueError, ElementTree.ParseError) as error:
         raise BuildError(f"the variable table of the shim: {error}") from error
     libraries = () if windows else SHIM_LIBS
-    return _compile(work, runtime, flags, [*sources, TABLE_SOURCE], libraries, root / SHIM_DIR, windows)
+    return _compile(work, runtime, flags, [*sources, *cbase.PLATFORM_SOURCES, TABLE_SOURCE], libraries,
+                    root / SHIM_DIR, windows)
 
 
 def _extension_work(source: Path, work: Path, root: Path) -> None:
@@ -706,8 +694,8 @@ def build_sources(root: Path = REPO_ROOT) -> list[Path]:
     """The source files every FMU is built from besides its own: the build's code, the pins,
     the shim (tracked files only: what a build product is made from)."""
     here = Path(__file__).resolve().parent
-    shim = [root / SHIM_DIR / n for n in sorted({*SHIM_SOURCES, *SHIM_HEADERS, LAUNCHER_SOURCE})]
-    return [*(here / n for n in BUILD_CODE), *shim, root / WIN_PYCONFIG]
+    shim = sorted({*shim_files(root), root / SHIM_DIR / LAUNCHER_SOURCE})
+    return [*(here / n for n in BUILD_CODE), *shim, root / WIN_PYCONFIG, root / CBASE_DIR / "__init__.py"]
 
 
 def fmu_sources(bundle: Bundle, root: Path = REPO_ROOT) -> list[Path]:
@@ -729,7 +717,7 @@ def fmu_inputs(bundle: Bundle, root: Path = REPO_ROOT, platforms: Sequence[str] 
 def buildable_platforms() -> tuple[tuple[str, ...], str]:
     """The platforms this machine can build (linux64 always; win64 with mingw-w64 and osslsigncode)
     and, where win64 cannot be built, one line saying why and how to get it."""
-    tools = (os.environ.get("MINGW_CC") or MINGW, "osslsigncode")
+    tools = (os.environ.get("MINGW_CC") or cbase.MINGW, "osslsigncode")
     missing = [tool for tool in tools if not shutil.which(tool)]
     if not missing:
         return PLATFORM_NAMES, ""

@@ -39,8 +39,6 @@ from .build import (
     GUID_NAMESPACE,
     IDENTITY_FILE,
     REPO_ROOT,
-    SHIM_DIR,
-    SHIM_HEADERS,
     SHIM_SOURCES,
     BuildError,
     _ensure_runtime,
@@ -48,6 +46,7 @@ from .build import (
     compile_shim,
     identity,
     shim_digest,
+    shim_files,
     write_archive,
 )
 from .licences import generation_tool
@@ -195,7 +194,7 @@ def _type_definitions(types: ElementTree.Element, model: str) -> ElementTree.Ele
 
 
 def _sources(root: Path) -> list[Path]:
-    return [root / SHIM_DIR / n for n in sorted(set(FMI3_SHIM_SOURCES) | set(SHIM_HEADERS))]
+    return sorted(set(shim_files(root, FMI3_SHIM_SOURCES)))
 
 
 def _key(fmu2: Path, root: Path) -> str:

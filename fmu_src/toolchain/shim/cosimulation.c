@@ -162,7 +162,8 @@ static struct direct *direct_of(PyObject *binding) {
         free_direct(d);
         return NULL;
     }
-    for (size_t vr = 0; vr < d->n; vr++) d->kinds[vr] = offered[vr] == table_kind((unsigned)vr) ? offered[vr] : KIND_NONE;
+    for (size_t vr = 0; vr < d->n; vr++)
+        d->kinds[vr] = offered[vr] == table_kind((unsigned)vr) ? offered[vr] : KIND_NONE;
     d->dict = py.tuple_item(binding, 1);
     d->do_step = py.tuple_item(binding, 2);
     d->refresh = py.tuple_item(binding, 3);

@@ -104,8 +104,10 @@ fmi2Component ftc_instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                  fmuGUID, ftc_description.token);
         problem = note;
     }
-    int found = problem ? 0 : ftc_resources(&ftc_description, fmu_root, fmuResourceLocation, resources, sizeof resources, note,
-                                            sizeof note);
+    int found = 0;
+    if (!problem)
+        found = ftc_resources(&ftc_description, fmu_root, fmuResourceLocation, resources, sizeof resources, note,
+                              sizeof note);
     if (found < 0) problem = note;
 #ifdef _WIN32
     /* pythonfmu's Python imports the model from the resources folder and keeps its extension

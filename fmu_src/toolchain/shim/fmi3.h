@@ -1,11 +1,13 @@
 /* SPDX-License-Identifier: BSD-2-Clause */
-/* The FMI 3.0 layer's shared declarations. FMI 3.0 Co-Simulation layer on the FMI 2.0 shim: the same pythonfmu slave, runtime and direct
+/* The FMI 3.0 layer's shared declarations.
+
+   FMI 3.0 Co-Simulation layer on the FMI 2.0 shim: the same pythonfmu slave, runtime and direct
    calls, behind the FMI 3.0 functions.
 
-   The FMI 3.0 variant of an FMU is compiled from the FMI 2.0 shim's files and fmi3_functions.c, fmi3_values.c, fmi3_refused.c into
-   binaries/x86_64-linux/<model>.so, beside the same pythonfmu binary <model>_pythonfmu.so and the
-   same python/ runtime. The FMI 2.0 functions are internal there (EXPORT defined empty, the build
-   passes -DEXPORT=): only fmi3* symbols are exported. Every FMI 3.0 function is either mapped on
+   The FMI 3.0 variant of an FMU is compiled from the FMI 2.0 shim's files and fmi3_functions.c,
+   fmi3_values.c, fmi3_refused.c into binaries/x86_64-linux/<model>.so, beside the same pythonfmu
+   binary <model>_pythonfmu.so and the same python/ runtime. The FMI 2.0 functions are internal
+   there (EXPORT defined empty, the build passes -DEXPORT=): only fmi3* symbols are exported. Every FMI 3.0 function is either mapped on
    the FMI 2.0 one of the same meaning or refuses with fmi3Error and one message naming the
    function and the reason (through the instance's logger when there is an instance, and on
    stderr); nothing aborts the host.
@@ -42,7 +44,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "fmi2_types.h"
+#include "fmi2_calls.h"
 #include "platform.h"
 
 #if !defined FTC_TIME_VR || !defined FTC_VR_OFFSET
@@ -53,36 +55,7 @@
 #define EXPORT3 FTC_EXPORT
 #define TEXT 4096
 
-/* FMI 3.0 types (fmi3PlatformTypes.h, fmi3FunctionTypes.h), so that no header is needed. */
-typedef void *fmi3Instance;
-typedef void *fmi3InstanceEnvironment;
-typedef void *fmi3FMUState;
-typedef uint32_t fmi3ValueReference;
-typedef float fmi3Float32;
-typedef double fmi3Float64;
-typedef int8_t fmi3Int8;
-typedef uint8_t fmi3UInt8;
-typedef int16_t fmi3Int16;
-typedef uint16_t fmi3UInt16;
-typedef int32_t fmi3Int32;
-typedef uint32_t fmi3UInt32;
-typedef int64_t fmi3Int64;
-typedef uint64_t fmi3UInt64;
-typedef bool fmi3Boolean;
-typedef char fmi3Char;
-typedef const fmi3Char *fmi3String;
-typedef uint8_t fmi3Byte;
-typedef const fmi3Byte *fmi3Binary;
-typedef bool fmi3Clock;
-typedef enum { fmi3OK, fmi3Warning, fmi3Discard, fmi3Error, fmi3Fatal } fmi3Status;
-typedef enum { fmi3Independent, fmi3Constant, fmi3Fixed, fmi3Tunable, fmi3Discrete, fmi3Dependent } fmi3DependencyKind;
-typedef enum { fmi3IntervalNotYetKnown, fmi3IntervalUnchanged, fmi3IntervalChanged } fmi3IntervalQualifier;
-typedef void (*fmi3LogMessageCallback)(fmi3InstanceEnvironment, fmi3Status, fmi3String, fmi3String);
-typedef void (*fmi3ClockUpdateCallback)(fmi3InstanceEnvironment);
-typedef void (*fmi3IntermediateUpdateCallback)(fmi3InstanceEnvironment, fmi3Float64, fmi3Boolean, fmi3Boolean,
-                                               fmi3Boolean, fmi3Boolean, fmi3Boolean *, fmi3Float64 *);
-typedef void (*fmi3LockPreemptionCallback)(void);
-typedef void (*fmi3UnlockPreemptionCallback)(void);
+#include "fmi3FunctionTypes.h" /* the official FMI 3.0 types (fmu_src/cbase/fmi) */
 
 /* The FMI 2.0 functions of this shared object (fmi2_functions.c), internal in the FMI 3.0 build. */
 #define PROTOTYPE(name, params, args) fmi2Status name params;

@@ -1,6 +1,8 @@
 /* SPDX-License-Identifier: BSD-2-Clause */
-/* The shim's shared declarations (read this first). FMI 2.0 Co-Simulation shim in front of pythonfmu's binary: the FMU runs in any FMI host, with or
-   without Python on the machine.
+/* The shim's shared declarations: read this first.
+
+   FMI 2.0 Co-Simulation shim in front of pythonfmu's binary: the FMU runs in any FMI host, with
+   or without Python on the machine.
 
    pythonfmu 0.7.0's binaries/linux64/<model>.so does not link libpython: a host without Python
    in its process cannot dlopen it (undefined symbol: _Py_NoneStruct). The build installs this
@@ -46,7 +48,17 @@
    are kept for reuse after fmi2FreeInstance (section "Pool"): constructing one leaks 16-34 KB in
    pythonfmu 0.7.0, resetting one nothing.
 
-   Operating-system calls go through platform.h (POSIX today).
+   Operating-system calls go through platform.h, the lower C layer shared with the engine
+   (fmu_src/cbase: platform.c, the official FMI headers).
+
+   Files (as the Modelica Reference FMUs lay theirs out; docs/fmus/standalone.md, "Reading the
+   shim"): fmi2_functions.c the FMI 2.0 API boundary (each exported function: the guard, then the
+   call); guard.c the state machine and the arguments' checks; cosimulation.c the behaviour (the
+   direct path into the slave's Python objects, else pythonfmu); loader.c Python and pythonfmu's
+   binary, loaded once; pool.c pythonfmu's components kept for reuse; log.c messages to the host;
+   resources.c the FMU's folder and resources; description.h the variable table the build
+   generates (description.c, from the FMU's final modelDescription.xml); fmi3.h and fmi3_*.c the
+   FMI 3.0 layer on top; start_python.c the bundled interpreter's isolated start.
 
    Needs a C compiler, libc and the pinned runtime's headers (for start_python.c only): the
    Python C-API functions are looked up with dlsym, so the shim links no libpython. */
@@ -56,7 +68,7 @@
 
 #include <stddef.h>
 
-#include "fmi2_types.h"
+#include "fmi2_calls.h"
 #include "description.h"
 #include "platform.h"
 #include "start_python.h"
