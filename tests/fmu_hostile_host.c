@@ -416,47 +416,39 @@ static void under_test(void) { messages = null_categories = 0, first[0] = '\0'; 
 #define F2(name, type) ((type)fn(name)) /* an FMI function by name, as a pointer of `type` */
 typedef int (*vr_call)(component, const unsigned *, size_t, void *, size_t);
 
-static int nonsense_call(component c, const char *name) {
+#define NOT_THIS 1000 /* the scenario is another function's */
+
+/* The nonsense calls made before initialization: logging categories, the experiment's times. */
+static int before_init_call(component c, const char *name) {
+    static const char *categories[] = {"logAll", NULL};
+    int (*debug)(component, int, size_t, const char **) =
+        fn(version == 2 ? "fmi2SetDebugLogging" : "fmi3SetDebugLogging");
+    if (!strcmp(name, "debug-null-categories")) return debug(c, 1, 2, NULL);
+    if (!strcmp(name, "debug-null-entry")) return debug(c, 1, 2, categories);
+    /* 2^40 names in an array of 2: none may be read */
+    if (!strcmp(name, "debug-categories-beyond")) return debug(c, 1, (size_t)1 << 40, categories);
+    if (strncmp(name, "setup-", 6)) return NOT_THIS;
+    double start = 0, stop = 1, tolerance = 1e-6; /* start, stop, tolerance */
+    int stop_defined = 1, tolerance_defined = 1;
+    if (!strcmp(name, "setup-stop-before-start")) start = 1, stop = 0.5;
+    else if (!strcmp(name, "setup-start-nan")) start = NAN;
+    else if (!strcmp(name, "setup-start-inf")) start = INFINITY;
+    else if (!strcmp(name, "setup-stop-inf")) stop = INFINITY;
+    else if (!strcmp(name, "setup-tolerance-nan")) tolerance = NAN;
+    else if (!strcmp(name, "setup-tolerance-negative")) tolerance = -1e-6;
+    if (version == 2)
+        return F2("fmi2SetupExperiment", int (*)(component, int, double, double, int, double))(
+            c, tolerance_defined, tolerance, start, stop_defined, stop);
+    return F2("fmi3EnterInitializationMode", int (*)(component, bool, double, double, bool, double))(
+        c, tolerance_defined, tolerance, start, stop_defined, stop);
+}
+
+/* The nonsense getters and setters: NULL arrays and entries, a count beyond any array. */
+static int values_call(component c, const char *name) {
     unsigned vr[2] = {(unsigned)out_vr, (unsigned)out_vr};
     double values[2] = {0, 0};
     int ints[2] = {0, 0};
-    static const char *categories[] = {"logAll", NULL};
     const char *strings[1] = {NULL};
-    void *state = NULL;
-    size_t size = 0;
-    if (!strcmp(name, "debug-null-categories") || !strcmp(name, "debug-null-entry")) {
-        int (*f)(component, int, size_t, const char **) =
-            fn(version == 2 ? "fmi2SetDebugLogging" : "fmi3SetDebugLogging");
-        return f(c, 1, 2, strcmp(name, "debug-null-entry") ? NULL : categories);
-    }
-    if (!strcmp(name, "debug-categories-beyond")) { /* 2^40 names in an array of 2: none may be read */
-        int (*f)(component, int, size_t, const char **) =
-            fn(version == 2 ? "fmi2SetDebugLogging" : "fmi3SetDebugLogging");
-        return f(c, 1, (size_t)1 << 40, categories);
-    }
-    if (!strncmp(name, "setup-", 6)) { /* start, stop, tolerance */
-        double start = 0, stop = 1, tolerance = 1e-6;
-        int stop_defined = 1, tolerance_defined = 1;
-        if (!strcmp(name, "setup-stop-before-start")) start = 1, stop = 0.5;
-        else if (!strcmp(name, "setup-start-nan")) start = NAN;
-        else if (!strcmp(name, "setup-start-inf")) start = INFINITY;
-        else if (!strcmp(name, "setup-stop-inf")) stop = INFINITY;
-        else if (!strcmp(name, "setup-tolerance-nan")) tolerance = NAN;
-        else if (!strcmp(name, "setup-tolerance-negative")) tolerance = -1e-6;
-        if (version == 2)
-            return F2("fmi2SetupExperiment", int (*)(component, int, double, double, int, double))(
-                c, tolerance_defined, tolerance, start, stop_defined, stop);
-        return F2("fmi3EnterInitializationMode", int (*)(component, bool, double, double, bool, double))(
-            c, tolerance_defined, tolerance, start, stop_defined, stop);
-    }
-    /* the rest after initialization */
-    int s = initialize(c);
-    if (s > WARNING) return 100 + s; /* not the call under test: the test fails on it */
-    if (!strcmp(name, "get-state-undeclared-size")) { /* a state got, then its serialized size */
-        int (*get)(component, void **) = fn(version == 2 ? "fmi2GetFMUstate" : "fmi3GetFMUState");
-        if (get(c, &state) > WARNING) state = NULL;
-    }
-    under_test();
     const char *real_get = version == 2 ? "fmi2GetReal" : "fmi3GetFloat64";
     if (!strcmp(name, "get-null-vr")) return F2(real_get, vr_call)(c, NULL, 1, values, 1);
     if (!strcmp(name, "get-null-values")) return F2(real_get, vr_call)(c, vr, 1, NULL, 1);
@@ -470,6 +462,12 @@ static int nonsense_call(component c, const char *name) {
         return F2(version == 2 ? "fmi2GetBoolean" : "fmi3GetBoolean", vr_call)(c, vr, 1, NULL, 1);
     if (!strcmp(name, "set-string-null-entry"))
         return F2(version == 2 ? "fmi2SetString" : "fmi3SetString", vr_call)(c, vr, 1, (void *)strings, 1);
+    return NOT_THIS;
+}
+
+/* The nonsense FMU-state calls; `state`: one got before the call under test, or NULL. */
+static int state_call(component c, const char *name, void *state) {
+    size_t size = 0;
     if (!strcmp(name, "get-state-null"))
         return F2(version == 2 ? "fmi2GetFMUstate" : "fmi3GetFMUState", int (*)(component, void **))(c, NULL);
     if (!strcmp(name, "set-state-null"))
@@ -484,6 +482,11 @@ static int nonsense_call(component c, const char *name) {
     if (!strcmp(name, "deserialize-null"))
         return F2(version == 2 ? "fmi2DeSerializeFMUstate" : "fmi3DeserializeFMUState",
                   int (*)(component, const void *, size_t, void **))(c, NULL, 16, &state);
+    return NOT_THIS;
+}
+
+/* The nonsense derivative and status calls (the last three FMI 2.0 only: -2 for FMI 3.0). */
+static int derivative_call(component c, const char *name) {
     if (!strcmp(name, "directional-null")) {
         if (version == 2)
             return F2("fmi2GetDirectionalDerivative", int (*)(component, const unsigned *, size_t, const unsigned *,
@@ -509,6 +512,24 @@ static int nonsense_call(component c, const char *name) {
         return F2("fmi2GetStatus", int (*)(component, int, int *))(c, 0 /* fmi2DoStepStatus */, NULL);
     if (!strcmp(name, "real-status-null"))
         return F2("fmi2GetRealStatus", int (*)(component, int, double *))(c, 2 /* LastSuccessfulTime */, NULL);
+    return NOT_THIS;
+}
+
+static int nonsense_call(component c, const char *name) {
+    int r = before_init_call(c, name);
+    if (r != NOT_THIS) return r;
+    /* the rest after initialization */
+    int s = initialize(c);
+    if (s > WARNING) return 100 + s; /* not the call under test: the test fails on it */
+    void *state = NULL;
+    if (!strcmp(name, "get-state-undeclared-size")) { /* a state got, then its serialized size */
+        int (*get)(component, void **) = fn(version == 2 ? "fmi2GetFMUstate" : "fmi3GetFMUState");
+        if (get(c, &state) > WARNING) state = NULL;
+    }
+    under_test();
+    if ((r = values_call(c, name)) != NOT_THIS || (r = state_call(c, name, state)) != NOT_THIS ||
+        (r = derivative_call(c, name)) != NOT_THIS)
+        return r;
     printf("unknown scenario %s\n", name);
     exit(2);
 }
@@ -525,44 +546,54 @@ static struct result nonsense(const char *name) {
     return (struct result){s, 1, logged};
 }
 
+/* The scenarios on an initialized instance: name, the calls made on it. */
+static const struct {
+    const char *name;
+    int (*calls)(component);
+} INITIALIZED[] = {
+    {"step-nan", step_nan},         {"step-negative", step_negative},
+    {"step-zero", step_zero},       {"step-infinite", step_infinite},
+    {"unknown-vr", get_unknown},    {"set-output", set_output},
+    {"set-output-twice", set_output_twice}, {"set-fixed-after-init", set_fixed_after_init},
+    {"step-after-terminate", step_after_terminate}, {"after-error", after_error},
+    {"reset-after-error", reset_after_error}};
+
+/* The instantiation scenarios (resource locations, GUIDs, callbacks); 1 if `name` is one. */
+static int instantiation_scenario(const char *name, struct result *r) {
+    char missing[4300];
+    snprintf(missing, sizeof missing, version == 2 ? URI_PREFIX "%s/no-such-folder" : "%s/no-such-folder/", dir);
+    if (!strcmp(name, "ok")) *r = with_resources(resources);
+    else if (!strcmp(name, "resources-missing")) *r = with_resources(missing);
+    else if (!strcmp(name, "resources-empty")) *r = with_resources("");
+    else if (!strcmp(name, "resources-null")) *r = with_resources(NULL);
+    else if (!strcmp(name, "resources-not-a-file-uri")) *r = with_resources("http://example.org/resources");
+    else if (!strncmp(name, "resources-other=", 16)) *r = with_resources(name + 16);
+    else if (!strcmp(name, "guid-wrong")) *r = instantiate_only(resources, "{00000000-0000-0000-0000-000000000000}", LOGGER);
+    else if (!strcmp(name, "guid-null")) *r = instantiate_only(resources, NULL, LOGGER);
+    else if (!strcmp(name, "no-callbacks")) *r = instantiate_only(resources, token, NO_FUNCTIONS);
+    else if (!strcmp(name, "no-logger")) {
+        component c = instantiate("n", resources, token, NO_LOGGER);
+        *r = (struct result){c ? get_unknown(c) : ERROR, c != NULL, 0};
+        if (c) free_instance(c);
+    } else
+        return 0;
+    return 1;
+}
+
 static struct result scenario(const char *name) {
     const struct result skipped = {-2, 0, 0}; /* the FMU has no variable the scenario needs */
     if ((par_vr < 0 && (!strcmp(name, "set-fixed-after-init") || !strcmp(name, "model-fails"))) ||
         (out_vr < 0 && !strncmp(name, "set-output", 10)))
         return skipped;
-    char missing[4300];
-    snprintf(missing, sizeof missing, version == 2 ? URI_PREFIX "%s/no-such-folder" : "%s/no-such-folder/", dir);
-    if (!strcmp(name, "ok")) return with_resources(resources);
-    if (!strcmp(name, "resources-missing")) return with_resources(missing);
-    if (!strcmp(name, "resources-empty")) return with_resources("");
-    if (!strcmp(name, "resources-null")) return with_resources(NULL);
-    if (!strcmp(name, "resources-not-a-file-uri")) return with_resources("http://example.org/resources");
-    if (!strcmp(name, "guid-wrong")) return instantiate_only(resources, "{00000000-0000-0000-0000-000000000000}", LOGGER);
-    if (!strcmp(name, "guid-null")) return instantiate_only(resources, NULL, LOGGER);
-    if (!strcmp(name, "no-logger")) {
-        component c = instantiate("n", resources, token, NO_LOGGER);
-        struct result r = {c ? get_unknown(c) : ERROR, c != NULL, 0};
-        if (c) free_instance(c);
-        return r;
-    }
-    if (!strcmp(name, "no-callbacks")) return instantiate_only(resources, token, NO_FUNCTIONS);
+    struct result r;
+    if (instantiation_scenario(name, &r)) return r;
+    for (size_t k = 0; k < sizeof INITIALIZED / sizeof INITIALIZED[0]; k++)
+        if (!strcmp(name, INITIALIZED[k].name)) return initialized(INITIALIZED[k].calls);
     if (!strcmp(name, "step-before-init")) return before_init(0);
     if (!strcmp(name, "get-before-init")) return before_init(1);
-    if (!strcmp(name, "step-nan")) return initialized(step_nan);
-    if (!strcmp(name, "step-negative")) return initialized(step_negative);
-    if (!strcmp(name, "step-zero")) return initialized(step_zero);
-    if (!strcmp(name, "step-infinite")) return initialized(step_infinite);
-    if (!strcmp(name, "unknown-vr")) return initialized(get_unknown);
-    if (!strcmp(name, "set-output")) return initialized(set_output);
-    if (!strcmp(name, "set-output-twice")) return initialized(set_output_twice);
-    if (!strcmp(name, "set-fixed-after-init")) return initialized(set_fixed_after_init);
-    if (!strcmp(name, "step-after-terminate")) return initialized(step_after_terminate);
-    if (!strcmp(name, "after-error")) return initialized(after_error);
-    if (!strcmp(name, "reset-after-error")) return initialized(reset_after_error);
     if (!strcmp(name, "model-fails")) return model_fails();
     if (!strcmp(name, "fifty")) return fifty();
     if (!strcmp(name, "two-threads")) return two_threads();
-    if (!strncmp(name, "resources-other=", 16)) return with_resources(name + 16);
     if (!strncmp(name, "cycles", 6)) { /* cycles=N (one name), cycles-distinct=N, cycles-alternating=N */
         const char *count = strchr(name, '=');
         return cycles(count ? atoi(count + 1) : 1000, name[6] == '-' ? name[7] : 's');
