@@ -72,14 +72,9 @@ static void start_thread(thread *t, void *arg) { pthread_create(t, NULL, thread_
 static void join_thread(thread t) { pthread_join(t, NULL); }
 #endif
 
+#include "fmi2FunctionTypes.h" /* the official FMI 2.0 types (fmu_src/cbase/fmi) */
+
 typedef void *component;
-typedef struct {
-    void (*logger)(void *, const char *, int, const char *, const char *, ...);
-    void *(*allocateMemory)(size_t, size_t);
-    void (*freeMemory)(void *);
-    void *stepFinished;
-    void *componentEnvironment;
-} callbacks2;
 
 static int version;
 static void *library;
@@ -102,7 +97,8 @@ static void note(int status, const char *category, const char *text) {
     }
 }
 
-static void logger2(void *env, const char *name, int status, const char *category, const char *message, ...) {
+static void logger2(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
+                    fmi2String message, ...) {
     (void)env, (void)name;
     char text[2048] = "";
     if (message) {
@@ -119,8 +115,8 @@ static void logger3(void *env, int status, const char *category, const char *mes
     note(status, category, message);
 }
 
-static callbacks2 functions = {logger2, calloc, free, NULL, NULL};
-static callbacks2 no_logger = {NULL, calloc, free, NULL, NULL};
+static fmi2CallbackFunctions functions = {logger2, calloc, free, NULL, NULL};
+static fmi2CallbackFunctions no_logger = {NULL, calloc, free, NULL, NULL};
 
 /* ---- the FMI calls, for either version ------------------------------------------------------- */
 
@@ -138,7 +134,7 @@ enum { LOGGER, NO_LOGGER, NO_FUNCTIONS };
 
 static component instantiate(const char *name, const char *where, const char *guid, int how) {
     if (version == 2) {
-        component (*f)(const char *, int, const char *, const char *, const callbacks2 *, int, int) =
+        component (*f)(const char *, int, const char *, const char *, const fmi2CallbackFunctions *, int, int) =
             fn("fmi2Instantiate");
         return f(name, 1, guid, where, how == LOGGER ? &functions : how == NO_LOGGER ? &no_logger : NULL, 0, 1);
     }
