@@ -15,7 +15,7 @@ import fmpy
 
 import fmu_src.cbase as cbase
 
-SOURCE = Path(__file__).with_name("fmu_hostile_host.c")
+SOURCES = (Path(__file__).with_name("fmu_hostile_host.c"), Path(__file__).with_name("fmu_hostile_nonsense.c"))
 FMI_HEADERS = cbase.FMI_HEADERS  # the official FMI headers the C hosts include
 CC = shutil.which("cc") or shutil.which("gcc")
 # Every scenario of the host; the leak one (cycles) runs on its own.
@@ -63,8 +63,8 @@ def compile_host(dest: Path) -> Path:
     """Compile the hostile host into ``dest``."""
     assert CC is not None
     out = dest / "fmu_hostile_host"
-    command = [CC, "-O1", "-g", "-Wall", "-Wextra", f"-I{FMI_HEADERS}", "-o", str(out), str(SOURCE), "-ldl",
-               "-pthread", "-lm"]
+    command = [CC, "-O1", "-g", "-Wall", "-Wextra", f"-I{FMI_HEADERS}", "-o", str(out), *map(str, SOURCES),
+               "-ldl", "-pthread", "-lm"]
     subprocess.run(command, check=True, capture_output=True)
     return out
 
