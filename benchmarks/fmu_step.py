@@ -33,6 +33,7 @@ from pathlib import Path
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
+import fmu_src.cbase as cbase
 from fmu_src.toolchain.build import FMU_SCRIPTS, build_all
 
 H = 1e-3
@@ -113,7 +114,8 @@ def compile_host(where: Path) -> Path:
     """benchmarks/fmu_step_host.c compiled into ``where``."""
     target = where / "fmu_step_host"
     compiler = shutil.which("cc") or shutil.which("gcc") or "cc"
-    subprocess.run([compiler, "-std=c11", "-O2", "-o", str(target), str(HOST), "-ldl", "-lm"], check=True)
+    subprocess.run([compiler, "-std=c11", "-O2", f"-I{cbase.FMI_HEADERS}", "-o", str(target), str(HOST),
+                    "-ldl", "-lm"], check=True)
     return target
 
 

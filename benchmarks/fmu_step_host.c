@@ -22,18 +22,12 @@
 #include <string.h>
 #include <time.h>
 
-typedef void *fmi2Component;
-typedef struct {
-    void (*logger)(void *, const char *, int, const char *, const char *, ...);
-    void *(*allocateMemory)(size_t, size_t);
-    void (*freeMemory)(void *);
-    void *stepFinished;
-    void *componentEnvironment;
-} fmi2CallbackFunctions;
+#include "fmi2FunctionTypes.h" /* the official FMI 2.0 types (fmu_src/cbase/fmi) */
 
 enum { MAX_VARIABLES = 64 };
 
-static void logger(void *env, const char *name, int status, const char *category, const char *message, ...) {
+static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
+                   fmi2String message, ...) {
     (void)env;
     va_list args;
     va_start(args, message);
@@ -63,6 +57,93 @@ static int by_value(const void *a, const void *b) {
     return (x > y) - (x < y);
 }
 
+/* The FMU's functions this host calls. */
+struct fmu {
+    fmi2Component (*instantiate)(const char *, int, const char *, const char *, const fmi2CallbackFunctions *, int,
+                                 int);
+    int (*setup)(fmi2Component, int, double, double, int, double);
+    int (*enter)(fmi2Component);
+    int (*exit_)(fmi2Component);
+    int (*step)(fmi2Component, double, double, int);
+    int (*set)(fmi2Component, const unsigned *, size_t, const double *);
+    int (*get)(fmi2Component, const unsigned *, size_t, double *);
+    int (*terminate)(fmi2Component);
+    void (*free_instance)(fmi2Component);
+};
+
+/* The variables of the command line: inputs (and their waves), outputs, feedbacks. */
+struct signals {
+    unsigned inputs[MAX_VARIABLES], outputs[MAX_VARIABLES];
+    double wave[MAX_VARIABLES][3], gain[MAX_VARIABLES];
+    int loop[MAX_VARIABLES][2];
+    size_t n_in, n_out, n_loop;
+};
+
+static struct fmu bind(void *lib) {
+    struct fmu f;
+    *(void **)&f.instantiate = symbol(lib, "fmi2Instantiate");
+    *(void **)&f.setup = symbol(lib, "fmi2SetupExperiment");
+    *(void **)&f.enter = symbol(lib, "fmi2EnterInitializationMode");
+    *(void **)&f.exit_ = symbol(lib, "fmi2ExitInitializationMode");
+    *(void **)&f.step = symbol(lib, "fmi2DoStep");
+    *(void **)&f.set = symbol(lib, "fmi2SetReal");
+    *(void **)&f.get = symbol(lib, "fmi2GetReal");
+    *(void **)&f.terminate = symbol(lib, "fmi2Terminate");
+    *(void **)&f.free_instance = symbol(lib, "fmi2FreeInstance");
+    return f;
+}
+
+/* Reads the arguments p:, i:, o:, f: (parameters are set on `c` now); the status of the calls,
+   or -1 for a malformed argument. */
+static int parse(int argc, char **argv, const struct fmu *f, fmi2Component c, struct signals *s) {
+    int status = 0;
+    for (int a = 7; a < argc; a++) {
+        char kind = argv[a][0];
+        unsigned vr = (unsigned)strtoul(argv[a] + 2, NULL, 10);
+        char *equals = strchr(argv[a], '=');
+        if (kind == 'p' && equals) {
+            double value = atof(equals + 1);
+            status |= f->set(c, &vr, 1, &value);
+        } else if (kind == 'i' && equals && s->n_in < MAX_VARIABLES) {
+            s->inputs[s->n_in] = vr;
+            double *w = s->wave[s->n_in];
+            if (sscanf(equals + 1, "%lf,%lf,%lf", &w[0], &w[1], &w[2]) != 3) return -1;
+            s->n_in++;
+        } else if (kind == 'o' && s->n_out < MAX_VARIABLES) {
+            s->outputs[s->n_out++] = vr;
+        } else if (kind == 'f' && equals && s->n_loop < MAX_VARIABLES) {
+            int *l = s->loop[s->n_loop];
+            if (sscanf(argv[a] + 2, "%d,%d=%lf", &l[0], &l[1], &s->gain[s->n_loop]) != 3) return -1;
+            s->n_loop++;
+        }
+    }
+    return status;
+}
+
+/* The timed loop: `batches` batches of `batch` steps of size h on the precomputed input `values`;
+   each batch's monotonic time in `times`; the OR of the statuses. */
+static int run(const struct fmu *f, fmi2Component c, const struct signals *s, const double *values, long batches,
+               long batch, double h, double *times) {
+    double read[MAX_VARIABLES] = {0.0}, fed[MAX_VARIABLES];
+    int status = 0;
+    for (long b = 0; b < batches && status == 0; b++) {
+        double start = seconds(CLOCK_MONOTONIC);
+        for (long k = b * batch; k < (b + 1) * batch && status == 0; k++) {
+            const double *in = values + k * (long)s->n_in;
+            if (s->n_loop) {
+                for (size_t i = 0; i < s->n_in; i++) fed[i] = in[i];
+                for (size_t j = 0; j < s->n_loop; j++) fed[s->loop[j][1]] += s->gain[j] * read[s->loop[j][0]];
+                in = fed;
+            }
+            if (s->n_in) status |= f->set(c, s->inputs, s->n_in, in);
+            if (s->n_out) status |= f->get(c, s->outputs, s->n_out, read);
+            status |= f->step(c, (double)k * h, h, 1);
+        }
+        times[b] = seconds(CLOCK_MONOTONIC) - start;
+    }
+    return status;
+}
+
 int main(int argc, char **argv) {
     if (argc < 7) {
         fprintf(stderr, "usage: %s BINARY RESOURCE_URI GUID STEPS STEP_SIZE BATCH [p:VR=V]... [i:VR=A,W,P]... "
@@ -74,69 +155,26 @@ int main(int argc, char **argv) {
         fprintf(stderr, "dlopen failed: %s\n", dlerror());
         return 2;
     }
-    fmi2Component (*instantiate)(const char *, int, const char *, const char *, const fmi2CallbackFunctions *,
-                                 int, int) = symbol(lib, "fmi2Instantiate");
-    int (*setup)(fmi2Component, int, double, double, int, double) = symbol(lib, "fmi2SetupExperiment");
-    int (*enter)(fmi2Component) = symbol(lib, "fmi2EnterInitializationMode");
-    int (*exit_)(fmi2Component) = symbol(lib, "fmi2ExitInitializationMode");
-    int (*step)(fmi2Component, double, double, int) = symbol(lib, "fmi2DoStep");
-    int (*set)(fmi2Component, const unsigned *, size_t, const double *) = symbol(lib, "fmi2SetReal");
-    int (*get)(fmi2Component, const unsigned *, size_t, double *) = symbol(lib, "fmi2GetReal");
-    int (*terminate)(fmi2Component) = symbol(lib, "fmi2Terminate");
-    void (*free_instance)(fmi2Component) = symbol(lib, "fmi2FreeInstance");
+    struct fmu f = bind(lib);
     fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
-    fmi2Component c = instantiate("timing", 1, argv[3], argv[2], &callbacks, 0, 0);
+    fmi2Component c = f.instantiate("timing", 1, argv[3], argv[2], &callbacks, 0, 0);
     if (!c) return 2;
     long steps = atol(argv[4]), batch = atol(argv[6]);
     double h = atof(argv[5]);
-    unsigned inputs[MAX_VARIABLES], outputs[MAX_VARIABLES];
-    double wave[MAX_VARIABLES][3], read[MAX_VARIABLES] = {0.0}, gain[MAX_VARIABLES][1], fed[MAX_VARIABLES];
-    int loop[MAX_VARIABLES][2];
-    size_t n_in = 0, n_out = 0, n_loop = 0;
-    int status = setup(c, 0, 0.0, 0.0, 0, 0.0) | enter(c);
-    for (int a = 7; a < argc; a++) {
-        char kind = argv[a][0];
-        unsigned vr = (unsigned)strtoul(argv[a] + 2, NULL, 10);
-        char *equals = strchr(argv[a], '=');
-        if (kind == 'p' && equals) {
-            double value = atof(equals + 1);
-            status |= set(c, &vr, 1, &value);
-        } else if (kind == 'i' && equals && n_in < MAX_VARIABLES) {
-            inputs[n_in] = vr;
-            if (sscanf(equals + 1, "%lf,%lf,%lf", &wave[n_in][0], &wave[n_in][1], &wave[n_in][2]) != 3) return 2;
-            n_in++;
-        } else if (kind == 'o' && n_out < MAX_VARIABLES) {
-            outputs[n_out++] = vr;
-        } else if (kind == 'f' && equals && n_loop < MAX_VARIABLES) {
-            if (sscanf(argv[a] + 2, "%d,%d=%lf", &loop[n_loop][0], &loop[n_loop][1], &gain[n_loop][0]) != 3)
-                return 2;
-            n_loop++;
-        }
-    }
-    status |= exit_(c);
-    double *values = malloc(sizeof(double) * (size_t)steps * (n_in ? n_in : 1));
+    static struct signals s;
+    int status = f.setup(c, 0, 0.0, 0.0, 0, 0.0) | f.enter(c);
+    int parsed = parse(argc, argv, &f, c, &s);
+    if (parsed < 0) return 2;
+    status |= parsed | f.exit_(c);
+    double *values = malloc(sizeof(double) * (size_t)steps * (s.n_in ? s.n_in : 1));
     long batches = steps / batch;
     double *times = malloc(sizeof(double) * (size_t)(batches ? batches : 1));
     if (!values || !times) return 2;
     for (long k = 0; k < steps; k++)
-        for (size_t i = 0; i < n_in; i++)
-            values[k * (long)n_in + (long)i] = wave[i][0] * sin(wave[i][1] * (double)k * h + wave[i][2]);
+        for (size_t i = 0; i < s.n_in; i++)
+            values[k * (long)s.n_in + (long)i] = s.wave[i][0] * sin(s.wave[i][1] * (double)k * h + s.wave[i][2]);
     double cpu = seconds(CLOCK_PROCESS_CPUTIME_ID);
-    for (long b = 0; b < batches && status == 0; b++) {
-        double start = seconds(CLOCK_MONOTONIC);
-        for (long k = b * batch; k < (b + 1) * batch && status == 0; k++) {
-            const double *in = values + k * (long)n_in;
-            if (n_loop) {
-                for (size_t i = 0; i < n_in; i++) fed[i] = in[i];
-                for (size_t f = 0; f < n_loop; f++) fed[loop[f][1]] += gain[f][0] * read[loop[f][0]];
-                in = fed;
-            }
-            if (n_in) status |= set(c, inputs, n_in, in);
-            if (n_out) status |= get(c, outputs, n_out, read);
-            status |= step(c, (double)k * h, h, 1);
-        }
-        times[b] = seconds(CLOCK_MONOTONIC) - start;
-    }
+    if (status == 0) status = run(&f, c, &s, values, batches, batch, h, times);
     cpu = seconds(CLOCK_PROCESS_CPUTIME_ID) - cpu;
     qsort(times, (size_t)batches, sizeof(double), by_value);
     if (status) {
@@ -145,8 +183,8 @@ int main(int argc, char **argv) {
     }
     printf("cpu_ns_per_step %.1f\n", 1e9 * cpu / (double)(batches * batch));
     printf("median_ns_per_step %.1f\n", batches ? 1e9 * times[batches / 2] / (double)batch : 0.0);
-    status |= terminate(c);
-    free_instance(c);
+    status |= f.terminate(c);
+    f.free_instance(c);
     free(values);
     free(times);
     return status ? 1 : 0;

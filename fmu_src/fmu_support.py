@@ -13,7 +13,7 @@ name, value references map straight to those names, and outputs computed from in
 are refreshed once, by the slave's ``refresh_outputs()``, when one is read after anything changed
 (see :func:`declare`).
 
-The FMU's C shim (``fmu_src/toolchain/shim/fmi2_shim.c``) makes the calls of every communication step
+The FMU's C shim (``fmu_src/toolchain/shim/cosimulation.c``) makes the calls of every communication step
 (``fmi2DoStep``, ``fmi2GetReal``/``fmi2SetReal`` of inputs and outputs) on these same attributes
 itself, past pythonfmu's per-call machinery: :func:`fmu_model` offers it the slave's binding
 (see :func:`_direct_binding`).
@@ -341,7 +341,7 @@ _STEP_OK, _STEP_DISCARD, _STEP_RAISED = 0, 1, 2
 
 
 def _direct_binding(slave: Fmi2Slave, do_step: Any) -> tuple[Any, ...]:
-    """What the shim's direct calls need (see "Direct calls" in ``fmi2_shim.c``): (protocol, the
+    """What the shim's direct calls need (see ``cosimulation.c``): (protocol, the
     slave's ``__dict__``, ``step(t, h) -> code``, ``refresh()``, the log queue pythonfmu forwards,
     value reference -> name, value reference -> kind (bytes: 1 Real input, 2 Real output, 0 any
     other), whether an output depends directly on an input, the key of the stale flag).

@@ -13,17 +13,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-typedef void *fmi2Component;
-typedef struct {
-    void (*logger)(void *, const char *, int, const char *, const char *, ...);
-    void *(*allocateMemory)(size_t, size_t);
-    void (*freeMemory)(void *);
-    void *stepFinished;
-    void *componentEnvironment;
-} fmi2CallbackFunctions;
+#include "fmi2FunctionTypes.h" /* the official FMI 2.0 types (fmu_src/cbase/fmi) */
 
 /* The FMI logger: message is a printf format. */
-static void logger(void *env, const char *name, int status, const char *category, const char *message, ...) {
+static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
+                   fmi2String message, ...) {
     (void)env;
     va_list args;
     va_start(args, message);

@@ -12,13 +12,7 @@
 
 #define MAX_FMUS 16
 
-typedef struct {
-    void (*logger)(void *, const char *, int, const char *, const char *, ...);
-    void *(*allocateMemory)(size_t, size_t);
-    void (*freeMemory)(void *);
-    void *stepFinished;
-    void *componentEnvironment;
-} fmi2CallbackFunctions;
+#include "fmi2FunctionTypes.h" /* the official FMI 2.0 types (fmu_src/cbase/fmi) */
 
 struct job {
     const char *binary, *uri, *guid;
@@ -27,7 +21,8 @@ struct job {
 
 static pthread_barrier_t start;
 
-static void logger(void *env, const char *name, int status, const char *category, const char *message, ...) {
+static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
+                   fmi2String message, ...) {
     (void)env;
     (void)category;
     va_list args;

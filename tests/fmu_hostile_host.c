@@ -17,7 +17,7 @@
    those with an argument: resources-other=LOCATION (another FMU's resources; extra: the output the
    short run ends on), cycles=N, cycles-distinct=N, cycles-alternating=N (extra: bytes kept per
    instantiate/free cycle, the instances named alike, anew each time, or two names in turn), and
-   the NONSENSE calls (extra: the messages the call under test logged).
+   the NONSENSE calls (fmu_hostile_nonsense.c; extra: the messages the call under test logged).
    On Linux (tests/test_fmu_hostile.py) a child is a fork of the host after Python has started once.
    Cross-compiled with mingw-w64 (tests/test_fmu_windows.py, under wine) it loads
    binaries/win64/IDENTIFIER.dll (FMI 3.0: x86_64-windows), FMU_DIR is a C:/ path, and each scenario
@@ -72,23 +72,17 @@ static void start_thread(thread *t, void *arg) { pthread_create(t, NULL, thread_
 static void join_thread(thread t) { pthread_join(t, NULL); }
 #endif
 
-typedef void *component;
-typedef struct {
-    void (*logger)(void *, const char *, int, const char *, const char *, ...);
-    void *(*allocateMemory)(size_t, size_t);
-    void (*freeMemory)(void *);
-    void *stepFinished;
-    void *componentEnvironment;
-} callbacks2;
+#include "fmu_hostile_host.h" /* with the official FMI 2.0 types (fmu_src/cbase/fmi) */
 
-static int version;
+int version;
 static void *library;
 static char dir[4096], token[256], resources[4200];
-static int in_vr, out_vr, par_vr;
-static int messages, null_categories;
-static char first[512];
+static int in_vr, par_vr;
+int out_vr;
+int messages, null_categories;
+char first[512];
 static double last_output; /* the output at the end of the last short run (run()) */
-static int messages_of_call; /* the messages of a nonsense call, when others follow it */
+int messages_of_call; /* the messages of a nonsense call, when others follow it */
 
 /* ---- the host's loggers: count, keep the first message of status warning or worse ---------- */
 
@@ -102,7 +96,8 @@ static void note(int status, const char *category, const char *text) {
     }
 }
 
-static void logger2(void *env, const char *name, int status, const char *category, const char *message, ...) {
+static void logger2(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
+                    fmi2String message, ...) {
     (void)env, (void)name;
     char text[2048] = "";
     if (message) {
@@ -119,12 +114,12 @@ static void logger3(void *env, int status, const char *category, const char *mes
     note(status, category, message);
 }
 
-static callbacks2 functions = {logger2, calloc, free, NULL, NULL};
-static callbacks2 no_logger = {NULL, calloc, free, NULL, NULL};
+static fmi2CallbackFunctions functions = {logger2, calloc, free, NULL, NULL};
+static fmi2CallbackFunctions no_logger = {NULL, calloc, free, NULL, NULL};
 
 /* ---- the FMI calls, for either version ------------------------------------------------------- */
 
-static void *fn(const char *name) {
+void *fn(const char *name) {
     void *f = symbol(library, name);
     if (!f) {
         printf("dlsym %s failed\n", name);
@@ -133,12 +128,11 @@ static void *fn(const char *name) {
     return f;
 }
 
-enum { OK, WARNING, DISCARD, ERROR, FATAL };
 enum { LOGGER, NO_LOGGER, NO_FUNCTIONS };
 
 static component instantiate(const char *name, const char *where, const char *guid, int how) {
     if (version == 2) {
-        component (*f)(const char *, int, const char *, const char *, const callbacks2 *, int, int) =
+        component (*f)(const char *, int, const char *, const char *, const fmi2CallbackFunctions *, int, int) =
             fn("fmi2Instantiate");
         return f(name, 1, guid, where, how == LOGGER ? &functions : how == NO_LOGGER ? &no_logger : NULL, 0, 1);
     }
@@ -148,9 +142,9 @@ static component instantiate(const char *name, const char *where, const char *gu
              NULL);
 }
 
-static component fresh(const char *name) { return instantiate(name, resources, token, LOGGER); }
+component fresh(const char *name) { return instantiate(name, resources, token, LOGGER); }
 
-static int initialize(component c) {
+int initialize(component c) {
     if (version == 2) {
         int (*setup)(component, int, double, double, int, double) = fn("fmi2SetupExperiment");
         int (*enter)(component) = fn("fmi2EnterInitializationMode");
@@ -194,7 +188,7 @@ static int call(component c, const char *name2, const char *name3) {
     return f(c);
 }
 
-static void free_instance(component c) {
+void free_instance(component c) {
     void (*f)(component) = fn(version == 2 ? "fmi2FreeInstance" : "fmi3FreeInstance");
     f(c);
 }
@@ -215,11 +209,6 @@ static int run(component c) {
 
 /* ---- scenarios ---------------------------------------------------------------------------------- */
 
-struct result {
-    int status;
-    int instance;
-    double extra;
-};
 
 /* Instantiation with the resource location `where` (the call under test: the short run after it;
    extra: the output it ends with, which tells which model ran). */
@@ -399,125 +388,38 @@ static struct result two_threads(void) {
     return (struct result){worst(alone.status, worst(a.status, b.status)), 1, same};
 }
 
-/* The nonsense scenarios: a NULL array or entry, a count beyond any array, a time that cannot be, a
-   capability the model description does not declare. */
-static const char *const NONSENSE[] = {
-    "debug-null-categories", "debug-null-entry", "setup-stop-before-start", "setup-start-nan", "setup-start-inf",
-    "setup-stop-inf", "setup-tolerance-nan", "setup-tolerance-negative", "get-null-vr", "get-null-values",
-    "set-null-values", "get-count-beyond", "get-integer-null-vr", "get-boolean-null-values",
-    "set-string-null-entry", "get-state-null", "set-state-null", "get-state-undeclared-size", "deserialize-null",
-    "directional-null", "output-derivatives-null", "input-derivatives-null", "status-null", "real-status-null"};
+/* The scenarios on an initialized instance: name, the calls made on it. */
+static const struct {
+    const char *name;
+    int (*calls)(component);
+} INITIALIZED[] = {
+    {"step-nan", step_nan},         {"step-negative", step_negative},
+    {"step-zero", step_zero},       {"step-infinite", step_infinite},
+    {"unknown-vr", get_unknown},    {"set-output", set_output},
+    {"set-output-twice", set_output_twice}, {"set-fixed-after-init", set_fixed_after_init},
+    {"step-after-terminate", step_after_terminate}, {"after-error", after_error},
+    {"reset-after-error", reset_after_error}};
 
-/* ---- nonsense arguments: each call on an instance of its own, one message expected ------------- */
-
-/* The counters start again for the call under test (pythonfmu logs at instantiation). */
-static void under_test(void) { messages = null_categories = 0, first[0] = '\0'; }
-
-#define F2(name, type) ((type)fn(name)) /* an FMI function by name, as a pointer of `type` */
-typedef int (*vr_call)(component, const unsigned *, size_t, void *, size_t);
-
-static int nonsense_call(component c, const char *name) {
-    unsigned vr[2] = {(unsigned)out_vr, (unsigned)out_vr};
-    double values[2] = {0, 0};
-    int ints[2] = {0, 0};
-    static const char *categories[] = {"logAll", NULL};
-    const char *strings[1] = {NULL};
-    void *state = NULL;
-    size_t size = 0;
-    if (!strcmp(name, "debug-null-categories") || !strcmp(name, "debug-null-entry")) {
-        int (*f)(component, int, size_t, const char **) =
-            fn(version == 2 ? "fmi2SetDebugLogging" : "fmi3SetDebugLogging");
-        return f(c, 1, 2, strcmp(name, "debug-null-entry") ? NULL : categories);
-    }
-    if (!strncmp(name, "setup-", 6)) { /* start, stop, tolerance */
-        double start = 0, stop = 1, tolerance = 1e-6;
-        int stop_defined = 1, tolerance_defined = 1;
-        if (!strcmp(name, "setup-stop-before-start")) start = 1, stop = 0.5;
-        else if (!strcmp(name, "setup-start-nan")) start = NAN;
-        else if (!strcmp(name, "setup-start-inf")) start = INFINITY;
-        else if (!strcmp(name, "setup-stop-inf")) stop = INFINITY;
-        else if (!strcmp(name, "setup-tolerance-nan")) tolerance = NAN;
-        else if (!strcmp(name, "setup-tolerance-negative")) tolerance = -1e-6;
-        if (version == 2)
-            return F2("fmi2SetupExperiment", int (*)(component, int, double, double, int, double))(
-                c, tolerance_defined, tolerance, start, stop_defined, stop);
-        return F2("fmi3EnterInitializationMode", int (*)(component, bool, double, double, bool, double))(
-            c, tolerance_defined, tolerance, start, stop_defined, stop);
-    }
-    /* the rest after initialization */
-    int s = initialize(c);
-    if (s > WARNING) return 100 + s; /* not the call under test: the test fails on it */
-    if (!strcmp(name, "get-state-undeclared-size")) { /* a state got, then its serialized size */
-        int (*get)(component, void **) = fn(version == 2 ? "fmi2GetFMUstate" : "fmi3GetFMUState");
-        if (get(c, &state) > WARNING) state = NULL;
-    }
-    under_test();
-    const char *real_get = version == 2 ? "fmi2GetReal" : "fmi3GetFloat64";
-    if (!strcmp(name, "get-null-vr")) return F2(real_get, vr_call)(c, NULL, 1, values, 1);
-    if (!strcmp(name, "get-null-values")) return F2(real_get, vr_call)(c, vr, 1, NULL, 1);
-    if (!strcmp(name, "set-null-values"))
-        return F2(version == 2 ? "fmi2SetReal" : "fmi3SetFloat64", vr_call)(c, vr, 1, NULL, 1);
-    if (!strcmp(name, "get-count-beyond")) /* far more than the arrays hold */
-        return F2(real_get, vr_call)(c, vr, (size_t)1 << 40, values, (size_t)1 << 40);
-    if (!strcmp(name, "get-integer-null-vr"))
-        return F2(version == 2 ? "fmi2GetInteger" : "fmi3GetInt32", vr_call)(c, NULL, 1, ints, 1);
-    if (!strcmp(name, "get-boolean-null-values"))
-        return F2(version == 2 ? "fmi2GetBoolean" : "fmi3GetBoolean", vr_call)(c, vr, 1, NULL, 1);
-    if (!strcmp(name, "set-string-null-entry"))
-        return F2(version == 2 ? "fmi2SetString" : "fmi3SetString", vr_call)(c, vr, 1, (void *)strings, 1);
-    if (!strcmp(name, "get-state-null"))
-        return F2(version == 2 ? "fmi2GetFMUstate" : "fmi3GetFMUState", int (*)(component, void **))(c, NULL);
-    if (!strcmp(name, "set-state-null"))
-        return F2(version == 2 ? "fmi2SetFMUstate" : "fmi3SetFMUState", int (*)(component, void *))(c, NULL);
-    if (!strcmp(name, "get-state-undeclared-size")) {
-        int r = F2(version == 2 ? "fmi2SerializedFMUstateSize" : "fmi3SerializedFMUStateSize",
-                   int (*)(component, void *, size_t *))(c, state, &size);
-        messages_of_call = messages;
-        if (state) F2(version == 2 ? "fmi2FreeFMUstate" : "fmi3FreeFMUState", int (*)(component, void **))(c, &state);
-        return r;
-    }
-    if (!strcmp(name, "deserialize-null"))
-        return F2(version == 2 ? "fmi2DeSerializeFMUstate" : "fmi3DeserializeFMUState",
-                  int (*)(component, const void *, size_t, void **))(c, NULL, 16, &state);
-    if (!strcmp(name, "directional-null")) {
-        if (version == 2)
-            return F2("fmi2GetDirectionalDerivative", int (*)(component, const unsigned *, size_t, const unsigned *,
-                                                                size_t, const double *, double *))(
-                c, NULL, 1, NULL, 1, NULL, NULL);
-        return F2("fmi3GetDirectionalDerivative", int (*)(component, const unsigned *, size_t, const unsigned *,
-                                                            size_t, const double *, size_t, double *, size_t))(
-            c, NULL, 1, NULL, 1, NULL, 1, NULL, 1);
-    }
-    if (!strcmp(name, "output-derivatives-null")) {
-        if (version == 2)
-            return F2("fmi2GetRealOutputDerivatives",
-                      int (*)(component, const unsigned *, size_t, const int *, double *))(c, NULL, 1, NULL, NULL);
-        return F2("fmi3GetOutputDerivatives",
-                  int (*)(component, const unsigned *, size_t, const int *, double *, size_t))(c, NULL, 1, NULL,
-                                                                                               NULL, 1);
-    }
-    if (version == 3) return -2; /* FMI 2.0 only below */
-    if (!strcmp(name, "input-derivatives-null"))
-        return F2("fmi2SetRealInputDerivatives",
-                  int (*)(component, const unsigned *, size_t, const int *, const double *))(c, NULL, 1, NULL, NULL);
-    if (!strcmp(name, "status-null"))
-        return F2("fmi2GetStatus", int (*)(component, int, int *))(c, 0 /* fmi2DoStepStatus */, NULL);
-    if (!strcmp(name, "real-status-null"))
-        return F2("fmi2GetRealStatus", int (*)(component, int, double *))(c, 2 /* LastSuccessfulTime */, NULL);
-    printf("unknown scenario %s\n", name);
-    exit(2);
-}
-
-/* One nonsense call on a fresh instance; extra: the messages the call logged. */
-static struct result nonsense(const char *name) {
-    component c = fresh("nonsense");
-    if (!c) return (struct result){ERROR, 0, 0};
-    under_test();
-    messages_of_call = -1;
-    int s = nonsense_call(c, name);
-    int logged = messages_of_call >= 0 ? messages_of_call : messages;
-    free_instance(c);
-    return (struct result){s, 1, logged};
+/* The instantiation scenarios (resource locations, GUIDs, callbacks); 1 if `name` is one. */
+static int instantiation_scenario(const char *name, struct result *r) {
+    char missing[4300];
+    snprintf(missing, sizeof missing, version == 2 ? URI_PREFIX "%s/no-such-folder" : "%s/no-such-folder/", dir);
+    if (!strcmp(name, "ok")) *r = with_resources(resources);
+    else if (!strcmp(name, "resources-missing")) *r = with_resources(missing);
+    else if (!strcmp(name, "resources-empty")) *r = with_resources("");
+    else if (!strcmp(name, "resources-null")) *r = with_resources(NULL);
+    else if (!strcmp(name, "resources-not-a-file-uri")) *r = with_resources("http://example.org/resources");
+    else if (!strncmp(name, "resources-other=", 16)) *r = with_resources(name + 16);
+    else if (!strcmp(name, "guid-wrong")) *r = instantiate_only(resources, "{00000000-0000-0000-0000-000000000000}", LOGGER);
+    else if (!strcmp(name, "guid-null")) *r = instantiate_only(resources, NULL, LOGGER);
+    else if (!strcmp(name, "no-callbacks")) *r = instantiate_only(resources, token, NO_FUNCTIONS);
+    else if (!strcmp(name, "no-logger")) {
+        component c = instantiate("n", resources, token, NO_LOGGER);
+        *r = (struct result){c ? get_unknown(c) : ERROR, c != NULL, 0};
+        if (c) free_instance(c);
+    } else
+        return 0;
+    return 1;
 }
 
 static struct result scenario(const char *name) {
@@ -525,45 +427,20 @@ static struct result scenario(const char *name) {
     if ((par_vr < 0 && (!strcmp(name, "set-fixed-after-init") || !strcmp(name, "model-fails"))) ||
         (out_vr < 0 && !strncmp(name, "set-output", 10)))
         return skipped;
-    char missing[4300];
-    snprintf(missing, sizeof missing, version == 2 ? URI_PREFIX "%s/no-such-folder" : "%s/no-such-folder/", dir);
-    if (!strcmp(name, "ok")) return with_resources(resources);
-    if (!strcmp(name, "resources-missing")) return with_resources(missing);
-    if (!strcmp(name, "resources-empty")) return with_resources("");
-    if (!strcmp(name, "resources-null")) return with_resources(NULL);
-    if (!strcmp(name, "resources-not-a-file-uri")) return with_resources("http://example.org/resources");
-    if (!strcmp(name, "guid-wrong")) return instantiate_only(resources, "{00000000-0000-0000-0000-000000000000}", LOGGER);
-    if (!strcmp(name, "guid-null")) return instantiate_only(resources, NULL, LOGGER);
-    if (!strcmp(name, "no-logger")) {
-        component c = instantiate("n", resources, token, NO_LOGGER);
-        struct result r = {c ? get_unknown(c) : ERROR, c != NULL, 0};
-        if (c) free_instance(c);
-        return r;
-    }
-    if (!strcmp(name, "no-callbacks")) return instantiate_only(resources, token, NO_FUNCTIONS);
+    struct result r;
+    if (instantiation_scenario(name, &r)) return r;
+    for (size_t k = 0; k < sizeof INITIALIZED / sizeof INITIALIZED[0]; k++)
+        if (!strcmp(name, INITIALIZED[k].name)) return initialized(INITIALIZED[k].calls);
     if (!strcmp(name, "step-before-init")) return before_init(0);
     if (!strcmp(name, "get-before-init")) return before_init(1);
-    if (!strcmp(name, "step-nan")) return initialized(step_nan);
-    if (!strcmp(name, "step-negative")) return initialized(step_negative);
-    if (!strcmp(name, "step-zero")) return initialized(step_zero);
-    if (!strcmp(name, "step-infinite")) return initialized(step_infinite);
-    if (!strcmp(name, "unknown-vr")) return initialized(get_unknown);
-    if (!strcmp(name, "set-output")) return initialized(set_output);
-    if (!strcmp(name, "set-output-twice")) return initialized(set_output_twice);
-    if (!strcmp(name, "set-fixed-after-init")) return initialized(set_fixed_after_init);
-    if (!strcmp(name, "step-after-terminate")) return initialized(step_after_terminate);
-    if (!strcmp(name, "after-error")) return initialized(after_error);
-    if (!strcmp(name, "reset-after-error")) return initialized(reset_after_error);
     if (!strcmp(name, "model-fails")) return model_fails();
     if (!strcmp(name, "fifty")) return fifty();
     if (!strcmp(name, "two-threads")) return two_threads();
-    if (!strncmp(name, "resources-other=", 16)) return with_resources(name + 16);
     if (!strncmp(name, "cycles", 6)) { /* cycles=N (one name), cycles-distinct=N, cycles-alternating=N */
         const char *count = strchr(name, '=');
         return cycles(count ? atoi(count + 1) : 1000, name[6] == '-' ? name[7] : 's');
     }
-    for (size_t k = 0; k < sizeof NONSENSE / sizeof NONSENSE[0]; k++)
-        if (!strcmp(name, NONSENSE[k])) return nonsense(name);
+    if (is_nonsense(name)) return nonsense(name);
     printf("unknown scenario %s\n", name);
     exit(2);
 }

@@ -77,13 +77,7 @@ static FILE *open_file(const char *path, const char *mode) { return fopen(path, 
 #define MAX_FMUS 16
 #define MAX_VRS 32
 
-typedef struct {
-    void (*logger)(void *, const char *, int, const char *, const char *, ...);
-    void *(*allocateMemory)(size_t, size_t);
-    void (*freeMemory)(void *);
-    void *stepFinished;
-    void *componentEnvironment;
-} fmi2CallbackFunctions;
+#include "fmi2FunctionTypes.h" /* the official FMI 2.0 types (fmu_src/cbase/fmi) */
 
 struct fmu {
     char label[64];
@@ -117,7 +111,8 @@ struct fmu {
 static FILE *out;
 static int result;
 
-static void logger2(void *env, const char *name, int status, const char *category, const char *message, ...) {
+static void logger2(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
+                    fmi2String message, ...) {
     (void)env;
     va_list args;
     va_start(args, message);

@@ -13,7 +13,10 @@ from pathlib import Path
 
 import fmpy
 
-SOURCE = Path(__file__).with_name("fmu_hostile_host.c")
+import fmu_src.cbase as cbase
+
+SOURCES = (Path(__file__).with_name("fmu_hostile_host.c"), Path(__file__).with_name("fmu_hostile_nonsense.c"))
+FMI_HEADERS = cbase.FMI_HEADERS  # the official FMI headers the C hosts include
 CC = shutil.which("cc") or shutil.which("gcc")
 # Every scenario of the host; the leak one (cycles) runs on its own.
 SCENARIOS = (
@@ -60,7 +63,8 @@ def compile_host(dest: Path) -> Path:
     """Compile the hostile host into ``dest``."""
     assert CC is not None
     out = dest / "fmu_hostile_host"
-    command = [CC, "-O1", "-g", "-Wall", "-Wextra", "-o", str(out), str(SOURCE), "-ldl", "-pthread", "-lm"]
+    command = [CC, "-O1", "-g", "-Wall", "-Wextra", f"-I{FMI_HEADERS}", "-o", str(out), *map(str, SOURCES),
+               "-ldl", "-pthread", "-lm"]
     subprocess.run(command, check=True, capture_output=True)
     return out
 

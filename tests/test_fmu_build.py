@@ -23,6 +23,7 @@ from fmu_helpers import MODELS
 from fmu_src.toolchain import runtime
 from fmu_src.toolchain.__main__ import main
 from fmu_src.toolchain.build import CLASS_LINE, REPO_ROOT, BuildError, build_fmu
+from fmu_src.toolchain.variable_table import variable_table
 
 pytestmark = pytest.mark.system
 
@@ -186,7 +187,7 @@ def test_the_guid_follows_the_shims_bytes_not_its_comments(fmus: dict, tmp_path:
     comment (the same binary) does not."""
     guid = fmpy.read_model_description(str(fmus["Reference"])).guid
     root = source_copy(tmp_path)
-    shim = root / "fmu_src" / "toolchain" / "shim" / "fmi2_shim.c"
+    shim = root / "fmu_src" / "toolchain" / "shim" / "fmi2_functions.c"
     shim.write_text(shim.read_text() + "\n/* changed */\n")
     same = build_fmu("Reference", tmp_path / "comment", root=root)
     assert fmpy.read_model_description(str(same)).guid == guid
@@ -270,3 +271,29 @@ def test_the_fmus_python_is_not_compiled_when_bytecode_is_not_written(fmus: dict
               and unpacked in line]
     assert len(loaded) >= 10, result.stderr[-2000:]
     assert all("__pycache__" in line for line in loaded), [x for x in loaded if "__pycache__" not in x]
+
+
+@pytest.mark.parametrize("variant", ["fmus", "fmus3"])
+def test_the_shims_variable_table_is_the_model_descriptions(built: Path, variant: str) -> None:
+    """Issue 47: the guard's and the direct path's variable table is generated from the FMU's
+    final model description and compiled into the shim (nothing parses XML at instantiation).
+    Oracle: fmpy's reading of the same modelDescription.xml (its variables' value references,
+    types, causalities and names, the GUID / instantiation token), and the token's bytes in the
+    shipped binary; no copy of the description is shipped beside the binary any more."""
+    codes = {"Real": "r", "Float64": "r", "Integer": "i", "Int32": "i", "Boolean": "b", "String": "s"}
+    causalities = {"parameter": "p", "calculatedParameter": "c", "input": "i", "output": "o", "local": "l",
+                   "independent": "t", "structuralParameter": "s"}
+    for model in MODELS:
+        fmu = built / variant / f"{model}.fmu"
+        description = fmpy.read_model_description(str(fmu))
+        with zipfile.ZipFile(fmu) as archive:
+            table = variable_table(archive.read("modelDescription.xml")).decode()
+            binaries = [n for n in archive.namelist() if n.startswith("binaries/")]
+            shim = next(n for n in binaries if n.endswith(f"/{model}.so"))
+            assert description.guid.encode() in archive.read(shim), (model, shim)
+        assert not [n for n in binaries if n.endswith("_modelDescription.xml")], model
+        rows = re.findall(r"\{(\d+)u, '(.)', '(.)', .*?, .*?, \"(.*)\"\},", table)
+        expected = sorted((v.valueReference, codes.get(v.type, "e"), causalities[v.causality], v.name)
+                          for v in description.modelVariables)
+        assert [(int(vr), t, c, name) for vr, t, c, name in rows] == expected, model
+        assert f'"{description.guid}", {len(expected)}u, variables,' in table, model

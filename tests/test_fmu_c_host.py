@@ -30,6 +30,7 @@ from fmu_helpers import (
     uf_formula,
 )
 
+import fmu_src.cbase as cbase
 from orchestrator.crosscheck.colleague import hidden, refusal
 
 CC = shutil.which("cc") or shutil.which("gcc")
@@ -45,7 +46,8 @@ pytestmark = [pytest.mark.system, pytest.mark.skipif(CC is None, reason="needs a
 def host(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("c_host") / "host"
     source = Path(__file__).with_name("fmu_c_host.c")
-    subprocess.run([CC, "-O1", "-Wall", "-o", str(out), str(source), "-ldl"], check=True, capture_output=True)
+    subprocess.run([CC, "-O1", "-Wall", f"-I{cbase.FMI_HEADERS}", "-o", str(out), str(source), "-ldl"],
+                   check=True, capture_output=True)
     return out
 
 
@@ -53,7 +55,7 @@ def host(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def parallel_host(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("c_host") / "parallel_host"
     source = Path(__file__).with_name("fmu_c_host_parallel.c")
-    command = [CC, "-O1", "-Wall", "-o", str(out), str(source), "-ldl", "-pthread"]
+    command = [CC, "-O1", "-Wall", f"-I{cbase.FMI_HEADERS}", "-o", str(out), str(source), "-ldl", "-pthread"]
     subprocess.run(command, check=True, capture_output=True)
     return out
 

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: BSD-2-Clause
-"""The shim's direct calls (fmu_src/toolchain/shim/fmi2_shim.c, "Direct calls") against pythonfmu's own
+"""The shim's direct calls (fmu_src/toolchain/shim/cosimulation.c) against pythonfmu's own
 path, which FTC_FMU_DIRECT=0 restores: the oracle is the same FMU driven through pythonfmu.
 
 Every communication step's fmi2DoStep/GetReal/SetReal of the project's FMUs goes past

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: BSD-2-Clause
 """The FMI 3.0 Co-Simulation variants of the five FMUs (build/fmus3/, fmu_src/toolchain/fmi3.py and
-shim/fmi3_shim.c), against independent oracles: fmpy's FMI 3.0 schema and validation, the standard's
+shim/fmi3_functions.c), against independent oracles: fmpy's FMI 3.0 schema and validation, the standard's
 function list (fmpy's copy of fmi3Functions.h), the FMI 2.0 FMUs they are made from (same variables,
 same numbers bit for bit) and fmusim, a host nobody here wrote, on a machine with no Python."""
 

@@ -200,6 +200,24 @@ def test_nonsense_arguments_get_an_error_and_one_message(host: Path, built: Path
         assert re.search(NONSENSE_WORDS[name], outcome.message), where
 
 
+@pytest.mark.parametrize(("version", "model"), CASES)
+def test_more_debug_categories_than_declared_are_refused(host: Path, built: Path, unpacked: Path,
+                                                         version: str, model: str) -> None:
+    """Issue 44: fmi2SetDebugLogging / fmi3SetDebugLogging with a count beyond the model's declared
+    log categories (2^40 names in an array of two) answers Error with one message naming the
+    count, and reads none of the names. Oracle: the LogCategories of the FMU's modelDescription.xml
+    as fmpy reads them. Before: the count was not bounded (the shim walked the host's array)."""
+    declared = len(fmpy.read_model_description(str(built / version / f"{model}.fmu")).logCategories)
+    assert declared >= 1
+    outcomes, process = run(host, arguments(built, version, model, unpacked), ["debug-categories-beyond"])
+    outcome = outcomes["debug-categories-beyond"]
+    where = f"{version}/{model}: {outcome}\n{process.stderr[-2000:]}"
+    assert outcome.exit == "0" and outcome.null_categories == 0, where
+    assert (outcome.status, outcome.instance, outcome.extra) == (ERROR, True, 1), where
+    expected = f"1099511627776 categories given, more than the model's {declared} log categories"
+    assert expected in outcome.message, where
+
+
 @pytest.mark.parametrize("fmi", ["2", "3"])
 def test_the_containers_refuse_nonsense_arguments(host: Path, built: Path, tmp_path: Path, fmi: str) -> None:
     """Both exported containers (their own guard, orchestrator/native/container_fmi2.c): each

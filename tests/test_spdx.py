@@ -16,7 +16,7 @@ def _sources() -> list[str]:
     names = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True,
                            check=True).stdout.split()
     ours = [n for n in names if n.endswith((".py", ".c", ".h", ".sh")) or n in ("Makefile", ".ci/run")]
-    # vendored third-party files keep their own licence beside them (orchestrator/native/fmi/)
+    # vendored third-party files keep their own licence beside them (fmu_src/cbase/fmi/)
     return [n for n in ours if not list((ROOT / n).parent.glob("LICENSE*"))]
 
 
@@ -29,7 +29,7 @@ def test_every_source_file_carries_the_spdx_line() -> None:
 
 
 def test_the_vendored_fmi_headers_keep_their_own_licence() -> None:
-    headers = ROOT / "orchestrator" / "native" / "fmi"
+    headers = ROOT / "fmu_src" / "cbase" / "fmi"
     assert "Modelica Association" in (headers / "LICENSE.txt").read_text()
     assert not [h.name for h in headers.glob("*.h") if TAG in h.read_text()]
 

@@ -29,11 +29,13 @@ def test_wheel_and_sdist_carry_what_a_build_needs(dist: Path) -> None:
     _run([sys.executable, "-m", "twine", "check", "--strict", *map(str, dist.iterdir())], cwd=dist)
     (wheel,) = dist.glob("*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
-    needed = {"fmu_src/toolchain/shim/fmi2_shim.c", "fmu_src/toolchain/shim/fmi3_shim.c",
+    needed = {"fmu_src/toolchain/shim/fmi2_functions.c", "fmu_src/toolchain/shim/fmi3_functions.c",
               "fmu_src/toolchain/shim/start_python.c",
               "orchestrator/native/container.c", "orchestrator/native/container_fmi3.c",
               "orchestrator/native/container.h", "fmu_src/models/_dopri.c", "controller/fmath.h",
               "controller/fmath_pow.h",
+              "fmu_src/cbase/platform.c", "fmu_src/cbase/fmi/fmi3FunctionTypes.h",
+              "fmu_src/cbase/fmi/LICENSE.txt",
               "controller/fmath-LICENSE.txt", "orchestrator/launcher.c",
               "orchestrator/experiments/ssp/pendulum/SystemStructure.ssd",
               "orchestrator/experiments/ssp/campaigns/fault_tolerance.toml"}

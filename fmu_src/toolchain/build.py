@@ -34,7 +34,6 @@ variants: ``fmu_src.toolchain.fmi3``, built on this module).
 from __future__ import annotations
 
 import ast
-import functools
 import hashlib
 import importlib.metadata
 import os
@@ -45,7 +44,7 @@ import sys
 import tempfile
 import uuid
 import zipfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,6 +53,7 @@ from xml.etree import ElementTree
 import pythonfmu
 from pythonfmu import FmuBuilder
 
+from .. import cbase
 from . import runtime_win64, stamps
 from .controller_doc import controller_documentation
 from .licences import documentation, generation_tool
@@ -65,6 +65,7 @@ from .runtime import (
     runtime_members,
     stdlib_closure,
 )
+from .variable_table import TABLE_SOURCE, variable_table
 
 __all__ = ["EXTENSIONS", "FMU_SCRIPTS", "PLATFORM_NAMES", "BuildError", "build_all", "build_fmu",
            "build_inputs", "build_sources", "buildable_platforms", "c_compiler", "compile_extension",
@@ -86,24 +87,22 @@ FMU_SCRIPTS = {
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
-BUILD_FORMAT = "8"
+BUILD_FORMAT = "9"
 SHIM_DIR = Path("fmu_src", "toolchain", "shim")  # relative to the source root
-SHIM_SOURCES = ("fmi2_shim.c", "start_python.c", "guard.c", "platform.c")
-SHIM_HEADERS = ("start_python.h", "fmi2_types.h", "guard.h", "platform.h")
-# No debug info, build id or symbol table, so the bytes depend only on source, compiler and flags;
-# the runtime's libraries are found by soname through $ORIGIN/python/lib (see the shim's header).
-SHIM_FLAGS = tuple(
-    "-std=c11 -O2 -fPIC -shared -fvisibility=hidden -g0 -Wall -Wextra -Wno-format-truncation "
-    "-Wl,--build-id=none -s -Wl,--enable-new-dtags".split()
-) + ("-Wl,-rpath,$ORIGIN/python/lib",)
+# The shim laid out as the Modelica Reference FMUs lay theirs out (shim.h says what each file holds).
+SHIM_SOURCES = ("fmi2_functions.c", "guard.c", "cosimulation.c", "loader.c", "pool.c", "log.c", "resources.c",
+                "start_python.c")
+SHIM_HEADERS = ("shim.h", "start_python.h", "fmi2_calls.h", "description.h", "fmi3.h")
+CBASE_DIR = Path("fmu_src", "cbase")  # the lower C layer (platform.c, the FMI headers), relative to the root
+# The shared flags (fmu_src/cbase: no debug info, build id or symbol table, so the bytes depend only
+# on source, compiler and flags); the runtime's libraries are found by soname through
+# $ORIGIN/python/lib (see the shim's header).
+SHIM_FLAGS = (*cbase.REPRODUCIBLE_FLAGS, "-fPIC", "-shared", "-fvisibility=hidden", "-Wl,--enable-new-dtags",
+              "-Wl,-rpath,$ORIGIN/python/lib")
 SHIM_LIBS = ("-ldl", "-pthread")
 # The Windows shim: mingw-w64, linked against the system's KERNEL32 and msvcrt.dll only; no time
 # stamp in the PE header, so the bytes depend only on sources, compiler and flags.
-MINGW = "x86_64-w64-mingw32-gcc"
-MINGW_FLAGS = tuple(
-    "-std=c11 -O2 -shared -g0 -Wall -Wextra -Wno-format-truncation -static-libgcc -s "
-    "-Wl,--no-insert-timestamp".split()
-)
+MINGW_FLAGS = (*cbase.REPRODUCIBLE_MINGW_FLAGS, "-shared")
 WIN_PYCONFIG = Path("fmu_src", "toolchain", "shim", "win64", "pyconfig.h")  # relative to the source root
 # Windows extension modules: no C runtime of their own, python3.dll (stable ABI) and the Universal
 # C Runtime imported as python311.dll imports it: only its exact math (sqrt, fabs, floor, fmod;
@@ -120,8 +119,7 @@ WIN_IMPORTS = {
     "api-ms-win-crt-runtime-l1-1-0.dll": ("_errno",),
     "VCRUNTIME140.dll": ("memcpy", "memmove", "memset"),
 }
-DESCRIPTION_COPY = "_modelDescription.xml"  # guard.h's DESCRIPTION_SUFFIX
-# guard.h's IDENTITY_FILE: the resources folder names its FMU (GUID / instantiation token), so that
+# description.h's IDENTITY_FILE: the resources folder names its FMU (GUID / instantiation token), so that
 # the shim never runs another FMU's model from a resource location the host gives it
 IDENTITY_FILE = "resources/fmu_identity.txt"
 PLATFORMS = (("linux64", ".so"), ("win64", ".dll"))  # FMI 2.0 platform folders, binary suffix
@@ -131,7 +129,7 @@ LAUNCHER_SOURCE = "bundled_python.c"
 LAUNCHER_FLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra")
 # The build's own code (fmu_src/): a change to it rebuilds every FMU.
 BUILD_CODE = ("build.py", "fmi3.py", "runtime.py", "runtime_pins.txt", "runtime_win64.py",
-              "runtime_pins_win64.txt", "licences.py")
+              "runtime_pins_win64.txt", "licences.py", "variable_table.py")
 # C extension modules bundled with the FMUs that import them (dotted name -> C source, relative to
 # the source root): built against the runtime's headers for the stable ABI, so that one binary
 # loads in the FMU's runtime and in a host's Python alike. -ffp-contract=off: no fused
@@ -270,54 +268,36 @@ def collect_bundle(model: str, root: Path = REPO_ROOT) -> Bundle:  # noqa: C901 
 
 
 def c_compiler() -> tuple[str, str]:
-    """The system C compiler (``$CC``, else ``cc``, else ``gcc`` from PATH) and its version line."""
-    for name in (os.environ.get("CC"), "cc", "gcc"):
-        path = shutil.which(name) if name else None
-        if path:
-            return path, _version_line(path)
-    raise BuildError(
-        "no C compiler (CC, cc or gcc on PATH) to build the FMI shim binaries/linux64/<model>.so; "
-        "install one, e.g. apt-get install gcc"
-    )
-
-
-@functools.cache
-def _version_line(compiler: str) -> str:
-    """The first line of ``compiler --version`` (read once per compiler and process)."""
+    """The system C compiler and its version line (fmu_src/cbase.c_compiler)."""
     try:
-        version = subprocess.run([compiler, "--version"], capture_output=True, text=True, check=True)
-    except (OSError, subprocess.CalledProcessError) as error:
-        raise BuildError(f"C compiler {compiler} does not run: {error}") from error
-    return version.stdout.partition("\n")[0]
+        return cbase.c_compiler("to build the FMI shim binaries/linux64/<model>.so")
+    except cbase.CompilerError as error:
+        raise BuildError(str(error)) from error
 
 
 def mingw() -> str:
-    """The mingw-w64 cross compiler for 64-bit Windows (``$MINGW_CC``, else x86_64-w64-mingw32-gcc)."""
-    name = os.environ.get("MINGW_CC") or MINGW
-    path = shutil.which(name)
-    if not path:
-        raise BuildError(
-            f"no mingw-w64 cross compiler ({name}) to build binaries/win64: install it "
-            "(Debian: apt-get install gcc-mingw-w64-x86-64, or 'make windows-tools' as root)")
-    return path
+    """The mingw-w64 cross compiler for 64-bit Windows (fmu_src/cbase.mingw)."""
+    try:
+        return cbase.mingw("to build binaries/win64")[0]
+    except cbase.CompilerError as error:
+        raise BuildError(str(error)) from error
 
 
-@functools.cache
 def _mingw_version() -> str:
     """The cross compiler's version (a new one rebuilds the FMUs, as a new system compiler does);
     'none' where there is none (only linux64 can then be built)."""
     try:
-        return subprocess.run([mingw(), "-dumpfullversion"], capture_output=True, text=True).stdout.strip()
-    except BuildError:
+        return cbase.mingw("")[1]
+    except cbase.CompilerError:
         return "none"
 
 
-def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequence[str],
-             libraries: Sequence[str], what: Path, windows: str = "") -> bytes:
-    """Compile ``sources`` (in ``work``) into a shared object against the runtime's headers; its
-    bytes (the same for the same sources, compiler, flags and runtime). ``what`` names the sources
-    in the error. ``windows``: the DLL's file name, cross-compiled with mingw-w64 against the same
-    headers with the Windows pyconfig.h."""
+def _objects(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequence[str], what: Path,
+             windows: str = "") -> tuple[str, list[str | Path], list[bytes]]:
+    """Compile each of ``sources`` (in ``work``) to an object against the runtime's headers (with
+    the Windows pyconfig.h for ``windows``), each once for the same bytes of it and of the headers
+    beside it (nine FMUs share one shim's objects). The compiler, the inputs every step shares,
+    and the objects' bytes (also written beside their sources)."""
     compiler = mingw() if windows else c_compiler()[0]
     if windows:
         headers = work / "include"
@@ -327,11 +307,7 @@ def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequen
         includes = [f"-I{headers}"]
     else:
         includes = [f"-I{d}" for d in runtime.include_dirs]
-    out = windows or "out.so"
     version = _mingw_version() if windows else c_compiler()[1]
-    # Content-addressed, in two steps: each source compiled to an object once for the same bytes
-    # of it and of the headers beside it (nine FMUs share one shim's objects), then linked into
-    # the named library; the build is reproducible, so a kept product is the one it would make.
     header_files = sorted(p for p in work.rglob("*.h") if p.is_file())
     here = Path(__file__).resolve().parent  # the build's code and the runtimes' pins
     common: list[str | Path] = [version, *(here / n for n in BUILD_CODE),
@@ -341,9 +317,22 @@ def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequen
         command = [compiler, *flags, *includes, "-c", "-o", f"{source}.o", source]
         objects.append(_kept(runtime, work, command, f"{source}.o", what,
                              [*common, _relative(command, work), work / source]))
-    command = [compiler, *flags, "-o", out, *(f"{source}.o" for source in sources), *libraries]
     for source, data in zip(sources, objects, strict=True):
         (work / f"{source}.o").write_bytes(data)
+    return compiler, common, objects
+
+
+def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequence[str],
+             libraries: Sequence[str], what: Path, windows: str = "") -> bytes:
+    """Compile ``sources`` (in ``work``) into a shared object against the runtime's headers; its
+    bytes (the same for the same sources, compiler, flags and runtime). ``what`` names the sources
+    in the error. ``windows``: the DLL's file name, cross-compiled with mingw-w64 against the same
+    headers with the Windows pyconfig.h."""
+    # Content-addressed, in two steps: the objects (_objects), then the link into the named
+    # library; the build is reproducible, so a kept product is the one it would make.
+    compiler, common, _ = _objects(work, runtime, flags, sources, what, windows)
+    out = windows or "out.so"
+    command = [compiler, *flags, "-o", out, *(f"{source}.o" for source in sources), *libraries]
     return _kept(runtime, work, command, out, what,
                  [*common, _relative(command, work), *(work / f"{source}.o" for source in sources),
                   *(work / lib for lib in sorted(os.listdir(work)) if lib.endswith(".a"))])
@@ -373,24 +362,54 @@ def _kept(runtime: Runtime, work: Path, command: list[str], out: str, what: Path
     return binary
 
 
-def compile_shim(root: Path, runtime: Runtime, where: Path, sources: Sequence[str] = SHIM_SOURCES,
-                 defines: Sequence[str] = (), windows: str = "") -> bytes:
-    """Compile the FMI shim (``sources`` of ``fmu_src/toolchain/shim``, ``-D`` ``defines``) against
-    the runtime's headers; returns the shared object's bytes (the same for the same sources,
-    compiler and runtime). ``windows``: the DLL's name (``<model>.dll``), cross-compiled for 64-bit
-    Windows instead."""
+def _shim_work(root: Path, where: Path, sources: Sequence[str], defines: Sequence[str],
+               windows: str) -> tuple[Path, list[str]]:
+    """The shim's work folder under ``where`` holding ``sources`` and the headers, and its flags."""
     work = where / ("shim-win64" if windows else "shim")
-    work.mkdir(parents=True)
-    for name in (*sources, *SHIM_HEADERS):
-        source = root / SHIM_DIR / name
+    work.mkdir(parents=True, exist_ok=True)
+    for source in shim_files(root, sources):  # one flat folder: the includes name files only
         if not source.is_file():
             raise BuildError(f"FMI shim source not found: {source}")
-        shutil.copyfile(source, work / name)
-    if windows:
-        flags = [*MINGW_FLAGS, *(f"-D{d}" for d in defines)]
-        return _compile(work, runtime, flags, sources, (), root / SHIM_DIR, windows)
-    flags = [*SHIM_FLAGS, *(f"-D{d}" for d in defines)]
-    return _compile(work, runtime, flags, sources, SHIM_LIBS, root / SHIM_DIR)
+        shutil.copyfile(source, work / source.name)
+    return work, [*(MINGW_FLAGS if windows else SHIM_FLAGS), *(f"-D{d}" for d in defines)]
+
+
+def shim_files(root: Path, sources: Sequence[str] = SHIM_SOURCES) -> list[Path]:
+    """The files the shim is compiled from: ``sources`` and the headers of ``fmu_src/toolchain/shim``,
+    and the lower C layer's (``fmu_src/cbase``: platform.c, the official FMI headers)."""
+    layer = root / CBASE_DIR
+    return [*(root / SHIM_DIR / n for n in (*sources, *SHIM_HEADERS)),
+            *(layer / n for n in (*cbase.PLATFORM_SOURCES, *cbase.PLATFORM_HEADERS)),
+            *(layer / "fmi" / h.name for h in sorted(cbase.FMI_HEADERS.glob("*.h")))]
+
+
+def shim_digest(root: Path, runtime: Runtime, where: Path, sources: Sequence[str] = SHIM_SOURCES,
+                defines: Sequence[str] = (), windows: str = "") -> str:
+    """A digest of the shim's compiled objects (all but the per-FMU variable table): what the
+    FMU's GUID is made from, since the table is made from the model description that holds it.
+    The same for the same code: a changed comment leaves it, a changed message changes it."""
+    work, flags = _shim_work(root, where, sources, defines, windows)
+    sources = [*sources, *cbase.PLATFORM_SOURCES]
+    _, _, objects = _objects(work, runtime, flags, sources, root / SHIM_DIR, windows)
+    return stamps.digest(*(hashlib.sha256(data).hexdigest() for data in objects))
+
+
+def compile_shim(root: Path, runtime: Runtime, where: Path, description: bytes,
+                 sources: Sequence[str] = SHIM_SOURCES, defines: Sequence[str] = (),
+                 windows: str = "") -> bytes:
+    """Compile the FMI shim (``sources`` of ``fmu_src/toolchain/shim``, ``-D`` ``defines``) against
+    the runtime's headers, with the variable table of the model description ``description``
+    (:func:`variable_table`, an object of its own) linked in; returns the shared object's bytes (the
+    same for the same sources, description, compiler and runtime). ``windows``: the DLL's name
+    (``<model>.dll``), cross-compiled for 64-bit Windows instead."""
+    work, flags = _shim_work(root, where, sources, defines, windows)
+    try:
+        (work / TABLE_SOURCE).write_bytes(variable_table(description))
+    except (ValueError, ElementTree.ParseError) as error:
+        raise BuildError(f"the variable table of the shim: {error}") from error
+    libraries = () if windows else SHIM_LIBS
+    return _compile(work, runtime, flags, [*sources, *cbase.PLATFORM_SOURCES, TABLE_SOURCE], libraries,
+                    root / SHIM_DIR, windows)
 
 
 def _extension_work(source: Path, work: Path, root: Path) -> None:
@@ -601,7 +620,7 @@ def _normalized_description(xml: bytes, digest: str, model: str) -> bytes:
 
 
 def _write_normalized(raw_fmu: Path, target: Path, bundle: Bundle, digest: str, native: dict[str, bytes],
-                      platforms: Sequence[str]) -> None:
+                      platforms: Sequence[str], link: Callable[[bytes], dict[str, bytes]]) -> None:
     """Copy the archive with the shim in front of pythonfmu's binaries of ``platforms`` (the others
     dropped), the runtimes and the licences added, a deterministic description, fixed timestamps
     and sorted entries."""
@@ -624,9 +643,7 @@ def _write_normalized(raw_fmu: Path, target: Path, bundle: Bundle, digest: str, 
     except ValueError as error:
         raise BuildError(str(error)) from error
     entries[IDENTITY_FILE] = identity(entries["modelDescription.xml"])
-    # the shim's guard reads it beside the binary: hosts may unpack only binaries/ and resources/
-    for platform, _ in chosen:
-        entries[f"binaries/{platform}/{bundle.model}{DESCRIPTION_COPY}"] = entries["modelDescription.xml"]
+    entries.update(link(entries["modelDescription.xml"]))  # the shims, with the final variable table
     entries.update(_bytecode(entries))
     write_archive(target, entries)
 
@@ -678,8 +695,8 @@ def build_sources(root: Path = REPO_ROOT) -> list[Path]:
     """The source files every FMU is built from besides its own: the build's code, the pins,
     the shim (tracked files only: what a build product is made from)."""
     here = Path(__file__).resolve().parent
-    shim = [root / SHIM_DIR / n for n in sorted({*SHIM_SOURCES, *SHIM_HEADERS, LAUNCHER_SOURCE})]
-    return [*(here / n for n in BUILD_CODE), *shim, root / WIN_PYCONFIG]
+    shim = sorted({*shim_files(root), root / SHIM_DIR / LAUNCHER_SOURCE})
+    return [*(here / n for n in BUILD_CODE), *shim, root / WIN_PYCONFIG, root / CBASE_DIR / "__init__.py"]
 
 
 def fmu_sources(bundle: Bundle, root: Path = REPO_ROOT) -> list[Path]:
@@ -701,7 +718,7 @@ def fmu_inputs(bundle: Bundle, root: Path = REPO_ROOT, platforms: Sequence[str] 
 def buildable_platforms() -> tuple[tuple[str, ...], str]:
     """The platforms this machine can build (linux64 always; win64 with mingw-w64 and osslsigncode)
     and, where win64 cannot be built, one line saying why and how to get it."""
-    tools = (os.environ.get("MINGW_CC") or MINGW, "osslsigncode")
+    tools = (os.environ.get("MINGW_CC") or cbase.MINGW, "osslsigncode")
     missing = [tool for tool in tools if not shutil.which(tool)]
     if not missing:
         return PLATFORM_NAMES, ""
@@ -751,10 +768,12 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT, platforms: Sequenc
     with tempfile.TemporaryDirectory(prefix=f"ftc_build_{model}_") as tmp:
         runtime = _ensure_runtime()
         native = _runtime(bundle, windows)
-        native[f"binaries/linux64/{model}.so"] = compile_shim(root, runtime, Path(tmp))
+        # the shims are linked once the model description (their variable table) is final
+        shims = {f"binaries/linux64/{model}.so": ""}
         if windows:
-            dll = f"{model}.dll"
-            native[f"binaries/win64/{dll}"] = compile_shim(root, runtime, Path(tmp), windows=dll)
+            shims[f"binaries/win64/{model}.dll"] = f"{model}.dll"
+        for name, dll in shims.items():
+            native[name] = shim_digest(root, runtime, Path(tmp), windows=dll).encode()
         native["documentation/licenses/pythonfmu-LICENSE.txt"] = _licence("pythonfmu")
         if FMATH_MODULE in bundle.modules:
             native[f"documentation/licenses/{FMATH_LICENSE.name}"] = (root / FMATH_LICENSE).read_bytes()
@@ -787,7 +806,14 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT, platforms: Sequenc
                 raise BuildError(
                     f"pythonfmu could not build {model} from {bundle.script}: {error}"
                 ) from error
-        _write_normalized(Path(raw), target, bundle, digest, native, platforms)
+        for name in shims:
+            del native[name]
+
+        def link(description: bytes) -> dict[str, bytes]:
+            return {name: compile_shim(root, runtime, Path(tmp), description, windows=dll)
+                    for name, dll in shims.items()}
+
+        _write_normalized(Path(raw), target, bundle, digest, native, platforms, link)
     stamps.record(target, key, stamps.source_digests(fmu_sources(bundle, root), root), root, platforms)
     return target
 

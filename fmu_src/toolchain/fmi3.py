@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: BSD-2-Clause
 """The FMI 3.0 Co-Simulation variant of a built FMI 2.0 FMU: same model code, runtime and pythonfmu
-binary, with the FMI 3.0 layer of the shim (``shim/fmi3_shim.c``) in front.
+binary, with the FMI 3.0 layer of the shim (``shim/fmi3_functions.c`` and the files beside it) in front.
 
 The FMI 2.0 archive is the source: its members move from ``binaries/linux64/`` to
 ``binaries/x86_64-linux/`` and from ``binaries/win64/`` to ``binaries/x86_64-windows/`` (FMI 3.0's
@@ -36,18 +36,17 @@ from xml.etree import ElementTree
 
 from . import stamps
 from .build import (
-    DESCRIPTION_COPY,
     GUID_NAMESPACE,
     IDENTITY_FILE,
     REPO_ROOT,
-    SHIM_DIR,
-    SHIM_HEADERS,
     SHIM_SOURCES,
     BuildError,
     _ensure_runtime,
     build_inputs,
     compile_shim,
     identity,
+    shim_digest,
+    shim_files,
     write_archive,
 )
 from .licences import generation_tool
@@ -59,7 +58,7 @@ FMI3_PLATFORM = "binaries/x86_64-linux/"
 # FMI 2.0 platform folder -> FMI 3.0 platform tuple, and the binaries' suffix
 PLATFORM_TUPLES = {FMI2_PLATFORM: (FMI3_PLATFORM, ".so"),
                    "binaries/win64/": ("binaries/x86_64-windows/", ".dll")}
-FMI3_SHIM_SOURCES = (*SHIM_SOURCES, "fmi3_shim.c")
+FMI3_SHIM_SOURCES = (*SHIM_SOURCES, "fmi3_functions.c", "fmi3_values.c", "fmi3_refused.c")
 TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
 # FMI 2.0 type attributes that FMI 3.0 keeps on the variable element (String's start is a child).
 TYPE_ATTRIBUTES = ("declaredType", "quantity", "unit", "displayUnit", "relativeQuantity", "min", "max",
@@ -195,7 +194,7 @@ def _type_definitions(types: ElementTree.Element, model: str) -> ElementTree.Ele
 
 
 def _sources(root: Path) -> list[Path]:
-    return [root / SHIM_DIR / n for n in sorted(set(FMI3_SHIM_SOURCES) | set(SHIM_HEADERS))]
+    return sorted(set(shim_files(root, FMI3_SHIM_SOURCES)))
 
 
 def _key(fmu2: Path, root: Path) -> str:
@@ -233,24 +232,23 @@ def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT, *, force: bool = 
     _, time_vr = fmi3_model_description(xml, "")
     defines = ("EXPORT=", f"FTC_TIME_VR={time_vr}", f"FTC_VR_OFFSET={VR_OFFSET}")
     moved = dict(entries)
-    shims = {}
+    shims = {}  # FMI 3.0 platform folder -> the DLL's name (Windows) or ""
+    for fmi2, (fmi3, suffix) in PLATFORM_TUPLES.items():
+        if f"{fmi2}{model}{suffix}" not in entries:
+            continue
+        shims[fmi3] = (f"{model}.dll" if suffix == ".dll" else "", suffix)
+        moved = {(fmi3 + name[len(fmi2):] if name.startswith(fmi2) else name): data
+                 for name, data in moved.items()}
     with tempfile.TemporaryDirectory(prefix=f"ftc_build3_{model}_") as tmp:
-        for fmi2, (fmi3, suffix) in PLATFORM_TUPLES.items():
-            if f"{fmi2}{model}{suffix}" not in entries:
-                continue
-            windows = f"{model}.dll" if suffix == ".dll" else ""
-            shims[fmi3] = compile_shim(root, _ensure_runtime(), Path(tmp), FMI3_SHIM_SOURCES, defines,
-                                       windows)
-            moved = {(fmi3 + name[len(fmi2):] if name.startswith(fmi2) else name): data
-                     for name, data in moved.items()}
-            moved[f"{fmi3}{model}{suffix}"] = shims[fmi3]
-    shim = shims[FMI3_PLATFORM]
-    digest = hashlib.sha256(old.get("guid", "").encode() + b"\0" + hashlib.sha256(shim).digest()).hexdigest()
-    token = "{" + str(uuid.uuid5(GUID_NAMESPACE, f"{model}:fmi3:{digest}")) + "}"
-    moved["modelDescription.xml"] = fmi3_model_description(xml, token)[0]
-    moved[IDENTITY_FILE] = identity(moved["modelDescription.xml"])
-    for fmi3 in shims:  # not the FMI 2.0 one
-        moved[f"{fmi3}{model}{DESCRIPTION_COPY}"] = moved["modelDescription.xml"]
+        runtime = _ensure_runtime()
+        code = shim_digest(root, runtime, Path(tmp), FMI3_SHIM_SOURCES, defines)
+        digest = hashlib.sha256(old.get("guid", "").encode() + b"\0" + code.encode()).hexdigest()
+        token = "{" + str(uuid.uuid5(GUID_NAMESPACE, f"{model}:fmi3:{digest}")) + "}"
+        moved["modelDescription.xml"] = fmi3_model_description(xml, token)[0]
+        moved[IDENTITY_FILE] = identity(moved["modelDescription.xml"])
+        for fmi3, (dll, suffix) in shims.items():  # with the final description's variable table
+            moved[f"{fmi3}{model}{suffix}"] = compile_shim(
+                root, runtime, Path(tmp), moved["modelDescription.xml"], FMI3_SHIM_SOURCES, defines, dll)
     dest.mkdir(parents=True, exist_ok=True)
     write_archive(target, moved)
     stamps.record(target, key, stamps.recorded_sources(fmu2) | stamps.source_digests(sources, root), root,

@@ -2,8 +2,8 @@
 """The engine's C code: the plan reader and core (``plan.c``, ``core.c``) built as the compiled
 executor (``executor.c``, which ``orchestrate run`` steps by default) and as the exported container's
 runtime (``container.c`` with its FMI 2.0 and 3.0 APIs ``container_fmi2.c`` and ``container_fmi3.c``,
-:func:`container_library`). Both are compiled with the system C compiler
-against the official FMI headers in ``fmi/`` on first use and kept in the cache folder
+:func:`container_library`). Both are compiled with the system C compiler against the lower C layer
+(``fmu_src/cbase``: the official FMI headers, ``platform.c``) on first use and kept in the cache folder
 (:func:`orchestrator.fmucache.cache_folder`'s parent, ``native/``) under a digest of their sources,
 flags and compiler, so a run compiles nothing once one has.
 
@@ -28,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
+import fmu_src.cbase as cbase
+
 from ..fmi import InstanceBase
 from ..fmucache import cache_folder
 from ..plan import Plan
@@ -36,28 +38,21 @@ __all__ = ["FLAGS", "SOURCES", "Failure", "NativeError", "Stepper", "compile_lib
            "executor_library", "unavailable"]
 
 HERE = Path(__file__).resolve().parent
-HEADERS = HERE / "fmi"
-SOURCES = {"executor": ("executor.c", "core.c", "plan.c", "platform.c"),
-           "container": ("container.c", "container_fmi2.c", "container_fmi3.c", "core.c", "plan.c",
-                         "platform.c")}
+HEADERS = cbase.FMI_HEADERS
+SOURCES = {"executor": ("executor.c", "core.c", "plan.c"),
+           "container": ("container.c", "container_fmi2.c", "container_fmi3.c", "core.c", "plan.c")}
 # No debug info, build id or symbols, so the bytes depend only on source, compiler and flags; no
 # contraction of a * b + c into a fused multiply-add, so a connection's factor * value + offset
 # rounds as Python's does in the engine's master; symbols bound inside the library, so an embedded
 # FMU's fmi2* functions never resolve to the container's.
-FLAGS = tuple(
-    "-std=c11 -O2 -fPIC -shared -fvisibility=hidden -ffp-contract=off -g0 -Wall -Wextra "
-    "-Wno-format-truncation -Wl,--build-id=none -s -Wl,-Bsymbolic".split()
-)
+FLAGS = (*cbase.REPRODUCIBLE_FLAGS, "-fPIC", "-shared", "-fvisibility=hidden", "-ffp-contract=off",
+         "-Wl,-Bsymbolic")
 LIBS = ("-ldl", "-lm")
 # The container for 64-bit Windows (binaries/win64/<id>.dll): mingw-w64, linked against the system's
 # KERNEL32 and msvcrt.dll only, no time stamp in the PE header (the bytes depend only on sources,
 # compiler and flags, as the FMUs' shim's are), no fused multiply-add (as FLAGS). Only the functions
 # marked __declspec(dllexport) (the fmi2* and fmi3*) are exported.
-MINGW = "x86_64-w64-mingw32-gcc"
-MINGW_FLAGS = tuple(
-    "-std=c11 -O2 -shared -g0 -Wall -Wextra -Wno-format-truncation -ffp-contract=off -static-libgcc -s "
-    "-Wl,--no-insert-timestamp".split()
-)
+MINGW_FLAGS = (*cbase.REPRODUCIBLE_MINGW_FLAGS, "-shared", "-ffp-contract=off")
 # what a step of the executor calls, by code (core.h's enum function)
 FUNCTIONS = ("fmi2DoStep", "fmi2GetReal", "fmi2SetReal", "fmi2SetInteger", "fmi2GetInteger")
 WHY = 4096
@@ -74,33 +69,14 @@ class Failure(ctypes.Structure):
     _fields_ = [("component", c_int), ("function", c_int), ("status", c_int), ("time", c_double)]
 
 
-def _compiler() -> tuple[str, str]:
-    """The system C compiler (``$CC``, else ``cc``, else ``gcc``) and its version line."""
-    for name in (os.environ.get("CC"), "cc", "gcc"):
-        path = shutil.which(name) if name else None
-        if path:
-            try:
-                version = subprocess.run([path, "--version"], capture_output=True, text=True, check=True)
-            except (OSError, subprocess.CalledProcessError) as exc:
-                raise NativeError(f"the C compiler {path} does not run: {exc}") from exc
-            return path, version.stdout.partition("\n")[0]
-    raise NativeError("no C compiler (CC, cc or gcc on PATH) to build the engine's C executor; install one, "
-                      "e.g. apt-get install gcc")
-
-
-def _mingw() -> tuple[str, str]:
-    """The mingw-w64 cross compiler for 64-bit Windows (``$MINGW_CC``, else x86_64-w64-mingw32-gcc)
-    and its version."""
-    name = os.environ.get("MINGW_CC") or MINGW
-    path = shutil.which(name)
-    if not path:
-        raise NativeError(f"no mingw-w64 cross compiler ({name}) to build the container's binaries/win64: "
-                          "install it (apt-get install gcc-mingw-w64-x86-64, or 'make windows-tools')")
+def _compiler(windows: bool = False) -> tuple[str, str]:
+    """The C compiler (``windows``: the mingw-w64 cross compiler) and its version (fmu_src/cbase)."""
     try:
-        version = subprocess.run([path, "--version"], capture_output=True, text=True, check=True)
-    except (OSError, subprocess.CalledProcessError) as exc:
-        raise NativeError(f"the mingw-w64 cross compiler {path} does not run: {exc}") from exc
-    return path, version.stdout.partition("\n")[0]
+        if windows:
+            return cbase.mingw("to build the container's binaries/win64")
+        return cbase.c_compiler("to build the engine's C executor")
+    except cbase.CompilerError as exc:
+        raise NativeError(str(exc)) from exc
 
 
 @functools.cache
@@ -117,15 +93,16 @@ def compile_library(kind: str, windows: bool = False) -> Path:
     compiled now (written under a temporary name and renamed; into a folder of this process when
     the cache's disk cannot hold it). ``windows``: a DLL for 64-bit Windows, cross-compiled with
     mingw-w64. NativeError when it cannot be built."""
-    compiler, version = _mingw() if windows else _compiler()
+    compiler, version = _compiler(windows)
     flags, libs = (MINGW_FLAGS, ()) if windows else (FLAGS, LIBS)
     digest = hashlib.sha256("\0".join([*flags, *libs, version]).encode())
     for source in sorted({*SOURCES[kind], *(p.name for p in HERE.glob("*.h"))}):
         digest.update(source.encode() + b"\0" + (HERE / source).read_bytes())
-    for header in sorted(HEADERS.glob("*.h")):
+    for header in sorted([*HEADERS.glob("*.h"), *cbase.HERE.glob("*.[ch]")]):
         digest.update(header.name.encode() + b"\0" + header.read_bytes())
     name = f"{kind}-{digest.hexdigest()[:24]}.{'dll' if windows else 'so'}"
-    command = [compiler, *flags, f"-I{HERE}", f"-I{HEADERS}", *(str(HERE / s) for s in SOURCES[kind]), *libs]
+    sources = [*(HERE / s for s in SOURCES[kind]), *(cbase.HERE / s for s in cbase.PLATFORM_SOURCES)]
+    command = [compiler, *flags, f"-I{HERE}", f"-I{cbase.HERE}", f"-I{HEADERS}", *map(str, sources), *libs]
     cache = cache_folder()
     if cache is not None:
         try:

@@ -172,9 +172,9 @@ static int load_component(struct container *x, size_t i, char *why, size_t size)
     char path[2 * TEXT], reason[TEXT];
     snprintf(path, sizeof path, "%s/fmus/%s/binaries/%s/%s" SUFFIX, x->resources, c->folder,
              c->version == 3 ? PLATFORM3 : PLATFORM2, c->identifier);
-    x->libraries[i] = ftc_library_open(path);
+    x->libraries[i] = ftc_library_open(path, 0);
     if (!x->libraries[i]) {
-        snprintf(why, size, "%s: cannot load %s: %s", c->name, path, ftc_library_error(reason, sizeof reason));
+        snprintf(why, size, "%s: cannot load %s: %s", c->name, path, ftc_library_error(path));
         return -1;
     }
     if (fmu_bind(&x->core.fmus[i], x->libraries[i], c->version, 1, reason, sizeof reason) != 0) {

@@ -19,9 +19,11 @@ from xml.etree import ElementTree
 
 import numpy as np
 
+import fmu_src.cbase as cbase
+
 HERE = Path(__file__).resolve().parent
 HOST_SOURCE = HERE.parent / "fmu_plan_host.c"
-HOSTILE_SOURCE = HERE.parent / "fmu_hostile_host.c"
+HOSTILE_SOURCES = (HERE.parent / "fmu_hostile_host.c", HERE.parent / "fmu_hostile_nonsense.c")
 MINGW = shutil.which("x86_64-w64-mingw32-gcc")
 WINE = shutil.which("wine64") or next((p for p in ("/usr/lib/wine/wine64",) if os.access(p, os.X_OK)), None)
 WINESERVER = shutil.which("wineserver") or next(
@@ -99,15 +101,17 @@ def make_prefix(root: Path) -> Wine:
         raise RuntimeError(f"wineboot failed: {boot.stderr[-2000:]}")
     hosts = prefix / "drive_c" / "hosts"
     hosts.mkdir(parents=True, exist_ok=True)
-    common = ["-std=c11", "-O2", "-Wall", "-Wextra", "-municode", str(HOST_SOURCE)]
+    common = ["-std=c11", "-O2", "-Wall", "-Wextra", "-municode", f"-I{cbase.FMI_HEADERS}", str(HOST_SOURCE)]
     subprocess.run([str(MINGW), *common, "-o", str(hosts / "console.exe")], check=True, capture_output=True)
     subprocess.run([str(MINGW), *common, "-mwindows", "-DGUI_HOST", "-o", str(hosts / "gui.exe")], check=True,
                    capture_output=True)
-    subprocess.run([str(MINGW), "-std=c11", "-O1", "-Wall", "-Wextra", "-municode", str(HOSTILE_SOURCE),
-                    "-o", str(hosts / "hostile.exe"), "-lpsapi"], check=True, capture_output=True)
+    subprocess.run([str(MINGW), "-std=c11", "-O1", "-Wall", "-Wextra", "-municode", f"-I{cbase.FMI_HEADERS}",
+                    *map(str, HOSTILE_SOURCES), "-o", str(hosts / "hostile.exe"), "-lpsapi"], check=True,
+                   capture_output=True)
     cc = shutil.which("cc") or shutil.which("gcc") or "cc"
     linux_host = root / "linux_host"
-    subprocess.run([cc, "-std=c11", "-O2", "-Wall", "-o", str(linux_host), str(HOST_SOURCE), "-ldl"],
+    subprocess.run([cc, "-std=c11", "-O2", "-Wall", f"-I{cbase.FMI_HEADERS}", "-o", str(linux_host),
+                    str(HOST_SOURCE), "-ldl"],
                    check=True, capture_output=True)
     return Wine(prefix, linux_host, env)
 

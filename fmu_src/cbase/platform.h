@@ -1,7 +1,9 @@
 /* SPDX-License-Identifier: BSD-2-Clause */
-/* The shim's portability layer: every call to the operating system (loading libraries, finding
-   the shim's own file, locks, file tests, opening files) goes through these few functions, so
-   that the FMI code has no branch per platform. Two branches here (platform.c): POSIX (Linux,
+/* The project's C portability layer (fmu_src/cbase, below the FMUs' shim and the engine's C code:
+   see fmu_src/cbase/README.md): every call to the operating system (loading libraries, finding a
+   library's own file, locks, file tests, opening files) goes through these few functions, so that
+   the FMI code has no branch per platform. Some (the user's cache, the standard streams, ASCII
+   paths) only the shim uses. Two branches here (platform.c): POSIX (Linux,
    glibc) and Windows (64-bit, cross-compiled with mingw-w64). Paths are UTF-8 with '/' on both:
    the Windows branch converts to and from UTF-16 at the system call. */
 

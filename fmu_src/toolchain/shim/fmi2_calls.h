@@ -1,35 +1,14 @@
 /* SPDX-License-Identifier: BSD-2-Clause */
-/* FMI 2.0 types and the shim's list of FMI 2.0 functions, shared by fmi2_shim.c and fmi3_shim.c
+/* The shim's list of FMI 2.0 functions (an X macro), shared by the FMI 2.0 files (shim.h) and the
+   FMI 3.0 layer (fmi3.h); the types are the official headers' (fmu_src/cbase/fmi)
    (the FMI 3.0 layer calls the FMI 2.0 functions of the same shared object). */
 
-#ifndef FTC_FMI2_TYPES_H
-#define FTC_FMI2_TYPES_H
+#ifndef FTC_FMI2_CALLS_H
+#define FTC_FMI2_CALLS_H
 
 #include <stddef.h>
 
-/* FMI 2.0 types (fmi2TypesPlatform.h, fmi2FunctionTypes.h), so that no header is needed. */
-typedef void *fmi2Component;
-typedef void *fmi2ComponentEnvironment;
-typedef void *fmi2FMUstate;
-typedef unsigned int fmi2ValueReference;
-typedef double fmi2Real;
-typedef int fmi2Integer;
-typedef int fmi2Boolean;
-typedef char fmi2Char;
-typedef const fmi2Char *fmi2String;
-typedef char fmi2Byte;
-typedef enum { fmi2OK, fmi2Warning, fmi2Discard, fmi2Error, fmi2Fatal, fmi2Pending } fmi2Status;
-typedef enum { fmi2ModelExchange, fmi2CoSimulation } fmi2Type;
-typedef enum { fmi2DoStepStatus, fmi2PendingStatus, fmi2LastSuccessfulTime, fmi2Terminated } fmi2StatusKind;
-typedef void (*fmi2CallbackLogger)(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String,
-                                   ...);
-typedef struct {
-    fmi2CallbackLogger logger;
-    void *(*allocateMemory)(size_t, size_t);
-    void (*freeMemory)(void *);
-    void (*stepFinished)(fmi2ComponentEnvironment, fmi2Status);
-    fmi2ComponentEnvironment componentEnvironment;
-} fmi2CallbackFunctions;
+#include "fmi2FunctionTypes.h" /* the official FMI 2.0 types (fmu_src/cbase/fmi) */
 
 /* Every FMI 2.0 function that takes a component and returns a status: name, parameters, call.
    FMI2_PLAIN ones are forwarded to pythonfmu as they are; FMI2_DIRECT ones have a direct path

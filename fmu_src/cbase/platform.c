@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: BSD-2-Clause */
-/* The shim's portability layer (platform.h): POSIX and Windows. */
+/* The project's portability layer (platform.h): POSIX and Windows. */
 
 #ifndef _WIN32
 #define _GNU_SOURCE
@@ -290,48 +290,60 @@ static void remove_copy(const wchar_t *folder, wchar_t **names, size_t n) {
     RemoveDirectoryW(folder);
 }
 
+/* The files to copy (`only`, or every file under `source`), sorted, in `names` (`*n` of them), and
+   the FNV-1a hash of their names and bytes in `*h`; 0, or -1. */
+static int listed_and_hashed(const wchar_t *source, const wchar_t *only, wchar_t **names, size_t *n,
+                             unsigned long long *h) {
+    wchar_t from[FTC_PLATFORM_TEXT];
+    int failed = 0;
+    if (only) failed = !(names[(*n)++] = _wcsdup(only));
+    else failed = collect(source, L"", names, n);
+    if (failed) return -1;
+    qsort(names, *n, sizeof *names, by_name);
+    for (size_t k = 0; k < *n && !failed; k++) {
+        *h = fnv(*h, names[k], (wcslen(names[k]) + 1) * sizeof(wchar_t));
+        failed = _snwprintf(from, FTC_PLATFORM_TEXT, L"%ls/%ls", source, names[k]) < 0 || hash_file(from, h);
+    }
+    return failed ? -1 : 0;
+}
+
+/* The files `names` of `source` copied into a folder of this thread, marked complete and renamed
+   to `final`; 0 when `final` then holds them (ours, or another process's that was first). */
+static int copy_into_place(const wchar_t *source, const wchar_t *final, const wchar_t *marker_path,
+                           wchar_t **names, size_t n) {
+    wchar_t work[FTC_PLATFORM_TEXT], from[FTC_PLATFORM_TEXT], to[FTC_PLATFORM_TEXT];
+    if (_snwprintf(work, FTC_PLATFORM_TEXT, L"%ls.part-%lu-%lu", final, GetCurrentProcessId(),
+                   GetCurrentThreadId()) < 0 || make_folders(work, 0) != 0)
+        return -1;
+    int copied = 1;
+    for (size_t k = 0; k < n && copied; k++)
+        copied = _snwprintf(from, FTC_PLATFORM_TEXT, L"%ls/%ls", source, names[k]) > 0 &&
+                 _snwprintf(to, FTC_PLATFORM_TEXT, L"%ls/%ls", work, names[k]) > 0 && make_folders(to, 1) == 0 &&
+                 CopyFileW(from, to, TRUE);
+    HANDLE marker = INVALID_HANDLE_VALUE;
+    if (copied && _snwprintf(to, FTC_PLATFORM_TEXT, L"%ls/.complete", work) > 0)
+        marker = CreateFileW(to, GENERIC_WRITE, 0, NULL, CREATE_NEW, FILE_ATTRIBUTE_NORMAL, NULL);
+    if (marker != INVALID_HANDLE_VALUE) CloseHandle(marker);
+    /* into place complete, or another process was first: its copy serves */
+    if (marker != INVALID_HANDLE_VALUE && MoveFileExW(work, final, 0)) return 0;
+    remove_copy(work, names, n);
+    return GetFileAttributesW(marker_path) != INVALID_FILE_ATTRIBUTES ? 0 : -1;
+}
+
 int ftc_cached_copy(const char *folder, const char *only, char *out, size_t size) {
-    wchar_t source[FTC_PLATFORM_TEXT], path[FTC_PLATFORM_TEXT], base[FTC_PLATFORM_TEXT];
-    wchar_t final[FTC_PLATFORM_TEXT], work[FTC_PLATFORM_TEXT], from[FTC_PLATFORM_TEXT], to[FTC_PLATFORM_TEXT];
+    wchar_t source[FTC_PLATFORM_TEXT], path[FTC_PLATFORM_TEXT], base[FTC_PLATFORM_TEXT], final[FTC_PLATFORM_TEXT];
     if (!wide(folder, source, FTC_PLATFORM_TEXT) || (only && !wide(only, path, FTC_PLATFORM_TEXT))) return -1;
     DWORD n_base = GetEnvironmentVariableW(L"LOCALAPPDATA", base, FTC_PLATFORM_TEXT);
     if (n_base == 0 || n_base >= FTC_PLATFORM_TEXT - 64) return -1;
     wchar_t **names = calloc(CACHE_FILES, sizeof *names);
     size_t n = 0;
-    int failed = !names;
-    if (!failed && only) failed = !(names[n++] = _wcsdup(path));
-    else if (!failed) failed = collect(source, L"", names, &n);
     unsigned long long h = 14695981039346656037ull;
-    if (!failed) {
-        qsort(names, n, sizeof *names, by_name);
-        for (size_t k = 0; k < n && !failed; k++) {
-            h = fnv(h, names[k], (wcslen(names[k]) + 1) * sizeof(wchar_t));
-            failed = _snwprintf(from, FTC_PLATFORM_TEXT, L"%ls/%ls", source, names[k]) < 0 || hash_file(from, &h);
-        }
-    }
     int status = -1;
-    if (!failed && n > 0 &&
+    if (names && listed_and_hashed(source, only ? path : NULL, names, &n, &h) == 0 && n > 0 &&
         _snwprintf(final, FTC_PLATFORM_TEXT, L"%ls/fixed-time-cosim/runtime/%016llx", base, h) > 0 &&
         _snwprintf(path, FTC_PLATFORM_TEXT, L"%ls/.complete", final) > 0) {
         if (GetFileAttributesW(path) != INVALID_FILE_ATTRIBUTES) status = 0; /* made before */
-        else if (_snwprintf(work, FTC_PLATFORM_TEXT, L"%ls.part-%lu-%lu", final, GetCurrentProcessId(),
-                            GetCurrentThreadId()) > 0 && make_folders(work, 0) == 0) {
-            int copied = 1;
-            for (size_t k = 0; k < n && copied; k++)
-                copied = _snwprintf(from, FTC_PLATFORM_TEXT, L"%ls/%ls", source, names[k]) > 0 &&
-                         _snwprintf(to, FTC_PLATFORM_TEXT, L"%ls/%ls", work, names[k]) > 0 &&
-                         make_folders(to, 1) == 0 && CopyFileW(from, to, TRUE);
-            HANDLE marker = INVALID_HANDLE_VALUE;
-            if (copied && _snwprintf(to, FTC_PLATFORM_TEXT, L"%ls/.complete", work) > 0)
-                marker = CreateFileW(to, GENERIC_WRITE, 0, NULL, CREATE_NEW, FILE_ATTRIBUTE_NORMAL, NULL);
-            if (marker != INVALID_HANDLE_VALUE) CloseHandle(marker);
-            /* into place complete, or another process was first: its copy serves */
-            if (marker != INVALID_HANDLE_VALUE && MoveFileExW(work, final, 0)) status = 0;
-            else {
-                remove_copy(work, names, n);
-                if (GetFileAttributesW(path) != INVALID_FILE_ATTRIBUTES) status = 0;
-            }
-        }
+        else status = copy_into_place(source, final, path, names, n);
     }
     for (size_t k = 0; names && k < n; k++) free(names[k]);
     free(names);
