@@ -49,9 +49,11 @@ from .build import (
     shim_files,
     write_archive,
 )
+from .clocked import ClockedError, clocked_model_description
 from .licences import generation_tool
 
-__all__ = ["FMI3_PLATFORM", "FMI3_SHIM_SOURCES", "build_fmu3", "fmi3_model_description", "fmu3_current"]
+__all__ = ["CLOCKED_SUFFIX", "FMI3_PLATFORM", "FMI3_SHIM_SOURCES", "build_fmu3", "fmi3_model_description",
+           "fmu3_current", "target_name"]
 
 FMI2_PLATFORM = "binaries/linux64/"
 FMI3_PLATFORM = "binaries/x86_64-linux/"
@@ -59,6 +61,8 @@ FMI3_PLATFORM = "binaries/x86_64-linux/"
 PLATFORM_TUPLES = {FMI2_PLATFORM: (FMI3_PLATFORM, ".so"),
                    "binaries/win64/": ("binaries/x86_64-windows/", ".dll")}
 FMI3_SHIM_SOURCES = (*SHIM_SOURCES, "fmi3_functions.c", "fmi3_values.c", "fmi3_refused.c")
+CLOCKED_SHIM_SOURCES = (*FMI3_SHIM_SOURCES, "fmi3_clocks.c")  # the clocked twin (toolchain/clocked.py)
+CLOCKED_SUFFIX = "_clocked"  # FixedTimeController.fmu -> FixedTimeController_clocked.fmu
 TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
 # FMI 2.0 type attributes that FMI 3.0 keeps on the variable element (String's start is a child).
 TYPE_ATTRIBUTES = ("declaredType", "quantity", "unit", "displayUnit", "relativeQuantity", "min", "max",
@@ -193,29 +197,40 @@ def _type_definitions(types: ElementTree.Element, model: str) -> ElementTree.Ele
     return new
 
 
-def _sources(root: Path) -> list[Path]:
-    return sorted(set(shim_files(root, FMI3_SHIM_SOURCES)))
+def _sources(root: Path, clocked: bool = False) -> list[Path]:
+    files = shim_files(root, CLOCKED_SHIM_SOURCES if clocked else FMI3_SHIM_SOURCES)
+    return sorted({*files, *([root / "fmu_src" / "toolchain" / "clocked.py"] if clocked else [])})
 
 
-def _key(fmu2: Path, root: Path) -> str:
-    """The digest of what the FMI 3.0 variant of ``fmu2`` is made from."""
+def _key(fmu2: Path, root: Path, clocked: bool = False) -> str:
+    """The digest of what the FMI 3.0 variant (or the clocked twin) of ``fmu2`` is made from."""
     platforms = stamps.recorded_platforms(fmu2)
-    return stamps.digest("fmi3", Path(fmu2), *build_inputs(root, platforms), *_sources(root))
+    return stamps.digest("fmi3-clocked" if clocked else "fmi3", Path(fmu2), *build_inputs(root, platforms),
+                         *_sources(root, clocked))
 
 
-def fmu3_current(fmu2: Path, dest: Path, root: Path = REPO_ROOT) -> bool:
-    """Whether ``dest/<name>`` is the FMI 3.0 variant of ``fmu2`` as it is now."""
-    return stamps.up_to_date(Path(dest) / fmu2.name, _key(fmu2, root), stamps.recorded_platforms(fmu2))
+def target_name(fmu2: Path, clocked: bool = False) -> str:
+    """The file name of the FMI 3.0 variant of ``fmu2`` (the clocked twin: ``<name>_clocked.fmu``)."""
+    return f"{fmu2.stem}{CLOCKED_SUFFIX}.fmu" if clocked else fmu2.name
 
 
-def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT, *, force: bool = False) -> Path:
+def fmu3_current(fmu2: Path, dest: Path, root: Path = REPO_ROOT, clocked: bool = False) -> bool:
+    """Whether ``dest/<name>`` is the FMI 3.0 variant (or the clocked twin) of ``fmu2`` as it is now."""
+    return stamps.up_to_date(Path(dest) / target_name(fmu2, clocked), _key(fmu2, root, clocked),
+                             stamps.recorded_platforms(fmu2))
+
+
+def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT, *, force: bool = False,
+               clocked: bool = False) -> Path:
     """Write ``dest/<model>.fmu``, the FMI 3.0 variant of the built FMI 2.0 FMU ``fmu2`` for the
-    same platforms (reused when it was made from the same FMU by the same build, unless ``force``)."""
+    same platforms (reused when it was made from the same FMU by the same build, unless ``force``);
+    ``clocked``: its clocked twin ``dest/<model>_clocked.fmu`` (:mod:`fmu_src.toolchain.clocked`,
+    a controller's: its law activated by an input clock of interval ``sample_time``)."""
     dest = Path(dest)
-    target = dest / fmu2.name
-    sources = _sources(root)
+    target = dest / target_name(fmu2, clocked)
+    sources = _sources(root, clocked)
     platforms = stamps.recorded_platforms(fmu2)
-    key = _key(fmu2, root)
+    key = _key(fmu2, root, clocked)
     if not force and stamps.up_to_date(target, key, platforms):
         return target
     stamps.forget(target)
@@ -229,8 +244,16 @@ def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT, *, force: bool = 
     model = cosimulation.get("modelIdentifier", "") if cosimulation is not None else ""
     if f"{FMI2_PLATFORM}{model}.so" not in entries:
         raise BuildError(f"{fmu2}: no {FMI2_PLATFORM}{model}.so")
-    _, time_vr = fmi3_model_description(xml, "")
-    defines = ("EXPORT=", f"FTC_TIME_VR={time_vr}", f"FTC_VR_OFFSET={VR_OFFSET}")
+    plain, time_vr = fmi3_model_description(xml, "")
+    defines: tuple[str, ...] = ("EXPORT=", f"FTC_TIME_VR={time_vr}", f"FTC_VR_OFFSET={VR_OFFSET}")
+    shim_sources: tuple[str, ...] = FMI3_SHIM_SOURCES
+    if clocked:
+        try:
+            twin = clocked_model_description(plain)
+        except ClockedError as exc:
+            raise BuildError(f"{fmu2}: no clocked twin: {exc}") from None
+        defines = (*defines, f"FTC_CLOCK_VR={twin.clock_vr}", f"FTC_INTERVAL_VR={twin.interval_vr}")
+        shim_sources = CLOCKED_SHIM_SOURCES
     moved = dict(entries)
     shims = {}  # FMI 3.0 platform folder -> the DLL's name (Windows) or ""
     for fmi2, (fmi3, suffix) in PLATFORM_TUPLES.items():
@@ -241,14 +264,16 @@ def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT, *, force: bool = 
                  for name, data in moved.items()}
     with tempfile.TemporaryDirectory(prefix=f"ftc_build3_{model}_") as tmp:
         runtime = _ensure_runtime()
-        code = shim_digest(root, runtime, Path(tmp), FMI3_SHIM_SOURCES, defines)
+        code = shim_digest(root, runtime, Path(tmp), shim_sources, defines)
         digest = hashlib.sha256(old.get("guid", "").encode() + b"\0" + code.encode()).hexdigest()
-        token = "{" + str(uuid.uuid5(GUID_NAMESPACE, f"{model}:fmi3:{digest}")) + "}"
-        moved["modelDescription.xml"] = fmi3_model_description(xml, token)[0]
+        kind = "fmi3-clocked" if clocked else "fmi3"
+        token = "{" + str(uuid.uuid5(GUID_NAMESPACE, f"{model}:{kind}:{digest}")) + "}"
+        description = fmi3_model_description(xml, token)[0]
+        moved["modelDescription.xml"] = clocked_model_description(description).xml if clocked else description
         moved[IDENTITY_FILE] = identity(moved["modelDescription.xml"])
         for fmi3, (dll, suffix) in shims.items():  # with the final description's variable table
             moved[f"{fmi3}{model}{suffix}"] = compile_shim(
-                root, runtime, Path(tmp), moved["modelDescription.xml"], FMI3_SHIM_SOURCES, defines, dll)
+                root, runtime, Path(tmp), moved["modelDescription.xml"], shim_sources, defines, dll)
     dest.mkdir(parents=True, exist_ok=True)
     write_archive(target, moved)
     stamps.record(target, key, stamps.recorded_sources(fmu2) | stamps.source_digests(sources, root), root,

@@ -33,7 +33,8 @@
      fmi3EnterEventMode from Step Mode): nothing happens there, fmi3UpdateDiscreteStates reports
      no further iteration and no next event, fmi3EnterStepMode returns to Step Mode.
    * Refused: Model Exchange and Scheduled Execution (fmi3Instantiate* return NULL), intermediate
-     variables (providesIntermediateUpdate="false"), clocks, configuration mode, per-element
+     variables (providesIntermediateUpdate="false"), clocks (but in the clocked twin, fmi3_clocks.c),
+     configuration mode, per-element
      dependencies, directional and adjoint derivatives, output derivatives, every Model Exchange
      function. */
 
@@ -84,6 +85,7 @@ struct instance3 {
     int event_mode_used;
     double time;                    /* the independent variable */
     char name[256];
+    struct clock3 *clock;           /* the clocked twin's clock (fmi3_clocks.c); NULL otherwise */
 };
 
 /* An FMU state: the FMI 2.0 state and the time. */
@@ -97,5 +99,19 @@ void say3(fmi3InstanceEnvironment environment, fmi3LogMessageCallback log, fmi3S
 fmi3Status refuse3(struct instance3 *i, const char *function, const char *reason);
 /* fmi3OK if `function` may be called in the instance's mode (`allowed`: a mask of 1 << mode). */
 fmi3Status check_mode(struct instance3 *i, const char *function, int allowed);
+
+#ifdef FTC_CLOCK_VR
+/* The clocked twin (fmi3_clocks.c, compiled into it alone): its clock's state, created with the
+   instance; the outputs held at Exit Initialization Mode; fmi3UpdateDiscreteStates' activation;
+   leaving Event Mode; a communication step (its length counted); clocked outputs served from what is held (1: all of the `n` FMI 2.0 value
+   references were, `values` written). */
+struct clock3 *ftc_clock_new(void);
+void ftc_clock_free(struct clock3 *k);
+fmi2Status ftc_clock_initialized(struct instance3 *i);
+fmi2Status ftc_clock_update(struct instance3 *i);
+void ftc_clock_leave(struct instance3 *i);
+void ftc_clock_step(struct instance3 *i, double h);
+int ftc_clock_get(struct instance3 *i, const fmi2ValueReference vr[], size_t n, fmi3Float64 values[]);
+#endif
 
 #endif

@@ -114,11 +114,27 @@ EXPORT3 fmi3Instance fmi3InstantiateCoSimulation(
             name, nRequiredIntermediateVariables);
         return NULL;
     }
+#ifdef FTC_CLOCK_VR
+    if (!eventModeUsed) {
+        say3(instanceEnvironment, logMessage, fmi3Error,
+             "%s: fmi3InstantiateCoSimulation: this clocked FMU is activated by its input clock in Event Mode: "
+             "instantiate it with eventModeUsed = true (an importer without Event Mode runs the FMU's plain "
+             "FMI 3.0 or 2.0 variant)", name);
+        return NULL;
+    }
+#endif
     struct instance3 *i = calloc(1, sizeof *i);
     if (!i) {
         say3(instanceEnvironment, logMessage, fmi3Error, "%s: fmi3InstantiateCoSimulation: out of memory", name);
         return NULL;
     }
+#ifdef FTC_CLOCK_VR
+    if (!(i->clock = ftc_clock_new())) {
+        free(i);
+        say3(instanceEnvironment, logMessage, fmi3Error, "%s: fmi3InstantiateCoSimulation: out of memory", name);
+        return NULL;
+    }
+#endif
     i->environment = instanceEnvironment;
     i->log = logMessage;
     i->event_mode_used = eventModeUsed;
@@ -131,6 +147,9 @@ EXPORT3 fmi3Instance fmi3InstantiateCoSimulation(
     i->c = ftc_instantiate(instanceName, fmi2CoSimulation, instantiationToken, resourcePath, &i->functions,
                            visible, loggingOn, "fmi3InstantiateCoSimulation");
     if (!i->c) { /* the FMI 2.0 layer has said why */
+#ifdef FTC_CLOCK_VR
+        ftc_clock_free(i->clock);
+#endif
         free(i);
         return NULL;
     }
@@ -142,6 +161,9 @@ EXPORT3 void fmi3FreeInstance(fmi3Instance instance) {
     SERVE(i, "fmi3FreeInstance");
     if (!i) return;
     fmi2FreeInstance(i->c);
+#ifdef FTC_CLOCK_VR
+    ftc_clock_free(i->clock);
+#endif
     free(i);
 }
 
@@ -168,6 +190,12 @@ EXPORT3 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
     SERVE(i, "fmi3ExitInitializationMode");
     if (check_mode(i, "fmi3ExitInitializationMode", 1 << INITIALIZATION)) return fmi3Error;
     fmi2Status status = fmi2ExitInitializationMode(i->c);
+#ifdef FTC_CLOCK_VR
+    if (status < fmi2Discard) { /* the outputs of Initialization Mode, held until the first activation */
+        fmi2Status held = ftc_clock_initialized(i);
+        status = held > status ? held : status;
+    }
+#endif
     if (status < fmi2Discard) i->mode = i->event_mode_used ? EVENT : STEP;
     return (fmi3Status)status;
 }
@@ -298,6 +326,10 @@ EXPORT3 fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *
     struct instance3 *i = instance;
     SERVE(i, "fmi3UpdateDiscreteStates");
     if (check_mode(i, "fmi3UpdateDiscreteStates", 1 << EVENT)) return fmi3Error;
+#ifdef FTC_CLOCK_VR
+    fmi2Status activation = ftc_clock_update(i); /* the clock active: the law, once */
+    if (activation >= fmi2Discard) return activation > fmi2Fatal ? fmi3Error : (fmi3Status)activation;
+#endif
     fmi3Boolean *flags[] = {discreteStatesNeedUpdate, terminateSimulation, nominalsOfContinuousStatesChanged,
                             valuesOfContinuousStatesChanged, nextEventTimeDefined};
     for (size_t k = 0; k < sizeof flags / sizeof flags[0]; k++)
@@ -310,6 +342,9 @@ EXPORT3 fmi3Status fmi3EnterStepMode(fmi3Instance instance) {
     struct instance3 *i = instance;
     SERVE(i, "fmi3EnterStepMode");
     if (check_mode(i, "fmi3EnterStepMode", 1 << EVENT)) return fmi3Error;
+#ifdef FTC_CLOCK_VR
+    ftc_clock_leave(i);
+#endif
     i->mode = STEP;
     return fmi3OK;
 }
@@ -326,6 +361,19 @@ EXPORT3 fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunic
     fmi2Boolean terminate = 0;
     fmi2Status status;
     if (check_mode(i, "fmi3DoStep", 1 << STEP)) status = fmi2Error;
+#ifdef FTC_CLOCK_VR
+    else if (!(communicationStepSize >= 0.0)) { /* negative or NaN: what the FMI 2.0 guard would refuse */
+        refuse3(i, "fmi3DoStep", "communicationStepSize is negative or NaN");
+        status = fmi2Error;
+    }
+    else { /* the law runs at activations only (fmi3_clocks.c): a step advances time */
+        (void)noSetFMUStatePriorToCurrentPoint;
+        status = fmi2OK;
+        reached = t + communicationStepSize;
+        i->time = reached;
+        ftc_clock_step(i, communicationStepSize);
+    }
+#else
     else {
         status = fmi2DoStep(i->c, t, communicationStepSize, noSetFMUStatePriorToCurrentPoint);
         if (status < fmi2Discard) reached = t + communicationStepSize;
@@ -336,6 +384,7 @@ EXPORT3 fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunic
         }
         if (status <= fmi2Discard) i->time = reached;
     }
+#endif
     if (eventHandlingNeeded) *eventHandlingNeeded = false;
     if (terminateSimulation) *terminateSimulation = terminate != 0;
     if (earlyReturn) *earlyReturn = false;

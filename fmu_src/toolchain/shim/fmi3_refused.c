@@ -54,6 +54,7 @@ EXPORT3 fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference
     return no_such_type(instance, "fmi3SetBinary", "Binary", nValueReferences);
 }
 
+#ifndef FTC_CLOCK_VR /* the clocked twin serves its clock (fmi3_clocks.c) */
 EXPORT3 fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                 size_t nValueReferences, fmi3Clock values[]) {
     (void)valueReferences, (void)values;
@@ -65,6 +66,7 @@ EXPORT3 fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference 
     (void)valueReferences, (void)values;
     return no_such_type(instance, "fmi3SetClock", "Clock", nValueReferences);
 }
+#endif
 
 /* ---- Refused features: fmi3Error and one message --------------------------------------------- */
 
@@ -101,19 +103,26 @@ REFUSED(fmi3GetAdjointDerivative, "adjoint derivatives are not provided", DERIVA
 REFUSED(fmi3EnterConfigurationMode, NO_STRUCTURAL, (fmi3Instance instance), (void)0)
 REFUSED(fmi3ExitConfigurationMode, NO_STRUCTURAL, (fmi3Instance instance), (void)0)
 
+#ifdef FTC_CLOCK_VR
+/* the clocked twin: its clock's interval is the parameter sample_time, its shift 0 (fmi3_clocks.c) */
+#define NO_CLOCKS "the clock's interval is the parameter sample_time and its shift 0: set sample_time (no fractions)"
+#else
 #define NO_CLOCKS "this FMU has no clocks"
 REFUSED(fmi3GetIntervalDecimal, NO_CLOCKS,
         (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
          fmi3Float64 intervals[], fmi3IntervalQualifier qualifiers[]),
         ((void)valueReferences, (void)nValueReferences, (void)intervals, (void)qualifiers))
+#endif
 REFUSED(fmi3GetIntervalFraction, NO_CLOCKS,
         (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
          fmi3UInt64 counters[], fmi3UInt64 resolutions[], fmi3IntervalQualifier qualifiers[]),
         ((void)valueReferences, (void)nValueReferences, (void)counters, (void)resolutions, (void)qualifiers))
+#ifndef FTC_CLOCK_VR
 REFUSED(fmi3GetShiftDecimal, NO_CLOCKS,
         (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
          fmi3Float64 shifts[]),
         ((void)valueReferences, (void)nValueReferences, (void)shifts))
+#endif
 REFUSED(fmi3GetShiftFraction, NO_CLOCKS,
         (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
          fmi3UInt64 counters[], fmi3UInt64 resolutions[]),
@@ -134,7 +143,8 @@ REFUSED(fmi3SetShiftFraction, NO_CLOCKS,
         (fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
          const fmi3UInt64 counters[], const fmi3UInt64 resolutions[]),
         ((void)valueReferences, (void)nValueReferences, (void)counters, (void)resolutions))
-REFUSED(fmi3EvaluateDiscreteStates, NO_CLOCKS " (providesEvaluateDiscreteStates=\"false\")",
+REFUSED(fmi3EvaluateDiscreteStates, "discrete states are evaluated in Event Mode only "
+        "(providesEvaluateDiscreteStates=\"false\")",
         (fmi3Instance instance), (void)0)
 REFUSED(fmi3ActivateModelPartition, "this FMU is a Co-Simulation FMU only (no Scheduled Execution)",
         (fmi3Instance instance, fmi3ValueReference clockReference, fmi3Float64 activationTime),
