@@ -33,7 +33,7 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> Path:
     one (``make test`` makes it first): the build then redoes only what its sources changed, as it
     does for a user (a cold build in an empty folder is tests/test_wheel.py's)."""
     dest = tmp_path_factory.mktemp("build")
-    for part in ("fmus", "fmus3", "ssp"):
+    for part in ("fmus", "fmus3", "fmus_clocked", "ssp"):
         if (REPO / "build" / part).is_dir():
             shutil.copytree(REPO / "build" / part, dest / part)
     assert main(["build", "--sources", str(REPO / "ssp"), "--dest", str(dest)]) == 0

@@ -25,6 +25,7 @@ REPO_ROOT = Path(__file__).resolve().parents[2]
 # The scenario sources: the checkout's ssp/, or the copy an installed wheel carries (setup.py).
 _PACKAGED = Path(__file__).resolve().parent / "ssp"
 SCENARIO_DIR = _PACKAGED if _PACKAGED.is_dir() else REPO_ROOT / "ssp"
+CLOCKED_FMUS = "fmus_clocked"  # build/fmus_clocked/<model>_clocked.fmu: the controllers' clocked twins
 FMI3_SUFFIX = "_fmi3"  # build/ssp/<name>_fmi3.ssp: the scenario with the FMUs' FMI 3.0 variants
 
 
@@ -97,6 +98,35 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
         for fmus, suffix in variants:
             target = dest / "ssp" / f"{name}{suffix}.ssp"
             archives[name + suffix] = _pack(name, sources, fmus, target, force, root)
+    if fmi3:
+        archives |= _clocked(names, sources, dest, fmus2, root, force, say)
+    return archives
+
+
+def _clocked(names: list[str], sources: Path, dest: Path, fmus2: dict[str, Path], root: Path, force: bool,
+             say: Callable[[str], None]) -> dict[str, Path]:
+    """The clocked variant of each scenario with a controller (:mod:`.clocked`): its twins built
+    into ``dest/fmus_clocked``, its sources written into ``dest/clocked/<name>``, packed into
+    ``dest/ssp/<name>_clocked.ssp`` (the other FMUs FMI 2.0: the scenario as before but for the
+    controller)."""
+    from fmu_src.toolchain.fmi3 import build_fmu3, fmu3_current
+
+    from .clocked import CLOCKED_SCENARIO_SUFFIX, clocked_folder
+
+    archives = {}
+    for name in names:
+        renamed = clocked_folder(sources / name, dest / "clocked" / name)
+        if renamed is None:
+            continue
+        fmus = dict(fmus2)
+        for plain, twin in renamed.items():
+            if force or not fmu3_current(fmus2[plain], dest / CLOCKED_FMUS, root, clocked=True):
+                build_fmu3(fmus2[plain], dest / CLOCKED_FMUS, root, force=force, clocked=True)
+                say(f"{twin} (FMI 3.0, clocked): built")
+            fmus[twin] = dest / CLOCKED_FMUS / twin
+        target = dest / "ssp" / f"{name}{CLOCKED_SCENARIO_SUFFIX}.ssp"
+        archives[name + CLOCKED_SCENARIO_SUFFIX] = _pack(name, dest / "clocked", fmus, target, force, root,
+                                                         origin=sources / name)
     return archives
 
 
@@ -130,8 +160,10 @@ def _ensure_runtimes() -> None:
 
 
 def _pack(name: str, sources: Path, fmus: dict[str, Path], target: Path, force: bool = False,
-          root: Path | None = None) -> Path:
-    """Pack the scenario source folder ``sources/<name>`` with ``fmus`` into ``target``, validated."""
+          root: Path | None = None, origin: Path | None = None) -> Path:
+    """Pack the scenario source folder ``sources/<name>`` with ``fmus`` into ``target``, validated;
+    ``origin``: the folder it was derived from (a clocked variant's), whose files the record names
+    as the sources (so that editing them makes the archive stale)."""
     from fmu_src.toolchain import stamps
     from fmu_src.toolchain.build import FMU_SCRIPTS, REPO_ROOT
 
@@ -156,7 +188,8 @@ def _pack(name: str, sources: Path, fmus: dict[str, Path], target: Path, force: 
     with open_system(target):  # validate the packed archive against the FMUs
         pass
     root = REPO_ROOT if root is None else root
-    recorded: dict[str, str] = stamps.source_digests([*files, Path(ssp.__file__)], root)
+    originals = _scenario_files(origin) if origin is not None else files
+    recorded: dict[str, str] = stamps.source_digests([*originals, Path(ssp.__file__)], root)
     for fmu in needed.values():
         recorded |= stamps.recorded_sources(fmu)
     stamps.record(target, key, recorded, root)
