@@ -407,8 +407,8 @@ def test_every_scenario_exported(wine: Wine, built: Path, tmp_path: Path) -> Non
     against the same host on Linux: each is recorded, then those not equal to the bit fail the test."""
     beyond = []
     for ssp in sorted((built / "ssp").glob("*.ssp")):
-        if ssp.stem.endswith("_fmi3"):
-            continue  # the same scenario on the FMI 3.0 FMUs: the container embeds FMI 2.0 FMUs
+        if ssp.stem.endswith(("_fmi3", "_clocked")):
+            continue  # the same scenario on FMI 3.0 FMUs (the container embeds FMI 2.0 FMUs, no clocks)
         scenario, _ = export(ssp, tmp_path / f"{ssp.stem}.fmu")
         folder = place(wine, scenario, ssp.stem, tmp_path)
         experiment = ElementTree.parse(folder / "modelDescription.xml").getroot().find("DefaultExperiment")
