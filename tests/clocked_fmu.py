@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: BSD-2-Clause
 """A clocked FMI 3.0 Co-Simulation FMU written in C to the standard's example of a sampled partition
 (FMI 3.0, 5.2.2 "Co-Simulation with Clocks"), compiled in the test (``cc``, the official headers the
-engine ships in ``orchestrator/native/fmi``).
+engine and the shim share in ``fmu_src/cbase/fmi``).
 
 ``Sampler`` has ``hasEventMode="true"``, an input clock ``tick`` of constant interval ``T``
 (``intervalDecimal``), a continuous input ``u`` and three outputs:
@@ -25,9 +25,10 @@ import zipfile
 from pathlib import Path
 
 import orchestrator
+from fmu_src.cbase import FMI_HEADERS
 from orchestrator.ssp import SSD_NAME
 
-HEADERS = Path(orchestrator.__file__).parent / "native" / "fmi"
+HEADERS = FMI_HEADERS
 # /work/shared beside a checkout of /work/main, or seen from a worktree below /work/wt
 SHARED = next((p for p in (Path(__file__).resolve().parents[2] / "shared", Path("/work/shared"))
                if p.is_dir()), Path("/work/shared"))
