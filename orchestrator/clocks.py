@@ -32,7 +32,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from fmpy.model_description import ModelDescription
+from fmpy.model_description import ModelDescription, ModelVariable
 from lxml import etree
 
 from . import fmucache
@@ -127,32 +127,36 @@ def input_clocks(where: str, md: ModelDescription, declared: Iterable[Connector]
                             "clocked inputs are not supported (declare the input unclocked: the clocked "
                             "partition samples it at the tick)")
     for v in variables:
-        if v.causality != "input":
-            problems.append(f"{where}: clock '{v.name}' is an {v.causality} clock: only input clocks are "
-                            "supported")
-            continue
-        variability = v.intervalVariability or ""
-        if variability not in PERIODIC:
-            problems.append(f"{where}: input clock '{v.name}' has intervalVariability '{variability}': only "
-                            f"periodic clocks ({', '.join(PERIODIC)}) are supported")
-            continue
-        interval, shift = decimals.get(v.name, (v.intervalDecimal, v.shiftDecimal))
-        ssd = from_ssd.get(v.name)
-        if interval is None:
-            interval = ssd
-        elif ssd is not None and not math.isclose(ssd, interval, rel_tol=1e-12):
-            problems.append(f"{where}: input clock '{v.name}': the SSD's intervalDecimal {ssd!r} differs "
-                            f"from the FMU's {interval!r}")
-            continue
-        if interval is None and variability == "fixed":
-            clocks.append(InputClock(v.name, v.valueReference, 0))  # asked in Initialization Mode
-            continue
-        if interval is None or not math.isfinite(interval) or _ns(interval) <= 0:
-            problems.append(f"{where}: input clock '{v.name}' has no positive interval (intervalDecimal, "
-                            "in the FMU or the SSD's Clock connector)")
-            continue
-        clocks.append(InputClock(v.name, v.valueReference, _ns(interval), _ns(shift or 0.0)))
+        clock = _input_clock(where, v, decimals, from_ssd)
+        if isinstance(clock, str):
+            problems.append(clock)
+        else:
+            clocks.append(clock)
     return clocks, problems
+
+
+def _input_clock(where: str, v: ModelVariable, decimals: dict[str, tuple[float | None, float | None]],
+                 from_ssd: dict[str, float]) -> InputClock | str:
+    """The clock variable ``v`` as the master ticks it, or the one line that refuses it."""
+    if v.causality != "input":
+        return f"{where}: clock '{v.name}' is an {v.causality} clock: only input clocks are supported"
+    variability = v.intervalVariability or ""
+    if variability not in PERIODIC:
+        return (f"{where}: input clock '{v.name}' has intervalVariability '{variability}': only periodic "
+                f"clocks ({', '.join(PERIODIC)}) are supported")
+    interval, shift = decimals.get(v.name, (v.intervalDecimal, v.shiftDecimal))
+    ssd = from_ssd.get(v.name)
+    if interval is None:
+        interval = ssd
+    elif ssd is not None and not math.isclose(ssd, interval, rel_tol=1e-12):
+        return (f"{where}: input clock '{v.name}': the SSD's intervalDecimal {ssd!r} differs from the FMU's "
+                f"{interval!r}")
+    if interval is None and variability == "fixed":
+        return InputClock(v.name, v.valueReference, 0)  # asked in Initialization Mode
+    if interval is None or not math.isfinite(interval) or _ns(interval) <= 0:
+        return (f"{where}: input clock '{v.name}' has no positive interval (intervalDecimal, in the FMU or "
+                "the SSD's Clock connector)")
+    return InputClock(v.name, v.valueReference, _ns(interval), _ns(shift or 0.0))
 
 
 def next_tick(clocks: Sequence[InputClock], after_ns: int, t0_ns: int) -> int | None:

@@ -156,7 +156,16 @@ def model_description(system: System, exposed: Sequence[Exposed], identifier: st
         root.append(units)
     ElementTree.SubElement(root, "DefaultExperiment", {
         "startTime": repr(start), "stopTime": repr(stop), "stepSize": repr(step)})
-    variables = ElementTree.SubElement(root, "ModelVariables")
+    _variables(ElementTree.SubElement(root, "ModelVariables"), system, exposed, three)
+    _structure(ElementTree.SubElement(root, "ModelStructure"), exposed, three)
+    ElementTree.indent(root, space="  ")
+    return ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True) + b"\n"
+
+
+def _variables(variables: ElementTree.Element, system: System, exposed: Sequence[Exposed],
+               three: bool) -> None:
+    """The container's ModelVariables: each exposed port with its causality, start, range and unit
+    (value reference: its position); FMI 3.0: then the independent variable time."""
     for vr, e in enumerate(exposed):
         var = system.components[e.port.component].variables[e.port.connector]
         attributes = {"name": str(e.port), "valueReference": str(vr)}
@@ -184,22 +193,25 @@ def model_description(system: System, exposed: Sequence[Exposed], identifier: st
         ElementTree.SubElement(variables, "Float64", {
             "name": "time", "valueReference": str(len(exposed)), "causality": "independent",
             "variability": "continuous", "description": "Simulation time"})
-    structure = ElementTree.SubElement(root, "ModelStructure")
+
+
+def _structure(structure: ElementTree.Element, exposed: Sequence[Exposed], three: bool) -> None:
+    """The container's ModelStructure: every output with its dependencies (FMI 2.0: indices, under
+    Outputs and InitialUnknowns; FMI 3.0: value references, Output and InitialUnknown elements)."""
     key = {str(e.port): str(vr if three else vr + 1) for vr, e in enumerate(exposed)}
     attribute = "valueReference" if three else "index"
     outputs = [e for e in exposed if e.kind == "output"]
-    if outputs:
-        section = structure if three else ElementTree.SubElement(structure, "Outputs")
-        for e in outputs:
-            depends = " ".join(key[d] for d in sorted(e.depends_on, key=lambda d: int(key[d])))
-            ElementTree.SubElement(section, "Output" if three else "Unknown",
-                                   {attribute: key[str(e.port)], "dependencies": depends})
-        section = structure if three else ElementTree.SubElement(structure, "InitialUnknowns")
-        for e in outputs:
-            ElementTree.SubElement(section, "InitialUnknown" if three else "Unknown",
-                                   {attribute: key[str(e.port)]})
-    ElementTree.indent(root, space="  ")
-    return ElementTree.tostring(root, encoding="UTF-8", xml_declaration=True) + b"\n"
+    if not outputs:
+        return
+    section = structure if three else ElementTree.SubElement(structure, "Outputs")
+    for e in outputs:
+        depends = " ".join(key[d] for d in sorted(e.depends_on, key=lambda d: int(key[d])))
+        ElementTree.SubElement(section, "Output" if three else "Unknown",
+                               {attribute: key[str(e.port)], "dependencies": depends})
+    section = structure if three else ElementTree.SubElement(structure, "InitialUnknowns")
+    for e in outputs:
+        ElementTree.SubElement(section, "InitialUnknown" if three else "Unknown",
+                               {attribute: key[str(e.port)]})
 
 
 def _write(target: Path, entries: Mapping[str, bytes]) -> None:
