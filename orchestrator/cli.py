@@ -555,18 +555,7 @@ def _run(args: argparse.Namespace) -> int:
     try:
         result = run(scenario, options, progress=progress)  # warnings: one line each, as they come (main)
     except (SimulationError, Interrupted) as exc:
-        result = exc.result
-        detail = f" ({messages.last})" if messages.last and not getattr(exc, "explained", False) else ""
-        prefix = "orchestrate: " if isinstance(exc, Interrupted) else "orchestrate: error: "
-        early = isinstance(exc, Interrupted) and not result.count  # while instantiating or initializing
-        kept = " (before the first row)" if early else f"; {_rows_text(result)} kept in {output}"
-        stopped = f"{prefix}{exc}{detail}{kept}"
-        if plot is None or result.count < 2:
-            print(stopped, file=sys.stderr)
-            return exc.exit_status
-        written = _plot_result(result, plot, name, args)
-        print(f"{stopped} (plot: {plot})" if written else stopped, file=sys.stderr)
-        return exc.exit_status
+        return _stopped(exc, messages.last, output, plot, name, args)
     except KeyboardInterrupt as exc:  # outside the stepping loop (Terminated: SIGTERM), nothing kept
         print(f"orchestrate: {_interrupt_text(exc)}", file=sys.stderr)
         return getattr(exc, "exit_status", 130)
@@ -584,6 +573,24 @@ def _run(args: argparse.Namespace) -> int:
         span = f"t = {result.rows['time'][0]:g} .. {result.time:g} s"
         print(f"{name}: {_rows_text(result)}, {span} -> {output}{extra}")
     return 0
+
+
+def _stopped(exc: SimulationError | Interrupted, last: str, output: Path, plot: Path | None, name: str,
+             args: argparse.Namespace) -> int:
+    """A run that failed or was stopped: one line saying why and where its rows are kept (the FMU's
+    last message where the error does not say why), the plot of those rows; the exit status."""
+    result = exc.result
+    detail = f" ({last})" if last and not getattr(exc, "explained", False) else ""
+    prefix = "orchestrate: " if isinstance(exc, Interrupted) else "orchestrate: error: "
+    early = isinstance(exc, Interrupted) and not result.count  # while instantiating or initializing
+    kept = " (before the first row)" if early else f"; {_rows_text(result)} kept in {output}"
+    stopped = f"{prefix}{exc}{detail}{kept}"
+    if plot is None or result.count < 2:
+        print(stopped, file=sys.stderr)
+        return exc.exit_status
+    written = _plot_result(result, plot, name, args)
+    print(f"{stopped} (plot: {plot})" if written else stopped, file=sys.stderr)
+    return exc.exit_status
 
 
 def _rows_text(result: RunResult) -> str:
