@@ -18,7 +18,6 @@ from __future__ import annotations
 import hashlib
 import os
 import re
-import secrets
 import shutil
 import stat
 import tempfile
@@ -107,7 +106,7 @@ def reserve(target: str | os.PathLike) -> Path:
     target.parent.mkdir(parents=True, exist_ok=True)
     remove_stale(target.parent, rf"\.{re.escape(target.name)}\.{HOST}-(?P<pid>\d+)\.[0-9a-f]+\.part",
                  QUIET)  # a CSV writer renames its file a moment after its parent died
-    temporary = target.with_name(f".{target.name}.{HOST}-{os.getpid()}.{secrets.token_hex(4)}.part")
+    temporary = target.with_name(f".{target.name}.{HOST}-{os.getpid()}.{os.urandom(4).hex()}.part")
     os.close(os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
     return temporary
 

@@ -41,7 +41,6 @@ import hashlib
 import json
 import os
 import re
-import secrets
 import shutil
 import threading
 import time
@@ -319,7 +318,7 @@ def _entry(fmu: str | os.PathLike, folder: Path, entry: Path) -> str:
                           "unpacked again", CacheWarning, stacklevel=3)
         _remove(entry, folder)
     files.remove_stale(folder, rf"\.(?:new|old)-{files.HOST}-(?P<pid>\d+)-[0-9a-f]+", files.QUIET)
-    new = folder / f".new-{files.HOST}-{os.getpid()}-{secrets.token_hex(4)}"
+    new = folder / f".new-{files.HOST}-{os.getpid()}-{os.urandom(4).hex()}"
     try:
         fmpy.extract(str(materialize(fmu)), unzipdir=str(new))
         marker = {"fmu": os.path.basename(fmu), "files": _manifest(new)}
@@ -346,7 +345,7 @@ def _touch(entry: Path) -> None:
 
 def _remove(entry: Path, folder: Path) -> None:
     """Remove ``entry``: renamed out of the way first, so that no reader finds it half removed."""
-    old = folder / f".old-{files.HOST}-{os.getpid()}-{secrets.token_hex(4)}"
+    old = folder / f".old-{files.HOST}-{os.getpid()}-{os.urandom(4).hex()}"
     try:
         entry.rename(old)
     except OSError:
