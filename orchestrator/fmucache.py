@@ -37,7 +37,6 @@ FMUs are unpacked by fmpy within the limits the scenario's checks applied to eac
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import re
@@ -104,7 +103,7 @@ def member_sha256(path: str | os.PathLike, archive: str | os.PathLike, member: s
 
 def _hash(path: str | os.PathLike, note: Path | None) -> str:
     """SHA-256 of the file's bytes, read in blocks, and remembered in ``note``."""
-    h = hashlib.sha256()
+    h = files.sha256()
     with open(path, "rb") as stream:
         for block in iter(lambda: stream.read(1 << 20), b""):
             h.update(block)
@@ -113,7 +112,7 @@ def _hash(path: str | os.PathLike, note: Path | None) -> str:
 
 
 def _note(folder: Path, key: str) -> Path:
-    return folder.parent / "digests" / hashlib.sha256(key.encode("utf-8", "surrogateescape")).hexdigest()
+    return folder.parent / "digests" / files.sha256(key.encode("utf-8", "surrogateescape")).hexdigest()
 
 
 def _read_note(note: Path | None) -> str | None:
