@@ -230,7 +230,8 @@ class Recorder:
 
     @property
     def saved(self) -> int:
-        """The rows of this run in the CSV (all sent once ``close`` returned; none if it failed)."""
+        """The rows computed that the CSV covers: those of them on the output grid are in it (all
+        sent once ``close`` returned; none if it failed)."""
         return 0 if self.failed or self.path is None else self._committed[0]
 
     def _start_writer(self, path: Path) -> None:
