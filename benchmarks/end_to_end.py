@@ -8,8 +8,8 @@ For each built scenario (``build/ssp/<name>.ssp``, run ``make build`` first) thi
 processes, started one after the other in alternation (ours, libcosim, ours, ...), so that a
 change of the machine's load hits both alike:
 
-* ``orchestrate run`` with the full CSV (every column, every step) and with ``--output /dev/null``
-  (rows still formatted, nothing stored: the closest the CLI has to no output);
+* ``orchestrate run`` with the full CSV (every column, every step), with ``--output /dev/null``
+  and with ``--output-interval STOP`` (a CSV of two rows): the ways the CLI writes nothing;
 * libcosim (libcosimpy) reading the archive's own algorithm (``from_ssp_file(path)``: its
   ``FixedStepAlgorithm`` with ``numWorkerThreads="0"``, serial), with its file observer writing
   every variable of every FMU to CSV, and with no observer;
@@ -84,13 +84,16 @@ def commands(archive: Path, stop: float, out: Path, before: Path | None) -> dict
         return [str(checkout / ".venv" / "bin" / "orchestrate"), "run", str(scenario), "--quiet", "--no-plot",
                 "--stop-time", repr(stop)]
 
-    ours = run(REPO, archive)
+    def variants(who: str, command: list[str]) -> dict[str, list[str]]:
+        return {f"{who}, CSV": [*command, "--output", str(out / f"{who}.csv")],
+                f"{who}, /dev/null": [*command, "--output", os.devnull],
+                f"{who}, 2 rows": [*command, "--output", str(out / f"{who}-2.csv"), "--output-interval",
+                                   repr(stop)]}
+
     lib = [sys.executable, "-c", LIBCOSIM, str(archive), repr(stop)]
-    labels = {"ours, CSV": [*ours, "--output", str(out / "r.csv")],
-              "ours, /dev/null": [*ours, "--output", os.devnull]}
+    labels = variants("ours", run(REPO, archive))
     if before is not None:
-        labels["before, CSV"] = [*run(before, before / "build" / "ssp" / archive.name), "--output",
-                                 str(out / "before.csv")]
+        labels.update(variants("before", run(before, before / "build" / "ssp" / archive.name)))
     return {**labels, "libcosim, CSV": [*lib, str(out / "libcosim")], "libcosim, none": [*lib, ""]}
 
 
@@ -124,12 +127,18 @@ def cold_start(archive: Path) -> float:
 def report(name: str, stop: float, steps: int, figures: dict[str, tuple[float, float]], cold: float) -> None:
     """Print one scenario's table."""
     print(f"\n{name}: {stop:g} s, {steps} steps (median of the alternating processes)")
-    print(f"{'':18s} {'wall s':>8s} {'CPU s':>8s} {'start-up wall':>14s} {'CPU us/step':>12s}")
+    print(f"{'':18s} {'wall s':>8s} {'CPU s':>8s} {'start-up wall':>14s} {'start-up CPU':>13s} "
+          f"{'CPU us/step':>12s} {'/ libcosim':>11s}")
+
+    def per_step(label: str) -> float:
+        return (figures[label][1] - figures[f"{label} start-up"][1]) / steps * 1e6
+
     for label in [k for k in figures if not k.endswith("start-up")]:
         wall, cpu = figures[label]
         start_wall, start_cpu = figures[f"{label} start-up"]
-        per_step = (cpu - start_cpu) / steps * 1e6
-        print(f"{label:18s} {wall:8.3f} {cpu:8.3f} {start_wall:14.3f} {per_step:12.1f}")
+        base = "libcosim, CSV" if label.endswith("CSV") else "libcosim, none"
+        print(f"{label:18s} {wall:8.3f} {cpu:8.3f} {start_wall:14.3f} {start_cpu:13.3f} "
+              f"{per_step(label):12.1f} {per_step(label) / per_step(base):11.2f}")
     ratio = figures["ours, CSV"][0] / figures["libcosim, CSV"][0]
     bare = figures["ours, CSV"][0] / figures["libcosim, none"][0]
     print(f"wall ratio ours/libcosim, both with full CSV: {ratio:.2f}; ours with CSV / libcosim with no "
@@ -138,6 +147,7 @@ def report(name: str, stop: float, steps: int, figures: dict[str, tuple[float, f
     if "before, CSV" in figures:
         print(f"wall ratio before/libcosim, both with full CSV: "
               f"{figures['before, CSV'][0] / figures['libcosim, CSV'][0]:.2f}")
+    print("CPU per step / libcosim's: writing CSV against its CSV, writing nothing against no observer")
     print(f"first run on a machine (empty FMU cache), start-up wall: {cold:.3f} s")
 
 

@@ -360,15 +360,19 @@ def _direct_binding(slave: Fmi2Slave, do_step: Any) -> tuple[Any, ...]:
         if vr in io.real:
             names[vr], kinds[vr] = sys.intern(io.real[vr]), _KIND_OUTPUT
 
+    refresh_outputs = slave.refresh_outputs  # bound once: no lookup per call
+
     def step(current_time: float, step_size: float) -> int:
         try:
             return _STEP_OK if do_step(slave, current_time, step_size) else _STEP_DISCARD
         except BaseException as error:  # noqa: BLE001 - pythonfmu reports every exception
             d["_fmu_raised"] = error
             return _STEP_RAISED
+        finally:
+            d["_fmu_stale"] = True  # the time or the state moved: recompute the outputs at their next read
 
     def refresh() -> None:
-        slave.refresh_outputs()
+        refresh_outputs()
         d["_fmu_stale"] = False
 
     return (DIRECT_PROTOCOL, d, step, refresh, slave.log_queue, tuple(names), bytes(kinds), io.feedthrough,
@@ -396,7 +400,8 @@ def _constructed() -> dict[int, weakref.ReferenceType[Fmi2Slave]]:
 
 def fmu_model(cls: SlaveClass) -> SlaveClass:
     """Class decorator: DefaultExperiment, extended model description, full state snapshots and
-    attribute-based get/set (the class defines ``refresh_outputs()``, see :func:`declare`)."""
+    attribute-based get/set (the class defines ``refresh_outputs()``, see :func:`declare`); the
+    outputs are marked stale after every ``do_step`` (the class's own need not)."""
     if not callable(getattr(cls, "refresh_outputs", None)):
         raise TypeError(f"{cls.__name__} must define refresh_outputs()")
     base_to_xml = cls.to_xml
@@ -424,7 +429,10 @@ def fmu_model(cls: SlaveClass) -> SlaveClass:
         raised = self.__dict__.pop("_fmu_raised", None)
         if raised is not None:  # the shim's direct call raised it: pythonfmu reports it now
             raise raised
-        return own_do_step(self, current_time, step_size)
+        try:
+            return own_do_step(self, current_time, step_size)
+        finally:
+            self.__dict__["_fmu_stale"] = True  # as the direct call's step: the class's do_step need not
 
     def direct_binding(self: Fmi2Slave) -> tuple[Any, ...]:
         return _direct_binding(self, own_do_step)

@@ -67,9 +67,9 @@ class PendulumPlant(Fmi2Slave):
         self._native = pendulum_native(params)
         start_plant(self)
 
-    def refresh_outputs(self) -> None:
-        """The states now (the initial values until initialization has finished)."""
-        refresh_plant_outputs(self)
+    # the states now (the initial values until initialization has finished); the core's function
+    # itself, no frame of the class's own at every read
+    refresh_outputs = refresh_plant_outputs
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         """Integrate the pendulum over the step with uf held."""

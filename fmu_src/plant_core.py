@@ -253,6 +253,5 @@ def step_plant(
             f"with uf = {slave.uf!r}; step rejected (fmi2Discard)",
         )
         return False
-    slave.state = new
-    mark_stale(slave)
+    slave.state = new  # the outputs are stale now (fmu_model marks them after every step)
     return True

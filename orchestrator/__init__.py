@@ -196,7 +196,8 @@ def run(scenario: str | os.PathLike, options: RunOptions | None = None, /, *,
                                  keep=options.keep or stream is None, timeout=options.timeout,
                                  inputs=series, instances=tracing(options.fmi_log),
                                  binary_copy=output.staged, loop_tolerance=options.loop_tolerance,
-                                 loop_iterations=options.loop_iterations, compiled=compiled)
+                                 loop_iterations=options.loop_iterations, compiled=compiled,
+                                 layout=output.layout, preview=options.preview)
         try:
             runner.run()
         except BaseException as exc:  # however the run ends early, the sidecar says so

@@ -38,7 +38,6 @@ from .errors import (
     terminate,
 )
 from .fmi import CALLS
-from .inspection import inspect_scenario
 from .locate import BUILD_DIR, fmu_dirs, resolve_scenario
 from .master import LOOP_ITERATIONS, LOOP_TOLERANCE
 from .plots import check_plot, plot_run
@@ -526,6 +525,7 @@ def _options(args: argparse.Namespace, scenario: Path, output: Path) -> RunOptio
                       master=args.master,
                       output=output, output_variables=args.output_variables,
                       output_interval=args.output_interval, no_inputs=args.no_inputs, keep=False,
+                      preview=not args.no_plot,
                       strict=args.strict, timeout=args.timeout, fmu_dirs=fmu_dirs(scenario),
                       limits=archive_limits(args), input_file=args.input_file, fmi_log=args.fmi_log,
                       root=args.root, strict_fmus=args.strict_fmus, loop_tolerance=args.loop_tolerance,
@@ -668,6 +668,8 @@ def _validate(args: argparse.Namespace) -> int:
 
 
 def _inspect(args: argparse.Namespace) -> int:
+    from .inspection import inspect_scenario  # here: a run does not need it
+
     scenario = resolve_scenario(args.scenario)
     report = inspect_scenario(scenario, parameter_sets=args.parameter_set,
                               overrides=parse_overrides(args.set), fmu_dirs=fmu_dirs(scenario),

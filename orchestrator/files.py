@@ -15,10 +15,8 @@ process that makes one of the same kind (:func:`remove_stale`).
 
 from __future__ import annotations
 
-import hashlib
 import os
 import re
-import secrets
 import shutil
 import stat
 import tempfile
@@ -27,10 +25,18 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["HOST", "alive", "not_regular", "remove_stale", "replacing", "reserve", "temporary_folder",
-           "write_text"]
+__all__ = ["HOST", "alive", "not_regular", "remove_stale", "replacing", "reserve", "sha256",
+           "temporary_folder", "write_text"]
 
-HOST = hashlib.sha256(os.uname().nodename.encode()).hexdigest()[:8]  # in temporary names: whose pid
+try:  # CPython's own SHA-256 (3.12+: _sha2, 3.11: _sha256): hashlib loads OpenSSL's libcrypto, which
+    from _sha2 import sha256  # type: ignore[import-not-found]  # held 3.5 MB of every run's memory
+except ImportError:  # (issue 46); it hashes at 0.4 GB/s, and a run hashes an FMU only the first time
+    try:
+        from _sha256 import sha256  # type: ignore[import-not-found]
+    except ImportError:  # another Python
+        from hashlib import sha256
+
+HOST = sha256(os.uname().nodename.encode()).hexdigest()[:8]  # in temporary names: whose pid
 QUIET = 60.0  # s without a change after which a dead process's temporary file is certainly abandoned
 
 
@@ -107,7 +113,7 @@ def reserve(target: str | os.PathLike) -> Path:
     target.parent.mkdir(parents=True, exist_ok=True)
     remove_stale(target.parent, rf"\.{re.escape(target.name)}\.{HOST}-(?P<pid>\d+)\.[0-9a-f]+\.part",
                  QUIET)  # a CSV writer renames its file a moment after its parent died
-    temporary = target.with_name(f".{target.name}.{HOST}-{os.getpid()}.{secrets.token_hex(4)}.part")
+    temporary = target.with_name(f".{target.name}.{HOST}-{os.getpid()}.{os.urandom(4).hex()}.part")
     os.close(os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
     return temporary
 

@@ -37,11 +37,9 @@ FMUs are unpacked by fmpy within the limits the scenario's checks applied to eac
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import re
-import secrets
 import shutil
 import threading
 import time
@@ -105,7 +103,7 @@ def member_sha256(path: str | os.PathLike, archive: str | os.PathLike, member: s
 
 def _hash(path: str | os.PathLike, note: Path | None) -> str:
     """SHA-256 of the file's bytes, read in blocks, and remembered in ``note``."""
-    h = hashlib.sha256()
+    h = files.sha256()
     with open(path, "rb") as stream:
         for block in iter(lambda: stream.read(1 << 20), b""):
             h.update(block)
@@ -114,7 +112,7 @@ def _hash(path: str | os.PathLike, note: Path | None) -> str:
 
 
 def _note(folder: Path, key: str) -> Path:
-    return folder.parent / "digests" / hashlib.sha256(key.encode("utf-8", "surrogateescape")).hexdigest()
+    return folder.parent / "digests" / files.sha256(key.encode("utf-8", "surrogateescape")).hexdigest()
 
 
 def _read_note(note: Path | None) -> str | None:
@@ -319,7 +317,7 @@ def _entry(fmu: str | os.PathLike, folder: Path, entry: Path) -> str:
                           "unpacked again", CacheWarning, stacklevel=3)
         _remove(entry, folder)
     files.remove_stale(folder, rf"\.(?:new|old)-{files.HOST}-(?P<pid>\d+)-[0-9a-f]+", files.QUIET)
-    new = folder / f".new-{files.HOST}-{os.getpid()}-{secrets.token_hex(4)}"
+    new = folder / f".new-{files.HOST}-{os.getpid()}-{os.urandom(4).hex()}"
     try:
         fmpy.extract(str(materialize(fmu)), unzipdir=str(new))
         marker = {"fmu": os.path.basename(fmu), "files": _manifest(new)}
@@ -346,7 +344,7 @@ def _touch(entry: Path) -> None:
 
 def _remove(entry: Path, folder: Path) -> None:
     """Remove ``entry``: renamed out of the way first, so that no reader finds it half removed."""
-    old = folder / f".old-{files.HOST}-{os.getpid()}-{secrets.token_hex(4)}"
+    old = folder / f".old-{files.HOST}-{os.getpid()}-{os.urandom(4).hex()}"
     try:
         entry.rename(old)
     except OSError:

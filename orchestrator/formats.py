@@ -11,7 +11,8 @@
   Dymola write, so the tools their users have read it; the same names (scipy).
 
 A name without extension gets CSV; any other extension is a usage error, before anything runs.
-A selection or another format is made from the streamed CSV when the run ends (also after a
+The recorder formats only the selected columns and rows (:meth:`Selection.layout`), straight into a
+CSV result. Another format is made from the streamed CSV when the run ends (also after a
 failure, from the rows kept): the CSV then goes to ``<output>.<pid>.partial.csv`` (the process id:
 two runs writing one output do not share it) and is removed once the final file is written.
 """
@@ -72,6 +73,14 @@ class Selection:
         every = max(1, round(self.interval * NS_PER_S) // round(step * NS_PER_S))
         return -(-count // every)
 
+    def layout(self, names: Sequence[str]) -> tuple[list[int] | None, int | None]:
+        """What the recorder writes of rows with columns ``names``: the indices of the selected
+        columns (None: all) and the interval in ns (None: every row), the rows kept as :meth:`rows`
+        keeps them."""
+        selected = self.columns(names)
+        indices = None if selected == list(names) else [list(names).index(c) for c in selected]
+        return indices, None if self.interval is None else round(self.interval * NS_PER_S)
+
     def rows(self, time: np.ndarray) -> np.ndarray:
         """Mask of the rows on the output grid ``t0 + k * interval`` (integer nanoseconds)."""
         if self.interval is None or not len(time):
@@ -112,11 +121,11 @@ def check_interval(interval: float, step: float) -> None:
 
 
 def staging_path(output: str | os.PathLike, selection: Selection = Selection()) -> Path:
-    """Where the master streams its CSV: ``output`` itself for a full CSV, else
-    ``<output>.<pid>.partial.csv``, of this process only (turned into ``output`` by
-    :func:`write_selected`)."""
+    """Where the master streams its CSV: ``output`` itself for a CSV (the recorder writes only the
+    ``selection``, :meth:`Selection.layout`), else ``<output>.<pid>.partial.csv``, of this process
+    only (turned into ``output`` by :func:`write_selected`)."""
     output = Path(output)
-    if output.suffix.lower() in (".csv", "") and selection.everything:
+    if output.suffix.lower() in (".csv", ""):
         return output
     return output.with_name(f"{output.name}.{os.getpid()}.partial.csv")
 

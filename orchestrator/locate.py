@@ -7,7 +7,6 @@ mean ...?), and an FMU given as a scenario is told how to run one."""
 
 from __future__ import annotations
 
-import difflib
 import os
 from pathlib import Path
 
@@ -63,6 +62,8 @@ def resolve_scenario(scenario: str | os.PathLike) -> Path:
     if path.name != str(scenario) or path.suffix:
         raise ScenarioError(f"{message}")
     message += f", and no built scenario {built}"
+    import difflib  # here: only a scenario not found needs it
+
     close = difflib.get_close_matches(str(scenario), names, n=3, cutoff=0.6)
     if close:
         message += f"; did you mean {' or '.join(close)}?"

@@ -219,6 +219,9 @@ def open_instance(comp: ComponentModel, workdir: str, messages: MessageLog, time
 
 
 InstanceFactory = Callable[[ComponentModel, str, MessageLog, float], InstanceBase]
+# the result's columns -> the indices of those the output file holds (None: all) and its interval in
+# ns (None: every row)
+Layout = Callable[[Sequence[str]], tuple[list[int] | None, int | None]]
 
 
 def tracing(patterns: Sequence[str], factory: InstanceFactory = open_instance) -> InstanceFactory:
@@ -254,8 +257,10 @@ class Master:
     ``progress`` (if given) is called with the number of steps done, about every 1 % of the run.
     ``keep`` False (with an ``output``): rows are only streamed to the CSV and ``run`` returns a
     preview for plotting (:class:`~orchestrator.results.Recorder`), so memory stays flat however
-    long the run. ``timeout``: wall-clock limit of the run in seconds. ``instances`` makes the
-    instance of each component (default :func:`open_instance`; a fake in the fast unit tests).
+    long the run (``preview`` False: only its first and last rows). ``timeout``: wall-clock limit
+    of the run in seconds. ``instances`` makes the instance of each component (default
+    :func:`open_instance`; a fake in the fast unit tests).
+    ``layout`` says which columns and rows the output file holds (only they are formatted).
     ``inputs`` drives unconnected inputs (:mod:`orchestrator.inputs`): set at t0 in initialization
     mode, then at each t_k+1 before its outputs are read (gauss-seidel) or after the step's transfer
     (jacobi, whose FMUs then use them in the next step, like every value it exchanges).
@@ -269,11 +274,12 @@ class Master:
                  timeout: float | None = None, instances: InstanceFactory = open_instance,
                  inputs: InputSeries | None = None, binary_copy: bool = False,
                  loop_tolerance: float = LOOP_TOLERANCE, loop_iterations: int = LOOP_ITERATIONS,
-                 compiled: bool = False) -> None:
+                 compiled: bool = False, layout: Layout | None = None, preview: bool = True) -> None:
         self.system = system
         self.compiled = compiled
         self.loop_tolerance, self.loop_iterations = loop_tolerance, loop_iterations
         self.binary_copy = binary_copy  # the CSV is staged for another format: a float64 copy beside it
+        self.layout = layout  # what the output file holds of each row (RunOutput.layout); None: all
         self.plan = make_plan(system, start_time, stop_time, step, self.name,
                               inputs.ports if inputs is not None else ())
         self._t0, self._h, self.n = self.plan.t0, self.plan.h, self.plan.n
@@ -283,6 +289,7 @@ class Master:
         self.output = output
         self.progress = progress
         self.keep = keep
+        self.preview = preview  # keep False: a preview for plotting (False: the first and last rows)
         self.timeout = timeout
         self.open_instance = instances
         self.inputs = inputs
@@ -437,8 +444,10 @@ class Master:
         self._clocked = [(inst, comp.clocks) for inst, comp in zip(self.instances, components, strict=True)
                          if comp.clocks]
         self._all_clocks = [c for _, clocks in self._clocked for c in clocks]
+        file_columns, interval_ns = self.layout(self.columns) if self.layout is not None else (None, None)
         self.recorder = Recorder(self.columns, self.n + 1, self.output, keep=self.keep or self.output is None,
-                                 binary_copy=self.binary_copy)
+                                 binary_copy=self.binary_copy, file_columns=file_columns,
+                                 interval_ns=interval_ns, preview=self.preview)
 
     def initialize(self) -> None:
         """FMI initialization; afterwards every FMU is in step mode and row t0 is recorded."""

@@ -2,8 +2,9 @@
 """The one owner of a run's output file, as libcosim's file observer owns its files: the file's name,
 format and selection are checked once, before anything runs; when the run starts it writes the
 provenance (status ``running``) and names the CSV the recorder streams to (the result itself, or
-a staged CSV when another format or a selection is asked for); when the run ends, however it ends,
-it writes the rows kept in the format asked for and finishes the provenance.
+a staged CSV when another format is asked for) and what of each row it holds (:meth:`RunOutput.layout`:
+the recorder formats nothing else); when the run ends, however it ends, it writes the rows kept in
+the format asked for and finishes the provenance.
 
 :class:`RunOutput` with no file keeps only the record (status, rows, last time) for the result.
 """
@@ -12,7 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -71,6 +72,11 @@ class RunOutput:
         if self.path is not None:
             formats.check_output(self.path, selection=self.selection)
 
+    def layout(self, columns: Sequence[str]) -> tuple[list[int] | None, int | None]:
+        """The columns (indices into ``columns``; None: all) and the interval (ns; None: every row) of
+        the rows the recorder writes (:meth:`~orchestrator.formats.Selection.layout`)."""
+        return self.selection.layout(columns) if self.path is not None else (None, None)
+
     @property
     def staged(self) -> bool:
         """The recorder writes a staged CSV (converted when the run ends): a float64 copy beside it."""
@@ -120,8 +126,9 @@ class RunOutput:
             # else the error that ended the run (its one line names where its rows are) goes on
         if saved and self.stream.is_file():
             units = record.get("units")  # the rows kept, in the format asked for, with their units
-            formats.write_selected(self.stream, self.path, self.selection, self.texts,
-                                   units if isinstance(units, dict) else None)
+            if self.staged:  # the recorder wrote the selection already
+                formats.write_selected(self.stream, self.path, formats.Selection(), self.texts,
+                                       units if isinstance(units, dict) else None)
             outputs["result"] = self.path
         with contextlib.suppress(FileNotFoundError, NotADirectoryError):  # not there (its folder gone)
             formats.binary_copy_path(self.stream).unlink()

@@ -14,7 +14,6 @@ when the run ends.
 from __future__ import annotations
 
 import glob
-import hashlib
 import json
 import os
 import subprocess
@@ -48,9 +47,8 @@ def digest(path: str | os.PathLike) -> str:
     path = Path(path)
     if deferred(path) or path.is_file():
         return sha256(path)  # computed once per process (the FMU cache needs it too)
-    h = hashlib.sha256()
-    files = sorted(f for f in path.rglob("*") if f.is_file())
-    for f in files:
+    h = files.sha256()
+    for f in sorted(f for f in path.rglob("*") if f.is_file()):
         if path.is_dir():
             h.update(f.relative_to(path).as_posix().encode() + b"\0")
         with f.open("rb") as stream:

@@ -15,8 +15,13 @@ every row up to the last write, at most ``flush_rows`` rows or ``FLUSH_SECONDS``
 
 Floats are formatted by orjson (:func:`orchestrator.formats.csv_rows`): the shortest text that reads
 back to the same double, as ``repr`` gives, at about a tenth of ``repr``'s cost (0.05 against 0.4 us
-per value), so writing every column costs a few percent of a step. ``fmpy.util.read_csv`` reads the
-CSV. Every ``check_rows`` rows the new rows are checked to be finite.
+per value). ``fmpy.util.read_csv`` reads the CSV. Every ``check_rows`` rows the new rows are
+checked to be finite.
+
+Only what the file holds is formatted: the columns ``file_columns`` and, with ``interval_ns``, the
+rows on the output grid ``t0 + k * interval`` (``--output-variables``, ``--no-inputs``,
+``--output-interval``); the null device gets nothing at all. Formatting every row of example1's 26
+columns costs 1-3 us of a 10 us step, which ``--output-interval 30`` paid in full (issue 46).
 """
 
 from __future__ import annotations
@@ -33,7 +38,7 @@ from fmpy.util import read_csv
 
 from . import files
 from .errors import OrchestratorWarning, OutputError, UsageError
-from .formats import binary_copy_path, csv_rows, read_table, read_tool_csv
+from .formats import NS_PER_S, binary_copy_path, csv_rows, read_table, read_tool_csv
 
 __all__ = ["FLUSH_ROWS", "FLUSH_SECONDS", "PREVIEW_BUCKETS", "Columns", "NonFiniteError", "Recorder",
            "ResultFileError", "open_columns", "read_result", "structured"]
@@ -193,12 +198,20 @@ class Recorder:
     ``path`` (if any). ``keep`` False (only with a path): memory holds one block of rows and a
     preview: the first ``PREVIEW_HEAD`` rows or more as they are, then at most ``2 *
     PREVIEW_BUCKETS`` rows (per bucket of consecutive rows, each column's minimum and maximum in
-    the order they occur, at the bucket's first and last time), enough to plot any run length."""
+    the order they occur, at the bucket's first and last time), enough to plot any run length;
+    ``preview`` False: the first and the last row only."""
 
     def __init__(self, columns: Sequence[str], rows: int, path: str | os.PathLike | None = None,
                  flush_rows: int = FLUSH_ROWS, keep: bool = True, check_rows: int = 16,
-                 binary_copy: bool = False) -> None:
+                 binary_copy: bool = False, file_columns: Sequence[int] | None = None,
+                 interval_ns: int | None = None, preview: bool = True) -> None:
         self.columns = list(columns)
+        # what the file holds: these columns (None: all) of the rows on the grid t0 + k * interval_ns
+        every = file_columns is None or list(file_columns) == list(range(len(self.columns)))
+        self._file_columns = None if every else np.asarray(file_columns, dtype=np.intp)
+        self._interval_ns = interval_ns
+        self._origin_ns = 0  # t0 in ns, read from the first row written
+        self._sink = False  # the null device: nothing to format
         self.keep = keep or path is None
         self.count = 0  # rows recorded (all checked but the last < check_rows)
         # keep=False: a buffer of one flush (whole checks), whatever the run length; the preview
@@ -207,14 +220,17 @@ class Recorder:
         self.data = np.empty((max(capacity, 1), len(self.columns)))
         self._base = 0  # row number of data[0]
         self._checked = 0
-        # (rows, bytes) of the CSV up to its last whole block: one attribute, stored in one step, so
-        # that an exception from a signal handler never finds the two disagreeing
-        self._committed = (0, 0)
+        # (rows computed, bytes, rows in the file) of the CSV up to its last whole block: one
+        # attribute, stored in one step, so that an exception from a signal handler never finds them
+        # disagreeing
+        self._committed = (0, 0, 0)
         self._check_rows = check_rows
         self._next_check = check_rows
         self._flush_rows = flush_rows if self.keep else capacity
         self._next_flush = self._flush_rows
-        self._preview = None if self.keep else _Preview(max(1, -(-rows // PREVIEW_BUCKETS)), PREVIEW_HEAD)
+        self._preview: _Preview | _Ends | None = (
+            None if self.keep else _Preview(max(1, -(-rows // PREVIEW_BUCKETS)), PREVIEW_HEAD) if preview
+            else _Ends())
         self._fd: int | None = None  # the temporary file (or device) the CSV is written to
         self._flushed_at = time.monotonic()
         self.failed = False  # the CSV could not be written: no rows of this run are on disk
@@ -228,7 +244,8 @@ class Recorder:
 
     @property
     def saved(self) -> int:
-        """The rows of this run in the CSV (all sent once ``close`` returned; none if it failed)."""
+        """The rows computed that the CSV covers: those of them on the output grid are in it (all
+        sent once ``close`` returned; none if it failed)."""
         return 0 if self.failed or self.path is None else self._committed[0]
 
     def _start_writer(self, path: Path) -> None:
@@ -239,15 +256,17 @@ class Recorder:
             if path.exists() and not path.is_file():
                 self.part = path
                 self._fd = os.open(path, os.O_WRONLY | os.O_CLOEXEC)
+                self._sink = os.path.samefile(path, os.devnull)
             else:
                 self.part = files.reserve(path)
                 self._fd = os.open(self.part, os.O_RDWR | os.O_TRUNC | os.O_CLOEXEC)  # read: _rescue
         except OSError as exc:
             self.failed = True
             raise OutputError(f"{path}: {exc.strerror or exc}") from exc
-        header = (",".join(self.columns) + "\n").encode("utf-8")
+        names = self.columns if self._file_columns is None else [self.columns[j] for j in self._file_columns]
+        header = (",".join(names) + "\n").encode("utf-8")
         self._append(header, b"")
-        self._committed = (0, len(header))
+        self._committed = (0, len(header), 0)
 
     def _open_binary(self, path: Path) -> None:
         """Open the float64 copy of the rows that a conversion to another format reads (instead of
@@ -275,13 +294,14 @@ class Recorder:
         second Ctrl-C, the timeout's grace) between writing a block and committing it would
         otherwise have ``close`` write the block again. A device keeps what it got."""
         assert self._fd is not None
-        sent, size = self._committed
+        _, size, written = self._committed
         try:
             if self.part != self.path:
                 os.ftruncate(self._fd, size)
                 os.lseek(self._fd, size, os.SEEK_SET)
             if self._binary is not None:
-                kept = sent * self.data.shape[1] * self.data.itemsize
+                width = self.data.shape[1] if self._file_columns is None else len(self._file_columns)
+                kept = written * width * self.data.itemsize
                 os.ftruncate(self._binary, kept)
                 os.lseek(self._binary, kept, os.SEEK_SET)
         except OSError as exc:
@@ -354,18 +374,29 @@ class Recorder:
         """Write the checked rows not yet written to the CSV (and, keep=False, fold them into the
         preview and reuse the buffer)."""
         end = self._checked
-        sent, size = self._committed
-        if self._fd is not None and sent < end:
-            block = self.data[sent - self._base:end - self._base]
-            text = csv_rows(block)
-            self._append(text, block.tobytes() if self._binary is not None else b"")
-            size += len(text)
+        sent, size, written = self._committed
+        if self._fd is not None and sent < end and not self._sink:
+            block = self._selected(self.data[sent - self._base:end - self._base], sent == 0)
+            if len(block):
+                text = csv_rows(block)
+                self._append(text, block.tobytes() if self._binary is not None else b"")
+                size += len(text)
+                written += len(block)
             self._flushed_at = time.monotonic()
-        self._committed = (end, size)
+        self._committed = (end, size, written)
         if self._preview is not None and end - self._base == len(self.data):
             self._preview.add(self.data)
             self._base = end
         self._next_flush = self._base + self._flush_rows if not self.keep else end + self._flush_rows
+
+    def _selected(self, block: np.ndarray, first: bool) -> np.ndarray:
+        """The rows and columns of ``block`` that the file holds (``first``: its first row is t0)."""
+        if self._interval_ns is not None:
+            ns = np.round(block[:, 0] * NS_PER_S).astype(np.int64)
+            if first:
+                self._origin_ns = int(ns[0])
+            block = block[(ns - self._origin_ns) % self._interval_ns == 0]
+        return block if self._file_columns is None else block[:, self._file_columns]
 
     def close(self) -> None:
         """Check and write the remaining rows, close the CSV and rename it onto the result's name
@@ -456,6 +487,31 @@ def _write_all(fd: int, data: bytes) -> None:
     view = memoryview(data)
     while view:
         view = view[os.write(fd, view):]
+
+
+class _Ends:
+    """The preview of a run nobody plots: its first and last rows."""
+
+    def __init__(self) -> None:
+        self.fed = 0  # rows added
+        self.first = self.last = np.empty(0)
+
+    def add(self, block: np.ndarray) -> None:
+        """Fold ``block`` (the rows after those already added) in."""
+        if len(block):
+            if not self.fed:
+                self.first = block[0].copy()
+            self.last = block[-1].copy()
+            self.fed += len(block)
+
+    def rows(self, pending: np.ndarray, ncols: int) -> np.ndarray:
+        """The first and last of the rows added and then of ``pending`` (one row if that is all)."""
+        count = self.fed + len(pending)
+        if not count:
+            return np.empty((0, ncols))
+        first = self.first if self.fed else pending[0]
+        last = pending[-1] if len(pending) else self.last
+        return np.array([first, last][:min(count, 2)])
 
 
 class _Preview:

@@ -112,14 +112,18 @@ class System:
         self.components: dict[str, ComponentModel] = {}
         names: set[str] = set()
         self._connected = {port for con in structure.connections for port in (con.start, con.end)}
+        # one model description per FMU, however many components use it (16 copies of example1 read
+        # 64, 1.6 MB; issue 46): nothing changes it, the start values given live in each component
+        read = dict(model_descriptions or {})
         for c in structure.components:
             if c.name in names:
                 problems.append(f"{self.ssd}: component name '{c.name}' is used twice")
                 continue
             names.add(c.name)
             if c.name not in no_fmu:
-                md = self._model_description(c, (model_descriptions or {}).get(c.source), fmu_warnings)
+                md = self._model_description(c, read.get(c.source), fmu_warnings)
                 if md is not None:
+                    read[c.source] = md
                     self.components[c.name] = self._component(c, md, problems)
         self.links: dict[PortRef, Connection] = {}
         self._check_connections(problems)

@@ -165,3 +165,65 @@ def test_fmi1_components_run_in_the_python_master_with_one_note() -> None:
                            step=0.01)
     assert notes == ["the Python master ran this scenario: FMI 1.0 components identity1, identity2"]
     assert record["executor"] == "python"
+
+
+def _copies(archive: Path, n: int, dest: Path) -> Path:
+    """``archive`` with its components and connections written ``n`` times (``plant_2`` ...), the
+    same FMU files (benchmarks/many_copies.py's scenario)."""
+    import zipfile
+
+    from lxml import etree
+
+    ns = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription"}
+    with zipfile.ZipFile(archive) as zf:
+        members = {i.filename: zf.read(i) for i in zf.infolist() if not i.is_dir()}
+    root = etree.fromstring(members["SystemStructure.ssd"])
+    system = root.find("ssd:System", ns)
+    elements, connections = system.find("ssd:Elements", ns), system.find("ssd:Connections", ns)
+    components, links = list(elements), list(connections)
+    for i in range(2, n + 1):
+        for c in components:
+            elements.append(etree.fromstring(etree.tostring(c)))
+            elements[-1].set("name", f"{c.get('name')}_{i}")
+        for link in links:
+            twin = etree.fromstring(etree.tostring(link))
+            for end in ("startElement", "endElement"):
+                twin.set(end, f"{twin.get(end)}_{i}")
+            connections.append(twin)
+    members["SystemStructure.ssd"] = etree.tostring(root, xml_declaration=True, encoding="UTF-8")
+    target = dest / f"{archive.stem}_x{n}.ssp"
+    with zipfile.ZipFile(target, "w") as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+    return target
+
+
+@pytest.mark.system
+def test_copies_of_one_fmu_share_its_bindings_and_give_its_rows(built: Path, tmp_path: Path) -> None:
+    """Issue 46: the components of one FMU share one model description and fmpy's bindings of its
+    library (the slaves are copies of the first). Each of 4 copies of example1 gives the rows of
+    example1 alone, bit for bit, and after the run no FMU library is left loaded (each slave gave
+    its reference back), as before."""
+    import gc
+
+    from orchestrator import fmi
+
+    def libraries() -> set[str]:
+        with open("/proc/self/maps") as maps:
+            paths = [line.split()[-1] for line in maps if "/binaries/" in line]
+        return {p for p in paths if p.endswith(".so")}
+
+    loaded = libraries()
+    alone = run(built / "ssp" / "example1.ssp", "compiled", stop_time=SHORT)
+    many = run(_copies(built / "ssp" / "example1.ssp", 4, tmp_path), "compiled", stop_time=SHORT)
+    for name in alone.dtype.names or ():
+        if name == "time":
+            continue
+        component, _, connector = name.partition(".")
+        for i in range(2, 5):
+            assert bits(many, [f"{component}_{i}.{connector}"])[f"{component}_{i}.{connector}"] == \
+                bits(alone, [name])[name], name
+    assert bits(many, list(alone.dtype.names or ())) == bits(alone)
+    gc.collect()  # the run's objects in reference cycles (its slaves among them) are gone
+    left = {p for p in libraries() - loaded if not p.endswith("_pythonfmu.so")}  # pythonfmu's stays
+    assert not fmi._TEMPLATES and left == set()

@@ -184,3 +184,72 @@ def test_staged_csv_converts_from_its_binary_copy_or_from_the_text(tmp_path):
     write_selected(staged, tmp_path / "b.parquet")
     a, b = pq.read_table(tmp_path / "a.parquet"), pq.read_table(tmp_path / "b.parquet")
     assert a.equals(b) and a["b.y"].to_pylist() == [-t for t in TIMES]
+
+
+def _recorded(path: Path, rows: np.ndarray, selection: Selection, monkeypatch, count: int | None = None,
+              binary: bool = False) -> list[int]:
+    """``rows`` (or the first ``count`` of them, as a run that fails) recorded into ``path`` by the
+    recorder with the layout of ``selection``; returns the sizes of the blocks it formatted."""
+    from orchestrator import results
+    from orchestrator.results import Recorder
+
+    formatted: list[int] = []
+
+    def counting(block: np.ndarray) -> bytes:
+        formatted.append(len(block))
+        return csv_rows(block)
+
+    monkeypatch.setattr(results, "csv_rows", counting)
+    names = ["time", "a.x", "a.u", "b.y"]
+    columns, interval_ns = selection.layout(names)
+    recorder = Recorder(names, len(rows), path, keep=False, flush_rows=32, file_columns=columns,
+                        interval_ns=interval_ns, binary_copy=binary)
+    for row in rows[:count]:
+        recorder.append(row)
+    recorder.close()
+    return formatted
+
+
+def test_the_recorder_formats_only_the_selected_rows_and_columns(tmp_path, monkeypatch):
+    """Issue 46: --output-interval formatted every row and thinned the CSV when the run ended. The
+    recorder now writes only the rows and columns asked for; the oracle is the earlier way, the
+    whole CSV thinned by write_selected, for a run that completes and for one cut short."""
+    times = np.arange(1001) * 0.001  # t_k = k h as the master computes it, h = 1 ms
+    rows = np.column_stack([times, np.sin(times), times ** 2, -np.cos(3 * times)])
+    selection = Selection(variables=("a.u", "b.*"), interval=0.05)
+    for count in (None, 437):
+        full, thinned = tmp_path / f"full{count}.csv", tmp_path / f"thinned{count}.csv"
+        _recorded(full, rows, Selection(), monkeypatch, count)
+        expected = write_selected(full, tmp_path / f"expected{count}.csv", selection)
+        formatted = _recorded(thinned, rows, selection, monkeypatch, count)
+        assert thinned.read_bytes() == expected.read_bytes()
+        kept = selection.kept(count or len(rows), 0.001)
+        assert sum(formatted) == kept == len(thinned.read_text().splitlines()) - 1  # nothing else formatted
+    staged = tmp_path / "r.parquet.1.partial.csv"  # another format: the staged CSV and its float64 copy
+    _recorded(staged, rows, selection, monkeypatch, binary=True)
+    copy = np.fromfile(binary_copy_path(staged)).reshape(-1, 3)
+    assert np.array_equal(copy, rows[::50][:, [0, 2, 3]])
+    assert staged.read_bytes() == (tmp_path / "expectedNone.csv").read_bytes()
+
+
+def test_the_null_device_gets_no_formatted_row(tmp_path, monkeypatch):
+    """--output /dev/null (how a run writes nothing) formatted every row for nobody."""
+    rows = np.column_stack([np.arange(500) * 0.01, np.arange(500.0), np.ones(500), np.zeros(500)])
+    assert _recorded(Path(os.devnull), rows, Selection(), monkeypatch) == []
+
+
+def test_a_run_nobody_plots_keeps_no_preview_but_its_first_and_last_rows(tmp_path):
+    """'run --no-plot' folded every block into a plot's preview (0.4 us per step) that nobody
+    drew; it keeps the first and last rows now, and the CSV is the same."""
+    from orchestrator.results import Recorder
+
+    rows = np.column_stack([np.arange(1000) * 0.01, np.sin(np.arange(1000.0))])
+    for count in (1, 2, 999, 1000):
+        recorder = Recorder(["time", "x"], 1000, tmp_path / f"r{count}.csv", keep=False, preview=False)
+        for row in rows[:count]:
+            recorder.append(row)
+            assert recorder.result()["x"].tolist() == [rows[0, 1], row[1]][:recorder.count]
+        recorder.close()
+        assert recorder.result()["time"].tolist() == [rows[0, 0], rows[count - 1, 0]][:count]
+        text = (tmp_path / f"r{count}.csv").read_bytes()
+        assert text == b"time,x\n" + csv_rows(rows[:count])

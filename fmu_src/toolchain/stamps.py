@@ -17,7 +17,6 @@ Only files the build reads are inputs: tracked sources, never a build product su
 
 from __future__ import annotations
 
-import hashlib
 import json
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -29,12 +28,25 @@ FORMAT = 2  # of the record; a record of another format is never trusted
 
 
 def file_digest(path: Path) -> str:
-    """SHA-256 of a file's bytes."""
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+    """SHA-256 of a file's bytes (of a source file: the run's stale check calls it, and hashlib
+    would load OpenSSL's libcrypto, 3.5 MB of every run's memory: CPython's own where it has one,
+    as orchestrator/files.py's sha256)."""
+    try:
+        from _sha2 import sha256  # type: ignore[import-not-found]  # Python 3.12+
+    except ImportError:
+        try:
+            from _sha256 import sha256  # type: ignore[import-not-found]  # Python 3.11
+        except ImportError:  # another Python
+            import hashlib
+
+            sha256 = hashlib.sha256
+    return sha256(path.read_bytes()).hexdigest()
 
 
 def digest(*parts: str | bytes | Path) -> str:
     """A digest of what a build step reads: texts, bytes, and files (name and bytes)."""
+    import hashlib  # here: OpenSSL's (fast for the FMUs an archive packs); a run does not need it
+
     h = hashlib.sha256()
     for part in parts:
         data = (part.name.encode() + b"\0" + part.read_bytes()) if isinstance(part, Path) else \

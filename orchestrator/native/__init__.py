@@ -17,7 +17,6 @@ from __future__ import annotations
 import atexit
 import ctypes
 import functools
-import hashlib
 import os
 import shutil
 import subprocess
@@ -30,6 +29,7 @@ import numpy as np
 
 import fmu_src.cbase as cbase
 
+from .. import files
 from ..fmi import InstanceBase
 from ..fmucache import cache_folder
 from ..plan import Plan
@@ -95,7 +95,7 @@ def compile_library(kind: str, windows: bool = False) -> Path:
     mingw-w64. NativeError when it cannot be built."""
     compiler, version = _compiler(windows)
     flags, libs = (MINGW_FLAGS, ()) if windows else (FLAGS, LIBS)
-    digest = hashlib.sha256("\0".join([*flags, *libs, version]).encode())
+    digest = files.sha256("\0".join([*flags, *libs, version]).encode())
     for source in sorted({*SOURCES[kind], *(p.name for p in HERE.glob("*.h"))}):
         digest.update(source.encode() + b"\0" + (HERE / source).read_bytes())
     for header in sorted([*HEADERS.glob("*.h"), *cbase.HERE.glob("*.[ch]")]):
