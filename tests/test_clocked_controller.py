@@ -178,3 +178,39 @@ def test_fmusim_drives_the_twin_in_event_mode_as_the_law_says(twin: Path, tmp_pa
         assert same, (t, row["v"], v, row["r"], r)
         checked += 1
     assert checked >= 39
+
+
+def test_nonsense_clock_calls_get_an_error_and_never_crash(twin: Path, tmp_path: Path,
+                                                           capfd: pytest.CaptureFixture[str]) -> None:
+    """The twin's clock functions check what a careless host passes: NULL arrays with a count, a
+    value reference that is not the clock, a clock set outside Event Mode, no place for the
+    qualifiers; each answers fmi3Error and one message, and the instance goes on (the guard's
+    latch aside, it is freed cleanly)."""
+    md = fmpy.read_model_description(str(twin))
+    clock = next(v.valueReference for v in md.modelVariables if v.type == "Clock")
+    folder = fmpy.extract(str(twin), str(tmp_path / "unzipped"))
+    calls = {
+        "set-clock-null": lambda s: s.fmi3SetClock(s.component, None, 1, None),
+        "set-clock-not-a-clock": lambda s: s.fmi3SetClock(s.component, (fmi3ValueReference * 1)(1), 1,
+                                                           (fmpy.fmi3.fmi3Clock * 1)(True)),
+        "interval-no-qualifiers": lambda s: s.fmi3GetIntervalDecimal(
+            s.component, (fmi3ValueReference * 1)(clock), 1, (c_double * 1)(), None),
+        "set-clock-in-step-mode": lambda s: s.fmi3SetClock(s.component, (fmi3ValueReference * 1)(clock), 1,
+                                                            (fmpy.fmi3.fmi3Clock * 1)(True)),
+    }
+    for name, call in calls.items():
+        slave = FMU3Slave(guid=md.guid, unzipDirectory=folder,
+                          modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+        slave.instantiate(eventModeUsed=True)
+        try:
+            slave.enterInitializationMode(startTime=0.0)
+            if name == "set-clock-in-step-mode":
+                slave.exitInitializationMode()
+                slave.enterStepMode()
+            capfd.readouterr()
+            with pytest.raises(fmpy.fmi1.FMICallException) as refused:
+                call(slave)
+            assert refused.value.status == 3, name  # fmi3Error
+            assert len(capfd.readouterr().err.strip().splitlines()) == 1, name
+        finally:
+            slave.freeInstance()
