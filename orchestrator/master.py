@@ -489,15 +489,20 @@ class Master:
         if not self._all_clocks:  # the common case: one step, no look for ticks
             t, t_next = start / NS_PER_S, end / NS_PER_S
             self._step_impl(t, t_next - t, t_next)
-        while self._all_clocks and start < end:
+        else:
+            self._step_to_ticks(start, end)
+        assert self.recorder is not None  # setup() creates it
+        self.recorder.append(self.values)
+
+    def _step_to_ticks(self, start: int, end: int) -> None:
+        """From ``start`` to ``end`` (ns): a step cut at every tick inside, the ticks made there."""
+        while start < end:
             tick = next_tick(self._all_clocks, start, self._t0)
             stop = end if tick is None or tick > end else tick
             t, t_next = start / NS_PER_S, stop / NS_PER_S
             self._step_impl(t, t_next - t, t_next)
             self._events(stop)
             start = stop
-        assert self.recorder is not None  # setup() creates it
-        self.recorder.append(self.values)
 
     def _events(self, t_ns: int, initial: bool = False) -> None:
         """The clock ticks at ``t_ns`` and the events the FMUs asked for: each such instance gets

@@ -29,6 +29,7 @@ from lxml import etree
 from fmu_src.toolchain.clocked import CLOCK, INTERVAL_PARAMETER
 from fmu_src.toolchain.fmi3 import CLOCKED_SUFFIX
 
+from ..errors import ScenarioError
 from ..ssp import NS, SSD_NAME
 
 __all__ = ["CLOCKED_SCENARIO_SUFFIX", "clocked_folder"]
@@ -50,8 +51,8 @@ def clocked_folder(folder: Path, dest: Path) -> dict[str, str] | None:
         return None
     step = root.find("ssd:DefaultExperiment//{*}FixedStepAlgorithm", NS)
     if step is None or step.get("baseStepSize") is None:
-        raise ValueError(f"{folder / SSD_NAME}: no osp:FixedStepAlgorithm baseStepSize (the step the law is "
-                         "sampled at)")
+        raise ScenarioError(f"{folder / SSD_NAME}: no osp:FixedStepAlgorithm baseStepSize: its clocked "
+                            "variant needs the step the law is sampled at")
     if dest.exists():
         shutil.rmtree(dest)
     shutil.copytree(folder, dest, ignore=shutil.ignore_patterns(".*"))
@@ -79,7 +80,7 @@ def _set_interval(ssv: Path, step: str) -> None:
     tree = etree.parse(str(ssv), etree.XMLParser(resolve_entities=False, no_network=True))
     parameters = tree.getroot().find(f"{{{SSV}}}Parameters")
     if parameters is None:
-        raise ValueError(f"{ssv}: no ssv:Parameters")
+        raise ScenarioError(f"{ssv}: no ssv:Parameters to set {INTERVAL_PARAMETER} in")
     found = [p for p in parameters if p.get("name") == INTERVAL_PARAMETER]
     parameter = found[0] if found else etree.SubElement(parameters, f"{{{SSV}}}Parameter",
                                                         name=INTERVAL_PARAMETER)
