@@ -71,8 +71,9 @@ def measure_fmpy(path: Path, steps: int, method: int | None = None) -> tuple[flo
     vr = {v.name: v.valueReference for v in md.modelVariables}
     outputs = [v.name for v in md.modelVariables if v.causality == "output"]
     inputs = [v.name for v in md.modelVariables if v.causality == "input"]
+    folder = extract(str(path))
     fmu = FMU2Slave(
-        guid=md.guid, unzipDirectory=extract(str(path)), modelIdentifier=md.coSimulation.modelIdentifier,
+        guid=md.guid, unzipDirectory=folder, modelIdentifier=md.coSimulation.modelIdentifier,
         instanceName="bench",
     )
     fmu.instantiate()
@@ -94,6 +95,7 @@ def measure_fmpy(path: Path, steps: int, method: int | None = None) -> tuple[flo
         fmu.terminate()
     finally:
         fmu.freeInstance()
+        shutil.rmtree(folder, ignore_errors=True)
     return statistics.median(step_times) / 1e3, statistics.median(io_times) / 1e3
 
 

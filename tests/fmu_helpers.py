@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import importlib.util
 import math
+import tempfile
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
@@ -21,7 +22,17 @@ from fmu_src.toolchain.build import EXTENSIONS, FMU_SCRIPTS, REPO_ROOT, compile_
 from fmu_src.toolchain.runtime import ensure_runtime
 
 MODELS = tuple(FMU_SCRIPTS)
+# fmpy.extract alone leaves each FMU (about 80 MB with its runtimes) in TMPDIR for ever: the tests
+# extract each FMU once per process into this folder, which is removed when the process exits.
+_UNZIP_ROOT = tempfile.TemporaryDirectory(prefix="ftc-tests-")
 _extracted: dict[Path, str] = {}
+
+
+def unzipped(path: Path) -> str:
+    """The FMU at ``path`` extracted once per test process, in a folder removed at exit."""
+    if path not in _extracted:
+        _extracted[path] = extract(str(path), unzipdir=f"{_UNZIP_ROOT.name}/{len(_extracted)}")
+    return _extracted[path]
 
 
 def compiled_extension(name: str, where: Path) -> ModuleType:
@@ -43,13 +54,11 @@ class Slave:
 
     def __init__(self, path: Path, instance_name: str) -> None:
         self.md = read_model_description(str(path))
-        if path not in _extracted:
-            _extracted[path] = extract(str(path))
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self.types = {v.name: v.type for v in self.md.modelVariables}
         self.fmu = FMU2Slave(
             guid=self.md.guid,
-            unzipDirectory=_extracted[path],
+            unzipDirectory=unzipped(path),
             modelIdentifier=self.md.coSimulation.modelIdentifier,
             instanceName=instance_name,
         )

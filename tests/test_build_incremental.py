@@ -7,6 +7,7 @@ written again) and the rebuilt FMU's own bundled source (the edit is in it)."""
 
 from __future__ import annotations
 
+import ast
 import os
 import shutil
 import zipfile
@@ -14,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from fmu_src.toolchain.build import REPO_ROOT, build_fmu
+from fmu_src.toolchain.build import BUILD_CODE, REPO_ROOT, build_fmu
 from fmu_src.toolchain.fmi3 import build_fmu3
 
 pytestmark = pytest.mark.system
@@ -144,3 +145,19 @@ def test_without_mingw_the_fmus_are_built_for_linux64_saying_why(tmp_path: Path,
 
     result = run(archives["pendulum"], RunOptions(stop_time=0.01))
     assert result.count == 21
+
+
+def test_every_toolchain_module_a_build_runs_is_one_of_its_inputs() -> None:
+    """Editing any module the build imports rebuilds the FMUs: before, ``controller_doc.py`` (which
+    writes each controller's documentation page) and ``clocked.py`` were read by every build but were
+    not among its inputs, so a changed page shipped only after ``rm -rf build``. ``stamps.py`` records
+    the inputs and makes nothing that ships."""
+    toolchain = REPO_ROOT / "fmu_src" / "toolchain"
+    imported = set()
+    for name in BUILD_CODE:
+        if name.endswith(".py"):
+            for node in ast.walk(ast.parse((toolchain / name).read_text())):
+                if isinstance(node, ast.ImportFrom) and node.level == 1:
+                    imported |= {node.module} if node.module else {a.name for a in node.names}
+    missing = sorted(f"{m}.py" for m in imported - {"stamps"} if f"{m}.py" not in BUILD_CODE)
+    assert not missing, f"imported by the build but not among its inputs: {missing}"

@@ -6,6 +6,7 @@ start value, and its worked example, a plant that is not the paper's, runs as pr
 from __future__ import annotations
 
 import html
+import os
 import re
 import subprocess
 import sys
@@ -50,15 +51,18 @@ def test_every_variable_is_documented_with_its_start_value(fmus: dict[str, Path]
 def test_worked_example_runs_as_printed_and_tracks(fmus: dict[str, Path], model: str,
                                                    tmp_path: Path) -> None:
     """The page's Python, copied out of the FMU, run beside it in a fresh interpreter: the plant that is
-    not the paper's follows yd = 0.5 sin t within 0.01 after 5 s."""
+    not the paper's follows yd = 0.5 sin t within 0.01 after 5 s, and leaves nothing in TMPDIR."""
     found = re.search(r'<code class="language-python">(.*?)</code>', page(fmus[model]), re.S)
     assert found is not None
     code = html.unescape(found.group(1))
     (tmp_path / f"{model}.fmu").write_bytes(fmus[model].read_bytes())
     (tmp_path / "example.py").write_text(code)
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
     done = subprocess.run([sys.executable, "example.py"], cwd=tmp_path, capture_output=True, text=True,
-                          timeout=300)
+                          timeout=300, env={**os.environ, "TMPDIR": str(scratch)})
     assert done.returncode == 0, done.stderr
+    assert not any(scratch.iterdir()), "the example left its unpacked FMU behind"
     printed = re.search(r"tracking error at t = 5.0 s: (\S+)", done.stdout)
     assert printed is not None, done.stdout
     error = float(printed.group(1))

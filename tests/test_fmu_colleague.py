@@ -17,6 +17,7 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
+from fmu_helpers import unzipped
 
 from orchestrator.crosscheck.colleague import PYTHON_PROBE, hidden, refusal
 
@@ -63,7 +64,7 @@ def on_grid(fmu: Path, start: dict[str, float], times: np.ndarray) -> np.ndarray
     host's CSV) to the next, its outputs recorded at each point."""
     md = fmpy.read_model_description(str(fmu))
     outputs = [v for v in md.modelVariables if v.causality == "output"]
-    slave = fmpy.fmi2.FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(fmu)),
+    slave = fmpy.fmi2.FMU2Slave(guid=md.guid, unzipDirectory=unzipped(fmu),
                                 modelIdentifier=md.coSimulation.modelIdentifier, instanceName="reference")
     slave.instantiate()
     try:

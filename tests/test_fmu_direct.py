@@ -21,7 +21,7 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
-from fmpy import extract, read_model_description
+from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (
     FMU2Slave,
@@ -33,6 +33,7 @@ from fmpy.fmi2 import (
     fmi2LastSuccessfulTime,
     fmi2Terminated,
 )
+from fmu_helpers import unzipped
 
 import orchestrator
 from orchestrator import RunOptions
@@ -67,7 +68,7 @@ class Messages:
 def instantiate(fmu: Path, messages: Messages, name: str = "instance") -> tuple[FMU2Slave, dict[str, int]]:
     """One instance with logging on, and its value references by name."""
     md = read_model_description(str(fmu))
-    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu)),
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped(fmu),
                       modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
     slave.instantiate(callbacks=messages.callbacks, loggingOn=True)
     return slave, {v.name: v.valueReference for v in md.modelVariables}

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
+from fmu_helpers import unzipped
 
 from orchestrator.crosscheck.colleague import hidden, refusal
 
@@ -358,7 +359,7 @@ def test_fmu_state_restores_outputs_and_time(fmus3: dict[str, Path]) -> None:
     vr = {v.name: v.valueReference for v in md.modelVariables}
     slave = FMU3Slave(
         guid=md.guid,
-        unzipDirectory=fmpy.extract(str(fmu)),
+        unzipDirectory=unzipped(fmu),
         modelIdentifier=md.coSimulation.modelIdentifier,
         instanceName="state",
     )

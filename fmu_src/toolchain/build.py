@@ -128,8 +128,8 @@ PLATFORM_NAMES = tuple(name for name, _ in PLATFORMS)
 LAUNCHER_SOURCE = "bundled_python.c"
 LAUNCHER_FLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra")
 # The build's own code (fmu_src/): a change to it rebuilds every FMU.
-BUILD_CODE = ("build.py", "fmi3.py", "runtime.py", "runtime_pins.txt", "runtime_win64.py",
-              "runtime_pins_win64.txt", "licences.py", "variable_table.py")
+BUILD_CODE = ("build.py", "fmi3.py", "clocked.py", "controller_doc.py", "runtime.py", "runtime_pins.txt",
+              "runtime_win64.py", "runtime_pins_win64.txt", "licences.py", "variable_table.py")
 # C extension modules bundled with the FMUs that import them (dotted name -> C source, relative to
 # the source root): built against the runtime's headers for the stable ABI, so that one binary
 # loads in the FMU's runtime and in a host's Python alike. -ffp-contract=off: no fused
@@ -440,8 +440,9 @@ def compile_extension_win64(source: Path, runtime: Runtime, windows: runtime_win
     for number, (dll, symbols) in enumerate(WIN_IMPORTS.items()):  # an import library per DLL
         definition = work / f"imports{number}.def"
         definition.write_text(f"LIBRARY {dll}\nEXPORTS\n" + "\n".join(symbols) + "\n")
+        # dlltool leaves an empty temporary file behind on every call: keep it in the work folder
         result = subprocess.run([str(tool), "-d", str(definition), "-l", str(work / f"libimports{number}.a")],
-                                capture_output=True, text=True)
+                                capture_output=True, text=True, env={**os.environ, "TMPDIR": str(work)})
         if result.returncode != 0:
             raise BuildError(f"{tool} failed:\n{result.stderr.strip()}")
         libraries.append(f"-limports{number}")

@@ -112,6 +112,7 @@ def example_code(n: int) -> str:
     inputs = [*(f"x{i}" for i in range(1, n + 1)), *DERIVATIVES[: n + 1]]
     return f'''# {controller_model(n)} around {description}.
 import math
+import shutil
 
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
@@ -139,7 +140,8 @@ def rk4(x, u, h):             # the plant over one step with u held (zero-order 
 
 md = read_model_description(FMU)
 vr = {{v.name: v.valueReference for v in md.modelVariables}}
-controller = FMU2Slave(guid=md.guid, unzipDirectory=extract(FMU),
+folder = extract(FMU)                           # fmpy unpacks into TMPDIR: removed at the end
+controller = FMU2Slave(guid=md.guid, unzipDirectory=folder,
                        modelIdentifier=md.coSimulation.modelIdentifier, instanceName="controller")
 controller.instantiate()
 controller.setupExperiment(startTime=0.0)
@@ -158,6 +160,7 @@ for k in range(round(STOP / H)):
     controller.doStep(t, H)                         # 4. the controller's states over the same step
 controller.terminate()
 controller.freeInstance()
+shutil.rmtree(folder)
 error = x[0] - reference(STOP)[0]
 print(f"tracking error at t = {{STOP}} s: {{error:.2e}}")
 '''
