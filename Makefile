@@ -90,10 +90,17 @@ run: $(STAMP)
 ## tests sharing an expensive reference run in one worker (xdist groups). Also writes the
 ## conformance matrix of every scenario in every installed SSP tool to results/crosscheck/, and the
 ## sample project's regression (terminal, JUnit XML, report screenshots) to results/regress-sample/.
+## The suite runs in a TMPDIR of its own and fails if it leaves anything there but pytest's folders
+## (kept for a look when a test failed, removed otherwise).
+TEST_ENV := CROSSCHECK_OUTPUT=results/crosscheck REGRESS_SAMPLE_OUTPUT=results/regress-sample
 test: $(DEV_STAMP) build $(ALT_STAMP) browser windows-tools
 	@$(PY) -m fmu_src.toolchain.runtime check || true
 	@$(PY) -m fmu_src.toolchain.runtime_win64 check || true
-	CROSSCHECK_OUTPUT=results/crosscheck REGRESS_SAMPLE_OUTPUT=results/regress-sample $(PY) -m pytest -q -n 2 --dist loadgroup
+	@scratch=$$(mktemp -d) && chmod 1777 "$$scratch" && echo "TMPDIR=$$scratch $(TEST_ENV) pytest -q -n 2" && \
+	TMPDIR="$$scratch" $(TEST_ENV) $(PY) -m pytest -q -n 2 --dist loadgroup; status=$$?; \
+	left=$$(ls -A "$$scratch" | grep -v '^pytest-of-'); \
+	if [ -n "$$left" ]; then echo "make test: the suite left in $$scratch:" $$left; status=1; fi; \
+	if [ $$status = 0 ]; then rm -rf "$$scratch"; fi; exit $$status
 
 # The HTML regression report's test opens it in a real browser: Debian's chromium, installed here
 # where it is missing and apt-get can (as root; CI runs so). A failed install is tried again only
