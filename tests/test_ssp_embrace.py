@@ -1,25 +1,29 @@
 # SPDX-License-Identifier: BSD-2-Clause
 """OMSimulator's Embrace file (four Dymola 2020 FMUs with their own variable-step solvers and one
-Simulink FMU) against OMSimulator 3 running the same archive: why the two differ by up to 1.4e-3
-at t = 1 s (ECS_HW.consumerFeed.m), and that they agree to the bit under the same calls.
+Simulink FMU) against OMSimulator 3 running the same archive: why the two differed by up to
+1.4e-3 at t = 1 s (ECS_HW.consumerFeed.m), and that they agree at every point of the run when the
+engine makes OMSimulator's calls.
 
-Two causes, each shown with OMSimulator as the oracle (tests/ssp_conformance/omsimulator/embrace,
+Three causes, each shown with OMSimulator as the oracle (tests/ssp_conformance/omsimulator/embrace,
 OMSimulator's ``testsuite/tests/resources/embrace`` at 2940ef11, unchanged):
 
-* The FMUs' tolerance. OMSimulator passes every FMU its system's relative tolerance in
-  ``fmi2SetupExperiment`` (``toleranceDefined``; the SSD's ``oms:FixedStepMaster relativeTolerance``,
-  1e-4); the engine passed none before, so ECS_HW's solver ran at its own default, and the first
-  step already differed by 1.9e-4 (``ECS_HW.LHexTout``). Now the engine passes the file's.
+* The FMUs' tolerance (fixed here). OMSimulator passes every FMU its system's relative tolerance
+  in ``fmi2SetupExperiment`` (``toleranceDefined``; the SSD's ``oms:FixedStepMaster
+  relativeTolerance``, 1e-4); the engine passed none, so ECS_HW's solver ran at its own default
+  and the first step already differed by 1.9e-4 (``ECS_HW.LHexTout``). Now it passes the file's.
 * OMSimulator's result writer reads every variable of every FMU (1105 Real ones here, the state
-  derivatives among them) at every communication point. A Dymola FMU evaluates its model on those
-  reads, and that changes the path of its variable-step solver: the reads, not the master, make
-  the next steps differ (by 4e-7 at t = 2 ms), and this stiff model (pressure nodes) amplifies any
-  such difference to percents within a step. With the same reads, every value agrees to the bit
-  for ten steps; at t = 11 ms they part by 7e-8 (ECS_HW's internal pressures), which the model
-  makes 20 % at 12 ms: what remains differs in the order of the calls (OMSimulator sets the
-  inputs one connection at a time, interleaved with reads of other FMUs, this engine per FMU in
-  one call), which no standard fixes. Both results are within the FMUs' tolerance of each other:
-  at 1e-8 instead of 1e-4 (both tools) consumerFeed.m at 1 s differs by 3.5e-5, not 1.4e-3.
+  derivatives among them) at every communication point. A Dymola FMU evaluates its model on such
+  reads, and its solver then takes other steps: without them the values part at t = 2 ms.
+* OMSimulator advances its communication time by adding the step (``time = tNext; tNext = time +
+  h``), so its points drift from k h (t = 0.010000000000000002 for 10 steps of 1 ms, and
+  ``fmi2DoStep`` then gets h = 0.0010000000000000009); this engine steps on the exact grid k h
+  (integer nanoseconds, as libcosim). A variable-step solver inside an FMU sees the other time:
+  with the reads but our grid the values part at t = 11 ms.
+
+The last two are OMSimulator's choices, not the standard's (FMI lets ``fmi2GetReal`` compute; a
+grid that does not drift is this engine's design), and this stiff model (pressure nodes) turns
+any such difference into percents within a step. With all three, all 1105 values agree with
+OMSimulator's at every one of the 1000 points of the 1 s run.
 """
 
 from __future__ import annotations
@@ -36,7 +40,9 @@ import pytest
 from ssp_conformance.conformance import HERE, OMSIMULATOR, Case, pack
 
 import orchestrator
-from orchestrator.master import MASTERS, open_instance
+from orchestrator.fmi import InstanceBase, MessageLog
+from orchestrator.master import MASTERS, InstanceFactory, open_instance
+from orchestrator.system import ComponentModel
 
 pytestmark = [pytest.mark.system, pytest.mark.filterwarnings("ignore::orchestrator.errors.ScenarioWarning")]
 
@@ -66,36 +72,44 @@ def omsimulator_rows(scenario: Path, stop: float, tmp: Path) -> dict[float, dict
     return {round(float(r[0]), 9): dict(zip(names[1:], map(float, r[1:]), strict=True)) for r in table[1:]}
 
 
-def reading_everything(comp, workdir, messages, time):  # noqa: ANN001, ANN201 - an InstanceFactory
-    """The real instance, but it reads every Real variable before each step, as OMSimulator's
-    result writer reads them at each communication point (after the inputs are set)."""
-    instance = open_instance(comp, workdir, messages, time)
-    vrs = [v.valueReference for v in comp.model.modelVariables if v.type == "Real"]
-    array, values = (ctypes.c_uint * len(vrs))(*vrs), (ctypes.c_double * len(vrs))()
-    step = instance.do_step
+def as_omsimulator(oms_time: bool) -> InstanceFactory:
+    """Instances that read every Real variable before each step, as OMSimulator's result writer
+    reads them at each communication point (after the inputs are set), and with ``oms_time`` step
+    at OMSimulator's communication times (each the previous plus the step, in floating point)."""
+    def open_reading(comp: ComponentModel, workdir: str, messages: MessageLog, time: float) -> InstanceBase:
+        instance = open_instance(comp, workdir, messages, time)
+        vrs = [v.valueReference for v in comp.model.modelVariables if v.type == "Real"]
+        array, values = (ctypes.c_uint * len(vrs))(*vrs), (ctypes.c_double * len(vrs))()
+        step, clock = instance.do_step, [time]
 
-    def read_then_step(c: object, t: float, h: float, new_step: int) -> int:
-        instance.get_real(c, array, len(vrs), values)  # Simulink's FMU refuses some: as in OMSimulator
-        return step(c, t, h, new_step)
+        def read_then_step(c: object, t: float, h: float, new_step: int) -> int:
+            instance.get_real(c, array, len(vrs), values)  # Simulink's FMU refuses some: as in OMSimulator
+            if oms_time:
+                t, t_next = clock[0], clock[0] + CASE.step
+                h, clock[0] = t_next - t, t_next
+            return int(step(c, t, h, new_step))
 
-    instance.do_step = read_then_step
-    return instance
+        instance.do_step = read_then_step
+        return instance
+    return open_reading
 
 
 Rows = dict[float, dict[str, float]]  # time -> variable -> value
 
 
-def ours(scenario: Path, stop: float, tolerance: bool = True, reads: bool = False) -> Rows:
+def ours(scenario: Path, stop: float, tolerance: bool = True, reads: bool = False,
+         oms_time: bool = False) -> Rows:
     """Our rows (the Python master, gauss-seidel as the file's annotation says); ``reads``: every
     Real variable of every FMU, read as OMSimulator reads them (else the connectors the run records,
-    and nothing else read); ``tolerance`` False: as before, none passed to the FMUs."""
+    and nothing else read); ``oms_time``: at OMSimulator's communication times (with ``reads``);
+    ``tolerance`` False: as before, none passed to the FMUs."""
     found: Rows = {}
     with orchestrator.open_system(scenario) as system:
         if not tolerance:
             system.structure = replace(system.structure, experiment=replace(system.structure.experiment,
                                                                             tolerance=None))
         master = MASTERS["gauss-seidel"](system, 0.0, stop, CASE.step,
-                                         instances=reading_everything if reads else open_instance)
+                                         instances=as_omsimulator(oms_time) if reads else open_instance)
         step = master.step
         one = (ctypes.c_uint * 1)()
         value = ctypes.c_double()
@@ -154,12 +168,15 @@ def test_the_first_step_agrees_with_omsimulator_only_with_the_files_tolerance(sc
 
 
 @needs_omsimulator
-def test_with_omsimulators_reads_every_value_agrees_to_the_bit(scenario: Path, tmp_path: Path) -> None:
-    """With the reads OMSimulator's result writer makes, all 1105 Real values of the five FMUs
-    agree to the bit at every point up to t = 10 ms; without them they part at t = 2 ms."""
-    theirs = omsimulator_rows(scenario, 0.010, tmp_path)
-    when, gap, name, common = first_difference(ours(scenario, 0.010, reads=True), theirs)
+def test_with_omsimulators_calls_every_value_agrees_at_every_point(scenario: Path, tmp_path: Path) -> None:
+    """With OMSimulator's reads and its communication times all 1105 Real values of the five FMUs
+    agree at all 1000 points of the 1 s run; without the reads they part at t = 2 ms, with them but
+    on the exact grid at t = 11 ms (the first point whose summed time differs from k h)."""
+    theirs = omsimulator_rows(scenario, 1.0, tmp_path)
+    when, gap, name, common = first_difference(ours(scenario, 1.0, reads=True, oms_time=True), theirs)
     assert when is None, (when, gap, name)
     assert common == 1105
-    when, gap, name, _ = first_difference(ours(scenario, 0.010), theirs)
+    when, gap, name, _ = first_difference(ours(scenario, 0.012, reads=True), theirs)
+    assert when == 0.011 and gap > 1e-9, (when, gap, name)
+    when, gap, name, _ = first_difference(ours(scenario, 0.012), theirs)
     assert when == 0.002 and gap > 1e-7, (when, gap, name)

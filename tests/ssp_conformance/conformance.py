@@ -70,10 +70,10 @@ class Case:
 
 OMS = "OpenModelica/OMSimulator testsuite/tests/resources"
 EMBRACE_WHY = ("why: the file's relativeTolerance, passed to the FMUs as OMSimulator passes it, makes the "
-               "first step agree; then OMSimulator's result writer reads every variable of every FMU at "
-               "every step, on which these Dymola FMUs evaluate their model and their own solvers take "
-               "other steps; with the same reads every value agrees to 12 digits for 10 steps "
-               "(tests/test_ssp_embrace.py), and the stiff model turns the rest into this")
+               "first step agree; then two choices of OMSimulator's move these Dymola FMUs' own solvers: "
+               "its result writer reads every variable of every FMU at every step, and its time is "
+               "summed step by step (t = 0.010000000000000002 after 10 steps); with both, every value "
+               "agrees at every step (tests/test_ssp_embrace.py)")
 # survey label -> why OMSimulator 3's values differ
 KNOWN = {"OMSimulator embrace": EMBRACE_WHY, "OMSimulator embrace_TwoConf": EMBRACE_WHY}
 SYSTEM_BINDING_IGNORED = ("OMSimulator 3's Python package applies the component's own values (10, 20) and "
