@@ -31,8 +31,10 @@ from __future__ import annotations
 import csv
 import ctypes
 import json
+import shutil
 import subprocess
 import sys
+from contextlib import ExitStack
 from dataclasses import replace
 from pathlib import Path
 
@@ -43,6 +45,7 @@ import orchestrator
 from orchestrator.fmi import InstanceBase, MessageLog
 from orchestrator.master import MASTERS, InstanceFactory, open_instance
 from orchestrator.system import ComponentModel
+from orchestrator.validate import check_scenario
 
 pytestmark = [pytest.mark.system, pytest.mark.filterwarnings("ignore::orchestrator.errors.ScenarioWarning")]
 
@@ -151,6 +154,19 @@ def test_the_files_tolerance_is_read(scenario: Path) -> None:
     with orchestrator.open_system(scenario) as system:
         assert system.structure.experiment.tolerance == 1e-4  # oms:FixedStepMaster relativeTolerance
         assert system.structure.experiment.step == 1e-3
+
+
+@pytest.mark.parametrize("text", ["-1e-4", "0", "abc", "inf"])
+def test_a_tolerance_that_is_no_positive_number_is_one_error(text: str, tmp_path: Path) -> None:
+    """A tolerance no FMU can take is refused before anything runs, naming the file and the value."""
+    source = HERE / "omsimulator" / "toplevelparameter1"
+    shutil.copytree(source, tmp_path / "case")
+    ssd = tmp_path / "case" / "SystemStructure.ssd"
+    ssd.write_text(ssd.read_text().replace('relativeTolerance="0.000100"', f'relativeTolerance="{text}"'))
+    with ExitStack() as stack:
+        _, errors, _ = check_scenario(tmp_path / "case", stack)
+    assert len(errors) == 1, errors
+    assert "SystemStructure.ssd" in errors[0] and f"relativeTolerance='{text}'" in errors[0]
 
 
 @needs_omsimulator
