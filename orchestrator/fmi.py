@@ -247,8 +247,9 @@ class InstanceBase:
         """Set parameters and start values ``name -> (type, value reference, value)``."""
         raise NotImplementedError
 
-    def setup(self, start: float, stop: float) -> None:
-        """fmi2SetupExperiment then fmi2EnterInitializationMode."""
+    def setup(self, start: float, stop: float, tolerance: float | None = None) -> None:
+        """fmi2SetupExperiment (``tolerance``: the relative tolerance of the FMU's own solver, None:
+        undefined) then fmi2EnterInitializationMode."""
         raise NotImplementedError
 
     def exit_initialization(self, time: float) -> None:
@@ -426,15 +427,16 @@ class Instance(InstanceBase):
             setter = setters[type_]  # the system refuses other types before a run
             self.call(f"{prefix}S{setter[1:]}", time, getattr(self.fmu, setter), vrs, vals)
 
-    def setup(self, start: float, stop: float) -> None:
-        """fmi2SetupExperiment then fmi2EnterInitializationMode (FMI 3.0: fmi3EnterInitializationMode)."""
+    def setup(self, start: float, stop: float, tolerance: float | None = None) -> None:
+        """fmi2SetupExperiment then fmi2EnterInitializationMode (FMI 3.0: fmi3EnterInitializationMode;
+        FMI 1.0, which has no tolerance: fmiInitializeSlave)."""
         if isinstance(self.fmu, FMU3Slave):
             enter = self.fmu.enterInitializationMode
-            self.call("fmi3EnterInitializationMode", start, enter, None, start, stop)
+            self.call("fmi3EnterInitializationMode", start, enter, tolerance, start, stop)
         elif isinstance(self.fmu, FMU1Slave):
             self.call("fmiInitializeSlave", start, self.fmu.initialize, start, stop)
         else:
-            self.call("fmi2SetupExperiment", start, self.fmu.setupExperiment, None, start, stop)
+            self.call("fmi2SetupExperiment", start, self.fmu.setupExperiment, tolerance, start, stop)
             self.call("fmi2EnterInitializationMode", start, self.fmu.enterInitializationMode)
         self.initialized = True
 

@@ -453,10 +453,11 @@ class Master:
         """FMI initialization; afterwards every FMU is in step mode and row t0 is recorded."""
         t0 = self.start_time
         stop = self.plan.stop
+        tolerance = self.system.structure.experiment.tolerance  # OMSimulator's, when its file gives one
         for inst, part in zip(self.instances, self.plan.components, strict=True):
             start_values = part.starts
             inst.set_start_values(start_values, t0)
-            inst.setup(t0, stop)
+            inst.setup(t0, stop, tolerance)
             inst.set_start_values(start_values, t0)
             self._stop_if_asked(t0)
         self._ask_clocks(t0)

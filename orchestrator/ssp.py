@@ -211,15 +211,18 @@ class Connection:
 class Experiment:
     """DefaultExperiment of the SSD plus the communication step from a tool annotation, and the
     master that annotation implies (``algorithm``, a name of ``orchestrator.master.MASTERS``; None
-    when the SSD names no algorithm) with the annotation it comes from (``algorithm_from``). Those
-    two are read, never written (:func:`write_ssd` writes both tools' annotations, which name no
-    one algorithm), so they take no part in comparing experiments."""
+    when the SSD names no algorithm) with the annotation it comes from (``algorithm_from``), and
+    the relative tolerance OMSimulator's annotation gives the FMUs' own solvers (``tolerance``;
+    None: the SSD gives none, and each FMU uses its own default). Those three are read, never
+    written (:func:`write_ssd` writes both tools' annotations, which name no one algorithm), so
+    they take no part in comparing experiments."""
 
     start_time: float = 0.0
     stop_time: float | None = None
     step: float | None = None
     algorithm: str | None = field(default=None, compare=False)
     algorithm_from: str = field(default="", compare=False)
+    tolerance: float | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)
@@ -1243,9 +1246,12 @@ def _read_experiment(root: etree._Element, system: etree._Element, label: str,
     reproduces (every connection one step late); OMSimulator's ``oms:FixedStepMaster`` (``oms-ma``)
     steps every FMU and then updates the inputs in dependency order at the new time, as
     ``gauss-seidel`` does. A file with both was written for both tools (``write_ssd`` writes both,
-    so that each reads the step): it names no one algorithm, and gets the default, gauss-seidel."""
+    so that each reads the step): it names no one algorithm, and gets the default, gauss-seidel.
+    The ``relativeTolerance`` of OMSimulator's annotation is the tolerance OMSimulator passes every
+    FMU in ``fmi2SetupExperiment`` (``toleranceDefined``), which an FMU with its own variable-step
+    solver (Dymola's) integrates with: it must be a positive finite number."""
     experiment = root.find("ssd:DefaultExperiment", NS)
-    start, stop, step = 0.0, None, None
+    start, stop, step, tolerance = 0.0, None, None, None
     algorithm, algorithm_from = None, ""
 
     def finite(element: etree._Element, attribute: str, default: float | None) -> float | None:
@@ -1275,12 +1281,17 @@ def _read_experiment(root: etree._Element, system: etree._Element, label: str,
     if oms is not None:  # read (and checked) also when libcosim's annotation gives the step
         oms_step = finite(oms, "stepSize", None)
         step = oms_step if step is None else step
+        tolerance = finite(oms, "relativeTolerance", None)
+        if tolerance is not None and tolerance <= 0:
+            problems.append(f"{label}: FixedStepMaster relativeTolerance={oms.get('relativeTolerance')!r} is "
+                            "not a positive number")
+            tolerance = None
         algorithm, algorithm_from = "gauss-seidel", (
             f"{label}: OMSimulator's oms:FixedStepMaster in the System (all FMUs step, then inputs are "
             "updated in dependency order at the new time)" if algorithm is None else
             f"{label}: both libcosim's osp:FixedStepAlgorithm and OMSimulator's oms:FixedStepMaster (a file "
             "written for both tools, as orchestrate writes its own): the default, OMSimulator's")
-    return Experiment(start, stop, step, algorithm, algorithm_from)
+    return Experiment(start, stop, step, algorithm, algorithm_from, tolerance)
 
 
 # -- writing ------------------------------------------------------------------------------------------

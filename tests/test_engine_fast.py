@@ -115,7 +115,7 @@ class Fake(InstanceBase):
         if self.md is INTEGRATOR:
             self.values[self.vr["x"]] = self.values[self.vr["x0"]]
 
-    def setup(self, start: float, stop: float) -> None:
+    def setup(self, start: float, stop: float, tolerance: float | None = None) -> None:
         self.log.append(("setup", self.name, start, stop))
         self.initialized = True
 
