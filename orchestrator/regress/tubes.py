@@ -221,7 +221,7 @@ def thin(result: np.ndarray, grid: float, columns: Sequence[str] | None = None) 
     return out
 
 
-def structured_copy(data: np.ndarray, names: Sequence[str]) -> np.ndarray:
+def structured_copy(data: np.ndarray | Columns, names: Sequence[str]) -> np.ndarray:
     """A float64 structured array of ``data``'s fields ``names`` (a new array, not a view)."""
     out = np.zeros(len(data), dtype=[(n, np.float64) for n in names])
     for n in names:
@@ -576,19 +576,26 @@ def _band_out(result: Columns, baseline: Columns, name: str, first: int, end: in
             size = 2 * half + 1
             lower = minimum_filter1d(padded, size, mode="reflect")[a + 1 - lo:b + 1 - lo] - width
             upper = maximum_filter1d(padded, size, mode="reflect")[a + 1 - lo:b + 1 - lo] + width
-        finite = np.isfinite(y)
-        excess = np.where(finite, np.maximum(lower - y, y - upper), np.inf)
-        outside = excess > 0
-        count = int(np.count_nonzero(outside))
-        if count:
-            if out.first_out is None:
-                out.first_out = float(t[np.argmax(outside)])
-            worst = int(np.argmax(excess))
-            if excess[worst] > out.worst_excess:
-                out.worst_excess, out.worst_time = float(excess[worst]), float(t[worst])
-            out.n_out += count
-        deviation = np.where(finite, np.abs(y - y_ref), np.inf)
-        out.deviation = max(out.deviation, float(deviation.max()))
+        _gather(t, y, y_ref, lower, upper, out)
+
+
+def _gather(t: np.ndarray, y: np.ndarray, y_ref: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+            out: _Out) -> None:
+    """The samples of one chunk outside their tube (``lower`` to ``upper``), and its largest
+    deviation, into ``out`` (the chunks in time order)."""
+    finite = np.isfinite(y)
+    excess = np.where(finite, np.maximum(lower - y, y - upper), np.inf)
+    outside = excess > 0
+    count = int(np.count_nonzero(outside))
+    if count:
+        if out.first_out is None:
+            out.first_out = float(t[np.argmax(outside)])
+        worst = int(np.argmax(excess))
+        if excess[worst] > out.worst_excess:
+            out.worst_excess, out.worst_time = float(excess[worst]), float(t[worst])
+        out.n_out += count
+    deviation = np.where(finite, np.abs(y - y_ref), np.inf)
+    out.deviation = max(out.deviation, float(deviation.max()))
 
 
 def _points(t_ref: np.ndarray, t_res: np.ndarray,
