@@ -365,6 +365,9 @@ def test_compare_merged_on_any_grids_gives_the_whole_arrays_figures(
             merged = compare_merged(*files, tolerances, "result", "baseline", None)
             assert (merged.grid, merged.problems) == (whole.grid, whole.problems), (base_name, name)
             assert compare_columns(*files, tolerances, "result", "baseline").passed == whole.passed
+            bare = compare_columns(*files, tolerances, "result", "baseline", failed_arrays=False)
+            assert format_comparison(bare) == format_comparison(whole), (base_name, name)  # severity, counts
+            assert all(len(c.time) == 0 for c in bare.checks)
             ends, eps = _ends(files[0]), 1e-9 * 10.0
             rows = _inside(files[1], ends[0] - eps, ends[1] + eps)
             for theirs in whole.checks:

@@ -347,7 +347,7 @@ def _compare_files(args: argparse.Namespace, result: Columns | np.ndarray,
     overrides = _tolerance_overrides(args.tol, tolerances, columns, args.baseline)
     signals = _chosen_signals(args.signal, columns, args.baseline) if args.signal else None
     comparison = compare_columns(result, baseline, tolerances.with_overrides(overrides), str(args.result),
-                                 str(args.baseline), signals=signals)
+                                 str(args.baseline), signals=signals, failed_arrays=args.plot_dir is not None)
     print(f"result:   {args.result}: {summary(read_provenance(args.result))}")
     print(f"baseline: {args.baseline}: {summary(read_provenance(args.baseline))}")
     print(format_comparison(comparison))

@@ -253,7 +253,8 @@ def _check(name: str, points: Points, tol: tubes.Tolerance, quiet_until: float) 
         if stats.n:
             _tube_out(part, stats, w, tol.dt, out)
     return tubes.SignalCheck(name, tol, width, out.n_out, out.first_out, out.worst_time,
-                             out.worst_excess if out.n_out else 0.0, out.deviation, *(np.empty(0),) * 5)
+                             out.worst_excess if out.n_out else 0.0, out.deviation, *(np.empty(0),) * 5,
+                             samples=out.samples, worst_half=out.worst_half)
 
 
 def _inside(columns: Columns, low: float, high: float) -> tuple[int, int]:
@@ -276,9 +277,10 @@ def _ends(columns: Columns) -> np.ndarray:
 
 
 def compare_merged(result: Columns, baseline: Columns, tolerances: tubes.Tolerances, result_name: str,
-                   baseline_name: str, signals: Sequence[str] | None) -> tubes.Comparison:
-    """:func:`tubes.compare` of two column files on any grids, a chunk at a time. A signal outside
-    its tube is checked again on whole arrays, for its figures and plots."""
+                   baseline_name: str, signals: Sequence[str] | None,
+                   failed_arrays: bool = True) -> tubes.Comparison:
+    """:func:`tubes.compare` of two column files on any grids, a chunk at a time. With
+    ``failed_arrays``, a signal outside its tube is checked again on whole arrays, for plots."""
     names, missing, extra = tubes._signal_names(result, baseline, signals, baseline_name)
     required = list(signals) if signals is not None else []
     have = set(result.dtype.names or ())
@@ -307,7 +309,7 @@ def compare_merged(result: Columns, baseline: Columns, tolerances: tubes.Toleran
             problems.append(f"{baseline_name}: column '{n}' has non-finite values")
             continue
         check = _check(n, points, tolerances.of(n), tolerances.quiet_until)
-        if not check.passed:  # its arrays, for the figures and plots
+        if not check.passed and failed_arrays:  # its arrays, for plots
             whole = tubes.compare(tubes.structured_copy(result, ["time", n]),
                                   tubes.structured_copy(baseline, ["time", n]), tolerances, signals=[n])
             check = whole.checks[0]
@@ -318,12 +320,17 @@ def compare_merged(result: Columns, baseline: Columns, tolerances: tubes.Toleran
 
 def compare_columns(result: Columns | np.ndarray, baseline: Columns | np.ndarray,
                     tolerances: tubes.Tolerances, result_name: str, baseline_name: str,
-                    signals: Sequence[str] | None = None) -> tubes.Comparison:
+                    signals: Sequence[str] | None = None,
+                    failed_arrays: bool = True) -> tubes.Comparison:
     """``orchestrate compare``'s comparison: two column files a chunk at a time, on one uniform grid
-    (:func:`tubes.compare`'s streamed path) or any grids (:func:`compare_merged`); other results
-    (another tool's CSV, Parquet, MAT) on whole arrays. Signals inside their tubes keep no arrays."""
-    if isinstance(result, Columns) and isinstance(baseline, Columns) \
-            and not tubes._same_uniform_grid(result, baseline):
-        return compare_merged(result, baseline, tolerances, result_name, baseline_name, signals)
+    (:func:`tubes._compare_streamed`) or any grids (:func:`compare_merged`); other results (another
+    tool's CSV, Parquet, MAT) on whole arrays. Signals inside their tubes keep no arrays, nor do
+    those outside without ``failed_arrays`` (their figures are the same; plots need the arrays)."""
+    if isinstance(result, Columns) and isinstance(baseline, Columns):
+        if tubes._same_uniform_grid(result, baseline):
+            return tubes._compare_streamed(result, baseline, tolerances, result_name, baseline_name, signals,
+                                           failed_arrays)
+        return compare_merged(result, baseline, tolerances, result_name, baseline_name, signals,
+                              failed_arrays)
     return tubes.compare(result, baseline, tolerances, result_name, baseline_name, signals=signals,
                          keep_passed=False)
