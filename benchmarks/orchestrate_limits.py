@@ -3,7 +3,8 @@
 
     python benchmarks/orchestrate_limits.py interrupt [--copies 50] [--master jacobi] [--before COMMIT]
     python benchmarks/orchestrate_limits.py input-file [--mib 250] [--before COMMIT]
-    python benchmarks/orchestrate_limits.py compare [--rows 1000000] [--columns 8] [--before COMMIT]
+    python benchmarks/orchestrate_limits.py compare [--rows 1000000] [--columns 8]
+        [--grids same|different] [--before COMMIT]
 
 * ``interrupt``: example1's loop ``--copies`` times in one system (4 components each: 50 copies are
   200 components, ``build/ssp/example1.ssp``, run ``make build`` first), ``orchestrate run`` for
@@ -13,13 +14,16 @@
 * ``input-file``: a ``--mib`` MiB input file (time and 3 inputs of a lone Actuator, 18 significant
   digits) driving a run of 10 steps: the peak resident size of ``orchestrate run``.
 * ``compare``: two result CSVs of ``--rows`` rows and ``--columns`` signals (the second within the
-  first's tubes): the peak resident size of ``orchestrate compare``.
+  first's tubes), on the same uniform grid or (``--grids different``) the result's times halfway
+  between the baseline's (interpolated): the peak resident size of ``orchestrate compare``, and
+  for 1/10 of the rows (beyond a chunk of 65,536 rows), to show what grows with them.
 
-Peak resident sizes are each process's own: ``ru_maxrss`` from ``wait4`` in a small parent (a fresh
-interpreter without site packages that only spawns and waits), never a child of this larger
-process (a child's peak starts at its parent's size). With ``--before COMMIT`` the same is measured
-for that commit's ``orchestrator`` package (``git archive``, put first on ``PYTHONPATH``, this
-checkout's ``.venv``), in alternation.
+Peak resident sizes are each process's own: its ``VmHWM`` (``/proc/<pid>/status``, the high-water
+mark of the process's own memory, reset at exec), read every millisecond until it ends by a small
+parent (a fresh interpreter without site packages that only spawns, reads and waits), never a
+child of this larger process; ``ru_maxrss`` from ``wait4`` is printed beside it. With ``--before
+COMMIT`` the same is measured for that commit's ``orchestrator`` package (``git archive``, put
+first on ``PYTHONPATH``, this checkout's ``.venv``), in alternation.
 """
 
 from __future__ import annotations
@@ -36,12 +40,23 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 PYTHON = REPO / ".venv" / "bin" / "python"
-# the small parent: spawn argv[1:], wait for it, print its exit status and peak resident size (KiB)
+# the small parent: spawn argv[1:], read its VmHWM every millisecond until it ends, print its exit
+# status, the last VmHWM and ru_maxrss (KiB)
 WAITER = """
-import os, sys
+import os, sys, time
 pid = os.posix_spawnp(sys.argv[1], sys.argv[1:], os.environ)
-_, status, usage = os.wait4(pid, 0)
-print(os.waitstatus_to_exitcode(status), usage.ru_maxrss, file=sys.stderr)
+hwm = 0
+while True:
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            hwm = max([hwm] + [int(line.split()[1]) for line in f if line.startswith("VmHWM:")])
+    except OSError:
+        pass
+    done, status, usage = os.wait4(pid, os.WNOHANG)
+    if done:
+        break
+    time.sleep(0.001)
+print(os.waitstatus_to_exitcode(status), hwm, usage.ru_maxrss, file=sys.stderr)
 """
 INPUT_FMU = "Actuator.fmu"
 INPUTS = ("v", "x1", "x2")
@@ -63,12 +78,13 @@ def export(commit: str, dest: Path) -> Path:
     return dest
 
 
-def peak(command: Sequence[str], env: dict[str, str]) -> tuple[int, float]:
-    """Exit status and peak resident size (MiB) of ``command``, spawned by a small parent."""
+def peak(command: Sequence[str], env: dict[str, str]) -> tuple[int, float, float]:
+    """Exit status, peak resident size (VmHWM) and ru_maxrss (MiB) of ``command``, spawned by a small
+    parent."""
     r = subprocess.run([sys.executable, "-S", "-c", WAITER, *command], env=env, stdout=subprocess.DEVNULL,
                        stderr=subprocess.PIPE, text=True)
-    status, kib = r.stderr.splitlines()[-1].split()
-    return int(status), int(kib) / 1024
+    status, hwm, maxrss = r.stderr.splitlines()[-1].split()
+    return int(status), int(hwm) / 1024, int(maxrss) / 1024
 
 
 # -- interrupt ----------------------------------------------------------------------------------------
@@ -139,20 +155,22 @@ def input_file(args: argparse.Namespace, builds: dict[str, Path | None], tmp: Pa
     run = [str(tmp / "one.ssp"), "--no-plot", "--output", str(tmp / "r.csv")]
     for who, before in builds.items():
         command, env = orchestrate(before)
-        status, mib = peak([*command, "run", *run, "--input-file", str(tmp / "u.csv")], env)
-        _, alone = peak([*command, "run", *run], env)
-        print(f"  {who:7s} {mib:7.0f} MiB ({mib / size:.2f} x the file; without it {alone:.0f} MiB), "
-              f"exit status {status}")
+        status, mib, maxrss = peak([*command, "run", *run, "--input-file", str(tmp / "u.csv")], env)
+        _, alone, _ = peak([*command, "run", *run], env)
+        print(f"  {who:7s} {mib:7.0f} MiB ({mib / size:.2f} x the file; without it {alone:.0f} MiB; "
+              f"ru_maxrss {maxrss:.0f} MiB), exit status {status}")
 
 
 # -- compare ------------------------------------------------------------------------------------------
 MAKE_COMPARED = """
 import sys
 import numpy as np
-folder, rows, columns = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
-t = np.arange(rows) * 1e-3
+folder, rows, columns, grids = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 rng = np.random.default_rng(44)
 for name, wobble in (("baseline.csv", 0.0), ("result.csv", 1e-6)):
+    t = np.arange(rows) * 1e-3
+    if name == "result.csv" and grids == "different":  # halfway between the baseline's, same span
+        t[1:-1] += 0.5e-3
     with open(f"{folder}/{name}", "w") as f:
         f.write(",".join(["time", *(f"plant.x{i}" for i in range(columns))]) + "\\n")
         for s in range(0, rows, 100_000):
@@ -163,15 +181,18 @@ for name, wobble in (("baseline.csv", 0.0), ("result.csv", 1e-6)):
 
 
 def compare(args: argparse.Namespace, builds: dict[str, Path | None], tmp: Path) -> None:
-    subprocess.run([str(PYTHON), "-c", MAKE_COMPARED, str(tmp), str(args.rows), str(args.columns)],
-                   check=True)
-    size = (tmp / "result.csv").stat().st_size / (1 << 20)
-    print(f"orchestrate compare of two CSVs of {args.rows} rows, {args.columns} signals ({size:.0f} MiB "
-          "each): peak resident size of the process")
-    for who, before in builds.items():
-        command, env = orchestrate(before)
-        status, mib = peak([*command, "compare", str(tmp / "result.csv"), str(tmp / "baseline.csv")], env)
-        print(f"  {who:7s} {mib:7.0f} MiB, exit status {status}")
+    print(f"orchestrate compare of two CSVs of {args.columns} signals, grids {args.grids}: peak resident "
+          "size of the process (VmHWM)")
+    for rows in (args.rows // 10, args.rows):
+        made = [str(PYTHON), "-c", MAKE_COMPARED, str(tmp), str(rows), str(args.columns), args.grids]
+        subprocess.run(made, check=True)
+        size = (tmp / "result.csv").stat().st_size / (1 << 20)
+        for who, before in builds.items():
+            command, env = orchestrate(before)
+            files = [str(tmp / "result.csv"), str(tmp / "baseline.csv")]
+            status, mib, maxrss = peak([*command, "compare", *files], env)
+            print(f"  {who:7s} {rows:>9d} rows ({size:4.0f} MiB each): {mib:5.0f} MiB "
+                  f"(ru_maxrss {maxrss:.0f} MiB), exit status {status}")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -186,6 +207,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = sub.add_parser("compare")
     p.add_argument("--rows", type=int, default=1_000_000)
     p.add_argument("--columns", type=int, default=8)
+    p.add_argument("--grids", choices=("same", "different"), default="same")
     for p in sub.choices.values():
         p.add_argument("--before", metavar="COMMIT")
     args = parser.parse_args(argv)

@@ -30,8 +30,9 @@ import os
 import tempfile
 import time
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 from fmpy.util import read_csv
@@ -89,15 +90,15 @@ def read_result(path: str | os.PathLike,
     return data
 
 
-CSV_BLOCK = 1 << 20  # CSV text pyarrow parses at a time (16 MiB: 250 MB more for its read-ahead)
+CSV_BLOCK = 1 << 20  # CSV text parsed at a time
 
 
 class Columns:
-    """A result CSV parsed once by pyarrow, ``CSV_BLOCK`` of text at a time, into one raw float64
-    file per column in ``folder``: a column is read back alone (``columns[name]``), so memory
-    holds a column or two, never the file (fmpy's reader took 4.4 times its size). Duck-types
-    the structured array :func:`read_result` returns where a comparison reads it (``dtype.names``
-    and ``[name]``). :func:`open_columns` makes one."""
+    """A result CSV parsed once, ``CSV_BLOCK`` of text at a time, into one raw float64 file per
+    column in ``folder``: a column is read back alone (``columns[name]``) or in parts
+    (:meth:`part`), so memory holds a column or a chunk, never the file (fmpy's reader took 4.4
+    times its size). Duck-types the structured array :func:`read_result` returns where a comparison
+    reads it (``dtype.names`` and ``[name]``). :func:`open_columns` makes one."""
 
     def __init__(self, names: Sequence[str], rows: int, folder: Path) -> None:
         self.dtype = np.dtype([(n, np.float64) for n in names])
@@ -118,7 +119,44 @@ class Columns:
         if name not in names:
             raise KeyError(name)
         return np.fromfile(self.folder / f"{names.index(name)}.f64", dtype=np.float64, count=max(count, 0),
-                           offset=8 * start)
+                           offset=8 * max(start, 0))
+
+
+def _text_blocks(stream: BinaryIO) -> Iterator[bytes]:
+    """The rest of ``stream`` in whole lines, about ``CSV_BLOCK`` bytes at a time (a longer line whole)."""
+    rest = b""
+    while text := stream.read(CSV_BLOCK):
+        rest += text
+        cut = rest.rfind(b"\n") + 1
+        if cut:
+            yield rest[:cut]
+            rest = rest[cut:]
+    if rest.strip():
+        yield rest
+
+
+def _parse_blocks(stream: BinaryIO, names: list[str], folder: Path) -> int:
+    """The rows of ``stream`` (after its header) as numbers into ``folder``'s column files; the count.
+    Each block of lines is parsed on its own by pyarrow (one thread): its streaming reader read
+    ahead and kept memory that grew with the file (about 110 MiB over the interpreter's for a
+    166 MB file, 4 MiB blocks 230 MiB), a block at a time holds about the same for any length."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    numbers = pacsv.ConvertOptions(column_types={name: pa.float64() for name in names})
+    rows = 0
+    outputs = [open(folder / f"{j}.f64", "wb") for j in range(len(names))]  # noqa: SIM115
+    try:
+        for block in _text_blocks(stream):
+            options = pacsv.ReadOptions(column_names=names, use_threads=False, block_size=len(block) + 1)
+            table = pacsv.read_csv(pa.BufferReader(block), read_options=options, convert_options=numbers)
+            for j, column in enumerate(table.columns):
+                column.to_numpy().tofile(outputs[j])
+            rows += table.num_rows
+    finally:
+        for output in outputs:
+            output.close()
+    return rows
 
 
 def open_columns(path: str | os.PathLike, folder: str | os.PathLike) -> Columns | np.ndarray:
@@ -126,35 +164,21 @@ def open_columns(path: str | os.PathLike, folder: str | os.PathLike) -> Columns 
     removes), checked as :func:`read_result` checks a result; a CSV pyarrow cannot read as
     numbers (another tool's) or another format: :func:`read_result`'s array."""
     import pyarrow as pa
-    import pyarrow.csv as pacsv
 
     path, folder = Path(path), Path(folder)
     if path.suffix.lower() in (".parquet", ".mat") or not path.is_file():
         return read_result(path)
     with open(path, "rb") as stream:
         header = stream.readline(1 << 16)
-    if b'"' in header or b" " in header:  # another tool's layout (OMSimulator's): read_tool_csv's
-        return read_result(path)
-    rows = 0
-    try:
-        with pacsv.open_csv(path, read_options=pacsv.ReadOptions(block_size=CSV_BLOCK)) as reader:
-            names = list(reader.schema.names)
-        if len(set(names)) != len(names):
+        if b'"' in header or b" " in header or not header.endswith(b"\n"):  # another tool's layout
+            return read_result(path)  # (OMSimulator's: quoted names with spaces): read_tool_csv's
+        try:
+            names = header.decode("utf-8").rstrip("\r\n").split(",")
+            if len(set(names)) != len(names):
+                return read_result(path)
+            rows = _parse_blocks(stream, names, folder)
+        except (pa.ArrowException, UnicodeDecodeError):  # not numbers (another tool's CSV): read whole
             return read_result(path)
-        numbers = pacsv.ConvertOptions(column_types={name: pa.float64() for name in names})
-        with pacsv.open_csv(path, read_options=pacsv.ReadOptions(block_size=CSV_BLOCK),
-                            convert_options=numbers) as reader:
-            outputs = [open(folder / f"{j}.f64", "wb") for j in range(len(names))]  # noqa: SIM115
-            try:
-                for batch in reader:
-                    for j, column in enumerate(batch.columns):
-                        column.to_numpy(zero_copy_only=False).tofile(outputs[j])
-                    rows += batch.num_rows
-            finally:
-                for output in outputs:
-                    output.close()
-    except pa.ArrowException:  # not numbers (another tool's CSV, with units or quotes): read whole
-        return read_result(path)
     columns = Columns(names, rows, folder)
     if "time" not in names:
         raise ResultFileError(f"{path}: no 'time' column (columns: {', '.join(names)})")

@@ -324,3 +324,81 @@ def test_compare_streamed_a_chunk_at_a_time_gives_the_whole_arrays_figures(
     assert [c.passed for c in whole.checks] == [False, True, True, False]  # the cases are real
     assert [c.passed for c in streamed.checks] == [c.passed for c in whole.checks]
     assert streamed.passed == whole.passed and streamed.grid == whole.grid
+
+
+@pytest.mark.parametrize("chunk", [7, 1 << 16])
+def test_compare_merged_on_any_grids_gives_the_whole_arrays_figures(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, chunk: int) -> None:
+    """Two files on different grids (the result interpolated onto the baseline's times, or compared
+    at the times both have when its grid is coarser; either grid uniform or not, a result shorter
+    than the baseline) are compared a chunk of rows at a time, both files walked together (issue
+    44: memory O(columns), not O(rows)). The oracle is the comparison of the whole arrays
+    (np.interp, fmpy's validate_signal tube): the grid, the problems and every signal's figures,
+    bit for bit, whether it passes or not, with a quiet phase, time tolerances wider than a chunk,
+    a flat reference; chunks of 7 rows put a chunk boundary inside every window and make the
+    median step's search take several passes."""
+    from orchestrator.regress import tubes
+    from orchestrator.regress.merged import _check, _ends, _inside, _points, compare_columns, compare_merged
+    from orchestrator.results import open_columns
+
+    monkeypatch.setattr(tubes, "CHUNK", chunk)
+    rng = np.random.default_rng(44)
+    tolerances = Tolerances({"p.y": Tolerance(atol=0.05, quiet_atol=1e-3, dt=0.02),
+                             "p.u": Tolerance(rtol=0.02, dt=0.3), "p.f": Tolerance(atol=1e-3)},
+                            quiet_until=2.0)
+    bases = {"uniform": T, "jittered": np.sort(np.concatenate(([0.0, 10.0], rng.uniform(0, 10, 900))))}
+    results = {"shifted": time_grid(0.0, 10.0, 0.0137), "finer": time_grid(0.0, 10.0, 0.004),
+               "coarser": time_grid(0.0, 10.0, 0.05), "short": time_grid(1.0, 8.0, 0.01), "same": T,
+               "jittered": np.sort(np.concatenate(([0.0, 10.0], rng.uniform(0, 10, 700))))}
+    grids, verdicts = set(), set()
+    for base_name, tb in bases.items():
+        baseline = table(tb, p__y=np.sin(tb), p__u=np.cos(3 * tb), p__f=np.ones(len(tb)), p__v=tb ** 2)
+        for name, t in results.items():
+            y = np.where(t >= 6.0, np.sin(t) + 0.2, np.sin(t + 0.01)) + 1e-4 * rng.standard_normal(len(t))
+            result = table(t, p__y=y, p__u=np.cos(3 * t), p__f=np.ones(len(t)) + 1e-4 * (t > 5), p__w=t)
+            files = []
+            for role, data in (("result", result), ("baseline", baseline)):
+                folder = tmp_path / f"{base_name}-{name}-{role}"
+                folder.mkdir()
+                files.append(open_columns(write(tmp_path / f"{base_name}-{name}-{role}.csv", data), folder))
+            whole = compare(result, baseline, tolerances)
+            merged = compare_merged(*files, tolerances, "result", "baseline", None)
+            assert (merged.grid, merged.problems) == (whole.grid, whole.problems), (base_name, name)
+            assert compare_columns(*files, tolerances, "result", "baseline").passed == whole.passed
+            bare = compare_columns(*files, tolerances, "result", "baseline", failed_arrays=False)
+            assert format_comparison(bare) == format_comparison(whole), (base_name, name)  # severity, counts
+            assert all(len(c.time) == 0 for c in bare.checks)
+            ends, eps = _ends(files[0]), 1e-9 * 10.0
+            rows = _inside(files[1], ends[0] - eps, ends[1] + eps)
+            for theirs in whole.checks:
+                points = _points(*files, theirs.name, rows, "coarser" in whole.grid)
+                mine = _check(theirs.name, points, tolerances.of(theirs.name), tolerances.quiet_until)
+                figures = [(c.n_out, c.first_out, c.worst_time, c.width, c.worst_excess, c.max_deviation)
+                           for c in (mine, theirs)]
+                assert figures[0] == figures[1], (base_name, name, theirs.name)
+                verdicts.add(theirs.passed)
+            grids.add(whole.grid.partition(" (")[2] or "rows")
+    assert verdicts == {True, False}  # the cases are real: signals inside and outside their tubes
+    assert grids == {"rows", "the result's grid is coarser)", "the result interpolated)"}
+
+
+@pytest.mark.parametrize("block", [1, 50, 1 << 20])
+def test_columns_parsed_a_block_at_a_time_are_fmpys(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                    block: int) -> None:
+    """Each block of lines is parsed on its own (issue 44: pyarrow's streaming reader kept memory that
+    grew with the file); the oracle is fmpy's reader of the whole file: every column bit for bit,
+    with blocks of 1 and 50 bytes (every line cut across blocks), CRLF line ends and a last line
+    without its line end."""
+    from orchestrator import results
+
+    monkeypatch.setattr(results, "CSV_BLOCK", block)
+    rng = np.random.default_rng(5)
+    data = table(T[:300], p__y=rng.standard_normal(300), p__u=np.exp(rng.standard_normal(300) * 30))
+    text = write(tmp_path / "r.csv", data).read_text().replace("\n", "\r\n").rstrip("\r\n")
+    (tmp_path / "r.csv").write_bytes(text.encode())
+    (tmp_path / "columns").mkdir()
+    columns = results.open_columns(tmp_path / "r.csv", tmp_path / "columns")
+    whole = read_result(tmp_path / "r.csv")
+    assert isinstance(columns, results.Columns) and len(columns) == 300
+    for name in whole.dtype.names:
+        assert columns[name].tobytes() == whole[name].tobytes() == data[name].tobytes(), name

@@ -167,11 +167,48 @@ static void *instantiate(struct container *x, size_t i) {
     return f->instantiate2(c->name, fmi2CoSimulation, c->guid, uri, &x->inner, fmi2False, x->logging);
 }
 
+#ifdef _WIN32
+/* An embedded FMU's binaries folder `binaries` replaced by its copy in the user's cache
+   (ftc_cached_copy: keyed by names and bytes, never rewritten), which its library is loaded from:
+   the libraries stay loaded (see release), and a host must be able to delete the folder it
+   unpacked once it has unloaded the container, as with any C FMU. The resource location given
+   the FMU is still the unpacked one (the project's shim checks it and copies it to the cache in
+   turn). No cache: the unpacked folder, as before. The container's folder does not change while
+   it is loaded, so each folder is hashed once per load (about 50 ms per 10 MB), not at every
+   instantiation. */
+#define MEMO 64
+static struct {
+    char *source, *copy;
+} memo[MEMO];
+static ftc_mutex memo_lock = FTC_MUTEX_INIT;
+
+static void cached_binaries(char *binaries, size_t size) {
+    char cached[2 * TEXT];
+    ftc_lock(&memo_lock);
+    size_t k = 0;
+    while (k < MEMO && memo[k].copy && strcmp(memo[k].source, binaries) != 0) k++;
+    if (k < MEMO && memo[k].copy) {
+        snprintf(binaries, size, "%s", memo[k].copy);
+    } else if (ftc_cached_copy(binaries, NULL, cached, sizeof cached) == 0) {
+        if (k < MEMO && (memo[k].source = strdup(binaries)) && !(memo[k].copy = strdup(cached))) {
+            free(memo[k].source);
+            memo[k].source = NULL;
+        }
+        snprintf(binaries, size, "%s", cached);
+    }
+    ftc_unlock(&memo_lock);
+}
+#endif
+
 static int load_component(struct container *x, size_t i, char *why, size_t size) {
     const struct part *c = &x->plan.components[i];
-    char path[2 * TEXT], reason[TEXT];
-    snprintf(path, sizeof path, "%s/fmus/%s/binaries/%s/%s" SUFFIX, x->resources, c->folder,
-             c->version == 3 ? PLATFORM3 : PLATFORM2, c->identifier);
+    char binaries[2 * TEXT], path[3 * TEXT], reason[TEXT];
+    snprintf(binaries, sizeof binaries, "%s/fmus/%s/binaries/%s", x->resources, c->folder,
+             c->version == 3 ? PLATFORM3 : PLATFORM2);
+#ifdef _WIN32
+    cached_binaries(binaries, sizeof binaries);
+#endif
+    snprintf(path, sizeof path, "%s/%s" SUFFIX, binaries, c->identifier);
     x->libraries[i] = ftc_library_open(path, 0);
     if (!x->libraries[i]) {
         snprintf(why, size, "%s: cannot load %s: %s", c->name, path, ftc_library_error(path));

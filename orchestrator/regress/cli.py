@@ -23,6 +23,7 @@ from ..results import Columns, open_columns
 from . import review
 from .figures import plot_failures
 from .junit import write_junit
+from .merged import compare_columns
 from .report import REPORT_NAME, write_report
 from .suite import (
     ERROR,
@@ -45,7 +46,6 @@ from .tubes import (
     TOLERANCES_NAME,
     Tolerance,
     Tolerances,
-    compare,
     format_comparison,
     load_tolerances,
     parse_tolerance,
@@ -346,8 +346,8 @@ def _compare_files(args: argparse.Namespace, result: Columns | np.ndarray,
     columns = [n for n in baseline.dtype.names or () if n != "time"]
     overrides = _tolerance_overrides(args.tol, tolerances, columns, args.baseline)
     signals = _chosen_signals(args.signal, columns, args.baseline) if args.signal else None
-    comparison = compare(result, baseline, tolerances.with_overrides(overrides), str(args.result),
-                         str(args.baseline), signals=signals, keep_passed=False)
+    comparison = compare_columns(result, baseline, tolerances.with_overrides(overrides), str(args.result),
+                                 str(args.baseline), signals=signals, failed_arrays=args.plot_dir is not None)
     print(f"result:   {args.result}: {summary(read_provenance(args.result))}")
     print(f"baseline: {args.baseline}: {summary(read_provenance(args.baseline))}")
     print(format_comparison(comparison))

@@ -221,7 +221,7 @@ def thin(result: np.ndarray, grid: float, columns: Sequence[str] | None = None) 
     return out
 
 
-def structured_copy(data: np.ndarray, names: Sequence[str]) -> np.ndarray:
+def structured_copy(data: np.ndarray | Columns, names: Sequence[str]) -> np.ndarray:
     """A float64 structured array of ``data``'s fields ``names`` (a new array, not a view)."""
     out = np.zeros(len(data), dtype=[(n, np.float64) for n in names])
     for n in names:
@@ -258,6 +258,13 @@ class SignalCheck:
     reference: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
+    samples: int = 0  # a check without arrays (streamed): the samples compared
+    worst_half: float = math.nan  # ... and the tube's half-width at the worst sample
+
+    @property
+    def count(self) -> int:
+        """The number of samples compared."""
+        return len(self.time) or self.samples
 
     @property
     def passed(self) -> bool:
@@ -270,8 +277,10 @@ class SignalCheck:
         infinite for a non-finite value or a tube of width 0): signals of any unit ranked alike."""
         if not self.n_out or self.worst_time is None:
             return 0.0
-        at = int(np.searchsorted(self.time, self.worst_time))
-        half = float(self.upper[at] - self.lower[at]) / 2
+        half = self.worst_half
+        if len(self.time):
+            at = int(np.searchsorted(self.time, self.worst_time))
+            half = float(self.upper[at] - self.lower[at]) / 2
         return self.worst_excess / half if half > 0 else math.inf
 
 
@@ -495,17 +504,18 @@ def _same_uniform_grid(result: Columns, baseline: Columns) -> bool:
 
 
 def _compare_streamed(result: Columns, baseline: Columns, tolerances: Tolerances, result_name: str,
-                      baseline_name: str, signals: Sequence[str] | None) -> Comparison:
+                      baseline_name: str, signals: Sequence[str] | None,
+                      failed_arrays: bool = True) -> Comparison:
     """:func:`compare` of two column files on the same uniform grid, ``CHUNK`` rows at a time
-    (memory: a few chunks, whatever the length). A signal outside its tube is checked again by
-    :func:`_check` on whole arrays, for its figures and plots."""
+    (memory: a few chunks, whatever the length). With ``failed_arrays``, a signal outside its tube
+    is checked again by :func:`_check` on whole arrays, for plots."""
     names, have, missing, extra, problems = _signals(result, baseline, signals, result_name, baseline_name)
     checks = []
     for name in (n for n in names if n in have):
         check = _check_streamed(name, result, baseline, tolerances.of(name), tolerances.quiet_until)
         if check is None:
             problems.append(f"{baseline_name}: column '{name}' has non-finite values")
-        elif check.passed:
+        elif check.passed or not failed_arrays:
             checks.append(check)
         else:
             t = baseline["time"]
@@ -541,19 +551,22 @@ def _check_streamed(name: str, result: Columns, baseline: Columns, tol: Toleranc
         if end > first:
             _band_out(result, baseline, name, first, end, w, half, stats)
     return SignalCheck(name, tol, width, stats.n_out, stats.first_out, stats.worst_time,
-                       stats.worst_excess if stats.n_out else 0.0, stats.deviation, *(np.empty(0),) * 5)
+                       stats.worst_excess if stats.n_out else 0.0, stats.deviation, *(np.empty(0),) * 5,
+                       samples=stats.samples, worst_half=stats.worst_half)
 
 
 @dataclass
 class _Out:
     """What a streamed check gathers: samples out, the first time out, the worst excess (the first
-    of equal ones) and its time, the largest deviation."""
+    of equal ones), its time and the tube's half-width there, the largest deviation, the samples."""
 
     n_out: int = 0
     first_out: float | None = None
     worst_time: float | None = None
     worst_excess: float = -math.inf
     deviation: float = 0.0
+    worst_half: float = math.nan
+    samples: int = 0
 
 
 def _band_out(result: Columns, baseline: Columns, name: str, first: int, end: int, width: float,
@@ -576,19 +589,28 @@ def _band_out(result: Columns, baseline: Columns, name: str, first: int, end: in
             size = 2 * half + 1
             lower = minimum_filter1d(padded, size, mode="reflect")[a + 1 - lo:b + 1 - lo] - width
             upper = maximum_filter1d(padded, size, mode="reflect")[a + 1 - lo:b + 1 - lo] + width
-        finite = np.isfinite(y)
-        excess = np.where(finite, np.maximum(lower - y, y - upper), np.inf)
-        outside = excess > 0
-        count = int(np.count_nonzero(outside))
-        if count:
-            if out.first_out is None:
-                out.first_out = float(t[np.argmax(outside)])
-            worst = int(np.argmax(excess))
-            if excess[worst] > out.worst_excess:
-                out.worst_excess, out.worst_time = float(excess[worst]), float(t[worst])
-            out.n_out += count
-        deviation = np.where(finite, np.abs(y - y_ref), np.inf)
-        out.deviation = max(out.deviation, float(deviation.max()))
+        _gather(t, y, y_ref, lower, upper, out)
+
+
+def _gather(t: np.ndarray, y: np.ndarray, y_ref: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+            out: _Out) -> None:
+    """The samples of one chunk outside their tube (``lower`` to ``upper``), and its largest
+    deviation, into ``out`` (the chunks in time order)."""
+    finite = np.isfinite(y)
+    excess = np.where(finite, np.maximum(lower - y, y - upper), np.inf)
+    outside = excess > 0
+    count = int(np.count_nonzero(outside))
+    if count:
+        if out.first_out is None:
+            out.first_out = float(t[np.argmax(outside)])
+        worst = int(np.argmax(excess))
+        if excess[worst] > out.worst_excess:
+            out.worst_excess, out.worst_time = float(excess[worst]), float(t[worst])
+            out.worst_half = float(upper[worst] - lower[worst]) / 2
+        out.n_out += count
+    out.samples += len(t)
+    deviation = np.where(finite, np.abs(y - y_ref), np.inf)
+    out.deviation = max(out.deviation, float(deviation.max()))
 
 
 def _points(t_ref: np.ndarray, t_res: np.ndarray,
@@ -642,7 +664,7 @@ def _failed_table(failed: Sequence[SignalCheck]) -> list[str]:
              "| samples out |", "|---|---|---|---|---|---|---|"]
     for s in sorted(failed, key=lambda s: -s.severity):
         lines.append(f"| {s.name} | {tube_text(s)} | {s.first_out:.3f} | {s.worst_time:.3f} | "
-                     f"{s.worst_excess:.3g} | {s.max_deviation:.3g} | {s.n_out} of {len(s.time)} |")
+                     f"{s.worst_excess:.3g} | {s.max_deviation:.3g} | {s.n_out} of {s.count} |")
     return lines + [""]
 
 
