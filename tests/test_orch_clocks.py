@@ -22,7 +22,6 @@ import math
 import re
 import shutil
 import subprocess
-import warnings
 import zipfile
 from pathlib import Path
 
@@ -34,9 +33,8 @@ from fmpy import read_model_description
 import orchestrator
 from orchestrator import RunOptions
 from orchestrator.clocks import InputClock, due, input_clocks, next_tick
-from orchestrator.errors import ScenarioError, UsageError
+from orchestrator.errors import ScenarioError
 from orchestrator.export import export
-from orchestrator.master import GaussSeidel
 
 HERE = Path(__file__).resolve().parent
 FMUSIM = SHARED / "tools" / "fmusim" / "bin" / "fmusim"
@@ -56,6 +54,12 @@ def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 def run(folder: Path, ramp: Path, **options: object) -> np.ndarray:
     options.setdefault("step", STEP)
     return orchestrator.run(folder, RunOptions(input_file=ramp, **options)).rows  # type: ignore[arg-type]
+
+
+def assert_array_equal_rows(mine: np.ndarray, theirs: np.ndarray) -> None:
+    assert mine.dtype.names == theirs.dtype.names and len(mine) == len(theirs)
+    for column in theirs.dtype.names or ():
+        np.testing.assert_array_equal(mine[column], theirs[column], err_msg=column)
 
 
 def sampled_at_ticks(t: np.ndarray) -> np.ndarray:
@@ -133,25 +137,31 @@ def test_clocked_output_is_passed_on_at_the_tick(fmus: dict[str, Path], tmp_path
     set after the tick reaches f at the tick); under jacobi it is y at the start of the step that
     ends at the row, which is the tick where a tick cut the step (0.12: y(0.1) = 0.1)."""
     folder, ramp = scenario(tmp_path / "s", fmus["clocked"], feed=True)
-    rows = run(folder, ramp)
+    rows = run(folder, ramp, executor="python")
+    assert_array_equal_rows(run(folder, ramp, executor="compiled"), rows)
     np.testing.assert_array_equal(rows["f.Float64_continuous_output"], rows["s.y"])
-    jacobi = run(folder, ramp, master="jacobi")
+    jacobi = run(folder, ramp, master="jacobi", executor="python")
+    assert_array_equal_rows(run(folder, ramp, master="jacobi", executor="compiled"), jacobi)
     t = jacobi["time"][1:]
     starts = np.maximum(t - STEP, INTERVAL * np.floor(np.round((t - 1e-9) / INTERVAL, 9)))  # a cut step's
     np.testing.assert_allclose(jacobi["f.Float64_continuous_output"][1:], sampled_at_ticks(starts),
                                rtol=0, atol=1e-12)
 
 
-def test_the_compiled_executor_leaves_clocks_to_the_python_master(fmus: dict[str, Path],
-                                                                 tmp_path: Path) -> None:
-    folder, ramp = scenario(tmp_path / "s", fmus["clocked"])
-    with pytest.raises(UsageError, match=r"compiled cannot run this scenario: FMI 3.0 clocks \(of s\) are "
-                                         "ticked by the Python master"):
-        run(folder, ramp, executor="compiled")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        run(folder, ramp, executor="auto")
-    assert any("FMI 3.0 clocks (of s)" in str(w.message) for w in caught)
+@pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])
+@pytest.mark.parametrize("step", [STEP, 0.02, 0.045])
+def test_the_compiled_executor_ticks_as_the_python_master(fmus: dict[str, Path], tmp_path: Path, master: str,
+                                                          step: float) -> None:
+    """The compiled executor (orchestrator/native/core.c) cuts the steps at the ticks and makes the
+    events itself: every row equals the Python master's bit for bit, where the step divides T
+    (0.02 s) and where it does not (0.03, 0.045 s: the input file is read at every cut), and the
+    oracle still holds (y = T floor(t / T))."""
+    folder, ramp = scenario(tmp_path / "s", fmus["clocked"], stop=0.9)
+    python = run(folder, ramp, step=step, master=master, executor="python")
+    compiled = run(folder, ramp, step=step, master=master, executor="compiled")
+    assert len(python) == round(0.9 / step) + 1
+    assert_array_equal_rows(compiled, python)
+    np.testing.assert_allclose(compiled["s.y"], sampled_at_ticks(compiled["time"]), rtol=0, atol=1e-12)
 
 
 def test_reference_clocks_model_is_refused_in_one_line() -> None:
@@ -218,20 +228,13 @@ def test_two_clocks_of_different_intervals_each_tick_on_their_own_schedule(
     second = first.replace('name="s"', 'name="r"').replace("resources/Sampler.fmu", "resources/Slow.fmu")
     (folder / "SystemStructure.ssd").write_text(text.replace(first, first + "\n" + second))
     ramp.write_text("time,s.u,r.u\n0,0,0\n10,10,10\n")
-    rows = run(folder, ramp, step=0.04, master=master)
+    rows = run(folder, ramp, step=0.04, master=master, executor="python")
+    assert_array_equal_rows(run(folder, ramp, step=0.04, master=master, executor="compiled"), rows)
     t = rows["time"]
     for name, interval in (("s", 0.1), ("r", 0.15)):
         k = np.floor(np.round(t / interval, 9))
         np.testing.assert_allclose(rows[f"{name}.y"], interval * k, rtol=0, atol=1e-12)
         np.testing.assert_array_equal(rows[f"{name}.ticks"], k + 1)
-
-
-def test_a_compiled_master_built_directly_refuses_clocks(fmus: dict[str, Path], tmp_path: Path) -> None:
-    """orchestrator.run never asks the compiled executor to run clocks; a caller building the master
-    itself gets a UsageError rather than a run that never ticks."""
-    folder, _ = scenario(tmp_path / "s", fmus["clocked"])
-    with orchestrator.open_system(folder) as system, pytest.raises(UsageError, match="does not tick FMI 3.0"):
-        GaussSeidel(system, 0.0, 0.99, STEP, compiled=True).run()
 
 
 @pytest.mark.parametrize("interval", [0.1, 0.05])
@@ -244,6 +247,7 @@ def test_a_fixed_clock_without_interval_is_asked_in_initialization_mode(tmp_path
     fmu = build_sampler(tmp_path / "fixed", interval=interval, fixed=True)
     assert 'intervalVariability="fixed"' in zipfile.ZipFile(fmu).read("modelDescription.xml").decode()
     rows = run(*scenario(tmp_path / "s", fmu))
+    assert_array_equal_rows(run(*scenario(tmp_path / "c", fmu), executor="compiled"), rows)  # C asks too
     t = rows["time"]
     expected = [interval * math.floor(round(x / interval, 9)) for x in t]
     np.testing.assert_allclose(rows["s.y"], expected, rtol=0, atol=1e-12)

@@ -160,8 +160,8 @@ static void *instantiate(struct container *x, size_t i) {
              c->version == 3 ? "/" : "");
     if (c->version == 3) {
         x->relays[i] = (struct relay3){x, c->name};
-        return f->instantiate3(c->name, c->guid, resources, fmi3False, x->logging != 0, fmi3False, fmi3False, NULL,
-                               0, &x->relays[i], relay3, NULL);
+        return f->instantiate3(c->name, c->guid, resources, fmi3False, x->logging != 0, f->event_mode != 0,
+                               fmi3False, NULL, 0, &x->relays[i], relay3, NULL);
     }
     file_uri(resources, uri, sizeof uri);
     return f->instantiate2(c->name, fmi2CoSimulation, c->guid, uri, &x->inner, fmi2False, x->logging);
@@ -177,7 +177,9 @@ static int load_component(struct container *x, size_t i, char *why, size_t size)
         snprintf(why, size, "%s: cannot load %s: %s", c->name, path, ftc_library_error(path));
         return -1;
     }
-    if (fmu_bind(&x->core.fmus[i], x->libraries[i], c->version, 1, reason, sizeof reason) != 0) {
+    if (fmu_bind(&x->core.fmus[i], x->libraries[i], c->version, 1, reason, sizeof reason) != 0 ||
+        (plan_clocked(&x->plan, (int)i) &&
+         fmu_bind_clocks(&x->core.fmus[i], x->libraries[i], reason, sizeof reason) != 0)) {
         snprintf(why, size, "%s: %s: %s", c->name, path, reason);
         return -1;
     }
@@ -232,6 +234,7 @@ static int read_own_plan(struct container *x, const char *function) {
         return -1;
     }
     x->core.plan = &x->plan;
+    x->core.clocks = x->plan.clocks; /* those without an interval: asked in Initialization Mode */
     size_t n = x->plan.ncomponents ? x->plan.ncomponents : 1;
     x->core.fmus = calloc(n, sizeof *x->core.fmus);
     x->libraries = calloc(n, sizeof *x->libraries);
