@@ -46,6 +46,9 @@ algorithm annotation implies (libcosim's ``osp:FixedStepAlgorithm``: jacobi; OMS
   end of the previous step, steps, and its outputs are read; then all connections are transferred.
   Each connection therefore adds one step of delay. Initialization repeats N sweeps of
   (set, get, transfer) in initialization mode (N = number of FMUs), then set, exit, get, transfer.
+  A clock's event at a communication point is part of computing the FMU's outputs there, so it
+  sees the inputs set at the previous communication point, as the step before it did (no values
+  are set between the step and the event); its clocked outputs are then read and transferred.
 """
 
 from __future__ import annotations
@@ -512,22 +515,19 @@ class Master:
 
     def _events(self, t_ns: int, initial: bool = False) -> None:
         """The clock ticks at ``t_ns`` and the events the FMUs asked for: each such instance gets
-        its event (:meth:`InstanceBase.tick`), then its outputs are passed on (``_after_events``).
-        ``initial``: right after initialization, where every clocked instance is in event mode."""
+        its event (:meth:`InstanceBase.tick`) with the inputs it holds (gauss-seidel: propagated at
+        ``t_ns``; jacobi: those of the previous communication point), then its outputs are passed
+        on (``_after_events``). ``initial``: right after initialization, where every clocked
+        instance is in event mode."""
         t = t_ns / NS_PER_S
         ticked = []
         for inst, clocks in self._clocked:
             active = [c.vr for c in due(clocks, t_ns, self._t0)]
             if active or initial or inst.event_requested():
-                self._before_event(inst, t)
                 inst.tick(t, active)
                 ticked.append(inst)
         if ticked:
             self._after_events(ticked, t)
-
-    def _before_event(self, inst: InstanceBase, t: float) -> None:
-        """Before an instance's event at ``t``: its inputs hold the values at ``t`` (gauss-seidel
-        has set them at the communication point)."""
 
     def _after_events(self, ticked: list[InstanceBase], t: float) -> None:
         """After the events at ``t``: the clocked outputs reach the inputs they feed."""
@@ -704,9 +704,6 @@ class Jacobi(Master):
         self.values[0] = t_next
         self._transfer_all()
         self._drive(t_next)
-
-    def _before_event(self, inst: InstanceBase, t: float) -> None:
-        inst.write_inputs(t)  # the values transferred at t, which the next step would set
 
     def _after_events(self, ticked: list[InstanceBase], t: float) -> None:
         for inst in ticked:

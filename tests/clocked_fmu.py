@@ -207,6 +207,12 @@ CONNECTION = """
     </ssd:Connections>"""
 
 
+FED = """
+    <ssd:Connections>
+      <ssd:Connection startElement="f" startConnector="Float64_continuous_output" endElement="s"
+          endConnector="u"/>
+    </ssd:Connections>"""
+
 
 def build_sampler(dest: Path, interval: float = INTERVAL, clocked: bool = True, fixed: bool = False) -> Path:
     """Compile and pack ``dest/Sampler.fmu`` (x86_64-linux binary) with the clock interval given;
@@ -233,18 +239,18 @@ def build_sampler(dest: Path, interval: float = INTERVAL, clocked: bool = True, 
 
 
 def scenario(folder: Path, fmu: Path, clocked: bool = True, feed: bool = False,
-             stop: float = 0.99) -> tuple[Path, Path]:
-    """The SSD folder running ``fmu`` as component ``s`` (and a Feedthrough ``f`` fed by ``s.y``),
-    and the input file u(t) = t."""
+             stop: float = 0.99, fed: bool = False) -> tuple[Path, Path]:
+    """The SSD folder running ``fmu`` as component ``s`` (and a Feedthrough ``f`` fed by ``s.y``;
+    ``fed``: feeding ``s.u`` instead), and the input file u(t) = t (of ``f``'s input when ``fed``)."""
     (folder / "resources").mkdir(parents=True)
     shutil.copy(fmu, folder / "resources" / "Sampler.fmu")
-    if feed:
+    if feed or fed:
         shutil.copy(FEEDTHROUGH, folder / "resources")
     sampler = SAMPLER.format(clock=SSD_CLOCK if clocked else "", clocked=SSD_CLOCKED if clocked else "")
-    (folder / SSD_NAME).write_text(SSD.format(elements=sampler + (FEED if feed else ""), stop=stop,
-                                              connections=CONNECTION if feed else ""))
+    (folder / SSD_NAME).write_text(SSD.format(elements=sampler + (FEED if feed or fed else ""), stop=stop,
+                                              connections=FED if fed else CONNECTION if feed else ""))
     ramp = folder.parent / f"{folder.name}-ramp.csv"
-    ramp.write_text("time,s.u\n0,0\n10,10\n")
+    ramp.write_text(f"time,{'f.Float64_continuous_input' if fed else 's.u'}\n0,0\n10,10\n")
     return folder, ramp
 
 

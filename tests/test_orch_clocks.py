@@ -252,3 +252,33 @@ def test_a_fixed_clock_without_interval_is_asked_in_initialization_mode(tmp_path
     expected = [interval * math.floor(round(x / interval, 9)) for x in t]
     np.testing.assert_allclose(rows["s.y"], expected, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(rows["s.ticks"], [math.floor(round(x / interval, 9)) + 1 for x in t])
+
+
+def cut_points(step: float, stop: float) -> list[float]:
+    """The points a master stops at: its grid and the ticks k T, in integer nanoseconds as its own."""
+    ns = 1_000_000_000
+    grid = range(0, round(stop * ns) + 1, round(step * ns))
+    ticks = range(0, round(stop * ns) + 1, round(INTERVAL * ns))
+    return [c / ns for c in sorted({*grid, *ticks})]
+
+
+@pytest.mark.skipif(not FEEDTHROUGH.is_file(), reason="no Modelica Reference FMUs (FMI 3.0)")
+@pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])
+@pytest.mark.parametrize("step", [0.02, STEP])
+def test_under_jacobi_an_event_sees_the_inputs_of_the_previous_communication_point(
+        fmus: dict[str, Path], tmp_path: Path, master: str, step: float) -> None:
+    """f (Reference Feedthrough, u(t) = t from the input file) -> s.u. Jacobi: every FMU computes
+    what it gives at a communication point from the inputs of the previous one, and the event at
+    a tick is how s computes its y there; so f gives at each point c_i the u it held since
+    c_(i-1), and s samples at a tick c_i the value transferred at c_(i-1): y(c_i) = c_(i-2), on the
+    points of the master's grid and the ticks. Gauss-Seidel: y(k T) = k T (propagated at the
+    tick). Both executors, bit for bit."""
+    folder, ramp = scenario(tmp_path / "s", fmus["clocked"], stop=0.9, fed=True)
+    rows = run(folder, ramp, step=step, master=master, executor="python")
+    assert_array_equal_rows(run(folder, ramp, step=step, master=master, executor="compiled"), rows)
+    cuts = cut_points(step, 0.9)
+    sampled = {c: (cuts[max(i - 2, 0)] if master == "jacobi" else c) for i, c in enumerate(cuts)
+               if math.isclose(c / INTERVAL, round(c / INTERVAL), abs_tol=1e-9)}
+    for t, y in zip(rows["time"], rows["s.y"], strict=True):
+        last = max(k for k in sampled if k <= t + 1e-12)
+        assert y == pytest.approx(sampled[last], abs=1e-12), (t, y, sampled[last])

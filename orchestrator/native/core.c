@@ -13,9 +13,10 @@
    * FMI 3.0 clocks (periodic input clocks, orchestrator/clocks.py): a step that holds a tick of
      any clock is cut there (the pieces step as above, time and driven inputs at each piece's
      end); after each piece every FMU with a clock due there, or whose last fmi3DoStep asked for
-     an event, gets its event: (jacobi: its connected inputs written) fmi3EnterEventMode,
-     fmi3SetClock of the clocks due, fmi3UpdateDiscreteStates until it needs no more,
-     fmi3EnterStepMode; then gauss-seidel propagates at the tick, jacobi reads those FMUs'
+     an event, gets its event with the inputs it holds (gauss-seidel: those propagated at the
+     tick; jacobi: those of the previous communication point, as for any output at the tick):
+     fmi3EnterEventMode, fmi3SetClock of the clocks due, fmi3UpdateDiscreteStates until it needs
+     no more, fmi3EnterStepMode; then gauss-seidel propagates at the tick, jacobi reads those FMUs'
      outputs and transfers every connection. Ticks are integer nanoseconds from t0.
 
    The arithmetic of a transfer is compiled without contraction (-ffp-contract=off), so it rounds
@@ -372,8 +373,8 @@ static int events(struct core *x, int64_t t_ns, int initial) {
             if (tick_at_or_after(&x->clocks[j], t_ns, p->t0) == t_ns) active[n++] = x->clocks[j].vr;
         struct fmu *f = &x->fmus[i];
         if (!n && !initial && !f->event_requested) continue;
-        int s = p->jacobi ? set_batch(x, &p->components[i].inputs, t) : 0; /* the values of t */
-        if (!s) s = tick(x, i, t, active, n);
+        /* its inputs as set before: gauss-seidel's of t, jacobi's of the previous communication point */
+        int s = tick(x, i, t, active, n);
         if (s) return s;
         f->ticked = any = 1;
     }
