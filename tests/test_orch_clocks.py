@@ -25,15 +25,16 @@ import subprocess
 import zipfile
 from pathlib import Path
 
+import fmpy
 import numpy as np
 import pytest
 from clocked_fmu import FEEDTHROUGH, INTERVAL, SHARED, build_sampler, scenario
 from fmpy import read_model_description
+from fmpy.util import read_csv
 
 import orchestrator
 from orchestrator import RunOptions
 from orchestrator.clocks import InputClock, due, input_clocks, next_tick
-from orchestrator.errors import ScenarioError
 from orchestrator.export import export
 
 HERE = Path(__file__).resolve().parent
@@ -202,15 +203,42 @@ def test_ticks_with_a_shift_are_counted_in_nanoseconds() -> None:
     assert [c.name for c in due([a, b], 1_200_000_000, t0)] == ["b"]
 
 
-def test_export_of_a_clocked_scenario_is_refused_in_one_line(fmus: dict[str, Path], tmp_path: Path) -> None:
-    """The container (orchestrator/native) does not tick clocks: exporting would sample on the grid
-    silently, so it is refused, naming the component and the clock."""
+def held_from_the_host(t: float, h: float) -> float:
+    """y of the exported Sampler at time ``t`` on a host stepping by ``h``, u(t) = t set by the
+    host at each of its communication points: the tick k T, inside or at the end of a host step,
+    samples the u the host set at that step's start, h (ceil(k T / h) - 1) (0 for k = 0)."""
+    k = math.floor(round(t / INTERVAL, 9))
+    return 0.0 if k == 0 else h * (math.ceil(round(k * INTERVAL / h, 9)) - 1)
+
+
+@pytest.mark.parametrize("fmi", ["2", "3"])
+def test_the_exported_container_ticks_the_clock_behind_plain_co_simulation(
+        fmus: dict[str, Path], tmp_path: Path, fmi: str) -> None:
+    """``orchestrate export`` of the clocked Sampler at the step 0.03 s (T = 0.1 s): the container
+    cuts its steps at the ticks and makes the events itself, its own interface is plain
+    Co-Simulation (no clock, no event mode). FMPy and fmusim, stepping 0.03 s and setting u(t) = t
+    at their communication points, see every tick (ticks = floor(t / T) + 1) and y sampled at it
+    from the u of the step it falls in (analytic: held_from_the_host)."""
     folder, _ = scenario(tmp_path / "s", fmus["clocked"])
-    with pytest.raises(ScenarioError) as caught:
-        export(folder, tmp_path / "out.fmu", step=STEP, stop_time=0.99)
-    expected = "component 's': FMU 'Sampler.fmu' has FMI 3.0 clocks (tick), which the container does not tick"
-    assert expected in str(caught.value)
-    assert not (tmp_path / "out.fmu").exists()
+    fmu, _ = export(folder, tmp_path / "out.fmu", step=STEP, stop_time=0.99, fmi=fmi)
+    md = zipfile.ZipFile(fmu).read("modelDescription.xml").decode()
+    assert "<Clock" not in md and 'hasEventMode="true"' not in md and "clocks=" not in md
+    signal = np.array([(0.0, 0.0), (10.0, 10.0)], dtype=[("time", float), ("s.u", float)])
+    got = {"fmpy": fmpy.simulate_fmu(str(fmu), stop_time=0.99, step_size=STEP, output_interval=STEP,
+                                     input=signal)}
+    if FMUSIM.is_file():
+        (tmp_path / "u.csv").write_text("time,s.u\n0,0\n10,10\n")
+        subprocess.run([str(FMUSIM), "--interface-type", "cs", "--stop-time", "0.99", "--output-interval",
+                        str(STEP), "--input-file", str(tmp_path / "u.csv"), "--output-file",
+                        str(tmp_path / "out.csv"), str(fmu)], check=True, timeout=60, capture_output=True)
+        got["fmusim"] = read_csv(str(tmp_path / "out.csv"))
+    for host, rows in got.items():
+        t = rows["time"]
+        assert len(t) == 34, host
+        np.testing.assert_array_equal(rows["s.ticks"], [math.floor(round(x / INTERVAL, 9)) + 1 for x in t],
+                                      err_msg=host)
+        np.testing.assert_allclose(rows["s.y"], [held_from_the_host(x, STEP) for x in t], rtol=0, atol=1e-12,
+                                   err_msg=host)
 
 
 @pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])

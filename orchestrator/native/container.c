@@ -21,7 +21,11 @@
    * fmi2DoStep(t, H) runs the internal steps from the container's own count k up to the grid point
      t + H, so H must be a whole number of the scenario's steps; the time passed to the FMUs is
      always (t0 + k h) / 1e9, never the host's sum. Inputs the host sets are passed on at once;
-     with gauss-seidel, outputs that depend on them are propagated again before they are read. */
+     with gauss-seidel, outputs that depend on them are propagated again before they are read;
+   * an embedded FMU with periodic input clocks is instantiated with eventModeUsed; its clocks'
+     intervals are asked in fmi2ExitInitializationMode before the master's initialization (a
+     fixed clock's, core_ask_clocks), and the core ticks them inside fmi2DoStep: the host sees
+     plain Co-Simulation. */
 
 #include <stdarg.h>
 #include <stdio.h>
