@@ -310,3 +310,22 @@ def test_under_jacobi_an_event_sees_the_inputs_of_the_previous_communication_poi
     for t, y in zip(rows["time"], rows["s.y"], strict=True):
         last = max(k for k in sampled if k <= t + 1e-12)
         assert y == pytest.approx(sampled[last], abs=1e-12), (t, y, sampled[last])
+
+
+@pytest.mark.parametrize("fault, said", [(1, "discreteStatesNeedUpdate after 100 calls"),
+                                         (2, "terminateSimulation")])
+def test_an_event_that_never_settles_or_asks_to_terminate_ends_the_run_in_one_line(
+        tmp_path: Path, fault: int, said: str) -> None:
+    """From the 4th tick (t = 0.3 s) the Sampler's fmi3UpdateDiscreteStates asks for another update
+    forever, or to terminate: both executors end the run with the same SimulationError naming the
+    component, the call, the verdict and the time, the rows before it kept (up to 0.27 s)."""
+    fmu = build_sampler(tmp_path / "bad", fault=fault)
+    errors = {}
+    for executor in ("python", "compiled"):
+        folder, ramp = scenario(tmp_path / executor, fmu)
+        with pytest.raises(orchestrator.SimulationError) as caught:
+            run(folder, ramp, executor=executor)
+        errors[executor] = caught.value
+    assert str(errors["compiled"]) == str(errors["python"])
+    assert f"s: fmi3UpdateDiscreteStates returned {said} at t=0.3" in str(errors["python"])
+    assert errors["compiled"].rows == errors["python"].rows == 10  # t0 .. 0.27 s
