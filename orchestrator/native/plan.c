@@ -2,7 +2,7 @@
 /* The plan reader: the text orchestrator/plan.py writes (Plan.text), one record per line,
    space-separated tokens; reals as C99 hexadecimal floats (exact), strings "=" and percent-encoded.
 
-     plan 3 =<guid>                       version and the container's GUID
+     plan 4 =<guid>                       version and the container's GUID
      master gauss-seidel|jacobi
      grid <t0 ns> <h ns> <n steps>
      sizes <values> <components> <start calls> <propagation calls> <exposed variables>
