@@ -376,7 +376,8 @@ static int events(struct core *x, int64_t t_ns, int initial) {
         /* its inputs as set before: gauss-seidel's of t, jacobi's of the previous communication point */
         int s = tick(x, i, t, active, n);
         if (s) return s;
-        f->ticked = any = 1;
+        f->ticked = p->jacobi; /* jacobi reads its outputs after */
+        any = 1;
     }
     if (!any) return 0;
     if (!p->jacobi) return core_propagate(x, t);
