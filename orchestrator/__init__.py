@@ -241,9 +241,7 @@ def _compiled(system: System, options: RunOptions, master: str) -> tuple[bool, s
         return False, ""
     old = [name for name, c in system.components.items() if c.model.fmiVersion.startswith("1.")]
     loop = master == "gauss-seidel" and bool(system.iterated)
-    clocked = [name for name, c in system.components.items() if c.clocks]
     why = (f"{option('fmi_log')} traces the calls the Python master makes" if options.fmi_log else
-           f"FMI 3.0 clocks (of {', '.join(clocked)}) are ticked by the Python master" if clocked else
            f"FMI 1.0 component{'s' if len(old) > 1 else ''} {', '.join(old)}" if old else
            "an algebraic loop is iterated to a fixed point" if loop else native.unavailable())
     if not why:

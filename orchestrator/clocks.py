@@ -38,7 +38,7 @@ from lxml import etree
 from . import fmucache
 from .ssp import Connector
 
-__all__ = ["InputClock", "due", "input_clocks", "next_tick"]
+__all__ = ["InputClock", "due", "input_clocks", "next_tick", "pieces"]
 
 NS_PER_S = 1_000_000_000
 PERIODIC = ("constant", "fixed")
@@ -169,3 +169,14 @@ def next_tick(clocks: Sequence[InputClock], after_ns: int, t0_ns: int) -> int | 
 def due(clocks: Sequence[InputClock], t_ns: int, t0_ns: int) -> list[InputClock]:
     """The clocks that tick at ``t_ns``."""
     return [c for c in clocks if c.tick_at_or_after(t_ns, t0_ns) == t_ns]
+
+
+def pieces(clocks: Sequence[InputClock], start_ns: int, end_ns: int, t0_ns: int) -> list[int]:
+    """Where a step from ``start_ns`` to ``end_ns`` is cut: the end of each piece, every tick of
+    ``clocks`` inside it and then ``end_ns`` (just ``[end_ns]`` without a tick)."""
+    ends = []
+    while start_ns < end_ns:
+        tick = next_tick(clocks, start_ns, t0_ns)
+        start_ns = end_ns if tick is None or tick > end_ns else tick
+        ends.append(start_ns)
+    return ends

@@ -31,7 +31,8 @@ communication point, then every instance whose clocks tick runs its event: fmi3E
 fmi3SetClock, fmi3UpdateDiscreteStates, fmi3EnterStepMode, and its clocked outputs are passed
 on), so ticks land exactly where the master's step does not divide the interval; rows are still
 recorded at the grid points only. A tick at t0 is made right after initialization. An FMU asking
-for event mode after a step (``eventHandlingNeeded``) gets an event with no clock active.
+for event mode after a step (``eventHandlingNeeded``) gets an event with no clock active. The compiled
+executor (``orchestrator/native/core.c``) does the same in C, on the clocks as asked here.
 
 Which one runs (:func:`orchestrator.validate.choose_master`): ``--master``, else the one the SSD's
 algorithm annotation implies (libcosim's ``osp:FixedStepAlgorithm``: jacobi; OMSimulator's
@@ -45,6 +46,9 @@ algorithm annotation implies (libcosim's ``osp:FixedStepAlgorithm``: jacobi; OMS
   end of the previous step, steps, and its outputs are read; then all connections are transferred.
   Each connection therefore adds one step of delay. Initialization repeats N sweeps of
   (set, get, transfer) in initialization mode (N = number of FMUs), then set, exit, get, transfer.
+  A clock's event at a communication point is part of computing the FMU's outputs there, so it
+  sees the inputs set at the previous communication point, as the step before it did (no values
+  are set between the step and the event); its clocked outputs are then read and transferred.
 """
 
 from __future__ import annotations
@@ -60,25 +64,25 @@ import time
 from collections.abc import Callable, Sequence
 from contextlib import ExitStack
 from ctypes import c_double, c_uint
+from dataclasses import replace
 from types import FrameType
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from . import files
-from .clocks import InputClock, due, next_tick
+from .clocks import InputClock, due, pieces
 from .errors import (
     Interrupted,
     LoopError,
     NonFiniteError,
     SimulationError,
     TimeLimitError,
-    UsageError,
     terminate,
 )
 from .fmi import CALLS, FAILED, Instance, InstanceBase, MessageLog, failed_call, interpreter_guard, trace
 from .inputs import InputSeries
-from .native import FUNCTIONS, Stepper
+from .native import FUNCTIONS, NO_STATUS, Stepper
 from .plan import MAX_TIME, NS_PER_S, Transfer, grid, make_plan, time_grid
 from .results import NonFiniteError as NonFiniteRow
 from .results import Recorder
@@ -356,11 +360,10 @@ class Master:
         stride = max(1, n // 100)
         poll = stopper.deadline != math.inf  # no timer: compare the clock at each point
         stepper = None
-        if self.compiled:
-            if self._all_clocks:  # orchestrator.run never asks this (_compiled): a direct caller did
-                raise UsageError("the compiled executor does not tick FMI 3.0 clocks: run this scenario with "
-                                 "the Python master (compiled=False)")
-            stepper = Stepper(self.plan, self.instances)
+        if self.compiled:  # the clocks as asked in Initialization Mode
+            index = {id(inst): i for i, inst in enumerate(self.instances)}
+            asked = tuple((index[id(inst)], c) for inst, clocks in self._clocked for c in clocks)
+            stepper = Stepper(replace(self.plan, clocks=asked), self.instances)
             stack.callback(stepper.close)
         while k < n:
             if stepper is None:
@@ -382,13 +385,21 @@ class Master:
         driven = None
         if self._driven:
             assert self.inputs is not None  # _driven is laid out from it
-            times = (self._t0 + self._h * np.arange(k + 1, k + 1 + len(rows), dtype=np.int64)) / NS_PER_S
-            driven = np.ascontiguousarray(self.inputs.table(times)[:, self._driven_columns])
+            ends = self._t0 + self._h * np.arange(k + 1, k + 1 + len(rows), dtype=np.int64)
+            if self._all_clocks:  # a row per piece of a step cut at the ticks, as the C code steps them
+                ends = np.array([stop for end in ends.tolist()
+                                 for stop in pieces(self._all_clocks, end - self._h, end, self._t0)],
+                                dtype=np.int64)
+            driven = np.ascontiguousarray(self.inputs.table(ends / NS_PER_S)[:, self._driven_columns])
         made = stepper.run(self.values, k, rows, driven, stop)
         self.recorder.commit(made)
         failure = stepper.failure
         if failure.status:
-            self.instances[failure.component].fail(FUNCTIONS[failure.function], failure.status, failure.time)
+            inst = self.instances[failure.component]
+            if failure.status < 0:  # no FMI status: fmi3UpdateDiscreteStates's verdict
+                raise SimulationError(inst.name, FUNCTIONS[failure.function], NO_STATUS[failure.status],
+                                      failure.time, self.messages.last.get(inst.name, ""))
+            inst.fail(FUNCTIONS[failure.function], failure.status, failure.time)
         return made
 
     def _kept(self, exc: SimulationError | Interrupted) -> SimulationError | Interrupted:
@@ -497,9 +508,7 @@ class Master:
 
     def _step_to_ticks(self, start: int, end: int) -> None:
         """From ``start`` to ``end`` (ns): a step cut at every tick inside, the ticks made there."""
-        while start < end:
-            tick = next_tick(self._all_clocks, start, self._t0)
-            stop = end if tick is None or tick > end else tick
+        for stop in pieces(self._all_clocks, start, end, self._t0):
             t, t_next = start / NS_PER_S, stop / NS_PER_S
             self._step_impl(t, t_next - t, t_next)
             self._events(stop)
@@ -507,22 +516,19 @@ class Master:
 
     def _events(self, t_ns: int, initial: bool = False) -> None:
         """The clock ticks at ``t_ns`` and the events the FMUs asked for: each such instance gets
-        its event (:meth:`InstanceBase.tick`), then its outputs are passed on (``_after_events``).
-        ``initial``: right after initialization, where every clocked instance is in event mode."""
+        its event (:meth:`InstanceBase.tick`) with the inputs it holds (gauss-seidel: propagated at
+        ``t_ns``; jacobi: those of the previous communication point), then its outputs are passed
+        on (``_after_events``). ``initial``: right after initialization, where every clocked
+        instance is in event mode."""
         t = t_ns / NS_PER_S
         ticked = []
         for inst, clocks in self._clocked:
             active = [c.vr for c in due(clocks, t_ns, self._t0)]
             if active or initial or inst.event_requested():
-                self._before_event(inst, t)
                 inst.tick(t, active)
                 ticked.append(inst)
         if ticked:
             self._after_events(ticked, t)
-
-    def _before_event(self, inst: InstanceBase, t: float) -> None:
-        """Before an instance's event at ``t``: its inputs hold the values at ``t`` (gauss-seidel
-        has set them at the communication point)."""
 
     def _after_events(self, ticked: list[InstanceBase], t: float) -> None:
         """After the events at ``t``: the clocked outputs reach the inputs they feed."""
@@ -699,9 +705,6 @@ class Jacobi(Master):
         self.values[0] = t_next
         self._transfer_all()
         self._drive(t_next)
-
-    def _before_event(self, inst: InstanceBase, t: float) -> None:
-        inst.write_inputs(t)  # the values transferred at t, which the next step would set
 
     def _after_events(self, ticked: list[InstanceBase], t: float) -> None:
         for inst in ticked:

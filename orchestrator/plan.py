@@ -33,6 +33,7 @@ from urllib.parse import quote
 
 import numpy as np
 
+from .clocks import InputClock
 from .system import INTEGERS, ComponentModel, PortRef, System
 
 __all__ = ["MAX_TIME", "NS_PER_S", "PLAN_VERSION", "Batch", "Call", "GridError", "Plan", "PlanComponent",
@@ -40,7 +41,7 @@ __all__ = ["MAX_TIME", "NS_PER_S", "PLAN_VERSION", "Batch", "Call", "GridError",
 
 NS_PER_S = 1_000_000_000
 MAX_TIME = (2**63 - 1) / NS_PER_S / 2  # s: t0 + n*h stays within int64 nanoseconds (292 years / 2)
-PLAN_VERSION = "3"
+PLAN_VERSION = "4"
 TYPE_LETTER = {"Real": "r", "Float64": "r", "Integer": "i", "Enumeration": "i", "Int32": "i", "Boolean": "b",
                "String": "s"}
 
@@ -182,7 +183,9 @@ class Plan:
     nanoseconds) and ``n`` steps, the recorded ``columns`` and their ``initial`` values, the
     ``components``, the gauss-seidel ``propagation`` cut into ``spans``, the jacobi ``transfers``
     (every connection at once), where the outputs start (``first_output``) and the output columns in
-    propagation order (``output_order``: the first non-finite value of a row is named from it)."""
+    propagation order (``output_order``: the first non-finite value of a row is named from it) and the
+    periodic input clocks of FMI 3.0 components (``clocks``: an interval of 0 is asked in
+    Initialization Mode)."""
 
     master: str
     t0: int
@@ -197,6 +200,7 @@ class Plan:
     transfers: tuple[Transfer, ...]
     first_output: int
     output_order: tuple[int, ...]
+    clocks: tuple[tuple[int, InputClock], ...] = ()  # (component index, clock), in component order
 
     @property
     def start_time(self) -> float:
@@ -258,6 +262,8 @@ class Plan:
         for c in self.components:
             lines.append(f"io {_batch(c.inputs)} {_batch(c.outputs)} {_batch(c.driven)}")
         lines.append(f"transfers {_transfers(self.transfers)}")
+        lines.append(" ".join(["clocks", str(len(self.clocks)), *(f"{i} {c.vr} {c.interval_ns} {c.shift_ns}"
+                                                                 for i, c in self.clocks)]))
         return "\n".join([*lines, *exposed]) + "\n"
 
 
@@ -385,7 +391,8 @@ def make_plan(system: System, start: float, stop: float, step: float, master: st
     output_order = tuple(slot[PortRef(name, o)] for name in read for o in system.components[name].outputs)
     return Plan(master, t0, h, n, float(stop), tuple(columns), tuple(initial), tuple(parts), tuple(calls),
                 _spans(calls, system.iterated if master == "gauss-seidel" else [], components),
-                transfers(connected), first_output, output_order)
+                transfers(connected), first_output, output_order,
+                tuple((index[c.name], clock) for c in components for clock in c.clocks))
 
 
 def _spans(calls: list[Call], iterated: Sequence[tuple[int, int]],

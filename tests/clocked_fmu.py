@@ -43,6 +43,9 @@ SOURCE = r"""
 enum { VR_TIME = 0, VR_TICK = 1, VR_U = 2, VR_Y = 3, VR_Y_GRID = 4, VR_TICKS = 5 };
 enum { INIT, STEP, EVENT };
 #define T_CLOCK INTERVAL_VALUE
+#ifndef FAULT
+#define FAULT 0 /* from the 4th tick on: 1 asks for another update forever, 2 asks to terminate */
+#endif
 
 typedef struct { double t, u, y, y_grid, ticks, next_grid; int mode, active, event_mode_used; } Sampler;
 
@@ -111,7 +114,8 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean* again, fmi3Bool
     Sampler* s = c;
     if (s->mode != EVENT) return fmi3Error;
     if (s->active) { s->y = s->u; s->ticks += 1; s->active = 0; }  /* the clocked partition */
-    *again = fmi3False; *terminate = fmi3False; *nominals = fmi3False; *values = fmi3False;
+    *again = FAULT == 1 && s->ticks > 3; *terminate = FAULT == 2 && s->ticks > 3;
+    *nominals = fmi3False; *values = fmi3False;
     *nextDefined = fmi3False; *next = 0;
     return fmi3OK; }
 fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean noSet,
@@ -207,18 +211,26 @@ CONNECTION = """
     </ssd:Connections>"""
 
 
+FED = """
+    <ssd:Connections>
+      <ssd:Connection startElement="f" startConnector="Float64_continuous_output" endElement="s"
+          endConnector="u"/>
+    </ssd:Connections>"""
 
-def build_sampler(dest: Path, interval: float = INTERVAL, clocked: bool = True, fixed: bool = False) -> Path:
+
+def build_sampler(dest: Path, interval: float = INTERVAL, clocked: bool = True, fixed: bool = False,
+                  fault: int = 0) -> Path:
     """Compile and pack ``dest/Sampler.fmu`` (x86_64-linux binary) with the clock interval given;
     ``clocked`` False: the same code declaring no clock, no event mode and ``y_grid`` alone (the
     unclocked sampler with a sample time, as an FMU without clocks is written). ``fixed``: the
     clock is ``fixed`` without ``intervalDecimal``, its interval given by fmi3GetIntervalDecimal
-    only (as for an interval that depends on a parameter)."""
+    only (as for an interval that depends on a parameter). ``fault`` 1: from the 4th tick on its
+    fmi3UpdateDiscreteStates asks for another update forever; 2: it asks to terminate."""
     dest.mkdir(parents=True, exist_ok=True)
     (dest / "sampler.c").write_text(SOURCE.replace("INTERVAL_VALUE", repr(interval)))
     (dest / "stubs.c").write_text(STUBS)
     library = dest / "Sampler.so"
-    subprocess.run(["cc", "-shared", "-fPIC", "-O2", f"-I{HEADERS}", "-o", str(library),
+    subprocess.run(["cc", "-shared", "-fPIC", "-O2", f"-DFAULT={fault}", f"-I{HEADERS}", "-o", str(library),
                     str(dest / "sampler.c"), str(dest / "stubs.c")], check=True, capture_output=True)
     fmu = dest / "Sampler.fmu"
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as zf:
@@ -233,18 +245,18 @@ def build_sampler(dest: Path, interval: float = INTERVAL, clocked: bool = True, 
 
 
 def scenario(folder: Path, fmu: Path, clocked: bool = True, feed: bool = False,
-             stop: float = 0.99) -> tuple[Path, Path]:
-    """The SSD folder running ``fmu`` as component ``s`` (and a Feedthrough ``f`` fed by ``s.y``),
-    and the input file u(t) = t."""
+             stop: float = 0.99, fed: bool = False) -> tuple[Path, Path]:
+    """The SSD folder running ``fmu`` as component ``s`` (and a Feedthrough ``f`` fed by ``s.y``;
+    ``fed``: feeding ``s.u`` instead), and the input file u(t) = t (of ``f``'s input when ``fed``)."""
     (folder / "resources").mkdir(parents=True)
     shutil.copy(fmu, folder / "resources" / "Sampler.fmu")
-    if feed:
+    if feed or fed:
         shutil.copy(FEEDTHROUGH, folder / "resources")
     sampler = SAMPLER.format(clock=SSD_CLOCK if clocked else "", clocked=SSD_CLOCKED if clocked else "")
-    (folder / SSD_NAME).write_text(SSD.format(elements=sampler + (FEED if feed else ""), stop=stop,
-                                              connections=CONNECTION if feed else ""))
+    (folder / SSD_NAME).write_text(SSD.format(elements=sampler + (FEED if feed or fed else ""), stop=stop,
+                                              connections=FED if fed else CONNECTION if feed else ""))
     ramp = folder.parent / f"{folder.name}-ramp.csv"
-    ramp.write_text("time,s.u\n0,0\n10,10\n")
+    ramp.write_text(f"time,{'f.Float64_continuous_input' if fed else 's.u'}\n0,0\n10,10\n")
     return folder, ramp
 
 

@@ -260,8 +260,57 @@ def test_a_tool_without_fmi3_is_not_supported(tmp_path: Path, monkeypatch: pytes
     assert [c.status for c in cells] == ["ok", "ok", "not supported"]
     assert not cells[2].red and cells[2].unsupported == "runs FMI 2.0 FMUs only, not FMI 3.0"
     md = write_markdown(cells, tmp_path / "matrix.md", [_NeverRun()]).read_text()
-    assert "| tool | master | FMI | `made_up_fmi3` (FMI 3.0) |" in md
-    assert "| libcosim 0.11 (libcosimpy) | delayed (= `jacobi`) | 2.0 | not supported (FMI 3.0) |" in md
+    assert "| tool | master | FMI | clocks | `made_up_fmi3` (FMI 3.0) |" in md
+    assert "| libcosim 0.11 (libcosimpy) | delayed (= `jacobi`) | 2.0 | no | not supported (FMI 3.0) |" in md
     with open(write_csv(cells, tmp_path / "matrix.csv"), newline="") as f:
         rows = list(csv.DictReader(f))
     assert [(r["status"], r["fmi"], r["tool_fmi"]) for r in rows][2] == ("not supported", "3.0", "2.0")
+
+
+class _NoClocks(LibcosimTool):
+    """libcosim's place in the matrix, its run replaced by what a tool without clocks does with a
+    clocked archive: ``result`` (no row: it refused the archive)."""
+
+    def __init__(self, result: np.ndarray, error: str | None) -> None:
+        self.result, self.error = result, error
+
+    def missing(self) -> str | None:
+        return None
+
+    def run(self, scenario: Scenario, workdir: Path) -> ToolRun:
+        return ToolRun(self.result, 0.2, self.error, None)
+
+
+@pytest.mark.parametrize("result, error, status", [
+    (signals()[:0], "Unsupported SSP version: '2.0'!", "no clocks"),  # refused the archive
+    (signals(dy=1.0), None, "no clocks"),  # ran, sampling on its own grid: another y
+    (signals(), None, "ok")])  # gave our rows: nothing to say
+def test_a_clocked_scenario_runs_in_a_tool_without_clocks_and_is_no_clocks_not_red(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, result: np.ndarray, error: str | None,
+        status: str) -> None:
+    """A scenario with FMI 3.0 clocks runs in a tool that drives none, even one whose FMI versions
+    it exceeds (measured, not assumed); what the tool does is "no clocks" with the first check it
+    failed, never red; our masters drive the clocks and are held to every check. The matrix says
+    which tool drives clocks and which scenario has them."""
+    from orchestrator.crosscheck import matrix
+
+    archive = tmp_path / "made_up_clocked.ssp"
+    archive.write_bytes(b"not read")
+    clocked = replace(scenario(), name="made_up_clocked", path=archive, fmi_versions=("2.0", "3.0"),
+                      clocked=("controller",))
+    monkeypatch.setattr(matrix, "_ours", lambda s, master: (signals(), 0.1, None))
+    tool = _NoClocks(result, error)
+    cells = matrix.run_matrix([clocked], [tool])
+    assert [c.status for c in cells] == ["ok", "ok", status]
+    assert not any(c.red for c in cells) and cells[2].clockless and not cells[0].clockless
+    md = write_markdown(cells, tmp_path / "matrix.md", [tool]).read_text()
+    assert "| `made_up_clocked` (FMI 2.0, 3.0; clocks) |" in md
+    assert "| orchestrate run --master jacobi | delayed (= `jacobi`) | 2.0, 3.0 | periodic input clocks" in md
+    row = next(line for line in md.splitlines() if line.startswith("| libcosim"))
+    assert row.startswith("| libcosim 0.11 (libcosimpy) | delayed (= `jacobi`) | 2.0 | no | ")
+    if error:
+        assert f"no clocks: loads: {error}" in row
+    with open(write_csv(cells, tmp_path / "matrix.csv"), newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [(r["status"], r["clockless"]) for r in rows] == [("ok", "False"), ("ok", "False"),
+                                                             (status, "True")]

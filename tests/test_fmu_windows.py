@@ -282,15 +282,17 @@ def test_fmpy_leaves_nothing_of_a_container(wine: Wine, windows_python: Path, bu
     results[("example1 (exported), 10 runs", "FMPy 0.3.32 on Windows, FMI 2.0")] = "0 bytes left in %TEMP%"
 
 
-def test_exported_scenario_in_the_c_host(wine: Wine, built: Path, tmp_path: Path) -> None:
-    """An exported scenario (FMI 3.0 container, its FMUs FMI 2.0 inside) in the console host: the
-    container loads its FMUs' win64 binaries from its resources, under the user's folder."""
-    scenario, _ = export(built / "ssp" / "example1.ssp", tmp_path / "Example1Scenario.fmu", fmi="3")
+@pytest.mark.parametrize("name", ["example1", "example1_clocked"])
+def test_exported_scenario_in_the_c_host(wine: Wine, built: Path, tmp_path: Path, name: str) -> None:
+    """An exported scenario (FMI 3.0 container, its FMUs FMI 2.0 inside; ``_clocked``: the
+    controller's FMI 3.0 clocked twin, whose clock the win64 container ticks) in the console host:
+    the container loads its FMUs' win64 binaries from its resources, under the user's folder."""
+    scenario, _ = export(built / "ssp" / f"{name}.ssp", tmp_path / "Example1Scenario.fmu", fmi="3")
     folder = place(wine, scenario, "Example1Scenario", tmp_path)
     items = [item("example1", folder, 500, 1e-3, set_inputs=False)]
     found = c_host_case(wine, items, tmp_path, gui=False)
     check(found)
-    results[("example1 (exported)", "C host console, FMI 3.0")] = found.text()
+    results[(f"{name} (exported)", "C host console, FMI 3.0")] = found.text()
 
 
 # (folder of built/ or "export", model or FMI version of the exported example1)

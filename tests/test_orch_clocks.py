@@ -22,21 +22,20 @@ import math
 import re
 import shutil
 import subprocess
-import warnings
 import zipfile
 from pathlib import Path
 
+import fmpy
 import numpy as np
 import pytest
 from clocked_fmu import FEEDTHROUGH, INTERVAL, SHARED, build_sampler, scenario
 from fmpy import read_model_description
+from fmpy.util import read_csv
 
 import orchestrator
 from orchestrator import RunOptions
 from orchestrator.clocks import InputClock, due, input_clocks, next_tick
-from orchestrator.errors import ScenarioError, UsageError
 from orchestrator.export import export
-from orchestrator.master import GaussSeidel
 
 HERE = Path(__file__).resolve().parent
 FMUSIM = SHARED / "tools" / "fmusim" / "bin" / "fmusim"
@@ -56,6 +55,12 @@ def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 def run(folder: Path, ramp: Path, **options: object) -> np.ndarray:
     options.setdefault("step", STEP)
     return orchestrator.run(folder, RunOptions(input_file=ramp, **options)).rows  # type: ignore[arg-type]
+
+
+def assert_array_equal_rows(mine: np.ndarray, theirs: np.ndarray) -> None:
+    assert mine.dtype.names == theirs.dtype.names and len(mine) == len(theirs)
+    for column in theirs.dtype.names or ():
+        np.testing.assert_array_equal(mine[column], theirs[column], err_msg=column)
 
 
 def sampled_at_ticks(t: np.ndarray) -> np.ndarray:
@@ -133,25 +138,31 @@ def test_clocked_output_is_passed_on_at_the_tick(fmus: dict[str, Path], tmp_path
     set after the tick reaches f at the tick); under jacobi it is y at the start of the step that
     ends at the row, which is the tick where a tick cut the step (0.12: y(0.1) = 0.1)."""
     folder, ramp = scenario(tmp_path / "s", fmus["clocked"], feed=True)
-    rows = run(folder, ramp)
+    rows = run(folder, ramp, executor="python")
+    assert_array_equal_rows(run(folder, ramp, executor="compiled"), rows)
     np.testing.assert_array_equal(rows["f.Float64_continuous_output"], rows["s.y"])
-    jacobi = run(folder, ramp, master="jacobi")
+    jacobi = run(folder, ramp, master="jacobi", executor="python")
+    assert_array_equal_rows(run(folder, ramp, master="jacobi", executor="compiled"), jacobi)
     t = jacobi["time"][1:]
     starts = np.maximum(t - STEP, INTERVAL * np.floor(np.round((t - 1e-9) / INTERVAL, 9)))  # a cut step's
     np.testing.assert_allclose(jacobi["f.Float64_continuous_output"][1:], sampled_at_ticks(starts),
                                rtol=0, atol=1e-12)
 
 
-def test_the_compiled_executor_leaves_clocks_to_the_python_master(fmus: dict[str, Path],
-                                                                 tmp_path: Path) -> None:
-    folder, ramp = scenario(tmp_path / "s", fmus["clocked"])
-    with pytest.raises(UsageError, match=r"compiled cannot run this scenario: FMI 3.0 clocks \(of s\) are "
-                                         "ticked by the Python master"):
-        run(folder, ramp, executor="compiled")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        run(folder, ramp, executor="auto")
-    assert any("FMI 3.0 clocks (of s)" in str(w.message) for w in caught)
+@pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])
+@pytest.mark.parametrize("step", [STEP, 0.02, 0.045])
+def test_the_compiled_executor_ticks_as_the_python_master(fmus: dict[str, Path], tmp_path: Path, master: str,
+                                                          step: float) -> None:
+    """The compiled executor (orchestrator/native/core.c) cuts the steps at the ticks and makes the
+    events itself: every row equals the Python master's bit for bit, where the step divides T
+    (0.02 s) and where it does not (0.03, 0.045 s: the input file is read at every cut), and the
+    oracle still holds (y = T floor(t / T))."""
+    folder, ramp = scenario(tmp_path / "s", fmus["clocked"], stop=0.9)
+    python = run(folder, ramp, step=step, master=master, executor="python")
+    compiled = run(folder, ramp, step=step, master=master, executor="compiled")
+    assert len(python) == round(0.9 / step) + 1
+    assert_array_equal_rows(compiled, python)
+    np.testing.assert_allclose(compiled["s.y"], sampled_at_ticks(compiled["time"]), rtol=0, atol=1e-12)
 
 
 def test_reference_clocks_model_is_refused_in_one_line() -> None:
@@ -192,15 +203,42 @@ def test_ticks_with_a_shift_are_counted_in_nanoseconds() -> None:
     assert [c.name for c in due([a, b], 1_200_000_000, t0)] == ["b"]
 
 
-def test_export_of_a_clocked_scenario_is_refused_in_one_line(fmus: dict[str, Path], tmp_path: Path) -> None:
-    """The container (orchestrator/native) does not tick clocks: exporting would sample on the grid
-    silently, so it is refused, naming the component and the clock."""
+def held_from_the_host(t: float, h: float) -> float:
+    """y of the exported Sampler at time ``t`` on a host stepping by ``h``, u(t) = t set by the
+    host at each of its communication points: the tick k T, inside or at the end of a host step,
+    samples the u the host set at that step's start, h (ceil(k T / h) - 1) (0 for k = 0)."""
+    k = math.floor(round(t / INTERVAL, 9))
+    return 0.0 if k == 0 else h * (math.ceil(round(k * INTERVAL / h, 9)) - 1)
+
+
+@pytest.mark.parametrize("fmi", ["2", "3"])
+def test_the_exported_container_ticks_the_clock_behind_plain_co_simulation(
+        fmus: dict[str, Path], tmp_path: Path, fmi: str) -> None:
+    """``orchestrate export`` of the clocked Sampler at the step 0.03 s (T = 0.1 s): the container
+    cuts its steps at the ticks and makes the events itself, its own interface is plain
+    Co-Simulation (no clock, no event mode). FMPy and fmusim, stepping 0.03 s and setting u(t) = t
+    at their communication points, see every tick (ticks = floor(t / T) + 1) and y sampled at it
+    from the u of the step it falls in (analytic: held_from_the_host)."""
     folder, _ = scenario(tmp_path / "s", fmus["clocked"])
-    with pytest.raises(ScenarioError) as caught:
-        export(folder, tmp_path / "out.fmu", step=STEP, stop_time=0.99)
-    expected = "component 's': FMU 'Sampler.fmu' has FMI 3.0 clocks (tick), which the container does not tick"
-    assert expected in str(caught.value)
-    assert not (tmp_path / "out.fmu").exists()
+    fmu, _ = export(folder, tmp_path / "out.fmu", step=STEP, stop_time=0.99, fmi=fmi)
+    md = zipfile.ZipFile(fmu).read("modelDescription.xml").decode()
+    assert "<Clock" not in md and 'hasEventMode="true"' not in md and "clocks=" not in md
+    signal = np.array([(0.0, 0.0), (10.0, 10.0)], dtype=[("time", float), ("s.u", float)])
+    got = {"fmpy": fmpy.simulate_fmu(str(fmu), stop_time=0.99, step_size=STEP, output_interval=STEP,
+                                     input=signal)}
+    if FMUSIM.is_file():
+        (tmp_path / "u.csv").write_text("time,s.u\n0,0\n10,10\n")
+        subprocess.run([str(FMUSIM), "--interface-type", "cs", "--stop-time", "0.99", "--output-interval",
+                        str(STEP), "--input-file", str(tmp_path / "u.csv"), "--output-file",
+                        str(tmp_path / "out.csv"), str(fmu)], check=True, timeout=60, capture_output=True)
+        got["fmusim"] = read_csv(str(tmp_path / "out.csv"))
+    for host, rows in got.items():
+        t = rows["time"]
+        assert len(t) == 34, host
+        np.testing.assert_array_equal(rows["s.ticks"], [math.floor(round(x / INTERVAL, 9)) + 1 for x in t],
+                                      err_msg=host)
+        np.testing.assert_allclose(rows["s.y"], [held_from_the_host(x, STEP) for x in t], rtol=0, atol=1e-12,
+                                   err_msg=host)
 
 
 @pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])
@@ -218,20 +256,13 @@ def test_two_clocks_of_different_intervals_each_tick_on_their_own_schedule(
     second = first.replace('name="s"', 'name="r"').replace("resources/Sampler.fmu", "resources/Slow.fmu")
     (folder / "SystemStructure.ssd").write_text(text.replace(first, first + "\n" + second))
     ramp.write_text("time,s.u,r.u\n0,0,0\n10,10,10\n")
-    rows = run(folder, ramp, step=0.04, master=master)
+    rows = run(folder, ramp, step=0.04, master=master, executor="python")
+    assert_array_equal_rows(run(folder, ramp, step=0.04, master=master, executor="compiled"), rows)
     t = rows["time"]
     for name, interval in (("s", 0.1), ("r", 0.15)):
         k = np.floor(np.round(t / interval, 9))
         np.testing.assert_allclose(rows[f"{name}.y"], interval * k, rtol=0, atol=1e-12)
         np.testing.assert_array_equal(rows[f"{name}.ticks"], k + 1)
-
-
-def test_a_compiled_master_built_directly_refuses_clocks(fmus: dict[str, Path], tmp_path: Path) -> None:
-    """orchestrator.run never asks the compiled executor to run clocks; a caller building the master
-    itself gets a UsageError rather than a run that never ticks."""
-    folder, _ = scenario(tmp_path / "s", fmus["clocked"])
-    with orchestrator.open_system(folder) as system, pytest.raises(UsageError, match="does not tick FMI 3.0"):
-        GaussSeidel(system, 0.0, 0.99, STEP, compiled=True).run()
 
 
 @pytest.mark.parametrize("interval", [0.1, 0.05])
@@ -244,7 +275,57 @@ def test_a_fixed_clock_without_interval_is_asked_in_initialization_mode(tmp_path
     fmu = build_sampler(tmp_path / "fixed", interval=interval, fixed=True)
     assert 'intervalVariability="fixed"' in zipfile.ZipFile(fmu).read("modelDescription.xml").decode()
     rows = run(*scenario(tmp_path / "s", fmu))
+    assert_array_equal_rows(run(*scenario(tmp_path / "c", fmu), executor="compiled"), rows)  # C asks too
     t = rows["time"]
     expected = [interval * math.floor(round(x / interval, 9)) for x in t]
     np.testing.assert_allclose(rows["s.y"], expected, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(rows["s.ticks"], [math.floor(round(x / interval, 9)) + 1 for x in t])
+
+
+def cut_points(step: float, stop: float) -> list[float]:
+    """The points a master stops at: its grid and the ticks k T, in integer nanoseconds as its own."""
+    ns = 1_000_000_000
+    grid = range(0, round(stop * ns) + 1, round(step * ns))
+    ticks = range(0, round(stop * ns) + 1, round(INTERVAL * ns))
+    return [c / ns for c in sorted({*grid, *ticks})]
+
+
+@pytest.mark.skipif(not FEEDTHROUGH.is_file(), reason="no Modelica Reference FMUs (FMI 3.0)")
+@pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])
+@pytest.mark.parametrize("step", [0.02, STEP])
+def test_under_jacobi_an_event_sees_the_inputs_of_the_previous_communication_point(
+        fmus: dict[str, Path], tmp_path: Path, master: str, step: float) -> None:
+    """f (Reference Feedthrough, u(t) = t from the input file) -> s.u. Jacobi: every FMU computes
+    what it gives at a communication point from the inputs of the previous one, and the event at
+    a tick is how s computes its y there; so f gives at each point c_i the u it held since
+    c_(i-1), and s samples at a tick c_i the value transferred at c_(i-1): y(c_i) = c_(i-2), on the
+    points of the master's grid and the ticks. Gauss-Seidel: y(k T) = k T (propagated at the
+    tick). Both executors, bit for bit."""
+    folder, ramp = scenario(tmp_path / "s", fmus["clocked"], stop=0.9, fed=True)
+    rows = run(folder, ramp, step=step, master=master, executor="python")
+    assert_array_equal_rows(run(folder, ramp, step=step, master=master, executor="compiled"), rows)
+    cuts = cut_points(step, 0.9)
+    sampled = {c: (cuts[max(i - 2, 0)] if master == "jacobi" else c) for i, c in enumerate(cuts)
+               if math.isclose(c / INTERVAL, round(c / INTERVAL), abs_tol=1e-9)}
+    for t, y in zip(rows["time"], rows["s.y"], strict=True):
+        last = max(k for k in sampled if k <= t + 1e-12)
+        assert y == pytest.approx(sampled[last], abs=1e-12), (t, y, sampled[last])
+
+
+@pytest.mark.parametrize("fault, said", [(1, "discreteStatesNeedUpdate after 100 calls"),
+                                         (2, "terminateSimulation")])
+def test_an_event_that_never_settles_or_asks_to_terminate_ends_the_run_in_one_line(
+        tmp_path: Path, fault: int, said: str) -> None:
+    """From the 4th tick (t = 0.3 s) the Sampler's fmi3UpdateDiscreteStates asks for another update
+    forever, or to terminate: both executors end the run with the same SimulationError naming the
+    component, the call, the verdict and the time, the rows before it kept (up to 0.27 s)."""
+    fmu = build_sampler(tmp_path / "bad", fault=fault)
+    errors = {}
+    for executor in ("python", "compiled"):
+        folder, ramp = scenario(tmp_path / executor, fmu)
+        with pytest.raises(orchestrator.SimulationError) as caught:
+            run(folder, ramp, executor=executor)
+        errors[executor] = caught.value
+    assert str(errors["compiled"]) == str(errors["python"])
+    assert f"s: fmi3UpdateDiscreteStates returned {said} at t=0.3" in str(errors["python"])
+    assert errors["compiled"].rows == errors["python"].rows == 10  # t0 .. 0.27 s

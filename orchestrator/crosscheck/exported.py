@@ -60,6 +60,8 @@ class _ExportedTool(Tool):
     delayed = False
     tolerance = TOLERANCE
     program: Path | None = None
+    fmi_versions = ("2.0", "3.0")  # the container embeds both
+    clocks = "inside the FMU: the container ticks them, plain Co-Simulation outside"
 
     def missing(self) -> str | None:
         if self.program is not None and not self.program.is_file():

@@ -20,6 +20,12 @@ A cell (tool x scenario) is red when any check fails:
   scenarios, the fault amplify differences in the last bits (e.g. of the time a tool passes to the
   FMUs): a 1e-13 change of the reference's phase moves ``example1_finite_time``'s y by 7.9e-3 at
   t = 27 s in our own ``jacobi`` master, so the tolerance there is loose.
+
+A scenario whose FMUs declare FMI 3.0 clocks (the ``_clocked`` ones) runs in every tool, also in
+one that does not drive clocks (``Tool.clocks`` empty) or does not claim its FMI versions: what
+that tool does is measured and shown as "no clocks" with the first check it failed, not red (a
+tool is not faulted for a feature it does not claim); one that drives them is held to the checks
+above.
 """
 
 from __future__ import annotations
@@ -93,17 +99,30 @@ class Cell:
     unsupported: str | None = None
     fmi: str = ""  # the FMI versions of the scenario's FMUs
     tool_fmi: str = ""  # the FMI versions the tool runs
+    tool_clocks: str = ""  # how the tool drives FMI 3.0 clocks ("": it does not)
+    clocked: bool = False  # the scenario's FMUs declare FMI 3.0 clocks
+    clockless: bool = False  # ... and the tool does not drive them
+
+    @property
+    def failed(self) -> bool:
+        """True when a check failed."""
+        return any(not c.ok for c in self.checks)
 
     @property
     def red(self) -> bool:
-        """True when a check failed (a tool that is not installed is not red)."""
-        return any(not c.ok for c in self.checks)
+        """True when a check failed (a tool that is not installed is not red, nor one without
+        clocks on a clocked scenario: that is "no clocks")."""
+        return self.failed and not self.clockless
 
     @property
     def status(self) -> str:
         if self.missing:
             return "not installed"
-        return "not supported" if self.unsupported else ("red" if self.red else "ok")
+        if self.unsupported:
+            return "not supported"
+        if self.clockless and self.failed:
+            return "no clocks"
+        return "red" if self.red else "ok"
 
 
 def reference_master(delayed: bool) -> str:
@@ -240,6 +259,7 @@ class OurMaster(Tool):
         self.delayed = master == "jacobi"
         self.tolerance = Tolerance(0.0, 0.0, "the reference itself")
         self.fmi_versions = ("2.0", "3.0")
+        self.clocks = "periodic input clocks ticked in event mode (Python and compiled executors)"
 
     def missing(self) -> str | None:
         return None
@@ -263,7 +283,10 @@ def run_matrix(scenarios: Sequence[Scenario], tools: Sequence[Tool],
         for tool in [*masters.values(), *tools]:
             done += 1
             reason = tool.missing()
-            other = [v for v in scenario.fmi_versions if v not in tool.fmi_versions]
+            # a tool without clocks runs a clocked scenario whatever FMI versions it claims: what it
+            # does with the archive is measured, not assumed
+            other = [] if scenario.clocked and not tool.clocks else [
+                v for v in scenario.fmi_versions if v not in tool.fmi_versions]
             if reason or other:
                 runs = ", ".join(tool.fmi_versions)
                 unsupported = f"runs FMI {runs} FMUs only, not FMI {', '.join(other)}" if other else None
@@ -281,6 +304,8 @@ def run_matrix(scenarios: Sequence[Scenario], tools: Sequence[Tool],
                 cell = evaluate(tool, scenario, run, ours[reference_master(tool.delayed)],
                                 unchanged=_digest(scenario.path) == before, signals=compared)
             cell.fmi, cell.tool_fmi = ", ".join(scenario.fmi_versions), ", ".join(tool.fmi_versions)
+            cell.tool_clocks, cell.clocked = tool.clocks, bool(scenario.clocked)
+            cell.clockless = cell.clocked and not tool.clocks
             cells.append(cell)
             if progress is not None:
                 wall = f" {cell.wall:.1f} s" if cell.wall is not None else ""
@@ -303,6 +328,7 @@ def write_markdown(cells: Iterable[Cell], path: Path, tools: Sequence[Tool]) -> 
     keys = list(dict.fromkeys(c.tool for c in cells))
     by = {(c.tool, c.scenario): c for c in cells}
     fmi = {c.scenario: c.fmi for c in cells}
+    clocked = {c.scenario for c in cells if c.clocked}
     lines = ["# SSP tools: conformance matrix", "",
              "Every built scenario (`build/ssp/<name>.ssp`, unchanged: its own step, stop time and "
              "parameter sets) in every tool, written by `orchestrate crosscheck`. A cell is red when the "
@@ -312,13 +338,17 @@ def write_markdown(cells: Iterable[Cell], path: Path, tools: Sequence[Tool]) -> 
              f"and the signal `{COLUMN}` (`--signal` chooses others; a scenario without it: every output). "
              f"Cells: status, wall time, max |delta signal| until {AFTER:g} s / after. Beside each "
              "scenario the FMI version of its FMUs; beside each tool the FMI versions it runs (a tool is "
-             "not run on FMUs of another version: \"not supported\", not red).", "",
-             "| tool | master | FMI | " + " | ".join(f"`{s}` (FMI {fmi[s]})" for s in scenarios) + " |",
-             "|---|---|---|" + "---|" * len(scenarios)]
+             "not run on FMUs of another version: \"not supported\", not red) and whether it drives FMI 3.0 "
+             "clocks (a scenario with clocks is run in a tool that does not, and what it does is shown as "
+             "\"no clocks\", not red).", "",
+             "| tool | master | FMI | clocks | "
+             + " | ".join(f"`{s}` (FMI {fmi[s]}{'; clocks' if s in clocked else ''})" for s in scenarios)
+             + " |",
+             "|---|---|---|---|" + "---|" * len(scenarios)]
     for key in keys:
         first = next(c for c in cells if c.tool == key)
         row = [first.title, "delayed (= `jacobi`)" if first.delayed else "delay-free (= `gauss-seidel`)",
-               first.tool_fmi]
+               first.tool_fmi, first.tool_clocks or "no"]
         for s in scenarios:
             c = by.get((key, s))
             if c is None:
@@ -327,6 +357,9 @@ def write_markdown(cells: Iterable[Cell], path: Path, tools: Sequence[Tool]) -> 
                 row.append("not installed")
             elif c.unsupported:
                 row.append(f"not supported (FMI {c.fmi})")
+            elif c.clockless and c.failed:
+                failed = next(k for k in c.checks if not k.ok)
+                row.append(f"no clocks: {failed.name}: {failed.detail}")
             else:
                 mark = "🟥" if c.red else "🟩"
                 dev = (f", {_fmt(c.deviation.until)} / {_fmt(c.deviation.after)}"
@@ -347,7 +380,8 @@ def write_markdown(cells: Iterable[Cell], path: Path, tools: Sequence[Tool]) -> 
             k = checks.get(name)
             return "" if k is None else (k.detail if k.ok else f"**{k.detail}**")
 
-        lines.append(f"| {c.title} | `{c.scenario}` | {'🟥 red' if c.red else '🟩 ok'} | {show('loads')} | "
+        shown = "no clocks" if c.status == "no clocks" else "🟥 red" if c.red else "🟩 ok"
+        lines.append(f"| {c.title} | `{c.scenario}` | {shown} | {show('loads')} | "
                      f"{show('parameters')} | {show('stop')} | {show('until')} | "
                      f"{show('after')} | {'; '.join(c.notes)} |")
     lines += ["", "## Tolerances", "", f"| tool | compared with | until {AFTER:g} s | after | why |",
@@ -363,7 +397,7 @@ def write_markdown(cells: Iterable[Cell], path: Path, tools: Sequence[Tool]) -> 
 
 CSV_FIELDS = ("tool", "scenario", "master", "reference", "status", "loads", "parameters", "stop_time",
               "wall_s", "dy_max", "dy_max_at_s", "dy_until_1s", "dy_after_1s", "tol_until_1s", "tol_after_1s",
-              "failures", "notes", "fmi", "tool_fmi", "dy_max_signal")
+              "failures", "notes", "fmi", "tool_fmi", "dy_max_signal", "clockless")
 
 
 def write_csv(cells: Iterable[Cell], path: Path) -> Path:
@@ -383,5 +417,5 @@ def write_csv(cells: Iterable[Cell], path: Path) -> Path:
                 "" if t is None else repr(t.until), "" if t is None else repr(t.after),
                 "; ".join(f"{k.name}: {k.detail}" for k in c.checks if not k.ok)
                 or (c.missing or c.unsupported or ""),
-                "; ".join(c.notes), c.fmi, c.tool_fmi, "" if d is None else d.column])
+                "; ".join(c.notes), c.fmi, c.tool_fmi, "" if d is None else d.column, c.clockless])
     return path

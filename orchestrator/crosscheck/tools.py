@@ -28,7 +28,7 @@ from ..ssp import NS, SSD_NAME, open_scenario, read_scenario
 from ..validate import STEP_ANNOTATIONS
 
 __all__ = ["AMPLIFIED", "QUIET", "Scenario", "Tolerance", "Tool", "ToolRun", "clean_environment",
-           "elf_interpreter", "empty_result", "fmi_version", "last_per_step", "table_result"]
+           "clocks_of", "elf_interpreter", "empty_result", "fmi_version", "last_per_step", "table_result"]
 
 # Variables of the FMUs that pythonfmu's C-API hosts must not inherit from the caller: the FMUs are
 # expected to find libpython and their packages by themselves (see README, "Running the FMUs
@@ -53,7 +53,8 @@ class Scenario:
     ``parameters`` maps ``component.variable`` to the value its parameter bindings give (later
     bindings win), ``types`` to the SSV type; ``set_names`` maps each component to the ``name``
     attribute of each ``.ssv`` it binds (Ecos applies parameter sets by that name);
-    ``fmi_versions``: the FMI versions of its FMUs (``fmiVersion``, e.g. ``("2.0", "3.0")``).
+    ``fmi_versions``: the FMI versions of its FMUs (``fmiVersion``, e.g. ``("2.0", "3.0")``);
+    ``clocked``: the components whose FMU declares FMI 3.0 clocks.
     """
 
     name: str
@@ -67,6 +68,7 @@ class Scenario:
     types: dict[str, str]
     set_names: dict[str, tuple[str, ...]]
     fmi_versions: tuple[str, ...] = ("2.0",)
+    clocked: tuple[str, ...] = ()
 
     @classmethod
     def read(cls, path: str | os.PathLike) -> Scenario:
@@ -79,6 +81,7 @@ class Scenario:
             types: dict[str, str] = {}
             set_names: dict[str, tuple[str, ...]] = {}
             versions = {fmi_version(folder / component.source) for component in structure.components}
+            clocked = tuple(c.name for c in structure.components if clocks_of(folder / c.source))
             for component in structure.components:
                 names = []
                 for ps in component.parameter_sets:
@@ -99,7 +102,7 @@ class Scenario:
                                                  (STEP_ANNOTATIONS, experiment.step)) if value is None]
             raise ValueError(f"{path}:{SSD_NAME}: other tools need {' and '.join(missing)}; it has none")
         return cls(path.stem, path, system, experiment.start_time, experiment.stop_time, experiment.step,
-                   outputs, parameters, types, set_names, tuple(sorted(versions)))
+                   outputs, parameters, types, set_names, tuple(sorted(versions)), clocked)
 
     @property
     def steps(self) -> int:
@@ -142,6 +145,7 @@ class Tool(ABC):
     title: str = ""
     delayed: bool = False
     fmi_versions: tuple[str, ...] = ("2.0",)  # the FMI versions of the FMUs it can run
+    clocks: str = ""  # how it drives FMI 3.0 clocks ("": it does not)
     tolerance: Tolerance = Tolerance(0.0, 0.0, "")
 
     @abstractmethod
@@ -164,6 +168,17 @@ def fmi_version(fmu: Path) -> str:
     except (OSError, KeyError, StopIteration, zipfile.BadZipFile, etree.XMLSyntaxError):
         pass
     return "?"
+
+
+def clocks_of(fmu: Path) -> tuple[str, ...]:
+    """The names of the FMI 3.0 clocks an FMU archive's model description declares (none when it
+    cannot be read)."""
+    try:
+        with zipfile.ZipFile(materialize(fmu)) as archive, archive.open("modelDescription.xml") as xml:
+            root = etree.parse(xml, etree.XMLParser(resolve_entities=False, no_network=True)).getroot()
+    except (OSError, KeyError, zipfile.BadZipFile, etree.XMLSyntaxError):
+        return ()
+    return tuple(c.get("name", "") for c in root.iterfind("ModelVariables/Clock"))
 
 
 def empty_result(columns: Sequence[str]) -> np.ndarray:

@@ -253,10 +253,6 @@ def export(scenario: str | os.PathLike, output: str | os.PathLike, *, fmi: str =
         other = [f"{system.ssd}: component '{c.name}': FMU '{Path(c.fmu).name}' is FMI {c.model.fmiVersion}; "
                  "the container embeds FMI 2.0 and 3.0 Co-Simulation FMUs only"
                  for c in system.components.values() if c.model.fmiVersion.split(".")[0] not in ("2", "3")]
-        other += [f"{system.ssd}: component '{c.name}': FMU '{Path(c.fmu).name}' has FMI 3.0 clocks "
-                  f"({', '.join(k.name for k in c.clocks)}), which the container does not tick yet (run the "
-                  "scenario with orchestrate, whose Python master does)" for c in system.components.values()
-                  if c.clocks]
         if other:
             raise ScenarioError(other)
         folders = _folders(system)

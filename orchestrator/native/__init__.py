@@ -34,8 +34,8 @@ from ..fmi import InstanceBase
 from ..fmucache import cache_folder
 from ..plan import Plan
 
-__all__ = ["FLAGS", "SOURCES", "Failure", "NativeError", "Stepper", "compile_library", "container_library",
-           "executor_library", "unavailable"]
+__all__ = ["FLAGS", "FUNCTIONS", "NO_STATUS", "SOURCES", "Failure", "NativeError", "Stepper",
+           "compile_library", "container_library", "executor_library", "unavailable"]
 
 HERE = Path(__file__).resolve().parent
 HEADERS = cbase.FMI_HEADERS
@@ -54,7 +54,13 @@ LIBS = ("-ldl", "-lm")
 # marked __declspec(dllexport) (the fmi2* and fmi3*) are exported.
 MINGW_FLAGS = (*cbase.REPRODUCIBLE_MINGW_FLAGS, "-shared", "-ffp-contract=off")
 # what a step of the executor calls, by code (core.h's enum function)
-FUNCTIONS = ("fmi2DoStep", "fmi2GetReal", "fmi2SetReal", "fmi2SetInteger", "fmi2GetInteger")
+FUNCTIONS = ("fmi2DoStep", "fmi2GetReal", "fmi2SetReal", "fmi2SetInteger", "fmi2GetInteger",
+             "fmi2SetBoolean", "fmi2SetString", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
+             "fmi2ExitInitializationMode",
+             "fmi2Terminate", "fmi2Reset", "fmi2Instantiate", "fmi3EnterEventMode", "fmi3SetClock",
+             "fmi3UpdateDiscreteStates", "fmi3EnterStepMode", "fmi3GetIntervalDecimal", "fmi3GetShiftDecimal")
+# a failure's status that is no FMI status (core.h), as orchestrator/fmi.py's Instance.tick says it
+NO_STATUS = {-2: "terminateSimulation", -3: "discreteStatesNeedUpdate after 100 calls"}
 WHY = 4096
 
 

@@ -21,7 +21,11 @@
    * fmi2DoStep(t, H) runs the internal steps from the container's own count k up to the grid point
      t + H, so H must be a whole number of the scenario's steps; the time passed to the FMUs is
      always (t0 + k h) / 1e9, never the host's sum. Inputs the host sets are passed on at once;
-     with gauss-seidel, outputs that depend on them are propagated again before they are read. */
+     with gauss-seidel, outputs that depend on them are propagated again before they are read;
+   * an embedded FMU with periodic input clocks is instantiated with eventModeUsed; its clocks'
+     intervals are asked in fmi2ExitInitializationMode before the master's initialization (a
+     fixed clock's, core_ask_clocks), and the core ticks them inside fmi2DoStep: the host sees
+     plain Co-Simulation. */
 
 #include <stdarg.h>
 #include <stdio.h>
@@ -160,8 +164,8 @@ static void *instantiate(struct container *x, size_t i) {
              c->version == 3 ? "/" : "");
     if (c->version == 3) {
         x->relays[i] = (struct relay3){x, c->name};
-        return f->instantiate3(c->name, c->guid, resources, fmi3False, x->logging != 0, fmi3False, fmi3False, NULL,
-                               0, &x->relays[i], relay3, NULL);
+        return f->instantiate3(c->name, c->guid, resources, fmi3False, x->logging != 0, f->event_mode != 0,
+                               fmi3False, NULL, 0, &x->relays[i], relay3, NULL);
     }
     file_uri(resources, uri, sizeof uri);
     return f->instantiate2(c->name, fmi2CoSimulation, c->guid, uri, &x->inner, fmi2False, x->logging);
@@ -214,7 +218,9 @@ static int load_component(struct container *x, size_t i, char *why, size_t size)
         snprintf(why, size, "%s: cannot load %s: %s", c->name, path, ftc_library_error(path));
         return -1;
     }
-    if (fmu_bind(&x->core.fmus[i], x->libraries[i], c->version, 1, reason, sizeof reason) != 0) {
+    if (fmu_bind(&x->core.fmus[i], x->libraries[i], c->version, 1, reason, sizeof reason) != 0 ||
+        (plan_clocked(&x->plan, (int)i) &&
+         fmu_bind_clocks(&x->core.fmus[i], x->libraries[i], reason, sizeof reason) != 0)) {
         snprintf(why, size, "%s: %s: %s", c->name, path, reason);
         return -1;
     }
@@ -269,6 +275,7 @@ static int read_own_plan(struct container *x, const char *function) {
         return -1;
     }
     x->core.plan = &x->plan;
+    x->core.clocks = x->plan.clocks; /* those without an interval: asked in Initialization Mode */
     size_t n = x->plan.ncomponents ? x->plan.ncomponents : 1;
     x->core.fmus = calloc(n, sizeof *x->core.fmus);
     x->libraries = calloc(n, sizeof *x->libraries);

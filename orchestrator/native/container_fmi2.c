@@ -112,7 +112,8 @@ EXPORT fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
 
 EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     CONTAINER(c, 1 << INITIALIZATION);
-    fmi2Status s = CORE(x, core_exit_initialization(&x->core, plan_time(&x->plan, 0)));
+    double t0 = plan_time(&x->plan, 0);
+    fmi2Status s = CORE(x, core_ask_clocks(&x->core, t0) || core_exit_initialization(&x->core, t0));
     if (s != fmi2OK) return s;
     x->dirty = 0;
     x->state = STEPPING;
@@ -301,6 +302,9 @@ EXPORT fmi2Status fmi2Reset(fmi2Component c) {
     }
     plan_free(&x->plan);
     x->plan = fresh;
+    x->core.clocks = x->plan.clocks;
+    for (size_t i = 0; i < x->plan.ncomponents; i++)
+        x->core.fmus[i].in_event = x->core.fmus[i].event_requested = x->core.fmus[i].ticked = 0;
     memcpy(x->values, x->plan.initial, x->plan.nvalues * sizeof *x->values);
     memset(x->input_set, 0, (x->plan.nexposed ? x->plan.nexposed : 1) * sizeof *x->input_set);
     x->k = 0;

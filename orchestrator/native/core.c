@@ -9,7 +9,15 @@
      its outputs; time t_k+1; transfer every connection; the driven inputs at t_k+1;
    * initialization: per FMU start values, setup, initialization mode, start values again; then
      gauss-seidel propagates, every FMU leaves initialization mode, and it propagates again; jacobi
-     makes N sweeps of (write, read, transfer), then per FMU write, leave, read, and transfers.
+     makes N sweeps of (write, read, transfer), then per FMU write, leave, read, and transfers;
+   * FMI 3.0 clocks (periodic input clocks, orchestrator/clocks.py): a step that holds a tick of
+     any clock is cut there (the pieces step as above, time and driven inputs at each piece's
+     end); after each piece every FMU with a clock due there, or whose last fmi3DoStep asked for
+     an event, gets its event with the inputs it holds (gauss-seidel: those propagated at the
+     tick; jacobi: those of the previous communication point, as for any output at the tick):
+     fmi3EnterEventMode, fmi3SetClock of the clocks due, fmi3UpdateDiscreteStates until it needs
+     no more, fmi3EnterStepMode; then gauss-seidel propagates at the tick, jacobi reads those FMUs'
+     outputs and transfers every connection. Ticks are integer nanoseconds from t0.
 
    The arithmetic of a transfer is compiled without contraction (-ffp-contract=off), so it rounds
    as the Python master's does. */
@@ -18,6 +26,7 @@
 #include "core.h"
 #include "platform.h"
 
+#include <math.h>
 #include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -26,11 +35,13 @@
 static const char *const NAMES2[FUNCTIONS] = {
     "fmi2DoStep", "fmi2GetReal", "fmi2SetReal", "fmi2SetInteger", "fmi2GetInteger", "fmi2SetBoolean", "fmi2SetString",
     "fmi2SetupExperiment", "fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2Terminate",
-    "fmi2Reset", "fmi2Instantiate"};
+    "fmi2Reset", "fmi2Instantiate", "fmi3EnterEventMode", "fmi3SetClock", "fmi3UpdateDiscreteStates",
+    "fmi3EnterStepMode", "fmi3GetIntervalDecimal", "fmi3GetShiftDecimal"};
 static const char *const NAMES3[FUNCTIONS] = {
     "fmi3DoStep", "fmi3GetFloat64", "fmi3SetFloat64", "fmi3SetInt32", "fmi3GetInt32", "fmi3SetBoolean", "fmi3SetString",
     "fmi3EnterInitializationMode", "fmi3EnterInitializationMode", "fmi3ExitInitializationMode",
-    "fmi3Terminate", "fmi3Reset", "fmi3InstantiateCoSimulation"};
+    "fmi3Terminate", "fmi3Reset", "fmi3InstantiateCoSimulation", "fmi3EnterEventMode", "fmi3SetClock",
+    "fmi3UpdateDiscreteStates", "fmi3EnterStepMode", "fmi3GetIntervalDecimal", "fmi3GetShiftDecimal"};
 static const char *const STATUS2[] = {"fmi2OK", "fmi2Warning", "fmi2Discard", "fmi2Error", "fmi2Fatal",
                                       "fmi2Pending"};
 static const char *const STATUS3[] = {"fmi3OK", "fmi3Warning", "fmi3Discard", "fmi3Error", "fmi3Fatal"};
@@ -41,6 +52,9 @@ const char *fmu_function(int version, int function) {
 }
 
 const char *fmu_status(int version, int status) {
+    if (status == TERMINATE_SIMULATION) return "terminateSimulation";
+    if (status == NEVER_SETTLES) return "discreteStatesNeedUpdate after 100 calls";
+    if (status == UNUSABLE_INTERVAL) return "an unusable interval";
     if (status < 0) return "NULL";
     if (version == 3) return status < 5 ? STATUS3[status] : "fmi3 status ?";
     return status < 6 ? STATUS2[status] : "fmi2 status ?";
@@ -72,22 +86,41 @@ static const struct symbol SYMBOLS3[] = {
     S(terminate3, "fmi3Terminate", 1),   S(reset3, "fmi3Reset", 1),
     S(instantiate3, "fmi3InstantiateCoSimulation", 1), S(free3, "fmi3FreeInstance", 1),
     S(debug3, "fmi3SetDebugLogging", 1)};
+static const struct symbol CLOCKS3[] = {
+    S(enter_event3, "fmi3EnterEventMode", 0), S(set_clock3, "fmi3SetClock", 0),
+    S(update3, "fmi3UpdateDiscreteStates", 0), S(enter_step3, "fmi3EnterStepMode", 0),
+    S(interval3, "fmi3GetIntervalDecimal", 0), S(shift3, "fmi3GetShiftDecimal", 0)};
 #undef S
 
-int fmu_bind(struct fmu *f, void *library, int version, int lifecycle, char *why, size_t size) {
-    const struct symbol *symbols = version == 3 ? SYMBOLS3 : SYMBOLS2;
-    size_t n = version == 3 ? sizeof SYMBOLS3 / sizeof *SYMBOLS3 : sizeof SYMBOLS2 / sizeof *SYMBOLS2;
-    f->version = version;
+static int bind_symbols(struct fmu *f, void *library, const struct symbol *symbols, size_t n, int lifecycle,
+                        char *why, size_t size) {
     for (size_t j = 0; j < n; j++) {
         if (symbols[j].lifecycle && !lifecycle) continue;
         void *found = ftc_library_symbol(library, symbols[j].name);
         if (!found) {
-            snprintf(why, size, "the FMU's library has no %s (FMI %d.0 Co-Simulation)", symbols[j].name, version);
+            snprintf(why, size, "the FMU's library has no %s (FMI %d.0 Co-Simulation)", symbols[j].name,
+                     f->version);
             return -1;
         }
         memcpy((char *)f + symbols[j].offset, &found, sizeof found);
     }
     return 0;
+}
+
+int fmu_bind_clocks(struct fmu *f, void *library, char *why, size_t size) {
+    if (f->version != 3) {
+        snprintf(why, size, "clocks need an FMI 3.0 FMU");
+        return -1;
+    }
+    f->event_mode = 1;
+    return bind_symbols(f, library, CLOCKS3, sizeof CLOCKS3 / sizeof *CLOCKS3, 0, why, size);
+}
+
+int fmu_bind(struct fmu *f, void *library, int version, int lifecycle, char *why, size_t size) {
+    const struct symbol *symbols = version == 3 ? SYMBOLS3 : SYMBOLS2;
+    size_t n = version == 3 ? sizeof SYMBOLS3 / sizeof *SYMBOLS3 : sizeof SYMBOLS2 / sizeof *SYMBOLS2;
+    f->version = version;
+    return bind_symbols(f, library, symbols, n, lifecycle, why, size);
 }
 
 /* ---- the calls, whatever the version --------------------------------------------------------- */
@@ -96,7 +129,9 @@ static int do_step(struct fmu *f, double t, double h) {
     if (f->version == 2) return f->do_step2(f->instance, t, h, fmi2True);
     bool event = false, terminate = false, early = false;
     double last = t;
-    return f->do_step3(f->instance, t, h, true, &event, &terminate, &early, &last);
+    int status = f->do_step3(f->instance, t, h, true, &event, &terminate, &early, &last);
+    f->event_requested = event;
+    return status;
 }
 
 static int get_real(struct fmu *f, const unsigned int *vr, size_t n, double *v) {
@@ -257,17 +292,139 @@ static int step_jacobi(struct core *x, double t, double h, double t_next, const 
     return drive(x, driven, t_next);
 }
 
-int core_step(struct core *x, int64_t k, const double *driven) {
+/* One piece of a step, from `start` to `end` (ns), the driven inputs at its end from *driven. */
+static int piece(struct core *x, int64_t start, int64_t end, const double **driven) {
     const struct plan *p = x->plan;
-    double t = plan_time(p, k), t_next = plan_time(p, k + 1), h = t_next - t;
-    if (p->jacobi) return step_jacobi(x, t, h, t_next, driven);
+    double t = (double)start / 1e9, t_next = (double)end / 1e9, h = t_next - t;
+    const double *row = driven ? *driven : NULL;
+    if (row) *driven = row + p->ndriven;
+    if (p->jacobi) return step_jacobi(x, t, h, t_next, row);
     for (size_t i = 0; i < p->ncomponents; i++) {
         int s = check(x, (int)i, DO_STEP, do_step(&x->fmus[i], t, h), t);
         if (s) return s;
     }
     x->values[0] = t_next;
-    int s = drive(x, driven, t_next);
+    int s = drive(x, row, t_next);
     return s ? s : core_propagate(x, t_next);
+}
+
+/* ---- clocks ----------------------------------------------------------------------------------- */
+
+#define MAX_CLOCKS 1024 /* per plan (plan.c) */
+
+/* The first tick of clock `c` at or after `t` (ns; a run started at `t0`); INT64_MAX for a clock
+   whose interval is not known (core_ask_clocks fills every one before the first step). */
+static int64_t tick_at_or_after(const struct clock *c, int64_t t, int64_t t0) {
+    int64_t first = t0 + c->shift;
+    if (c->interval <= 0) return INT64_MAX;
+    if (t <= first) return first;
+    return first + (t - first + c->interval - 1) / c->interval * c->interval; /* the ceiling */
+}
+
+static int64_t next_tick(const struct core *x, int64_t after) {
+    int64_t next = INT64_MAX;
+    for (size_t j = 0; j < x->plan->nclocks; j++) {
+        int64_t tick = tick_at_or_after(&x->clocks[j], after + 1, x->plan->t0);
+        if (tick < next) next = tick;
+    }
+    return next;
+}
+
+static int fail_as(struct core *x, int component, int function, int status, double t) {
+    x->failure = (struct failure){component, function, status, t};
+    return status;
+}
+
+/* One FMU's event at `t`: Event Mode (unless still in it), its clocks `active` set, its discrete
+   states updated until it needs no more, Step Mode (as orchestrator/fmi.py's Instance.tick). */
+static int tick(struct core *x, int i, double t, const fmi3ValueReference *active, size_t n) {
+    struct fmu *f = &x->fmus[i];
+    int s = f->in_event ? 0 : check(x, i, ENTER_EVENT, f->enter_event3(f->instance), t);
+    if (s) return s;
+    f->in_event = 1;
+    fmi3Clock on[MAX_CLOCKS];
+    for (size_t j = 0; j < n; j++) on[j] = true;
+    s = n ? check(x, i, SET_CLOCK, f->set_clock3(f->instance, active, n, on), t) : 0;
+    for (int u = 0; !s; u++) {
+        if (u == UPDATES) return fail_as(x, i, UPDATE_DISCRETE, NEVER_SETTLES, t);
+        bool again = false, terminate = false, nominals = false, values = false, defined = false;
+        double next = 0.0;
+        s = check(x, i, UPDATE_DISCRETE,
+                  f->update3(f->instance, &again, &terminate, &nominals, &values, &defined, &next), t);
+        if (!s && terminate) return fail_as(x, i, UPDATE_DISCRETE, TERMINATE_SIMULATION, t);
+        if (!again) break;
+    }
+    if (!s) s = check(x, i, ENTER_STEP, f->enter_step3(f->instance), t);
+    if (!s) f->in_event = 0;
+    return s;
+}
+
+/* The events at `t_ns`: every FMU with a clock due there, whose last step asked for one, or (at
+   t0, `initial`) that has clocks; then their outputs passed on. */
+static int events(struct core *x, int64_t t_ns, int initial) {
+    const struct plan *p = x->plan;
+    double t = (double)t_ns / 1e9;
+    int any = 0;
+    for (size_t j = 0; j < p->nclocks;) {
+        int i = x->clocks[j].component;
+        fmi3ValueReference active[MAX_CLOCKS];
+        size_t n = 0;
+        for (; j < p->nclocks && x->clocks[j].component == i; j++)
+            if (tick_at_or_after(&x->clocks[j], t_ns, p->t0) == t_ns) active[n++] = x->clocks[j].vr;
+        struct fmu *f = &x->fmus[i];
+        if (!n && !initial && !f->event_requested) continue;
+        /* its inputs as set before: gauss-seidel's of t, jacobi's of the previous communication point */
+        int s = tick(x, i, t, active, n);
+        if (s) return s;
+        f->ticked = p->jacobi; /* jacobi reads its outputs after */
+        any = 1;
+    }
+    if (!any) return 0;
+    if (!p->jacobi) return core_propagate(x, t);
+    for (size_t i = 0; i < p->ncomponents; i++) {
+        if (!x->fmus[i].ticked) continue;
+        x->fmus[i].ticked = 0;
+        int s = get_batch(x, &p->components[i].outputs, t);
+        if (s) return s;
+    }
+    transfer_plain_first(x->values, p->transfers, p->ntransfers);
+    return 0;
+}
+
+int core_step(struct core *x, int64_t k, const double **driven) {
+    const struct plan *p = x->plan;
+    int64_t start = p->t0 + p->h * k, end = start + p->h;
+    if (!p->nclocks) return piece(x, start, end, driven);
+    while (start < end) {
+        int64_t tick = next_tick(x, start), stop = tick < end ? tick : end;
+        int s = piece(x, start, stop, driven);
+        if (!s) s = events(x, stop, 0);
+        if (s) return s;
+        start = stop;
+    }
+    return 0;
+}
+
+int core_ask_clocks(struct core *x, double t0) {
+    for (size_t j = 0; j < x->plan->nclocks; j++) {
+        struct clock *c = &x->clocks[j];
+        if (c->interval) continue;
+        struct fmu *f = &x->fmus[c->component];
+        double interval = 0.0, shift = 0.0;
+        fmi3IntervalQualifier qualifier = fmi3IntervalNotYetKnown;
+        int s = check(x, c->component, GET_INTERVAL, f->interval3(f->instance, &c->vr, 1, &interval, &qualifier),
+                      t0);
+        if (!s) s = check(x, c->component, GET_SHIFT, f->shift3(f->instance, &c->vr, 1, &shift), t0);
+        if (s) return s;
+        /* as orchestrator/clocks.py's InputClock.asked: rounded to nanoseconds (half to even, as
+           Python's round), at least 1 ns, a shift at least 0 */
+        double ns = interval * 1e9, shifted = shift * 1e9;
+        if (!(ns > 0.5 && ns < 9.2e18 && shifted >= 0.0 && shifted < 9.2e18))
+            return fail_as(x, c->component, GET_INTERVAL, UNUSABLE_INTERVAL, t0);
+        c->interval = (int64_t)llrint(ns);
+        c->shift = (int64_t)llrint(shifted);
+    }
+    return 0;
 }
 
 static int apply_starts(struct core *x, size_t i, double t) {
@@ -305,6 +462,7 @@ int core_enter_initialization(struct core *x, double t0, int stop_defined, doubl
 static int leave(struct core *x, size_t i, double t0) {
     struct fmu *f = &x->fmus[i];
     int status = f->version == 2 ? f->exit2(f->instance) : f->exit3(f->instance);
+    f->in_event = f->event_mode; /* with event mode used, the FMU is in Event Mode now */
     return check(x, (int)i, EXIT_INITIALIZATION, status, t0);
 }
 
@@ -329,10 +487,15 @@ static int exit_jacobi(struct core *x, double t0) {
 }
 
 int core_exit_initialization(struct core *x, double t0) {
-    if (x->plan->jacobi) return exit_jacobi(x, t0);
-    int s = core_propagate(x, t0);
-    for (size_t i = 0; !s && i < x->plan->ncomponents; i++) s = leave(x, i, t0);
-    return s ? s : core_propagate(x, t0);
+    int s;
+    if (x->plan->jacobi) {
+        s = exit_jacobi(x, t0);
+    } else {
+        s = core_propagate(x, t0);
+        for (size_t i = 0; !s && i < x->plan->ncomponents; i++) s = leave(x, i, t0);
+        if (!s) s = core_propagate(x, t0);
+    }
+    return s || !x->plan->nclocks ? s : events(x, x->plan->t0, 1);
 }
 
 int core_terminate(struct core *x, double t) {

@@ -42,6 +42,7 @@ EXPORT struct executor *ftc_executor_open(const char *text, char *why, size_t si
         return NULL;
     }
     x->core.plan = &x->plan;
+    x->core.clocks = x->plan.clocks; /* the engine gives their intervals (asked in Initialization Mode) */
     x->core.fmus = calloc(x->plan.ncomponents ? x->plan.ncomponents : 1, sizeof *x->core.fmus);
     if (!x->core.fmus) {
         snprintf(why, size, "out of memory");
@@ -59,6 +60,7 @@ EXPORT int ftc_executor_bind(struct executor *x, int i, void *library, void *ins
     }
     struct fmu *f = &x->core.fmus[i];
     if (fmu_bind(f, library, x->plan.components[i].version, 0, why, size) != 0) return -1;
+    if (plan_clocked(&x->plan, i) && fmu_bind_clocks(f, library, why, size) != 0) return -1;
     f->instance = instance;
     return 0;
 }
@@ -70,16 +72,17 @@ static int all_finite(const double *row, size_t n) {
 }
 
 /* Steps k .. k + count - 1 on `values` (the engine's value buffer); row j (t_k+j+1) is copied to
-   rows[j], the driven inputs of that row come from driven[j] (NULL: none). Returns the rows made;
-   failure->status is 0 unless a call failed after them. */
+   rows[j]; the driven inputs come from `driven` (NULL: none), one row per piece of a step in order
+   (one per step without clocks; with clocks, one per piece a tick cuts: orchestrator/clocks.py's
+   pieces). Returns the rows made; failure->status is 0 unless a call failed after them. */
 EXPORT long ftc_executor_run(struct executor *x, double *values, int64_t k, long count, double *rows,
                              const double *driven, const volatile int *stop, struct failure *failure) {
     size_t width = x->plan.nvalues;
     x->core.values = values;
     failure->status = 0;
+    const double *cursor = driven;
     for (long j = 0; j < count; j++) {
-        const double *inputs = driven ? driven + (size_t)j * x->plan.ndriven : NULL;
-        if (core_step(&x->core, k + j, inputs) != 0) {
+        if (core_step(&x->core, k + j, &cursor) != 0) {
             *failure = x->core.failure;
             return j;
         }

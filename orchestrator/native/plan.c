@@ -2,7 +2,7 @@
 /* The plan reader: the text orchestrator/plan.py writes (Plan.text), one record per line,
    space-separated tokens; reals as C99 hexadecimal floats (exact), strings "=" and percent-encoded.
 
-     plan 3 =<guid>                       version and the container's GUID
+     plan 4 =<guid>                       version and the container's GUID
      master gauss-seidel|jacobi
      grid <t0 ns> <h ns> <n steps>
      sizes <values> <components> <start calls> <propagation calls> <exposed variables>
@@ -12,6 +12,7 @@
      get|set <batch> <n> (<dst> <src> <factor> <offset>)*     the gauss-seidel propagation
      io <inputs batch> <outputs batch> <driven batch>         one per component, in order
      transfers <n> (<dst> <src> <factor> <offset>)*           every connection (jacobi)
+     clocks <n> (<component> <vr> <interval ns> <shift ns>)*  periodic input clocks (FMI 3.0)
      exposed <vr> o|i|p ...                                   the container's variables
 
    A batch is <component> <first slot> <n> <integers among them, last> <vr>*. Every index is checked against the sizes, so a
@@ -225,6 +226,20 @@ static void transfers_record(struct reader *r, struct plan *p) {
     p->transfers = read_transfers(r, p, &p->ntransfers);
 }
 
+static void clocks_record(struct reader *r, struct plan *p) {
+    if (p->clocks) r->error = 1; /* once */
+    p->nclocks = count(r, 1024); /* core.c's MAX_CLOCKS */
+    p->clocks = array(p->nclocks, sizeof *p->clocks, r);
+    for (size_t j = 0; j < p->nclocks && !r->error; j++) {
+        struct clock *c = &p->clocks[j];
+        c->component = (int)count(r, p->ncomponents - 1);
+        c->vr = (unsigned int)count(r, UINT32_MAX);
+        c->interval = integer(r);
+        c->shift = integer(r);
+        if (c->interval < 0 || c->shift < 0 || (j && c->component < p->clocks[j - 1].component)) r->error = 1;
+    }
+}
+
 static void exposed_record(struct reader *r, struct plan *p) {
     if (r->exposed >= p->nexposed) {
         r->error = 1;
@@ -261,7 +276,7 @@ static const struct kind KINDS[] = {
     {"sizes", sizes_record, 0},         {"value", value_record, 1},   {"component", component_record, 1},
     {"starts", starts_record, 1},       {"get", get_record, 1},       {"set", set_record, 1},
     {"io", io_record, 1},               {"transfers", transfers_record, 1},
-    {"exposed", exposed_record, 1},
+    {"clocks", clocks_record, 1},       {"exposed", exposed_record, 1},
 };
 
 static void record(struct reader *r, struct plan *p, char *line) {
@@ -296,7 +311,7 @@ int plan_read(const char *text, const char *label, struct plan *p, char *why, si
     }
     free(copy);
     int whole = r.components == p->ncomponents && r.starts == p->nstarts && r.calls == p->ncalls &&
-                r.io == p->ncomponents && r.exposed == p->nexposed && p->transfers && r.header;
+                r.io == p->ncomponents && r.exposed == p->nexposed && p->transfers && p->clocks && r.header;
     if (!r.error && (!p->components || !whole)) r.error = 1, r.number++;
     if (r.error) {
         snprintf(why, size, "%s: line %d is not a valid plan record (plan version " PLAN_VERSION ")", label,
@@ -355,8 +370,14 @@ void plan_free(struct plan *p) {
         free(p->calls[i].transfers);
     }
     free(p->initial), free(p->components), free(p->starts), free(p->calls), free(p->transfers);
-    free(p->exposed);
+    free(p->exposed), free(p->clocks);
     memset(p, 0, sizeof *p);
 }
 
 double plan_time(const struct plan *p, int64_t k) { return (double)(p->t0 + p->h * k) / 1e9; }
+
+int plan_clocked(const struct plan *p, int i) {
+    for (size_t j = 0; j < p->nclocks; j++)
+        if (p->clocks[j].component == i) return 1;
+    return 0;
+}

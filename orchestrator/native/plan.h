@@ -9,7 +9,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define PLAN_VERSION "3"
+#define PLAN_VERSION "4"
 #define PLAN_TEXT 4096
 
 /* One batched get or set of a component: value references vr <-> values[start .. start + n); the
@@ -67,6 +67,15 @@ struct exposed {
     size_t call, position;
 };
 
+/* A periodic input clock of an FMI 3.0 component (event mode used): ticks at t0 + shift + j interval
+   (nanoseconds); interval 0: a fixed clock whose interval and shift the FMU gives in Initialization
+   Mode (core_ask_clocks). */
+struct clock {
+    int component;
+    unsigned int vr;
+    int64_t interval, shift;
+};
+
 struct plan {
     char guid[256];
     int jacobi;
@@ -78,6 +87,8 @@ struct plan {
     struct call *calls;
     struct transfer *transfers; /* every connection (jacobi) */
     struct exposed *exposed;
+    size_t nclocks;
+    struct clock *clocks; /* in component order */
 };
 
 /* Reads the plan text (NUL-terminated); 0, or -1 with `why` filled (naming `label` and the line). */
@@ -87,6 +98,9 @@ int plan_read(const char *text, const char *label, struct plan *p, char *why, si
 int plan_load(const char *path, struct plan *p, char *why, size_t size);
 
 void plan_free(struct plan *p);
+
+/* Whether component i has clocks (it is driven in event mode). */
+int plan_clocked(const struct plan *p, int i);
 
 /* t_k in seconds, rounded once from integer nanoseconds. */
 double plan_time(const struct plan *p, int64_t k);
