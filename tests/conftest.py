@@ -8,6 +8,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -62,6 +63,20 @@ def test_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """The small test FMUs of tests/fmus/ (Source, Gain, Integrator), name -> path."""
     folder = tmp_path_factory.mktemp("test_fmus")
     return {n: build_test_fmu(n, folder) for n in ("Source", "Gain", "Integrator")}
+
+
+@pytest.fixture(autouse=True)
+def _temporary_files_of_the_test(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """What this process puts in temporary files during a test goes to a folder of pytest's (the
+    last three sessions kept) instead of TMPDIR: FMPy's simulate_fmu leaves its unpacked FMU behind
+    when a simulation raises, as many tests make it do. Programs a test starts keep TMPDIR, where
+    ``make test`` finds what they leave."""
+    saved = tempfile.tempdir
+    tempfile.tempdir = str(tmp_path_factory.mktemp("tmp"))
+    try:
+        yield
+    finally:
+        tempfile.tempdir = saved
 
 
 @pytest.fixture(autouse=True)

@@ -145,6 +145,7 @@ def external_cluster(tmp_path: Path):
             ],
             stdout=logs,
             stderr=logs,
+            env={**os.environ, "TMPDIR": str(tmp_path)},  # its dask-scratch-space, left otherwise
         )
     ]
     try:

@@ -60,7 +60,9 @@ class Cluster:
             client.wait_for_workers(workers, timeout=60)
 
     def _start(self, *args: str) -> subprocess.Popen:
-        return subprocess.Popen([str(VENV_BIN / "dask"), *args], stdout=self.log, stderr=self.log)
+        # TMPDIR: the scheduler makes dask-scratch-space there and leaves it
+        return subprocess.Popen([str(VENV_BIN / "dask"), *args], stdout=self.log, stderr=self.log,
+                                env={**os.environ, "TMPDIR": str(self.folder)})
 
     def worker_process(self, nanny: subprocess.Popen) -> int:
         """The pid of the worker process a ``dask worker`` nanny started."""

@@ -18,6 +18,7 @@ import os
 import signal
 import socket
 import sys
+import tempfile
 import time
 import warnings
 import zipfile
@@ -236,6 +237,7 @@ def connect(
     would listen on all interfaces, port 8787). The client's own logging of a lost connection
     (tracebacks) is silenced: the sweep reports what it means in one line."""
     logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
+    import dask
     from distributed import Client, LocalCluster
 
     address = scheduler or os.environ.get(SCHEDULER_ENV) or None
@@ -250,15 +252,21 @@ def connect(
             client.close()
         return
     n = workers or os.cpu_count() or 1
+    # the workers' scratch space (Dask's default: TMPDIR/dask-scratch-space, left for ever) in a
+    # folder of this campaign's, removed when the cluster is closed
+    scratch = tempfile.TemporaryDirectory(prefix="orchestrate-dask-", ignore_cleanup_errors=True)
     try:
-        cluster = LocalCluster(
-            n_workers=n,
-            threads_per_worker=1,
-            processes=processes,
-            dashboard_address=dashboard,  # localhost, a free port: several campaigns may run at once
-            silence_logs=logging.ERROR,
-        )
+        with dask.config.set({"temporary-directory": scratch.name}):  # the scheduler's as well
+            cluster = LocalCluster(
+                n_workers=n,
+                threads_per_worker=1,
+                processes=processes,
+                dashboard_address=dashboard,  # localhost, a free port: several campaigns may run at once
+                silence_logs=logging.ERROR,
+                local_directory=scratch.name,
+            )
     except (OSError, RuntimeError, ValueError) as exc:  # a port taken, no process could start, ...
+        scratch.cleanup()
         raise OrchestratorError(f"cannot start the embedded Dask cluster (dashboard {dashboard}): "
                                 f"{' '.join(str(exc).split())}") from exc
     client = Client(cluster)
@@ -269,6 +277,7 @@ def connect(
     finally:
         client.close()
         cluster.close()
+        scratch.cleanup()
 
 
 @contextmanager

@@ -10,7 +10,6 @@ not where it cannot be had, for one clear skip reason."""
 from __future__ import annotations
 
 import atexit
-import functools
 import glob
 import shlex
 import shutil
@@ -66,14 +65,18 @@ def _covered_directories() -> set[str]:
     return {d for d in dirs if not any(Path(d).is_relative_to(o) and d != o for o in dirs)}  # outermost
 
 
-@functools.cache
+_EMPTY: list[Path] = []
+
+
 def _empty_file() -> Path:
-    """One empty file per process to bind over files (removed at exit)."""
-    folder = tempfile.mkdtemp(prefix="colleague_")
-    atexit.register(shutil.rmtree, folder, ignore_errors=True)
-    empty = Path(folder, "empty")
-    empty.write_bytes(b"")
-    return empty
+    """An empty file to bind over files (removed at exit), made again when its temporary folder
+    went (a crosscheck tool run's TMPDIR is removed after the run)."""
+    if not (_EMPTY and _EMPTY[-1].is_file()):
+        folder = tempfile.mkdtemp(prefix="colleague_")
+        atexit.register(shutil.rmtree, folder, ignore_errors=True)
+        _EMPTY.append(Path(folder, "empty"))
+        _EMPTY[-1].write_bytes(b"")
+    return _EMPTY[-1]
 
 
 def refusal() -> str | None:

@@ -33,14 +33,19 @@ FMUCHECK = TOOLS_HOME / "fmucheck" / "bin" / "fmuCheck"
 TOLERANCE = Tolerance(1e-12, 1e-12, "our `gauss-seidel` master inside one FMU: bit for bit (fmusim's CSV "
                       "prints 16 digits: up to 5.6e-17)")
 _EXPORTED: dict[str, Path] = {}
+_EXPORT_FOLDER: list[tempfile.TemporaryDirectory[str]] = []  # made at the first export, removed at exit
+_TEMPORARY = tempfile.gettempdir()  # not a tool run's own (matrix.py), removed after that run
 
 
 def exported_fmu(scenario: Scenario) -> Path:
     """The scenario's archive exported as one FMU (default options), once per process and archive
-    content."""
+    content, in a folder removed when the process exits."""
     key = hashlib.sha256(scenario.path.read_bytes()).hexdigest()
     if key not in _EXPORTED or not _EXPORTED[key].is_file():
-        folder = Path(tempfile.mkdtemp(prefix="crosscheck-export-"))
+        if not _EXPORT_FOLDER:
+            _EXPORT_FOLDER.append(tempfile.TemporaryDirectory(prefix="crosscheck-export-", dir=_TEMPORARY))
+        folder = Path(_EXPORT_FOLDER[0].name) / key[:16]
+        folder.mkdir(exist_ok=True)
         _EXPORTED[key], _ = export(scenario.path, folder / f"{scenario.name}.fmu")
     return _EXPORTED[key]
 

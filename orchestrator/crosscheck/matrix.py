@@ -33,9 +33,11 @@ from __future__ import annotations
 import csv
 import hashlib
 import math
+import os
 import shutil
 import tempfile
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -296,7 +298,8 @@ def run_matrix(scenarios: Sequence[Scenario], tools: Sequence[Tool],
                 workdir = Path(tempfile.mkdtemp(prefix=f"crosscheck-{tool.key}-"))
                 before = _digest(scenario.path)
                 try:
-                    run = tool.run(scenario, workdir)
+                    with _temporary_files_in(workdir / "tmp"):
+                        run = tool.run(scenario, workdir)
                 finally:
                     shutil.rmtree(workdir, ignore_errors=True)
                 if isinstance(tool, OurMaster):
@@ -419,3 +422,21 @@ def write_csv(cells: Iterable[Cell], path: Path) -> Path:
                 or (c.missing or c.unsupported or ""),
                 "; ".join(c.notes), c.fmi, c.tool_fmi, "" if d is None else d.column, c.clockless])
     return path
+
+
+@contextmanager
+def _temporary_files_in(folder: Path) -> Iterator[None]:
+    """Every temporary file of a tool's run made in ``folder`` (removed with the run's workdir):
+    Ecos and libcosim leave their unpacked archives in TMPDIR, FMPy its unpacked FMU when a
+    simulation raises. TMPDIR for the programs started, ``tempfile.tempdir`` for this process."""
+    folder.mkdir()
+    saved, saved_env = tempfile.tempdir, os.environ.get("TMPDIR")
+    tempfile.tempdir, os.environ["TMPDIR"] = str(folder), str(folder)
+    try:
+        yield
+    finally:
+        tempfile.tempdir = saved
+        if saved_env is None:
+            os.environ.pop("TMPDIR", None)
+        else:
+            os.environ["TMPDIR"] = saved_env

@@ -88,10 +88,12 @@ def make_prefix(root: Path) -> Wine:
     prefix = root / "prefix"
     # winedbg disabled: a crashing process then ends at once with its exception code (as on Windows
     # without a debugger) instead of waiting 15 s for wine's debugger to dump it
-    env = {**os.environ, "WINEPREFIX": str(prefix), "WINEDEBUG": "-all",
+    # TMPDIR: wine makes its server's folder (wine-XXXXXX) there and leaves it after wineserver -k
+    env = {**os.environ, "WINEPREFIX": str(prefix), "WINEDEBUG": "-all", "TMPDIR": str(root / "tmp"),
            "WINEDLLOVERRIDES": "mscoree,mshtml=;winedbg.exe=d", "WINEARCH": "win64"}
     env.pop("DISPLAY", None)
     prefix.mkdir(parents=True)
+    (root / "tmp").mkdir()
     # the server first, kept for the session: every wine process then connects to it instead of
     # starting one that would hold the caller's pipes open
     subprocess.run([str(WINESERVER), "-p"], env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
