@@ -31,6 +31,7 @@ from __future__ import annotations
 import csv
 import ctypes
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -68,7 +69,7 @@ def omsimulator_rows(scenario: Path, stop: float, tmp: Path) -> dict[float, dict
     package = OMSIMULATOR / "lib" / "x86_64-linux-gnu"
     subprocess.run([sys.executable, str(HERE / "oms_probe.py"), str(package), str(scenario), repr(stop),
                     repr(CASE.step), str(tmp), json.dumps([])], check=True, capture_output=True, cwd=tmp,
-                   timeout=600)
+                   timeout=600, env={**os.environ, "TMPDIR": str(tmp)})  # it unpacks the FMUs there
     with (tmp / "result.csv").open(newline="") as file:
         table = list(csv.reader(file))
     names = [n.removeprefix("root.") for n in table[0]]

@@ -232,7 +232,8 @@ def omsimulator(scenario: Path, case: Case, names: list[tuple[str, str]],
     with tempfile.TemporaryDirectory() as tmp:
         done = subprocess.run([sys.executable, str(HERE / "oms_probe.py"), str(package), str(scenario),
                                repr(case.stop), repr(case.step), tmp, json.dumps(crefs)],
-                              capture_output=True, text=True, timeout=600, cwd=tmp)
+                              capture_output=True, text=True, timeout=600, cwd=tmp,
+                              env={**os.environ, "TMPDIR": tmp})  # what it unpacks, removed with tmp
         log = Path(tmp, "omsimulator.log")
         logged = log.read_text(errors="replace").splitlines() if log.is_file() else []
     line = next((ln for ln in done.stdout.splitlines() if ln.startswith("RESULT ")), None)
@@ -256,8 +257,9 @@ def libcosim_series(scenario: Path, stop: float, names: list[str]) -> dict[str, 
             "from orchestrator.crosscheck.libcosim import run_libcosim\n"
             "rows, _ = run_libcosim(sys.argv[1], float(sys.argv[2]), ['time', *json.loads(sys.argv[3])])\n"
             "print('RESULT ' + json.dumps({n: rows[n].tolist() for n in rows.dtype.names}))\n")
-    done = subprocess.run([sys.executable, "-c", code, str(scenario), repr(stop), json.dumps(names)],
-                          capture_output=True, text=True, timeout=600)
+    with tempfile.TemporaryDirectory() as tmp:  # libcosim leaves its unpacked archive in TMPDIR
+        done = subprocess.run([sys.executable, "-c", code, str(scenario), repr(stop), json.dumps(names)],
+                              capture_output=True, text=True, timeout=600, env={**os.environ, "TMPDIR": tmp})
     line = next((ln for ln in done.stdout.splitlines() if ln.startswith("RESULT ")), None)
     if line is None:
         why = f"signal {-done.returncode}" if done.returncode < 0 else (done.stderr.strip().splitlines()
