@@ -62,8 +62,8 @@ from .runtime import (
     RuntimeBundleError,
     compile_bytecode,
     ensure_runtime,
+    measured_imports,
     runtime_members,
-    stdlib_closure,
 )
 from .variable_table import TABLE_SOURCE, variable_table
 
@@ -87,7 +87,7 @@ FMU_SCRIPTS = {
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
-BUILD_FORMAT = "9"
+BUILD_FORMAT = "10"
 SHIM_DIR = Path("fmu_src", "toolchain", "shim")  # relative to the source root
 # The shim laid out as the Modelica Reference FMUs lay theirs out (shim.h says what each file holds).
 SHIM_SOURCES = ("fmi2_functions.c", "guard.c", "cosimulation.c", "loader.c", "pool.c", "log.c", "resources.c",
@@ -148,6 +148,10 @@ EXTENSION_FLAGS = (
     "-std=c11 -O2 -fPIC -shared -fvisibility=hidden -g0 -Wall -Wextra -ffp-contract=off "
     "-DPy_LIMITED_API=0x03080000 -Wl,--build-id=none -s".split()
 )
+# pythonfmu's modules that only build FMUs (its command line, FmuBuilder, the CSV builder, the
+# deployment helpers): left out of every FMU, whose __init__ then no longer imports the builder.
+PYTHONFMU_BUILD_ONLY = ("__main__.py", "builder.py", "csvbuilder.py", "deploy.py", "osutil.py")
+BUILDER_IMPORT = "from .builder import FmuBuilder"
 CLASS_LINE = re.compile(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", re.MULTILINE)  # pythonfmu's loader regex
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 GUID_NAMESPACE = uuid.UUID("5b0f3a52-4c1e-4d59-9a4e-2f6f1c1e7a10")
@@ -486,9 +490,9 @@ def bundled_python(runtime: Runtime, root: Path = REPO_ROOT) -> Path:
     return target
 
 
-def _runtime(bundle: Bundle, windows: bool) -> dict[str, bytes]:
-    """The runtime members of linux64 (and win64 with ``windows``) for ``bundle`` (standard-library
-    closure of its script and modules)."""
+def _runtime(bundle: Bundle, windows: bool, root: Path) -> dict[str, bytes]:
+    """The runtime members of linux64 (and win64 with ``windows``) for ``bundle``: the
+    standard-library modules it imports when it runs (:func:`_measure`)."""
     runtime = _ensure_runtime()
     launcher = bundled_python(runtime)
     if bundle.third_party:
@@ -496,21 +500,19 @@ def _runtime(bundle: Bundle, windows: bool) -> dict[str, bytes]:
             f"{bundle.model} imports {', '.join(sorted(bundle.third_party))}: an FMU carries no third-party "
             "package (it must run where nothing is installed); use the standard library"
         )
-    # the closure follows import lines only: the same imports give the same members (kept per key)
+    # what the FMU imports follows from its code and the build's: the same inputs, the same members
     platforms = PLATFORM_NAMES if windows else ("linux64",)
-    key = stamps.digest("runtime members", *build_inputs(platforms=platforms), repr(sorted(_imports(bundle))))
+    key = stamps.digest("runtime members", fmu_inputs(bundle, root, platforms))
     kept = runtime.root.parent / "members" / f"{key}.zip"
     if kept.is_file():
         with zipfile.ZipFile(kept) as archive:
             return {name: archive.read(name) for name in archive.namelist()}
-    with tempfile.TemporaryDirectory(prefix="ftc_closure_") as tmp:
-        shutil.copytree(Path(pythonfmu.__file__).parent, Path(tmp) / "pythonfmu")
+    with tempfile.TemporaryDirectory(prefix="ftc_imports_") as tmp:
         try:
-            path = [bundle.script.parent.parent, Path(tmp)]
-            closure = stdlib_closure(runtime, launcher, [bundle.script], path)
-            members = runtime_members(runtime, launcher, [bundle.script], path, closure)
+            measured = _measure(bundle, runtime, launcher, Path(tmp), root)
+            members = runtime_members(runtime, launcher, measured)
             if windows:
-                members |= runtime_win64.runtime_members(_ensure_win_runtime(), closure, runtime.stdlib)
+                members |= runtime_win64.runtime_members(_ensure_win_runtime(), measured, runtime.stdlib)
         except RuntimeBundleError as error:
             raise BuildError(f"{bundle.model}: {error}") from error
     kept.parent.mkdir(parents=True, exist_ok=True)
@@ -522,17 +524,36 @@ def _runtime(bundle: Bundle, windows: bool) -> dict[str, bytes]:
     return members
 
 
-def _imports(bundle: Bundle) -> set[tuple[object, ...]]:
-    """Every import line of the FMU's script and bundled modules (what its standard-library closure
-    follows), without line numbers."""
-    found: set[tuple[object, ...]] = set()
-    for path in (bundle.script, *bundle.modules.values()):
-        for node in ast.walk(_parse(path)):
-            if isinstance(node, ast.Import):
-                found |= {("import", alias.name) for alias in node.names}
-            elif isinstance(node, ast.ImportFrom):
-                found.add(("from", node.level, node.module or "", tuple(alias.name for alias in node.names)))
-    return found
+def _measure(bundle: Bundle, runtime: Runtime, launcher: Path, where: Path,
+             root: Path) -> dict[str, Path | None]:
+    """The standard-library modules ``bundle``'s FMU imports when it runs (:func:`measured_imports`):
+    its code staged as in the FMU (under a provisional package name: the imports do not depend on
+    it) with its compiled extension modules and pythonfmu's run-time part, driven in the bundled
+    interpreter."""
+    stage = where / "stage"
+    script, package_dir = _stage(bundle, "0" * 64, stage)
+    for name, source in bundle.extensions.items():
+        binary = compile_extension(source, runtime, where, root)
+        package_dir.joinpath(*name.split(".")).with_suffix(EXTENSION_SUFFIX).write_bytes(binary)
+    (stage / "pythonfmu").mkdir()
+    installed = Path(pythonfmu.__file__).parent
+    for name, data in runtime_pythonfmu({f.name: f.read_bytes() for f in installed.glob("*.py")}).items():
+        (stage / "pythonfmu" / name).write_bytes(data)
+    return measured_imports(runtime, launcher, stage, bundle.model, script.stem)
+
+
+def runtime_pythonfmu(files: dict[str, bytes]) -> dict[str, bytes]:
+    """pythonfmu's package files (name -> bytes) as a running FMU needs them: without the modules
+    that only build FMUs (:data:`PYTHONFMU_BUILD_ONLY`), its ``__init__`` without the import of
+    the builder (which would bring argparse, zipfile, tempfile, shutil, xml.dom... into every FMU)."""
+    init = files["__init__.py"].decode()
+    if BUILDER_IMPORT not in init.splitlines():
+        raise BuildError(f"pythonfmu {pythonfmu.__version__}'s __init__.py has no line {BUILDER_IMPORT!r}: "
+                         "check which of its modules a running FMU needs (PYTHONFMU_BUILD_ONLY)")
+    kept = {name: data for name, data in files.items() if name not in PYTHONFMU_BUILD_ONLY}
+    kept["__init__.py"] = "".join(line for line in init.splitlines(keepends=True)
+                                  if line.rstrip("\n") != BUILDER_IMPORT).encode()
+    return kept
 
 
 def _licence(distribution: str) -> bytes:
@@ -627,6 +648,10 @@ def _write_normalized(raw_fmu: Path, target: Path, bundle: Bundle, digest: str, 
     with zipfile.ZipFile(raw_fmu) as archive:
         entries = {name: archive.read(name) for name in archive.namelist() if not name.endswith("/")
                    and not (name.startswith("binaries/") and name.split("/")[1] not in platforms)}
+    prefix = "resources/pythonfmu/"  # its run-time part only
+    package = {name[len(prefix):]: entries.pop(name) for name in list(entries)
+               if name.startswith(prefix) and "/" not in name[len(prefix):]}
+    entries.update({prefix + name: data for name, data in runtime_pythonfmu(package).items()})
     chosen = [(platform, suffix) for platform, suffix in PLATFORMS if platform in platforms]
     for platform, suffix in chosen:
         binary = f"binaries/{platform}/{bundle.model}{suffix}"
@@ -767,7 +792,7 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT, platforms: Sequenc
     windows = "win64" in platforms
     with tempfile.TemporaryDirectory(prefix=f"ftc_build_{model}_") as tmp:
         runtime = _ensure_runtime()
-        native = _runtime(bundle, windows)
+        native = _runtime(bundle, windows, root)
         # the shims are linked once the model description (their variable table) is final
         shims = {f"binaries/linux64/{model}.so": ""}
         if windows:
