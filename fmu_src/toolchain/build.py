@@ -44,6 +44,7 @@ import sys
 import tempfile
 import uuid
 import zipfile
+import zlib
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -69,7 +70,7 @@ from .variable_table import TABLE_SOURCE, variable_table
 
 __all__ = ["EXTENSIONS", "FMU_SCRIPTS", "PLATFORM_NAMES", "BuildError", "build_all", "build_fmu",
            "build_inputs", "build_sources", "buildable_platforms", "c_compiler", "compile_extension",
-           "compile_in_place", "fmu_current", "fmu_sources"]
+           "compile_in_place", "compile_shared", "fmu_current", "fmu_sources"]
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 LOCAL_PACKAGES = ("fmu_src", "controller")
@@ -154,6 +155,7 @@ PYTHONFMU_BUILD_ONLY = ("__main__.py", "builder.py", "csvbuilder.py", "deploy.py
 BUILDER_IMPORT = "from .builder import FmuBuilder"
 CLASS_LINE = re.compile(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", re.MULTILINE)  # pythonfmu's loader regex
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
+DEFLATE_KEPT = 64 << 10  # members this large (the runtimes' libraries, zips, DLLs) are deflated once
 GUID_NAMESPACE = uuid.UUID("5b0f3a52-4c1e-4d59-9a4e-2f6f1c1e7a10")
 
 
@@ -400,15 +402,20 @@ def shim_digest(root: Path, runtime: Runtime, where: Path, sources: Sequence[str
 
 def compile_shim(root: Path, runtime: Runtime, where: Path, description: bytes,
                  sources: Sequence[str] = SHIM_SOURCES, defines: Sequence[str] = (),
-                 windows: str = "") -> bytes:
+                 windows: str = "", constants: dict[str, int] | None = None) -> bytes:
     """Compile the FMI shim (``sources`` of ``fmu_src/toolchain/shim``, ``-D`` ``defines``) against
     the runtime's headers, with the variable table of the model description ``description``
-    (:func:`variable_table`, an object of its own) linked in; returns the shared object's bytes (the
-    same for the same sources, description, compiler and runtime). ``windows``: the DLL's name
-    (``<model>.dll``), cross-compiled for 64-bit Windows instead."""
+    (:func:`variable_table`, an object of its own, with ``constants``: name -> value of the FMU's
+    ``const uint32_t`` values the shim's sources name by -D, fmi3.h) linked in; returns the shared
+    object's bytes (the same for the same sources, description, compiler and runtime).
+    ``windows``: the DLL's name (``<model>.dll``), cross-compiled for 64-bit Windows instead."""
     work, flags = _shim_work(root, where, sources, defines, windows)
     try:
-        (work / TABLE_SOURCE).write_bytes(variable_table(description))
+        table = variable_table(description)
+        if constants:
+            table += b"#include <stdint.h>\n" + "".join(
+                f"const uint32_t {name} = {value}u;\n" for name, value in sorted(constants.items())).encode()
+        (work / TABLE_SOURCE).write_bytes(table)
     except (ValueError, ElementTree.ParseError) as error:
         raise BuildError(f"the variable table of the shim: {error}") from error
     libraries = () if windows else SHIM_LIBS
@@ -452,6 +459,24 @@ def compile_extension_win64(source: Path, runtime: Runtime, windows: runtime_win
     libraries.append("-lkernel32")
     return _compile(work, runtime, WIN_EXTENSION_FLAGS, [source.name], libraries, source,
                     f"{source.stem}{WIN_EXTENSION_SUFFIX}")
+
+
+def compile_shared(root: Path = REPO_ROOT, platforms: Sequence[str] = PLATFORM_NAMES) -> None:
+    """Compile what the FMUs share, once per platform, before builds run in parallel: the runtimes
+    unpacked, the bundled interpreter, the shim's objects and every extension module (kept in the
+    runtime's cache, where each build then finds them; else two builds that start at once both
+    compile all of it)."""
+    runtime = _ensure_runtime()
+    bundled_python(runtime, root)
+    windows = "win64" in _platforms(platforms)
+    with tempfile.TemporaryDirectory(prefix="ftc_shared_") as tmp:
+        shim_digest(root, runtime, Path(tmp))
+        if windows:
+            shim_digest(root, runtime, Path(tmp), windows="shared.dll")
+        for source in EXTENSIONS.values():
+            compile_extension(root / source, runtime, Path(tmp), root)
+            if windows:
+                compile_extension_win64(root / source, runtime, _ensure_win_runtime(), Path(tmp), root)
 
 
 def _ensure_win_runtime() -> runtime_win64.WinRuntime:
@@ -697,14 +722,55 @@ def _bytecode(entries: dict[str, bytes]) -> dict[str, bytes]:
         raise BuildError(f"cannot compile the FMU's Python sources: {error}") from error
 
 
-def write_archive(target: Path, entries: dict[str, bytes]) -> None:
-    """Write ``entries`` (member name -> bytes) as a zip archive: sorted, fixed timestamps, mode 0644."""
+def write_archive(target: Path, entries: dict[str, bytes], kept: Path | None = None) -> None:
+    """Write ``entries`` (member name -> bytes) as a zip archive: sorted, fixed timestamps, mode 0644.
+    Members of :data:`DEFLATE_KEPT` bytes or more are deflated once and kept in ``kept`` (default:
+    the runtime cache's ``deflated/``): the runtimes' libraries are the same in every FMU, and
+    deflating them was most of a build's CPU time. The archive's bytes are the same either way."""
+    kept = _ensure_runtime().root.parent / "deflated" if kept is None else kept
     with zipfile.ZipFile(target, "w", compression=zipfile.ZIP_DEFLATED) as archive:
         for name in sorted(entries):
             info = zipfile.ZipInfo(name, date_time=ZIP_DATE)
             info.compress_type = zipfile.ZIP_DEFLATED
             info.external_attr = 0o644 << 16
-            archive.writestr(info, entries[name])
+            data = entries[name]
+            if len(data) >= DEFLATE_KEPT:
+                _write_deflated(archive, info, data, _deflated(data, kept))
+            else:
+                archive.writestr(info, data)
+
+
+def _deflated(data: bytes, kept: Path) -> bytes:
+    """``data`` deflated as zipfile deflates a member (a raw stream, zlib's default level), kept in
+    the folder ``kept`` under its digest."""
+    path = kept / hashlib.sha256(data).hexdigest()
+    if path.is_file():
+        return path.read_bytes()
+    compressor = zlib.compressobj(zlib.Z_DEFAULT_COMPRESSION, zlib.DEFLATED, -15)
+    packed = compressor.compress(data) + compressor.flush()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(f".{path.name}.{os.getpid()}")
+    partial.write_bytes(packed)
+    partial.replace(path)
+    return packed
+
+
+def _write_deflated(archive: zipfile.ZipFile, info: zipfile.ZipInfo, data: bytes, packed: bytes) -> None:
+    """Append the member ``info`` of ``data`` whose deflated bytes are ``packed`` to ``archive`` (a
+    seekable file opened for writing), as ``writestr`` would: the same header and bookkeeping
+    (zipfile's ``_open_to_write`` and ``_ZipWriteFile.close``), without deflating again."""
+    info.flag_bits, info.CRC = 0, zlib.crc32(data)
+    info.file_size, info.compress_size = len(data), len(packed)
+    if info.file_size * 1.05 > zipfile.ZIP64_LIMIT or info.compress_size > zipfile.ZIP64_LIMIT:
+        raise BuildError(f"{info.filename}: {len(data)} bytes: too large for an FMU member")
+    archive.fp.seek(archive.start_dir)  # type: ignore[union-attr]
+    info.header_offset = archive.fp.tell()  # type: ignore[union-attr]
+    archive._writecheck(info)  # type: ignore[attr-defined]  # noqa: SLF001 - zipfile's own check
+    archive._didModify = True  # type: ignore[attr-defined]  # noqa: SLF001 - the central directory is due
+    archive.fp.write(info.FileHeader(False) + packed)  # type: ignore[union-attr]
+    archive.start_dir = archive.fp.tell()  # type: ignore[union-attr]
+    archive.filelist.append(info)
+    archive.NameToInfo[info.filename] = info
 
 
 def build_inputs(root: Path = REPO_ROOT, platforms: Sequence[str] = PLATFORM_NAMES) -> tuple[str | Path, ...]:
