@@ -12,7 +12,7 @@ module-level ``from ... import`` (rewritten likewise: ``fmu_src.controller_core`
 
 Each FMU carries its own CPython runtime for each platform, and no third-party package (a bundled
 module that imports one is refused): ``binaries/linux64`` Debian 12's (``fmu_src/toolchain/runtime.py``:
-libpython, the two libraries it links and the standard-library modules the FMU's code can import,
+libpython, the two libraries it links and the standard-library modules the FMU imports when it runs,
 from pinned packages), ``binaries/win64`` python.org's embeddable CPython 3.11 and the MSVC runtime
 (``fmu_src/toolchain/runtime_win64.py``, the same standard-library modules). pythonfmu's binaries do
 not start a Python of their own, so the build compiles ``fmu_src/toolchain/shim/`` in front of each:
