@@ -7,7 +7,7 @@ Oracles: fmusim (a host nobody here wrote) and the runtime's own ImportError: th
 module it imports taken out of its zip fails in fmusim, naming that module, so a pass means the
 FMU needs nothing the zip lacks. Before (646b056): the zip held the import closure found by
 modulefinder, 172 modules (2.0 MB of each 10.2 MB FMU), pythonfmu's builder with argparse,
-zipfile, tarfile, urllib.request among them; now 65 for the controller."""
+zipfile, tarfile, urllib.request among them; now 57 for the controller."""
 
 from __future__ import annotations
 

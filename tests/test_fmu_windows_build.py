@@ -168,13 +168,14 @@ def test_a_pin_that_does_not_match_is_one_line(tmp_path: Path) -> None:
 
 def test_an_exported_scenario_carries_win64(built: Path, tmp_path: Path) -> None:
     """Before: the container was linux64 only. FMI 2.0: binaries/win64; FMI 3.0: x86_64-windows;
-    the embedded FMUs carry their own."""
+    the embedded FMUs share one win64 runtime (issue 46: before, each carried its own)."""
     for fmi, platform in (("2", "win64"), ("3", "x86_64-windows")):
         fmu, _ = export(built / "ssp" / "example1.ssp", tmp_path / f"Example1_{fmi}.fmu", fmi=fmi)
         with zipfile.ZipFile(fmu) as archive:
             names = set(archive.namelist())
         assert f"binaries/{platform}/Example1_{fmi}.dll" in names
-        assert any(re.match(r"resources/fmus/[^/]+/binaries/win64/python/python311\.dll$", n) for n in names)
+        shared = "resources/fmus/_runtime/win64/python/python311.dll"
+        assert [n for n in names if n.endswith("/python311.dll")] == [shared]
 
 
 def test_export_without_mingw_is_one_line(built: Path, tmp_path: Path) -> None:

@@ -152,7 +152,15 @@ EXTENSION_FLAGS = (
 # pythonfmu's modules that only build FMUs (its command line, FmuBuilder, the CSV builder, the
 # deployment helpers): left out of every FMU, whose __init__ then no longer imports the builder.
 PYTHONFMU_BUILD_ONLY = ("__main__.py", "builder.py", "csvbuilder.py", "deploy.py", "osutil.py")
-BUILDER_IMPORT = "from .builder import FmuBuilder"
+# Lines of pythonfmu's run-time modules replaced in the FMU's copy (file -> line -> replacement):
+# the builder's import; and the per-instance uuid1(), read only by to_xml at build time, which in
+# the bundled Linux runtime (no _uuid: it needs libuuid) ran `ip link` in a child process of the
+# host at the first instantiation (uuid.getnode).
+PYTHONFMU_LINES = {
+    "__init__.py": {"from .builder import FmuBuilder\n": ""},
+    "fmi2slave.py": {"        self.guid = uuid1()\n":
+                     "        self.guid = None  # the FMU's GUID is the build's (fixed-time-cosim)\n"},
+}
 CLASS_LINE = re.compile(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", re.MULTILINE)  # pythonfmu's loader regex
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 DEFLATE_KEPT = 64 << 10  # members this large (the runtimes' libraries, zips, DLLs) are deflated once
@@ -569,15 +577,18 @@ def _measure(bundle: Bundle, runtime: Runtime, launcher: Path, where: Path,
 
 def runtime_pythonfmu(files: dict[str, bytes]) -> dict[str, bytes]:
     """pythonfmu's package files (name -> bytes) as a running FMU needs them: without the modules
-    that only build FMUs (:data:`PYTHONFMU_BUILD_ONLY`), its ``__init__`` without the import of
-    the builder (which would bring argparse, zipfile, tempfile, shutil, xml.dom... into every FMU)."""
-    init = files["__init__.py"].decode()
-    if BUILDER_IMPORT not in init.splitlines():
-        raise BuildError(f"pythonfmu {pythonfmu.__version__}'s __init__.py has no line {BUILDER_IMPORT!r}: "
-                         "check which of its modules a running FMU needs (PYTHONFMU_BUILD_ONLY)")
+    that only build FMUs (:data:`PYTHONFMU_BUILD_ONLY`), with the lines of :data:`PYTHONFMU_LINES`
+    replaced (the builder's import would bring argparse, zipfile, tempfile, shutil, xml.dom... into
+    every FMU)."""
     kept = {name: data for name, data in files.items() if name not in PYTHONFMU_BUILD_ONLY}
-    kept["__init__.py"] = "".join(line for line in init.splitlines(keepends=True)
-                                  if line.rstrip("\n") != BUILDER_IMPORT).encode()
+    for name, replacements in PYTHONFMU_LINES.items():
+        lines = kept[name].decode().splitlines(keepends=True)
+        for old, new in replacements.items():
+            if lines.count(old) != 1:
+                raise BuildError(f"pythonfmu {pythonfmu.__version__}'s {name} has not one line "
+                                 f"{old.strip()!r}: check what a running FMU needs of it (PYTHONFMU_LINES)")
+            lines[lines.index(old)] = new
+        kept[name] = "".join(lines).encode()
     return kept
 
 
