@@ -6,7 +6,8 @@
 
 For this checkout (and ``--before``, another checkout with its own ``.venv`` and ``build/runtime``)
 the sources (``controller``, ``fmu_src``, ``orchestrator``, ``ssp``) are copied to a temporary
-folder with a copy of the fetched runtime (``build/runtime``, without any cached runtime members),
+folder with the runtimes' downloads (``build/runtime/debs``, ``build/runtime/win64/dists``; nothing
+unpacked, compiled or cached),
 and built there with that checkout's Python, as ``make build`` does (every FMU, its FMI 3.0 variant
 and every scenario archive):
 
@@ -43,7 +44,7 @@ def prepare(checkout: Path, dest: Path) -> None:
         else:
             shutil.copy2(source, dest / name)
     runtime = checkout / "build" / "runtime"
-    for part in ("debs", "root"):
+    for part in ("debs", "win64/dists"):  # the downloads only: unpacking, compiling, deflating count
         if (runtime / part).is_dir():
             shutil.copytree(runtime / part, dest / "build" / "runtime" / part, symlinks=True)
 

@@ -13,6 +13,7 @@ time (fmuCheck sums h) never reaches the FMUs."""
 
 from __future__ import annotations
 
+import io
 import re
 import shutil
 import subprocess
@@ -29,8 +30,11 @@ import orchestrator
 from orchestrator import RunOptions, SimulationError
 from orchestrator.cli import main
 from orchestrator.crosscheck.colleague import hidden, refusal
+from orchestrator.errors import ScenarioError
 from orchestrator.experiments.metrics import tracking_metrics
+from orchestrator.experiments.scenarios import component_sources
 from orchestrator.export import export
+from orchestrator.export.container import shared_runtimes
 from orchestrator.ssp import (
     Connection,
     Experiment,
@@ -284,3 +288,33 @@ def test_a_failing_fmu_inside_fails_the_step_as_run_reports_it(built: Path, tmp_
     with pytest.raises(Exception, match="fmi2DoStep failed with status 3"):
         fmpy.simulate_fmu(str(fmu), logger=logger)
     assert (3, str(failure.value).encode()) in messages, messages
+
+
+def test_the_container_carries_one_runtime_per_platform(exported: dict[str, Path], built: Path) -> None:
+    """example1's four FMUs share one runtime per platform (issue 46: the container was 40.9 MB,
+    four copies of each): each interpreter once, under resources/fmus/_runtime/, no FMU with its
+    own, and its standard-library zip holds every module each FMU's own zip held (read from the
+    built FMUs). That they run on it: fmusim above, on a machine without Python."""
+    with zipfile.ZipFile(exported["example1"]) as archive:
+        names = archive.namelist()
+        union = set(zipfile.ZipFile(io.BytesIO(archive.read(
+            "resources/fmus/_runtime/linux64/python/python311.zip"))).namelist())
+    assert [n for n in names if n.endswith("libpython3.11.so.1.0")] == [
+        "resources/fmus/_runtime/linux64/python/lib/libpython3.11.so.1.0"]
+    assert [n for n in names if n.endswith("python311.dll")] == [
+        "resources/fmus/_runtime/win64/python/python311.dll"]
+    assert not [n for n in names if re.match(r"resources/fmus/(?!_runtime/)[^/]+/binaries/[^/]+/python/", n)]
+    components = {Path(c).name for c in component_sources(REPO / "ssp" / "example1")}
+    for fmu in components:
+        with zipfile.ZipFile(built / "fmus" / fmu) as archive:
+            own = archive.read("binaries/linux64/python/python311.zip")
+        assert set(zipfile.ZipFile(io.BytesIO(own)).namelist()) <= union, fmu
+
+
+def test_runtimes_of_two_builds_are_not_merged() -> None:
+    """Two FMUs whose runtime files differ (built by two builds) cannot share one folder: one line
+    naming both FMUs and the file."""
+    entries = {f"resources/fmus/{name}/binaries/linux64/python/lib/libpython3.11.so.1.0": data
+               for name, data in (("A", b"one build"), ("B", b"another"))}
+    with pytest.raises(ScenarioError, match=r"the FMUs A, B carry different lib/libpython3\.11\.so\.1\.0"):
+        shared_runtimes(entries)

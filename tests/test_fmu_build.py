@@ -297,3 +297,24 @@ def test_the_shims_variable_table_is_the_model_descriptions(built: Path, variant
                           for v in description.modelVariables)
         assert [(int(vr), t, c, name) for vr, t, c, name in rows] == expected, model
         assert f'"{description.guid}", {len(expected)}u, variables,' in table, model
+
+
+def test_kept_deflated_members_give_zipfiles_own_bytes(tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """An archive whose large members come deflated from the build's cache (issue 46: deflated once,
+    not once per FMU) is byte for byte what zipfile's writestr makes, and Info-ZIP's unzip finds
+    every member intact."""
+    from fmu_src.toolchain import build
+
+    entries = {"binaries/lib.so": os.urandom(1 << 17) + bytes(1 << 18), "a.txt": b"small",
+               "resources/z.bin": bytes(range(256)) * 1024}
+    build.write_archive(tmp_path / "kept.fmu", entries, tmp_path / "deflated")
+    build.write_archive(tmp_path / "again.fmu", entries, tmp_path / "deflated")  # from the cache
+    assert len(list((tmp_path / "deflated").iterdir())) == 2
+    monkeypatch.setattr(build, "DEFLATE_KEPT", 1 << 40)  # every member through zipfile's writestr
+    build.write_archive(tmp_path / "plain.fmu", entries, tmp_path / "unused")
+    plain = (tmp_path / "plain.fmu").read_bytes()
+    assert (tmp_path / "kept.fmu").read_bytes() == plain == (tmp_path / "again.fmu").read_bytes()
+    if shutil.which("unzip"):
+        check = subprocess.run(["unzip", "-t", str(tmp_path / "again.fmu")], capture_output=True, text=True)
+        assert check.returncode == 0 and "No errors detected" in check.stdout, check.stdout

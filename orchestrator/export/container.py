@@ -13,6 +13,7 @@ gives the same bytes; the GUID is a digest of them.
 from __future__ import annotations
 
 import hashlib
+import io
 import os
 import re
 import uuid
@@ -37,11 +38,13 @@ from ..system import ComponentModel, System
 from ..validate import timing
 from .plan import Exposed, container_plan, select
 
-__all__ = ["FMI_VERSIONS", "export"]
+__all__ = ["FMI_VERSIONS", "export", "shared_runtimes"]
 
 FMI_VERSIONS = ("2", "3")
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 GUID_NAMESPACE = uuid.UUID("0d6c7e0e-8a55-4f0b-9d7e-3c1f0a6b2e41")
+SHARED_RUNTIME = "_runtime"  # resources/fmus/_runtime/<platform>/python: the FMUs' one runtime (loader.c)
+RUNTIME_TAG = "311"  # python311.zip
 GENERATOR = generation_tool("orchestrate export")
 
 
@@ -60,7 +63,7 @@ def _folders(system: System) -> dict[str, str]:
         if digest not in by_digest:
             stem = re.sub(r"[^\w.-]", "_", Path(comp.fmu).stem, flags=re.ASCII) or "fmu"
             name, n = stem, 1
-            while name in by_digest.values():
+            while name in by_digest.values() or name == SHARED_RUNTIME:
                 n += 1
                 name = f"{stem}_{n}"
             by_digest[digest] = name
@@ -81,6 +84,59 @@ def _members(comp: ComponentModel, folder: str) -> dict[str, bytes]:
                 raise ScenarioError(f"{comp.fmu}: member '{name}' would leave the FMU's folder")
             members[f"resources/fmus/{folder}/{name}"] = archive.read(info)
     return members
+
+
+def shared_runtimes(entries: Mapping[str, bytes]) -> dict[str, bytes]:
+    """``entries`` with the Python runtimes the FMUs carry
+    (``resources/fmus/<name>/binaries/<platform>/python/``, fmu_src/toolchain/runtime.py) moved
+    into one per platform folder, ``resources/fmus/_runtime/<platform>/python/``, where the FMUs'
+    shims look when they have none (fmu_src/toolchain/shim/loader.c): the interpreter and its
+    libraries once, the standard-library zip the union of theirs, ``runtime.txt`` each FMU's
+    manifest under its name. A file of the same name but other bytes in two FMUs (runtimes of two
+    builds) is a ScenarioError."""
+    moved: dict[str, dict[str, bytes]] = {}  # shared member -> folder -> bytes
+    kept: dict[str, bytes] = {}
+    for name, data in entries.items():
+        parts = name.split("/")
+        inner = parts[:2] == ["resources", "fmus"] and parts[3:4] == ["binaries"] and parts[5:6] == ["python"]
+        if inner and len(parts) > 6:
+            shared = "/".join(["resources", "fmus", SHARED_RUNTIME, parts[4], *parts[5:]])
+            moved.setdefault(shared, {})[parts[2]] = data
+        else:
+            kept[name] = data
+    for name, copies in sorted(moved.items()):
+        if name.endswith(f"/python/python{RUNTIME_TAG}.zip"):
+            kept[name] = _union(name, copies)
+        elif name.endswith("/python/runtime.txt"):
+            kept[name] = b"".join(f"## resources/fmus/{folder}\n".encode() + copies[folder]
+                                  for folder in sorted(copies))
+        elif len(set(copies.values())) > 1:
+            file = name.split("/python/")[1]
+            raise ScenarioError(f"the FMUs {', '.join(sorted(copies))} carry different {file}: runtimes of "
+                                "different builds cannot share one folder; rebuild them")
+        else:
+            kept[name] = next(iter(copies.values()))
+    return kept
+
+
+def _union(name: str, copies: Mapping[str, bytes]) -> bytes:
+    """One zip of every member of the zips ``copies`` (folder -> bytes), each member's bytes the same
+    in all."""
+    members: dict[str, bytes] = {}
+    for folder, zipped in sorted(copies.items()):
+        with zipfile.ZipFile(io.BytesIO(zipped)) as archive:
+            for member in archive.namelist():
+                data = archive.read(member)
+                if members.setdefault(member, data) != data:
+                    raise ScenarioError(f"{name}: {member} differs between the FMUs' runtimes ({folder}'s)")
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
+        for member in sorted(members):
+            info = zipfile.ZipInfo(member, date_time=ZIP_DATE)
+            info.compress_type = zipfile.ZIP_DEFLATED
+            info.external_attr = 0o644 << 16
+            archive.writestr(info, members[member])
+    return buffer.getvalue()
 
 
 def _start(type_: str, value: object) -> str:
@@ -261,6 +317,7 @@ def export(scenario: str | os.PathLike, output: str | os.PathLike, *, fmi: str =
         entries: dict[str, bytes] = {}
         for comp in system.components.values():
             entries |= _members(comp, folders[comp.name])
+        entries = shared_runtimes(entries)
         try:
             platform = "x86_64-linux" if fmi == "3" else "linux64"  # FMI 3.0's platform tuple
             entries[f"binaries/{platform}/{identifier}.so"] = container_library()

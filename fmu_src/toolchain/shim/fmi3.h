@@ -49,8 +49,13 @@
 #include "platform.h"
 
 #if !defined FTC_TIME_VR || !defined FTC_VR_OFFSET
-#error "compile with -DFTC_TIME_VR=<value reference of time> -DFTC_VR_OFFSET=<FMI 3.0 - FMI 2.0 references>"
+#error "compile with -DFTC_TIME_VR=ftc_time_vr -DFTC_VR_OFFSET=<FMI 3.0 - FMI 2.0 references>"
 #endif
+/* The value references that differ between FMUs (time's; the clocked twin's clock and interval,
+   -DFTC_CLOCK_VR=ftc_clock_vr -DFTC_INTERVAL_VR=ftc_interval_vr) are constants of the variable
+   table's object (fmu_src/toolchain/variable_table.py), so that every other object of the shim is
+   the same for every FMU and compiled once per platform. */
+extern const uint32_t ftc_time_vr, ftc_clock_vr, ftc_interval_vr;
 #define VR_BUFFER 64 /* value references translated on the stack; more are allocated */
 
 #define EXPORT3 FTC_EXPORT

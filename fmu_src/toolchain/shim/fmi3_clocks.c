@@ -2,7 +2,8 @@
 /* The clocked twin's FMI 3.0 clock (fmu_src/toolchain/clocked.py writes its model description):
    one periodic input clock, FTC_CLOCK_VR, whose fixed interval is the parameter FTC_INTERVAL_VR
    (sample_time), clocking every output. Compiled only into the twin (the build passes
-   -DFTC_CLOCK_VR= and -DFTC_INTERVAL_VR=, both FMI 3.0 value references); the plain FMI 3.0
+   -DFTC_CLOCK_VR=ftc_clock_vr -DFTC_INTERVAL_VR=ftc_interval_vr, FMI 3.0 value references that
+   are constants of the variable table's object, fmi3.h); the plain FMI 3.0
    variant refuses clocks (fmi3_refused.c).
 
    How it maps on the FMI 2.0 slave, which steps its law over a communication step with its inputs
@@ -31,7 +32,7 @@
 #include "fmi3.h"
 
 #if !defined FTC_CLOCK_VR || !defined FTC_INTERVAL_VR
-#error "compile the clocked twin with -DFTC_CLOCK_VR=<clock> -DFTC_INTERVAL_VR=<sample_time> (FMI 3.0)"
+#error "compile the clocked twin with -DFTC_CLOCK_VR=ftc_clock_vr -DFTC_INTERVAL_VR=ftc_interval_vr"
 #endif
 
 /* Variables the clock works on: the Float64 outputs it holds, the Float64 inputs it samples. */

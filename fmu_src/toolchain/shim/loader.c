@@ -79,12 +79,32 @@ static int locate(char self[TEXT], char dir[TEXT]) {
     return 0;
 }
 
+static int shared_runtime; /* 1: the runtime is an exported container's, shared by its FMUs */
+
+/* The runtime folder: the FMU's own binaries/<platform>/python; for an FMU without one unpacked in
+   an exported container (resources/fmus/<name>/, orchestrator/export/container.py), the one
+   runtime the container carries for all its FMUs of that platform folder:
+   resources/fmus/_runtime/<platform>/python. */
+static void shared_runtime_folder(const char *dir, char runtime[TEXT + 16]) {
+    char zip[TEXT + 64];
+    snprintf(runtime, TEXT + 16, "%s/%s", dir, RUNTIME_DIR);
+    snprintf(zip, sizeof zip, "%s/python" FTC_TAG ".zip", runtime);
+    const char *platform = strrchr(dir, '/'), *name = strrchr(fmu_root, '/');
+    if (ftc_is_file(zip) || !platform || !name) return;
+    char shared[TEXT + 16];
+    snprintf(shared, sizeof shared, "%.*s/_runtime%s/%s", (int)(name - fmu_root), fmu_root, platform, RUNTIME_DIR);
+    snprintf(zip, sizeof zip, "%s/python" FTC_TAG ".zip", shared);
+    if (!ftc_is_file(zip)) return; /* neither: the load names the FMU's own folder */
+    snprintf(runtime, TEXT + 16, "%s", shared);
+    shared_runtime = 1;
+}
+
 /* Where the runtime and pythonfmu's binary are loaded from: `runtime` (the python/ folder) and
    `inner_dir`. Windows: copies in the user's cache (see ftc_cached_copy), so that the host can
    delete the folder it unpacked once it has freed the instances and this library; where there is
    no cache, and on POSIX, the unpacked folder `dir` itself. */
 static void runtime_folders(const char *dir, char runtime[TEXT + 16], char inner_dir[TEXT]) {
-    snprintf(runtime, TEXT + 16, "%s/%s", dir, RUNTIME_DIR);
+    shared_runtime_folder(dir, runtime);
     snprintf(inner_dir, TEXT, "%s", dir);
 #ifdef _WIN32
     char file[TEXT + 64], cached_runtime[TEXT + 16], cached_inner[TEXT];
@@ -130,8 +150,12 @@ static int open_python(const char *runtime, void **python) {
     char zlib[TEXT + 64], expat[TEXT + 64];
     snprintf(zlib, sizeof zlib, "%s/fallback/libz.so.1", runtime);
     snprintf(expat, sizeof expat, "%s/fallback/libexpat.so.1", runtime);
+    /* the FMU's own libpython by soname (the shim's DT_RUNPATH finds it), a container's shared one by
+       its path (no other is in the process: a system's libpython3.11 must not serve instead) */
+    char library[TEXT + 64];
+    snprintf(library, sizeof library, "%s" FTC_LIBPYTHON_DIR FTC_LIBPYTHON, runtime);
     if (!load_runtime_library("libz.so.1", zlib) || !load_runtime_library("libexpat.so.1", expat) ||
-        !(*python = load_runtime_library(FTC_LIBPYTHON, NULL)))
+        !(*python = load_runtime_library(shared_runtime ? library : FTC_LIBPYTHON, NULL)))
         return -1;
     return 0;
 }
