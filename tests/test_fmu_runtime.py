@@ -106,7 +106,7 @@ def test_fetch_without_apt_get_or_dpkg_deb_as_root_and_as_a_user(tmp_path: Path)
     setpriv = shutil.which("setpriv")
     if os.geteuid() != 0 or setpriv is None or not SYSTEM_PYTHON.is_file():
         pytest.skip("the unprivileged run needs root, setpriv and /usr/bin/python3.11")
-    home = Path(tempfile.mkdtemp(prefix="ftc-user-"))  # pytest's own folders are root's alone
+    home = Path(tempfile.mkdtemp(prefix="ftc-user-", dir="/tmp"))  # pytest's own folders are root's alone
     try:
         os.chmod(home, 0o755)
         os.chown(home, 65534, 65534)

@@ -172,33 +172,31 @@ static void *instantiate(struct container *x, size_t i) {
 }
 
 #ifdef _WIN32
-/* An embedded FMU's binaries folder `binaries` replaced by its copy in the user's cache
-   (ftc_cached_copy: keyed by names and bytes, never rewritten), which its library is loaded from:
-   the libraries stay loaded (see release), and a host must be able to delete the folder it
-   unpacked once it has unloaded the container, as with any C FMU. The resource location given
-   the FMU is still the unpacked one (the project's shim checks it and copies it to the cache in
-   turn). No cache: the unpacked folder, as before. The container's folder does not change while
-   it is loaded, so each folder is hashed once per load (about 50 ms per 10 MB), not at every
-   instantiation. */
-#define MEMO 64
+/* `fmus`, the container's resources/fmus (the embedded FMUs and the one runtime per platform they
+   share, resources/fmus/_runtime), replaced by its copy in the user's cache (ftc_cached_copy: keyed
+   by names and bytes, never rewritten), which the FMUs' libraries are loaded from: they stay
+   loaded (see release), and a host must be able to delete the folder it unpacked once it has
+   unloaded the container, as with any C FMU. The whole folder, not each FMU's binaries: an FMU's
+   shim finds the shared runtime beside its own folder. The resource location given an FMU is still
+   the unpacked one (the project's shim checks it and copies it to the cache in turn). No cache:
+   the unpacked folder, as before. The container's folder does not change while it is loaded, so it
+   is hashed once per load (about 50 ms per 10 MB), not at every instantiation. */
 static struct {
     char *source, *copy;
-} memo[MEMO];
+} memo;
 static ftc_mutex memo_lock = FTC_MUTEX_INIT;
 
-static void cached_binaries(char *binaries, size_t size) {
+static void cached_fmus(char *fmus, size_t size) {
     char cached[2 * TEXT];
     ftc_lock(&memo_lock);
-    size_t k = 0;
-    while (k < MEMO && memo[k].copy && strcmp(memo[k].source, binaries) != 0) k++;
-    if (k < MEMO && memo[k].copy) {
-        snprintf(binaries, size, "%s", memo[k].copy);
-    } else if (ftc_cached_copy(binaries, NULL, cached, sizeof cached) == 0) {
-        if (k < MEMO && (memo[k].source = strdup(binaries)) && !(memo[k].copy = strdup(cached))) {
-            free(memo[k].source);
-            memo[k].source = NULL;
-        }
-        snprintf(binaries, size, "%s", cached);
+    if (memo.copy && strcmp(memo.source, fmus) == 0) {
+        snprintf(fmus, size, "%s", memo.copy);
+    } else if (ftc_cached_copy(fmus, NULL, cached, sizeof cached) == 0) {
+        free(memo.source);
+        free(memo.copy);
+        memo.source = strdup(fmus);
+        memo.copy = memo.source ? strdup(cached) : NULL;
+        snprintf(fmus, size, "%s", cached);
     }
     ftc_unlock(&memo_lock);
 }
@@ -206,13 +204,13 @@ static void cached_binaries(char *binaries, size_t size) {
 
 static int load_component(struct container *x, size_t i, char *why, size_t size) {
     const struct part *c = &x->plan.components[i];
-    char binaries[2 * TEXT], path[3 * TEXT], reason[TEXT];
-    snprintf(binaries, sizeof binaries, "%s/fmus/%s/binaries/%s", x->resources, c->folder,
-             c->version == 3 ? PLATFORM3 : PLATFORM2);
+    char fmus[2 * TEXT], path[3 * TEXT], reason[TEXT];
+    snprintf(fmus, sizeof fmus, "%s/fmus", x->resources);
 #ifdef _WIN32
-    cached_binaries(binaries, sizeof binaries);
+    cached_fmus(fmus, sizeof fmus);
 #endif
-    snprintf(path, sizeof path, "%s/%s" SUFFIX, binaries, c->identifier);
+    snprintf(path, sizeof path, "%s/%s/binaries/%s/%s" SUFFIX, fmus, c->folder,
+             c->version == 3 ? PLATFORM3 : PLATFORM2, c->identifier);
     x->libraries[i] = ftc_library_open(path, 0);
     if (!x->libraries[i]) {
         snprintf(why, size, "%s: cannot load %s: %s", c->name, path, ftc_library_error(path));
