@@ -120,9 +120,9 @@ def check_interval(interval: float, step: float) -> None:
                          f"{step:g} s")
 
 
-def staging_path(output: str | os.PathLike, selection: Selection = Selection()) -> Path:
+def staging_path(output: str | os.PathLike) -> Path:
     """Where the master streams its CSV: ``output`` itself for a CSV (the recorder writes only the
-    ``selection``, :meth:`Selection.layout`), else ``<output>.<pid>.partial.csv``, of this process
+    selection, :meth:`Selection.layout`), else ``<output>.<pid>.partial.csv``, of this process
     only (turned into ``output`` by :func:`write_selected`)."""
     output = Path(output)
     if output.suffix.lower() in (".csv", ""):

@@ -95,7 +95,7 @@ class RunOutput:
         if self.selection.interval is not None:
             formats.check_interval(self.selection.interval, step)
         self.texts = descriptions(system)
-        self.stream = formats.staging_path(self.path, self.selection)
+        self.stream = formats.staging_path(self.path)
         record["output"] = {"format": self.path.suffix.lower(), "variables": list(self.selection.variables),
                             "interval": self.selection.interval, "left_out": list(self.selection.drop)}
         provenance.write_provenance(self.path, record)

@@ -169,7 +169,7 @@ def open_columns(path: str | os.PathLike, folder: str | os.PathLike) -> Columns 
     if path.suffix.lower() in (".parquet", ".mat") or not path.is_file():
         return read_result(path)
     with open(path, "rb") as stream:
-        header = stream.readline(1 << 16)
+        header = stream.readline()  # whole: a wide file (thousands of columns) streams as well
         if b'"' in header or b" " in header or not header.endswith(b"\n"):  # another tool's layout
             return read_result(path)  # (OMSimulator's: quoted names with spaces): read_tool_csv's
         try:

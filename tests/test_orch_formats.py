@@ -53,7 +53,7 @@ def test_unknown_extension_and_bad_interval_are_usage_errors():
 
 def test_parquet_with_selection(tmp_path):
     selection = Selection(variables=("a.*",), interval=0.05, drop=("a.u",))
-    source = _csv(staging_path(tmp_path / "r.parquet", selection))
+    source = _csv(staging_path(tmp_path / "r.parquet"))
     assert source.name == f"r.parquet.{os.getpid()}.partial.csv"  # this process's own
     out = write_selected(source, tmp_path / "r.parquet", selection)
     table = pq.read_table(out)

@@ -402,3 +402,20 @@ def test_columns_parsed_a_block_at_a_time_are_fmpys(tmp_path: Path, monkeypatch:
     assert isinstance(columns, results.Columns) and len(columns) == 300
     for name in whole.dtype.names:
         assert columns[name].tobytes() == whole[name].tobytes() == data[name].tobytes(), name
+
+
+def test_a_wide_file_streams_and_its_columns_are_fmpys(tmp_path: Path) -> None:
+    """A header above 64 KiB (4,000 columns, 72 KB) is read whole: before, such a file fell back to
+    read_result, the whole file in memory; the oracle is fmpy's reader, every column bit for bit."""
+    from orchestrator import results
+
+    rng = np.random.default_rng(7)
+    data = table(T[:20], **{f"c{k:04d}__signal_{k:04d}": rng.standard_normal(20) for k in range(4000)})
+    path = write(tmp_path / "wide.csv", data)
+    assert len(path.read_bytes().split(b"\n", 1)[0]) > 1 << 16
+    (tmp_path / "columns").mkdir()
+    columns = results.open_columns(path, tmp_path / "columns")
+    whole = read_result(path)
+    assert isinstance(columns, results.Columns) and len(columns) == 20
+    for name in whole.dtype.names:
+        assert columns[name].tobytes() == whole[name].tobytes(), name
