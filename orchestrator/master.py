@@ -397,7 +397,8 @@ class Master:
         if failure.status:
             inst = self.instances[failure.component]
             if failure.status < 0:  # no FMI status: fmi3UpdateDiscreteStates's verdict
-                raise SimulationError(inst.name, FUNCTIONS[failure.function], NO_STATUS[failure.status],
+                raise SimulationError(inst.name, FUNCTIONS[failure.function],
+                                      NO_STATUS.get(failure.status, f"no FMI status ({failure.status})"),
                                       failure.time, self.messages.last.get(inst.name, ""))
             inst.fail(FUNCTIONS[failure.function], failure.status, failure.time)
         return made

@@ -528,7 +528,7 @@ def _runtime(bundle: Bundle, windows: bool, root: Path) -> dict[str, bytes]:
     """The runtime members of linux64 (and win64 with ``windows``) for ``bundle``: the
     standard-library modules it imports when it runs (:func:`_measure`)."""
     runtime = _ensure_runtime()
-    launcher = bundled_python(runtime)
+    launcher = bundled_python(runtime, root)
     if bundle.third_party:
         raise BuildError(
             f"{bundle.model} imports {', '.join(sorted(bundle.third_party))}: an FMU carries no third-party "

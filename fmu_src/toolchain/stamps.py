@@ -21,6 +21,14 @@ import json
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
+try:  # CPython's own SHA-256, chosen once (3.12+: _sha2, 3.11: _sha256); see file_digest
+    from _sha2 import sha256 as _sha256  # type: ignore[import-not-found]
+except ImportError:
+    try:
+        from _sha256 import sha256 as _sha256  # type: ignore[import-not-found]
+    except ImportError:  # another Python
+        from hashlib import sha256 as _sha256
+
 __all__ = ["changed_sources", "digest", "file_digest", "forget", "record", "recorded_platforms",
            "recorded_sources", "source_digests", "up_to_date"]
 
@@ -31,16 +39,7 @@ def file_digest(path: Path) -> str:
     """SHA-256 of a file's bytes (of a source file: the run's stale check calls it, and hashlib
     would load OpenSSL's libcrypto, 3.5 MB of every run's memory: CPython's own where it has one,
     as orchestrator/files.py's sha256)."""
-    try:
-        from _sha2 import sha256  # type: ignore[import-not-found]  # Python 3.12+
-    except ImportError:
-        try:
-            from _sha256 import sha256  # type: ignore[import-not-found]  # Python 3.11
-        except ImportError:  # another Python
-            import hashlib
-
-            sha256 = hashlib.sha256
-    return sha256(path.read_bytes()).hexdigest()
+    return _sha256(path.read_bytes()).hexdigest()
 
 
 def digest(*parts: str | bytes | Path) -> str:

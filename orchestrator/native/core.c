@@ -310,7 +310,6 @@ static int piece(struct core *x, int64_t start, int64_t end, const double **driv
 
 /* ---- clocks ----------------------------------------------------------------------------------- */
 
-#define MAX_CLOCKS 1024 /* per plan (plan.c) */
 
 /* The first tick of clock `c` at or after `t` (ns; a run started at `t0`); INT64_MAX for a clock
    whose interval is not known (core_ask_clocks fills every one before the first step). */

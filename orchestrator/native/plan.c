@@ -228,7 +228,7 @@ static void transfers_record(struct reader *r, struct plan *p) {
 
 static void clocks_record(struct reader *r, struct plan *p) {
     if (p->clocks) r->error = 1; /* once */
-    p->nclocks = count(r, 1024); /* core.c's MAX_CLOCKS */
+    p->nclocks = count(r, MAX_CLOCKS);
     p->clocks = array(p->nclocks, sizeof *p->clocks, r);
     for (size_t j = 0; j < p->nclocks && !r->error; j++) {
         struct clock *c = &p->clocks[j];

@@ -11,6 +11,7 @@
 
 #define PLAN_VERSION "4"
 #define PLAN_TEXT 4096
+#define MAX_CLOCKS 1024 /* per plan: the core keeps each step's clocks on its stack */
 
 /* One batched get or set of a component: value references vr <-> values[start .. start + n); the
    last `ints` are FMI 2.0 Integer or Enumeration variables (fmi2GetInteger/fmi2SetInteger). */
