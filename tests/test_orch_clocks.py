@@ -211,15 +211,19 @@ def held_from_the_host(t: float, h: float) -> float:
     return 0.0 if k == 0 else h * (math.ceil(round(k * INTERVAL / h, 9)) - 1)
 
 
+@pytest.mark.parametrize("fixed", [False, True], ids=["interval given", "interval asked"])
 @pytest.mark.parametrize("fmi", ["2", "3"])
 def test_the_exported_container_ticks_the_clock_behind_plain_co_simulation(
-        fmus: dict[str, Path], tmp_path: Path, fmi: str) -> None:
+        fmus: dict[str, Path], tmp_path: Path, fmi: str, fixed: bool) -> None:
     """``orchestrate export`` of the clocked Sampler at the step 0.03 s (T = 0.1 s): the container
     cuts its steps at the ticks and makes the events itself, its own interface is plain
     Co-Simulation (no clock, no event mode). FMPy and fmusim, stepping 0.03 s and setting u(t) = t
     at their communication points, see every tick (ticks = floor(t / T) + 1) and y sampled at it
-    from the u of the step it falls in (analytic: held_from_the_host)."""
-    folder, _ = scenario(tmp_path / "s", fmus["clocked"])
+    from the u of the step it falls in (analytic: held_from_the_host). ``fixed``: the clock's
+    interval is not in the model description, and the container asks it in Initialization Mode
+    itself (core_ask_clocks; the compiled executor is handed the interval Python asked)."""
+    sampler = build_sampler(tmp_path / "fixed", fixed=True) if fixed else fmus["clocked"]
+    folder, _ = scenario(tmp_path / "s", sampler)
     fmu, _ = export(folder, tmp_path / "out.fmu", step=STEP, stop_time=0.99, fmi=fmi)
     md = zipfile.ZipFile(fmu).read("modelDescription.xml").decode()
     assert "<Clock" not in md and 'hasEventMode="true"' not in md and "clocks=" not in md
@@ -275,7 +279,9 @@ def test_a_fixed_clock_without_interval_is_asked_in_initialization_mode(tmp_path
     fmu = build_sampler(tmp_path / "fixed", interval=interval, fixed=True)
     assert 'intervalVariability="fixed"' in zipfile.ZipFile(fmu).read("modelDescription.xml").decode()
     rows = run(*scenario(tmp_path / "s", fmu))
-    assert_array_equal_rows(run(*scenario(tmp_path / "c", fmu), executor="compiled"), rows)  # C asks too
+    # the compiled executor ticks on the interval Python asked (the container asks it itself:
+    # test_the_exported_container_ticks_the_clock_behind_plain_co_simulation)
+    assert_array_equal_rows(run(*scenario(tmp_path / "c", fmu), executor="compiled"), rows)
     t = rows["time"]
     expected = [interval * math.floor(round(x / interval, 9)) for x in t]
     np.testing.assert_allclose(rows["s.y"], expected, rtol=0, atol=1e-12)
