@@ -161,28 +161,28 @@ void ftc_clock_leave(struct instance3 *i) {
     i->clock->evaluated = false;
 }
 
+/* Error (and one message) unless the `n` value references are the clock's, with their arrays. */
 static fmi3Status only_the_clock(struct instance3 *i, const char *function, const fmi3ValueReference vr[],
-                                 size_t n, const void *values, size_t nValues) {
+                                 size_t n, const void *values) {
     char reason[160];
-    if (n != nValues || (n && (!vr || !values)))
-        snprintf(reason, sizeof reason, "%zu value references, %zu values (or a NULL array)", n, nValues);
-    else {
-        for (size_t j = 0; j < n; j++)
-            if (vr[j] != FTC_CLOCK_VR) {
-                snprintf(reason, sizeof reason, "value reference %u is not a clock (the only clock: %u)",
-                         vr[j], (unsigned)FTC_CLOCK_VR);
-                return refuse3(i, function, reason);
-            }
-        return fmi3OK;
+    if (n && (!vr || !values)) {
+        snprintf(reason, sizeof reason, "%zu value references and a NULL array", n);
+        return refuse3(i, function, reason);
     }
-    return refuse3(i, function, reason);
+    for (size_t j = 0; j < n; j++)
+        if (vr[j] != FTC_CLOCK_VR) {
+            snprintf(reason, sizeof reason, "value reference %u is not a clock (the only clock: %u)", vr[j],
+                     (unsigned)FTC_CLOCK_VR);
+            return refuse3(i, function, reason);
+        }
+    return fmi3OK;
 }
 
 EXPORT3 fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                 size_t nValueReferences, const fmi3Clock values[]) {
     struct instance3 *i = instance;
     if (check_mode(i, "fmi3SetClock", 1 << EVENT)) return fmi3Error;
-    if (only_the_clock(i, "fmi3SetClock", valueReferences, nValueReferences, values, nValueReferences))
+    if (only_the_clock(i, "fmi3SetClock", valueReferences, nValueReferences, values))
         return fmi3Error;
     for (size_t j = 0; j < nValueReferences; j++) {
         if (values[j] && !i->clock->active) i->clock->evaluated = false;
@@ -195,7 +195,7 @@ EXPORT3 fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference 
                                 size_t nValueReferences, fmi3Clock values[]) {
     struct instance3 *i = instance;
     if (check_mode(i, "fmi3GetClock", 1 << EVENT)) return fmi3Error;
-    if (only_the_clock(i, "fmi3GetClock", valueReferences, nValueReferences, values, nValueReferences))
+    if (only_the_clock(i, "fmi3GetClock", valueReferences, nValueReferences, values))
         return fmi3Error;
     for (size_t j = 0; j < nValueReferences; j++) values[j] = i->clock->active;
     return fmi3OK;
@@ -206,11 +206,9 @@ EXPORT3 fmi3Status fmi3GetIntervalDecimal(fmi3Instance instance, const fmi3Value
                                           fmi3IntervalQualifier qualifiers[]) {
     struct instance3 *i = instance;
     if (check_mode(i, "fmi3GetIntervalDecimal", 1 << INITIALIZATION | 1 << EVENT)) return fmi3Error;
-    if (only_the_clock(i, "fmi3GetIntervalDecimal", valueReferences, nValueReferences, intervals,
-                       nValueReferences) ||
-        (nValueReferences && !qualifiers))
-        return nValueReferences && !qualifiers ? refuse3(i, "fmi3GetIntervalDecimal", "qualifiers is NULL")
-                                               : fmi3Error;
+    if (nValueReferences && !qualifiers) return refuse3(i, "fmi3GetIntervalDecimal", "qualifiers is NULL");
+    if (only_the_clock(i, "fmi3GetIntervalDecimal", valueReferences, nValueReferences, intervals))
+        return fmi3Error;
     fmi2ValueReference parameter = FTC_INTERVAL_VR - FTC_VR_OFFSET;
     for (size_t j = 0; j < nValueReferences; j++) {
         fmi2Status status = fmi2GetReal(i->c, &parameter, 1, &intervals[j]);
@@ -225,7 +223,7 @@ EXPORT3 fmi3Status fmi3GetShiftDecimal(fmi3Instance instance, const fmi3ValueRef
                                        size_t nValueReferences, fmi3Float64 shifts[]) {
     struct instance3 *i = instance;
     if (check_mode(i, "fmi3GetShiftDecimal", 1 << INITIALIZATION | 1 << EVENT)) return fmi3Error;
-    if (only_the_clock(i, "fmi3GetShiftDecimal", valueReferences, nValueReferences, shifts, nValueReferences))
+    if (only_the_clock(i, "fmi3GetShiftDecimal", valueReferences, nValueReferences, shifts))
         return fmi3Error;
     for (size_t j = 0; j < nValueReferences; j++) shifts[j] = 0.0;
     return fmi3OK;
