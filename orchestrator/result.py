@@ -9,7 +9,6 @@ still raises (nothing hides a failure), and the error carries the same :class:`R
 
 from __future__ import annotations
 
-import html
 import math
 import numbers
 import os
@@ -232,6 +231,8 @@ class RunResult:
 
     def _repr_html_(self) -> str:
         """A table for Jupyter: status, span, then each signal with its unit, first and last value."""
+        import html  # only in Jupyter: not on every run's peak memory
+
         e = html.escape
         units = self.units
         head = (f"<p><b>RunResult</b>: {e(self.status)}{': ' + e(self.message) if self.message else ''}; "

@@ -44,3 +44,28 @@ def test_resident_size_does_not_grow_with_the_run_length(test_fmus, tmp_path):
         assert float(csv.read_bytes()[-200:].splitlines()[-1].split(b",")[0]) == stop
     # 135 000 more rows held (6 values and a time each) would be 11 MB; allow 4 MB of noise
     assert peaks[300] - peaks[30] < 4096, peaks
+
+
+# Modules a run does not use, each measured as part of every run's peak resident size (issue 46:
+# multiprocessing with concurrent.futures 1.0 MB, html 0.5 MB), with who imported them before.
+NOT_IMPORTED_BY_RUN = {
+    "multiprocessing": "the project's build (orchestrator.experiments.scenarios, for the stale-build check)",
+    "concurrent": "the project's build (orchestrator.experiments.scenarios, for the stale-build check)",
+    "html": "RunResult's Jupyter table (orchestrator.result)",
+    "matplotlib": "the plot, with --no-plot",
+    "pyarrow": "Parquet output, with a CSV",
+}
+
+
+def test_a_run_imports_nothing_it_does_not_use(test_fmus, tmp_path):
+    """Oracle: the interpreter's own list of what it imported (``-X importtime``), for a run that
+    passes the stale-build check of this checkout's application and writes a CSV."""
+    ssp = loop_scenario(tmp_path / "loop", test_fmus, stop=0.1, step=0.01)
+    command = [sys.executable, "-X", "importtime", "-m", "orchestrator", "run", str(ssp), "--quiet",
+               "--no-plot", "--output", str(tmp_path / "r.csv")]
+    done = subprocess.run(command, capture_output=True, text=True, cwd=tmp_path, check=True)
+    imported = {line.split("|")[-1].strip().split(".")[0] for line in done.stderr.splitlines()
+                if line.startswith("import time:")}
+    assert "orchestrator" in imported and "fmpy" in imported  # the list is the run's
+    unused = imported & NOT_IMPORTED_BY_RUN.keys()
+    assert not unused, {m: NOT_IMPORTED_BY_RUN[m] for m in unused}

@@ -4,11 +4,9 @@
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 import time
 from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from functools import partial
 from pathlib import Path
 
@@ -144,6 +142,11 @@ def _in_parallel(builds: dict[str, Callable[[], Path]], say: Callable[[str], Non
             build()
             say(f"[{number}/{len(builds)}] {label}: built ({time.perf_counter() - started:.1f} s)")
         return
+    # Imported here: 'orchestrate run' imports this module (the stale-build check) and never builds;
+    # multiprocessing and concurrent.futures are 1 MB of every run's peak memory (issue 46).
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
     _ensure_runtimes(*shared)  # once, before the workers that share them
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
         futures = {pool.submit(build): label for label, build in builds.items()}
