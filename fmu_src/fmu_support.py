@@ -27,11 +27,13 @@ import sys
 import threading
 import weakref
 from collections.abc import Iterable, Sequence
-from typing import Any, TypeVar
-from xml.etree.ElementTree import Element, SubElement
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 from pythonfmu.enums import Fmi2Status
+
+if TYPE_CHECKING:  # the model description is written at build time: a running FMU never loads xml
+    from xml.etree.ElementTree import Element
 
 __all__ = [
     "UNITS",
@@ -265,6 +267,8 @@ def _child(parent: Element, path: str) -> Element:
 def _extend_model_description(slave: Fmi2Slave, root: Element) -> Element:
     """Add UnitDefinitions, unit and min/max attributes and ModelStructure dependencies to
     pythonfmu's XML."""
+    from xml.etree.ElementTree import Element, SubElement
+
     meta: dict[str, tuple[str | None, tuple[str, ...] | None]] = slave.__dict__.get("_fmu_meta", {})
     ranges: dict[str, tuple[float | None, float | None]] = slave.__dict__.get("_fmu_ranges", {})
     used_units = sorted({unit for unit, _ in meta.values() if unit is not None})

@@ -153,13 +153,30 @@ EXTENSION_FLAGS = (
 # deployment helpers): left out of every FMU, whose __init__ then no longer imports the builder.
 PYTHONFMU_BUILD_ONLY = ("__main__.py", "builder.py", "csvbuilder.py", "deploy.py", "osutil.py")
 # Lines of pythonfmu's run-time modules replaced in the FMU's copy (file -> line -> replacement):
-# the builder's import; and the per-instance uuid1(), read only by to_xml at build time, which in
-# the bundled Linux runtime (no _uuid: it needs libuuid) ran `ip link` in a child process of the
-# host at the first instantiation (uuid.getnode).
+# the builder's import; the per-instance uuid1(), read only by to_xml at build time, which in the
+# bundled Linux runtime (no _uuid: it needs libuuid) ran `ip link` in a child process of the host
+# at the first instantiation (uuid.getnode); and the imports only to_xml uses (xml.etree, datetime,
+# uuid with platform, an unused pathlib with urllib.parse and ipaddress), made where to_xml runs:
+# 27 modules and pyexpat/_elementtree on Windows that every FMU carried and every host loaded.
+_LAZY_XML = (
+    "def Element(*args, **kwargs):  # fixed-time-cosim: xml.etree only when a description is written\n"
+    "    from xml.etree.ElementTree import Element as make\n"
+    "    return make(*args, **kwargs)\n\n\n"
+    "def SubElement(*args, **kwargs):\n"
+    "    from xml.etree.ElementTree import SubElement as make\n"
+    "    return make(*args, **kwargs)\n"
+)
 PYTHONFMU_LINES = {
     "__init__.py": {"from .builder import FmuBuilder\n": ""},
     "fmi2slave.py": {"        self.guid = uuid1()\n":
-                     "        self.guid = None  # the FMU's GUID is the build's (fixed-time-cosim)\n"},
+                     "        self.guid = None  # the FMU's GUID is the build's (fixed-time-cosim)\n",
+                     "import datetime\n": "",
+                     "        t = datetime.datetime.now(datetime.timezone.utc)\n":
+                     "        import datetime\n\n        t = datetime.datetime.now(datetime.timezone.utc)\n",
+                     "from pathlib import Path\n": "",
+                     "from uuid import uuid1\n": "",
+                     "from xml.etree.ElementTree import Element, SubElement\n": _LAZY_XML},
+    "variables.py": {"from xml.etree.ElementTree import Element, SubElement\n": _LAZY_XML},
 }
 CLASS_LINE = re.compile(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", re.MULTILINE)  # pythonfmu's loader regex
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
