@@ -338,7 +338,15 @@ def test_compare_merged_on_any_grids_gives_the_whole_arrays_figures(
     a flat reference; chunks of 7 rows put a chunk boundary inside every window and make the
     median step's search take several passes."""
     from orchestrator.regress import tubes
-    from orchestrator.regress.merged import _check, _ends, _inside, _points, compare_columns, compare_merged
+    from orchestrator.regress.merged import (
+        _check,
+        _ends,
+        _inside,
+        _median_steps,
+        _points,
+        compare_columns,
+        compare_merged,
+    )
     from orchestrator.results import open_columns
 
     monkeypatch.setattr(tubes, "CHUNK", chunk)
@@ -370,9 +378,10 @@ def test_compare_merged_on_any_grids_gives_the_whole_arrays_figures(
             assert all(len(c.time) == 0 for c in bare.checks)
             ends, eps = _ends(files[0]), 1e-9 * 10.0
             rows = _inside(files[1], ends[0] - eps, ends[1] + eps)
+            steps = _median_steps(_points(*files, "time", rows, "coarser" in whole.grid))
             for theirs in whole.checks:
                 points = _points(*files, theirs.name, rows, "coarser" in whole.grid)
-                mine = _check(theirs.name, points, tolerances.of(theirs.name), tolerances.quiet_until)
+                mine = _check(theirs.name, points, tolerances.of(theirs.name), tolerances.quiet_until, steps)
                 figures = [(c.n_out, c.first_out, c.worst_time, c.width, c.worst_excess, c.max_deviation)
                            for c in (mine, theirs)]
                 assert figures[0] == figures[1], (base_name, name, theirs.name)

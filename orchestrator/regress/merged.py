@@ -18,6 +18,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable, Iterator, Sequence
+from functools import partial
 
 import numpy as np
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
@@ -150,6 +151,19 @@ def _median_step(points: Points, n: int) -> float:
     return (_kth(steps, m // 2 - 1) + _kth(steps, m // 2)) / 2
 
 
+def _median_steps(times: Points) -> Callable[[float | None, bool, int], float]:
+    """``median_step(until, quiet, n)``: the median step of the ``n`` times of a part (``_part``) of
+    ``times``, found once per part: every signal has the same times, and each search reads the
+    files a few times over (8 signals of 10^6 rows: 1.1 s of 3.6 s)."""
+    found: dict[tuple[float | None, bool], float] = {}
+
+    def median_step(until: float | None, quiet: bool, n: int) -> float:
+        if (until, quiet) not in found:
+            found[until, quiet] = _median_step(_part(times, until, quiet), n)
+        return found[until, quiet]
+    return median_step
+
+
 def _band(points: Points, first: tuple[float, float], last: tuple[float, float], n: int, h: float,
           shift: float) -> Iterator[Chunk]:
     """validate_signal's resampled reference (``interp1d``, which is ``np.interp`` for float64) on
@@ -197,13 +211,15 @@ def _running(band: Iterator[Chunk], half: int, w: float) -> Iterator[Chunk]:
 
 
 class _Stats:
-    """A part's count, first and last point, and its reference's extremes."""
+    """A part's count, first and last point, its reference's extremes and whether they are finite."""
 
     def __init__(self, points: Points) -> None:
         self.n, self.low, self.high = 0, math.inf, -math.inf
         self.first = self.last = (math.nan, math.nan)
+        self.finite = True
         for t, y_ref, _ in points():
             if len(t):
+                self.finite = self.finite and bool(np.isfinite(y_ref).all())
                 if not self.n:
                     self.first = (float(t[0]), float(y_ref[0]))
                 self.n += len(t)
@@ -211,14 +227,16 @@ class _Stats:
                 self.low, self.high = min(self.low, float(y_ref.min())), max(self.high, float(y_ref.max()))
 
 
-def _tube_out(points: Points, stats: _Stats, width: float, dt: float, out: tubes._Out) -> None:
-    """:func:`tubes._tube` of one part and the samples outside it, into ``out``."""
+def _tube_out(points: Points, stats: _Stats, width: float, dt: float, step: Callable[[], float],
+              out: tubes._Out) -> None:
+    """:func:`tubes._tube` of one part and the samples outside it, into ``out``; ``step``: the
+    median step of the part's times."""
     if stats.n == 1:
         bounds: Iterator[Chunk] = iter([(np.array([stats.first[0]]), np.array([stats.first[1] - width]),
                                          np.array([stats.first[1] + width]))])
         shift = 0.0
     else:
-        h = _median_step(points, stats.n)
+        h = step()
         span = stats.high - stats.low  # of the padded reference: its ends repeated
         shift = 1.0 - stats.first[1] if span == 0.0 else 0.0
         dy = width if span == 0.0 else width / span
@@ -238,20 +256,25 @@ def _tube_out(points: Points, stats: _Stats, width: float, dt: float, out: tubes
             tubes._gather(t, y, y_ref, lower - shift, upper - shift, out)
 
 
-def _check(name: str, points: Points, tol: tubes.Tolerance, quiet_until: float) -> tubes.SignalCheck:
-    """:func:`tubes._check` of one signal's points, without arrays."""
+def _check(name: str, points: Points, tol: tubes.Tolerance, quiet_until: float,
+           median_step: Callable[[float | None, bool, int], float], whole: _Stats | None = None
+           ) -> tubes.SignalCheck:
+    """:func:`tubes._check` of one signal's points, without arrays; ``median_step(until, quiet, n)``:
+    the median step of the ``n`` times of a part (every signal has the same times); ``whole``: the
+    statistics of all the points, where the caller has them (one pass fewer)."""
     until = quiet_until if tol.quiet_atol is not None else None
     loud = _part(points, until, quiet=False)
-    loud_stats = _Stats(loud)
+    loud_stats = whole if whole is not None and until is None else _Stats(loud)
     width = max(tol.atol, tol.rtol * (loud_stats.high - loud_stats.low)) if loud_stats.n else 0.0
     parts = [(loud, width)]
     if until is not None:
         parts.insert(0, (_part(points, until, quiet=True), tol.quiet_atol or 0.0))
     out = tubes._Out()
     for part, w in parts:
-        stats = loud_stats if part is loud else _Stats(part)
+        quiet = part is not loud
+        stats = _Stats(part) if quiet else loud_stats
         if stats.n:
-            _tube_out(part, stats, w, tol.dt, out)
+            _tube_out(part, stats, w, tol.dt, partial(median_step, until, quiet, stats.n), out)
     return tubes.SignalCheck(name, tol, width, out.n_out, out.first_out, out.worst_time,
                              out.worst_excess if out.n_out else 0.0, out.deviation, *(np.empty(0),) * 5,
                              samples=out.samples, worst_half=out.worst_half)
@@ -302,13 +325,15 @@ def compare_merged(result: Columns, baseline: Columns, tolerances: tubes.Toleran
         problems.append(f"{result_name} and {baseline_name} have fewer than two times in common")
         return tubes.Comparison(result_name, baseline_name, tolerances, [], missing, extra, problems,
                                 required=required)
+    median_step = _median_steps(_points(result, baseline, "time", rows, common_only))
     checks = []
     for n in (n for n in names if n in have):
         points = _points(result, baseline, n, rows, common_only)
-        if not all(np.isfinite(y_ref).all() for _, y_ref, _ in points()):
+        stats = _Stats(points)
+        if not stats.finite:
             problems.append(f"{baseline_name}: column '{n}' has non-finite values")
             continue
-        check = _check(n, points, tolerances.of(n), tolerances.quiet_until)
+        check = _check(n, points, tolerances.of(n), tolerances.quiet_until, median_step, stats)
         if not check.passed and failed_arrays:  # its arrays, for plots
             whole = tubes.compare(tubes.structured_copy(result, ["time", n]),
                                   tubes.structured_copy(baseline, ["time", n]), tolerances, signals=[n])
