@@ -15,7 +15,7 @@ everything (``orchestrate validate``).
 
 from __future__ import annotations
 
-from . import _startup  # noqa: F401 - first: SIGINT/SIGTERM during the imports below are one line
+from . import _startup  # first: SIGINT/SIGTERM during the imports below are one line
 
 # isort: split
 import fnmatch
@@ -50,6 +50,8 @@ from .result import RunOptions, RunResult
 from .ssp import DEFAULT_LIMITS, Limits
 from .system import PortRef, System
 from .validate import DEFAULT_STEP, check_scenario, choose_master, no_step, timing
+
+_startup.numpy_loaded()  # OpenBLAS has read its thread count: the user's environment for children
 
 __all__ = ["DEFAULT_STEP", "MASTERS", "EngineNote", "Interrupted", "Limits", "LoopError", "NonFiniteError",
            "OrchestratorError",

@@ -69,3 +69,37 @@ def test_a_run_imports_nothing_it_does_not_use(test_fmus, tmp_path):
     assert "orchestrator" in imported and "fmpy" in imported  # the list is the run's
     unused = imported & NOT_IMPORTED_BY_RUN.keys()
     assert not unused, {m: NOT_IMPORTED_BY_RUN[m] for m in unused}
+
+
+# OpenBLAS's own count of its threads, and the variable as the processes the command starts see it.
+BLAS_PROBE = """
+import ctypes, glob, os, sys
+sys.argv = [sys.argv[1]]  # 'orchestrate': the command's own process, as orchestrator._startup tells
+import orchestrator
+import numpy
+libs = glob.glob(os.path.join(os.path.dirname(numpy.__file__), os.pardir, "numpy.libs", "libscipy_openblas*"))
+threads = ctypes.CDLL(libs[0]).scipy_openblas_get_num_threads64_() if libs else 0
+print(threads, os.environ.get("OPENBLAS_NUM_THREADS"))
+"""
+
+
+@pytest.mark.parametrize(("argv0", "chosen", "expected"), [
+    ("/somewhere/bin/orchestrate", None, ("1", "None")),  # the command: one thread, environment as it was
+    ("/somewhere/bin/orchestrate", "2", ("2", "2")),  # the user's number stands
+    ("notebook.py", None, (str(os.cpu_count()), "None")),  # a library user's process: NumPy's default
+])
+def test_the_command_loads_openblas_with_one_thread(argv0: str, chosen: str | None,
+                                                    expected: tuple[str, str]) -> None:
+    """OpenBLAS's idle threads spin: 0.12 s of CPU in every ``orchestrate run`` on 2 cores (issue
+    46). Oracle: OpenBLAS's own thread count, read from the library NumPy loaded."""
+    if os.cpu_count() == 1 and argv0 == "notebook.py":
+        pytest.skip("one core: NumPy's default is one thread too")
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if chosen is not None:
+        env["OPENBLAS_NUM_THREADS"] = chosen
+    done = subprocess.run([sys.executable, "-c", BLAS_PROBE, argv0], capture_output=True, text=True, env=env,
+                          check=True)
+    threads, variable = done.stdout.split()
+    if threads == "0":
+        pytest.skip("this NumPy does not load scipy-openblas")
+    assert (threads, variable) == expected
