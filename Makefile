@@ -250,6 +250,7 @@ bench: build
 	$(PY) benchmarks/fmu_step.py
 	$(PY) benchmarks/cosim_step.py
 	$(PY) benchmarks/end_to_end.py
+	$(PY) benchmarks/step_instructions.py
 
 clean:
 	rm -rf build results $(ALT_VENV)
