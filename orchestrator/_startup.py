@@ -39,6 +39,7 @@ __all__ = ["exit_now", "guard", "numpy_loaded"]
 
 HELD = "ORCHESTRATE_HELD_SIGNALS"  # set by the launcher: the signals it blocked, e.g. "2,15"
 BLAS_THREADS = "OPENBLAS_NUM_THREADS"  # read by NumPy's OpenBLAS when it loads
+BLAS_CHOICES = (BLAS_THREADS, "GOTO_NUM_THREADS", "OMP_NUM_THREADS")  # OpenBLAS obeys any, in this order
 _blas_threads_set = False  # whether this module set BLAS_THREADS (numpy_loaded takes it back)
 NAMES = {_signal.SIGINT: ("interrupted", "SIGINT"), _signal.SIGTERM: ("terminated", "SIGTERM")}
 
@@ -109,9 +110,10 @@ def _one_blas_thread() -> None:
     """NumPy's OpenBLAS starts a thread per core when it loads, and those threads spin before they
     sleep: 0.12 s of CPU in every ``orchestrate run`` on 2 cores (start-up 0.35 -> 0.23 s), more
     with more cores, for nothing: the command multiplies no matrices large enough to share. So its
-    own process loads OpenBLAS with one thread, unless the user chose a number."""
+    own process loads OpenBLAS with one thread, unless the user chose a number (in any of the
+    variables OpenBLAS reads)."""
     global _blas_threads_set
-    if BLAS_THREADS not in os.environ and "numpy" not in sys.modules:
+    if not any(name in os.environ for name in BLAS_CHOICES) and "numpy" not in sys.modules:
         os.environ[BLAS_THREADS] = "1"
         _blas_threads_set = True
 
