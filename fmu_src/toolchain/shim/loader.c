@@ -112,19 +112,19 @@ static int runtime_folders(const char *dir, char runtime[TEXT + 16], char inner_
 #ifdef _WIN32
     char file[TEXT + 64], cached_runtime[TEXT + 16], cached_inner[TEXT], why[TEXT];
     snprintf(file, sizeof file, "%s%s", model, INNER_SUFFIX);
-    if (ftc_cached_copy_decoded(runtime, ftc_xz_decode, cached_runtime, sizeof cached_runtime, why, sizeof why) == 0 &&
-        ftc_cached_copy(dir, file, cached_inner, sizeof cached_inner) == 0) {
+    if (ftc_cached_copy_decoded(runtime, ftc_xz_decode, cached_runtime, sizeof cached_runtime, why, sizeof why) == 0) {
+        if (ftc_cached_copy(dir, file, cached_inner, sizeof cached_inner) == 0)
+            snprintf(inner_dir, TEXT, "%s", cached_inner);
         snprintf(runtime, TEXT + 16, "%s", cached_runtime);
-        snprintf(inner_dir, TEXT, "%s", cached_inner);
         return 0;
     }
     snprintf(file, sizeof file, "%s/" FTC_LIBPYTHON FTC_XZ_SUFFIX, runtime);
     if (!why[0] && ftc_is_file(file) &&
         ftc_temporary_copy(runtime, ftc_xz_decode, cached_runtime, sizeof cached_runtime, why, sizeof why) == 0)
         snprintf(runtime, TEXT + 16, "%s", cached_runtime);
-    else if (why[0] || ftc_is_file(file)) {
-        snprintf(failure, TEXT, "%s: cannot decode the bundled %s: %s", model, file,
-                 why[0] ? why : "no cache, and no folder of %TEMP% to decode it into");
+    else if (why[0] || ftc_is_file(file)) { /* `why` names the file */
+        if (!why[0]) snprintf(why, sizeof why, "%s: no cache, and no folder of %%TEMP%% to decode it into", file);
+        snprintf(failure, TEXT, "%s: cannot decode the bundled " FTC_LIBPYTHON ": %s", model, why);
         return -1;
     }
 #endif
