@@ -98,7 +98,7 @@ SHIM_SOURCES = ("fmi2_functions.c", "guard.c", "cosimulation.c", "loader.c", "po
                 "start_python.c", "unpack.c", *XZ_SOURCES)
 SHIM_HEADERS = ("shim.h", "start_python.h", "fmi2_calls.h", "description.h", "fmi3.h", "unpack.h", "xz/xz.h",
                 "xz/xz_private.h", "xz/xz_config.h", "xz/xz_lzma2.h", "xz/xz_stream.h")
-XZ_LICENSE = Path("fmu_src", "toolchain", "shim", "xz", "COPYING")  # relative to the source root
+XZ_LICENSE = Path("fmu_src", "toolchain", "shim", "xz", "LICENSE")  # relative to the source root
 XZ_LICENSE_NAME = "xz-embedded-COPYING.txt"
 XZ_DEFINES = ("XZ_DEC_X86", "XZ_USE_CRC64")  # what the decoder is compiled with: the x86 BCJ filter, CRC64
 CBASE_DIR = Path("fmu_src", "cbase")  # the lower C layer (platform.c, the FMI headers), relative to the root
