@@ -308,11 +308,10 @@ static int load(void) {
     void *python = NULL; /* NULL: every library of the process */
     if (open_python(runtime, &python) != 0) return -1;
     int (*is_initialized)(void) = (int (*)(void))ftc_library_symbol(python, "Py_IsInitialized");
-    if (!is_initialized) {
+    int own = 0, started = -1;
+    if (!is_initialized)
         snprintf(failure, TEXT, "%s: %s has no Py_IsInitialized: not a libpython", model, FTC_LIBPYTHON);
-        return -1;
-    }
-    int own = 0, started = start(&python, is_initialized, &own, runtime);
+    else started = start(&python, is_initialized, &own, runtime);
 #ifndef _WIN32
     if (decoded_temporary) ftc_remove_temporary(decoded); /* loaded and started: Linux keeps the mapping */
 #endif
