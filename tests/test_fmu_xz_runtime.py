@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import os
 import subprocess
+import sys
 import zipfile
 from pathlib import Path
 
@@ -140,3 +141,18 @@ def test_a_corrupted_member_is_one_message_not_a_crash(fmus: dict[str, Path], tm
     assert "libpython3.11.so.1.0.xz: corrupt xz data" in text, text
     assert decoded(cache) == []
     assert not list((tmp_path / "tmpdir").iterdir())
+
+
+def test_a_python_host_decodes_nothing(fmus: dict[str, Path], tmp_path: Path) -> None:
+    """FMPy runs the FMU on its own interpreter: the shim finds Python in the process and never
+    touches the .xz (no cache folder made, nothing in TMPDIR)."""
+    cache = tmp_path / "cache"
+    env = environment(tmp_path, XDG_CACHE_HOME=str(cache))
+    code = ("import sys, fmpy; r = fmpy.simulate_fmu(sys.argv[1], stop_time=0.01, output_interval=0.005); "
+            "print(len(r))")
+    result = subprocess.run([sys.executable, "-c", code, str(fmus[MODEL])], env=env, capture_output=True,
+                            text=True, timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert result.stdout.split()[-1] == "3"
+    assert not cache.exists()
+    assert not list((tmp_path / "tmpdir").glob("ftc-runtime-*"))
