@@ -141,6 +141,32 @@ def test_an_fmu_runs_from_an_empty_cache(wine: Wine, fmus: dict[str, Path], tmp_
     assert not [p for folder in local for p in folder.rglob("*.xz")]
 
 
+def test_without_a_cache_the_runtime_is_decoded_into_temp(wine: Wine, fmus: dict[str, Path],
+                                                          tmp_path: Path) -> None:
+    """A cache that cannot be written (a file where its folder would be; wine sets LOCALAPPDATA
+    from the profile whatever the environment says): the shim decodes the runtime into a new
+    folder of %TEMP% (ftc_temporary_copy), the FMU runs as its Linux binaries do, and that folder
+    holds python.org's python311.dll byte for byte (left there: a loaded DLL cannot be deleted)."""
+    local = list(wine.drive_c.glob("users/*/AppData/Local"))
+    temps = temp_folders(wine)
+    assert local and temps
+    for folder in local:
+        shutil.rmtree(folder / "fixed-time-cosim", ignore_errors=True)
+        (folder / "fixed-time-cosim").write_text("not a folder", encoding="utf-8")
+    try:
+        items = plan(wine, fmus, ("Reference",), tmp_path, suffix="_no_cache")
+        check(c_host_case(wine, items, tmp_path, gui=False, files=True))
+    finally:
+        for folder in local:
+            (folder / "fixed-time-cosim").unlink()
+    copies = [p for temp in temps for p in temp.glob("fixed-time-cosim-*")]
+    assert len(copies) == 1, copies
+    original = (runtime_win64.ensure_runtime().embed / "python311.dll").read_bytes()
+    assert (copies[0] / "python311.dll").read_bytes() == original
+    assert not list(copies[0].glob("*.xz"))
+    shutil.rmtree(copies[0])  # the process has ended
+
+
 def test_a_corrupted_python311_dll_xz_is_one_message(wine: Wine, fmus: dict[str, Path],
                                                       tmp_path: Path) -> None:
     """One byte of python311.dll.xz flipped, an empty cache: the instantiation returns NULL after one
