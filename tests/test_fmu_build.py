@@ -6,6 +6,7 @@ from __future__ import annotations
 import ast
 import hashlib
 import io
+import lzma
 import os
 import re
 import shutil
@@ -22,7 +23,7 @@ from fmu_helpers import MODELS
 
 from fmu_src.toolchain import runtime
 from fmu_src.toolchain.__main__ import main
-from fmu_src.toolchain.build import CLASS_LINE, REPO_ROOT, BuildError, build_fmu
+from fmu_src.toolchain.build import CLASS_LINE, REPO_ROOT, XZ_MEMBERS, BuildError, build_fmu
 from fmu_src.toolchain.variable_table import variable_table
 
 pytestmark = pytest.mark.system
@@ -132,8 +133,9 @@ def debian_md5sums(deb: Path) -> dict[str, str]:
 
 def test_linux64_is_the_shim_pythonfmus_binary_and_debians_runtime(fmus: dict) -> None:
     """linux64: the shim, pythonfmu's own binary unchanged under <model>_pythonfmu.so, and
-    Debian's libpython, expat and zlib byte for byte as Debian's package manifests list them; win64
-    beside it (tests/test_fmu_windows_build.py); the licences beside them."""
+    Debian's libpython, expat and zlib byte for byte as Debian's package manifests list them
+    (libpython xz-compressed, stored: decoded here by Python's lzma); win64 beside it
+    (tests/test_fmu_windows_build.py); the licences beside them."""
     shipped = Path(pythonfmu.__file__).parent / "resources" / "binaries"
     debs = REPO_ROOT / "build" / "runtime" / "debs"
     manifests: dict[str, str] = {}
@@ -148,11 +150,17 @@ def test_linux64_is_the_shim_pythonfmus_binary_and_debians_runtime(fmus: dict) -
             assert inner == (shipped / "linux64" / "libpythonfmu-export.so").read_bytes()
             assert archive.read(f"binaries/linux64/{model}.so") != inner
             for source, bundled in runtime.LIBRARIES:
-                data = archive.read(f"binaries/linux64/python/{bundled}")
+                name = f"binaries/linux64/python/{bundled}"
+                if name in XZ_MEMBERS:
+                    assert name not in names
+                    assert archive.getinfo(name + ".xz").compress_type == zipfile.ZIP_STORED
+                    data = lzma.decompress(archive.read(name + ".xz"), format=lzma.FORMAT_XZ)
+                else:
+                    data = archive.read(name)
                 assert hashlib.md5(data).hexdigest() == manifests[source], bundled
             licences = {n.rsplit("/", 1)[1] for n in names if n.startswith("documentation/licenses/")}
             assert {"Python-LICENSE.txt", "pythonfmu-LICENSE.txt", "expat-debian-copyright.txt",
-                    "zlib-debian-copyright.txt"} <= licences
+                    "zlib-debian-copyright.txt", "xz-embedded-COPYING.txt"} <= licences
             assert b"PYTHON SOFTWARE FOUNDATION LICENSE VERSION 2" in archive.read(
                 "documentation/licenses/Python-LICENSE.txt")
             description = archive.read("modelDescription.xml").decode()
@@ -224,7 +232,10 @@ def test_platform_floor_is_glibc_2_35_and_gcc_12s_libstdcxx(fmus: dict, tmp_path
     with zipfile.ZipFile(fmus["FixedTimeController"]) as archive:
         objects = [n for n in archive.namelist() if n.startswith("binaries/") and ".so" in n]
         for name in objects:
-            newest = newest_symbol_versions(archive.read(name), tmp_path)
+            data = archive.read(name)
+            if name.endswith(".xz"):  # libpython, as the shim decodes it
+                data = lzma.decompress(data, format=lzma.FORMAT_XZ)
+            newest = newest_symbol_versions(data, tmp_path)
             limit = machine if "/fallback/" in name else (2, 35)
             assert newest.get("GLIBC", ()) <= limit, (name, newest)
             assert newest.get("GLIBCXX", ()) <= (3, 4, 30), (name, newest)

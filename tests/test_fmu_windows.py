@@ -52,6 +52,7 @@ from wine import (  # noqa: E402
     unpack,
 )
 
+from fmu_src.toolchain import runtime_win64
 from fmu_src.toolchain.build import FMU_SCRIPTS, buildable_platforms
 from orchestrator.export import export  # noqa: E402
 
@@ -121,6 +122,69 @@ def test_console_host_every_fmi2_fmu_in_one_process(wine: Wine, fmus: dict[str, 
     found = c_host_case(wine, items, tmp_path, gui=False, files=True)
     check(found)
     results[("every FMU in one process", "C host console, FMI 2.0")] = found.text()
+
+
+def test_an_fmu_runs_from_an_empty_cache(wine: Wine, fmus: dict[str, Path], tmp_path: Path) -> None:
+    """python311.dll travels as python311.dll.xz (issue 46): the shim decodes it while copying the
+    runtime into an empty %LOCALAPPDATA%/fixed-time-cosim/runtime/ (ftc_cached_copy_decoded). The
+    FMU then runs as its Linux binaries do, and the cache holds python.org's python311.dll byte
+    for byte (from the pinned package, not the build's output) and no .xz."""
+    local = list(wine.drive_c.glob("users/*/AppData/Local"))
+    assert local, "the prefix has no %LOCALAPPDATA%"
+    for folder in local:
+        shutil.rmtree(folder / "fixed-time-cosim", ignore_errors=True)
+    items = plan(wine, fmus, ("FixedTimeController",), tmp_path, suffix="_empty_cache")
+    check(c_host_case(wine, items, tmp_path, gui=False, files=True))
+    decoded = [p for folder in local for p in folder.glob("fixed-time-cosim/runtime/*/python311.dll")]
+    assert len(decoded) == 1, decoded
+    assert decoded[0].read_bytes() == (runtime_win64.ensure_runtime().embed / "python311.dll").read_bytes()
+    assert not [p for folder in local for p in folder.rglob("*.xz")]
+
+
+def test_without_a_cache_the_runtime_is_decoded_into_temp(wine: Wine, fmus: dict[str, Path],
+                                                          tmp_path: Path) -> None:
+    """A cache that cannot be written (a file where its folder would be; wine sets LOCALAPPDATA
+    from the profile whatever the environment says): the shim decodes the runtime into a new
+    folder of %TEMP% (ftc_temporary_copy), the FMU runs as its Linux binaries do, and that folder
+    holds python.org's python311.dll byte for byte (left there: a loaded DLL cannot be deleted)."""
+    local = list(wine.drive_c.glob("users/*/AppData/Local"))
+    temps = temp_folders(wine)
+    assert local and temps
+    for folder in local:
+        shutil.rmtree(folder / "fixed-time-cosim", ignore_errors=True)
+        (folder / "fixed-time-cosim").write_text("not a folder", encoding="utf-8")
+    try:
+        items = plan(wine, fmus, ("Reference",), tmp_path, suffix="_no_cache")
+        check(c_host_case(wine, items, tmp_path, gui=False, files=True))
+    finally:
+        for folder in local:
+            (folder / "fixed-time-cosim").unlink()
+    copies = [p for temp in temps for p in temp.glob("fixed-time-cosim-*")]
+    assert len(copies) == 1, copies
+    original = (runtime_win64.ensure_runtime().embed / "python311.dll").read_bytes()
+    assert (copies[0] / "python311.dll").read_bytes() == original
+    assert not list(copies[0].glob("*.xz"))
+    shutil.rmtree(copies[0])  # the process has ended
+
+
+def test_a_corrupted_python311_dll_xz_is_one_message(wine: Wine, fmus: dict[str, Path],
+                                                      tmp_path: Path) -> None:
+    """One byte of python311.dll.xz flipped, an empty cache: the instantiation returns NULL after one
+    message naming the file (the host exits with 3, no crash), and nothing of it is cached."""
+    local = list(wine.drive_c.glob("users/*/AppData/Local"))
+    for folder in local:
+        shutil.rmtree(folder / "fixed-time-cosim", ignore_errors=True)
+    [broken] = plan(wine, fmus, ("Actuator",), tmp_path, suffix="_corrupted")
+    packed = broken.folder / "binaries" / "win64" / "python" / "python311.dll.xz"
+    data = bytearray(packed.read_bytes())
+    data[len(data) // 2] ^= 0x01
+    packed.write_bytes(bytes(data))
+    run = run_windows(wine, [broken], files=True)
+    assert run.status == 3, run.problem()
+    text = "\n".join(run.messages)
+    assert "Actuator: cannot decode the bundled python311.dll: " in text, text
+    assert "python311.dll.xz: corrupt xz data" in text, text
+    assert not [p for folder in local for p in folder.rglob("python311.dll")]
 
 
 def test_gui_host_every_fmi3_fmu(wine: Wine, built: Path, tmp_path: Path) -> None:

@@ -34,6 +34,14 @@ def test_the_vendored_fmi_headers_keep_their_own_licence() -> None:
     assert not [h.name for h in headers.glob("*.h") if TAG in h.read_text()]
 
 
+def test_the_vendored_xz_decoder_keeps_its_own_licence() -> None:
+    decoder = ROOT / "fmu_src" / "toolchain" / "shim" / "xz"
+    assert "Permission to use, copy, modify" in (decoder / "LICENSE").read_text()
+    files = sorted([*decoder.glob("*.c"), *decoder.glob("*.h")])
+    assert len(files) == 10
+    assert not [f.name for f in files if "SPDX-License-Identifier: 0BSD" not in f.read_text().splitlines()[0]]
+
+
 def test_the_musl_derived_files_say_mit_and_carry_its_notices() -> None:
     for name, licence in MIT.items():
         assert "SPDX-License-Identifier: MIT" in (ROOT / name).read_text().splitlines()[0]

@@ -12,9 +12,15 @@
 #ifndef _WIN32 /* ---------------------------------------------------------------- POSIX */
 
 #include <dlfcn.h>
+#include <errno.h>
 #include <fcntl.h>
+#include <stddef.h>
+#include <stdlib.h>
 #include <sys/file.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/un.h>
+#include <time.h>
 #include <unistd.h>
 
 void *ftc_library_open(const char *path, int global) {
@@ -73,6 +79,148 @@ void ftc_standard_streams(void *python, int saved[3]) {
 }
 
 void ftc_standard_streams_done(int saved[3]) { (void)saved; }
+
+/* ---- decoded files in the user's cache (ftc_decoded_file) ---- */
+
+/* FNV-1a, 64 bits, over the bytes of the file `path` (as ftc_cached_copy's key on Windows). */
+static int hash_file(const char *path, unsigned long long *h) {
+    enum { BLOCK = 1 << 16 };
+    unsigned char *block = malloc(BLOCK);
+    FILE *f = block ? fopen(path, "rbe") : NULL;
+    size_t got;
+    while (f && (got = fread(block, 1, BLOCK, f)) > 0)
+        for (size_t k = 0; k < got; k++) *h = (*h ^ block[k]) * 1099511628211ull;
+    int ok = f && !ferror(f);
+    if (f) fclose(f);
+    free(block);
+    return ok ? 0 : -1;
+}
+
+/* The cache's folder for decoded files: $XDG_CACHE_HOME (absolute, as the XDG specification
+   wants), else $HOME/.cache; 0, or -1 when neither is set. */
+static int cache_base(char *out, size_t size) {
+    const char *xdg = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
+    int n = -1;
+    if (xdg && xdg[0] == '/') n = snprintf(out, size, "%s/fixed-time-cosim/runtime", xdg);
+    else if (home && home[0] == '/') n = snprintf(out, size, "%s/.cache/fixed-time-cosim/runtime", home);
+    return n > 0 && (size_t)n < size ? 0 : -1;
+}
+
+/* Creates each missing folder of `path` (mode 0700, as a cache's); 0 if it then is a folder. */
+static int make_folders(char *path) {
+    for (char *p = path + 1; *p; p++)
+        if (*p == '/') {
+            *p = '\0';
+            mkdir(path, 0700);
+            *p = '/';
+        }
+    mkdir(path, 0700);
+    return ftc_is_dir(path) ? 0 : -1;
+}
+
+/* `packed` decoded into the open file `fd` (closed here), flushed to the disk; 0, -1 or -2 as the
+   decoder returns. */
+static int decode_into(const char *packed, int fd, ftc_decoder decode, char *why, size_t size) {
+    FILE *in = fopen(packed, "rbe"), *out = fdopen(fd, "wb");
+    int status;
+    if (!in) status = -1, snprintf(why, size, "cannot read it: %s", strerror(errno));
+    else if (!out) status = -2, snprintf(why, size, "cannot write the decoded file: %s", strerror(errno));
+    else status = decode(in, out, why, size);
+    if (status == 0 && fsync(fileno(out)) != 0) /* complete on the disk before its name exists */
+        status = -2, snprintf(why, size, "cannot write the decoded file: %s", strerror(errno));
+    if (in) fclose(in);
+    if (out) {
+        if (fclose(out) != 0 && status == 0)
+            status = -2, snprintf(why, size, "cannot write the decoded file: %s", strerror(errno));
+    } else close(fd);
+    return status;
+}
+
+/* `packed` decoded into <dir>/<name> through a temporary file of `dir`; 0 when <dir>/<name> then
+   holds it (ours, or another process's that was first), -1 or -2 as decode_into. */
+static int decode_into_cache(const char *packed, const char *name, ftc_decoder decode, char *dir,
+                             char *final, size_t size, char *why, size_t why_size) {
+    if ((size_t)snprintf(final, size, "%s/%s", dir, name) >= size) return -2;
+    if (ftc_is_file(final)) return 0; /* decoded before */
+    char part[FTC_PLATFORM_TEXT];
+    if (make_folders(dir) != 0 || (size_t)snprintf(part, sizeof part, "%s/.%s.XXXXXX", dir, name) >= sizeof part)
+        return -2;
+    int fd = mkostemp(part, O_CLOEXEC);
+    if (fd < 0) return -2;
+    int status = decode_into(packed, fd, decode, why, why_size);
+    if (status == 0 && link(part, final) != 0 && errno != EEXIST) /* EEXIST: another was first */
+        status = ftc_is_file(final) || rename(part, final) == 0 ? 0 : -2; /* a file system without links */
+    unlink(part);
+    return status;
+}
+
+int ftc_decoded_file(const char *packed, const char *name, ftc_decoder decode, char *out, size_t size,
+                     int *temporary, char *why, size_t why_size) {
+    char reason[FTC_PLATFORM_TEXT] = "", dir[FTC_PLATFORM_TEXT], final[FTC_PLATFORM_TEXT];
+    unsigned long long h = 14695981039346656037ull;
+    *temporary = 0;
+    if (hash_file(packed, &h) != 0) {
+        snprintf(why, why_size, "%s: cannot read it: %s", packed, strerror(errno));
+        return -1;
+    }
+    int status = -2;
+    if (cache_base(dir, sizeof dir) == 0 && strlen(dir) + 20 < sizeof dir) {
+        snprintf(dir + strlen(dir), sizeof dir - strlen(dir), "/%016llx", h);
+        status = decode_into_cache(packed, name, decode, dir, final, sizeof final, reason, sizeof reason);
+    }
+    if (status == -2) { /* no usable cache: a private folder, removed once loaded */
+        const char *tmp = getenv("TMPDIR");
+        snprintf(dir, sizeof dir, "%s/ftc-runtime-XXXXXX", tmp && tmp[0] ? tmp : "/tmp");
+        if (!mkdtemp(dir)) {
+            snprintf(why, why_size, "%s: no usable cache, and no folder can be made in %s: %s", packed,
+                     tmp && tmp[0] ? tmp : "/tmp", strerror(errno));
+            return -1;
+        }
+        snprintf(final, sizeof final, "%s/%s", dir, name);
+        int fd = open(final, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+        status = fd < 0 ? -2 : decode_into(packed, fd, decode, reason, sizeof reason);
+        if (fd < 0) snprintf(reason, sizeof reason, "cannot write the decoded file: %s", strerror(errno));
+        if (status != 0) ftc_remove_temporary(final);
+        else *temporary = 1;
+    }
+    if (status != 0) {
+        rmdir(dir); /* the cache's folder of a bad file, if empty */
+        snprintf(why, why_size, "%s: %s", packed, reason);
+        return -1;
+    }
+    return (size_t)snprintf(out, size, "%s", final) < size ? 0 : -1;
+}
+
+int ftc_process_lock(void) {
+    int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (fd < 0) return -1;
+    struct sockaddr_un name = {.sun_family = AF_UNIX}; /* abstract: sun_path[0] is '\0' */
+    int n = snprintf(name.sun_path + 1, sizeof name.sun_path - 1, "fixed-time-cosim-runtime-%ld", (long)getpid());
+    socklen_t length = (socklen_t)(offsetof(struct sockaddr_un, sun_path) + 1 + (size_t)n);
+    struct timespec millisecond = {0, 1000000};
+    for (int k = 0; k < 120000; k++) { /* two minutes at most: then without the lock */
+        if (bind(fd, (struct sockaddr *)&name, length) == 0) return fd;
+        if (errno != EADDRINUSE) break;
+        nanosleep(&millisecond, NULL);
+    }
+    close(fd);
+    return -1;
+}
+
+void ftc_process_unlock(int lock) {
+    if (lock >= 0) close(lock); /* frees the name */
+}
+
+void ftc_remove_temporary(const char *path) {
+    char dir[FTC_PLATFORM_TEXT];
+    snprintf(dir, sizeof dir, "%s", path);
+    char *slash = strrchr(dir, '/');
+    unlink(path);
+    if (slash) {
+        *slash = '\0';
+        rmdir(dir);
+    }
+}
 
 #else /* ---------------------------------------------------------------------- Windows */
 
@@ -276,11 +424,21 @@ static int collect(const wchar_t *root, const wchar_t *relative, wchar_t **names
     return failed ? -1 : 0;
 }
 
+/* The name a file of the source gets in the copy: `name` without ".xz" when decoded, else itself. */
+static const wchar_t *copied_name(const wchar_t *name, ftc_decoder decode, wchar_t *out) {
+    size_t n = wcslen(name);
+    if (!decode || n <= 3 || _wcsicmp(name + n - 3, L".xz") != 0 || n >= FTC_PLATFORM_TEXT) return name;
+    wmemcpy(out, name, n - 3);
+    out[n - 3] = L'\0';
+    return out;
+}
+
 /* A folder of ours that did not become the cache's: its files and folders removed (best effort). */
-static void remove_copy(const wchar_t *folder, wchar_t **names, size_t n) {
-    wchar_t path[FTC_PLATFORM_TEXT];
+static void remove_copy(const wchar_t *folder, wchar_t **names, size_t n, ftc_decoder decode) {
+    wchar_t path[FTC_PLATFORM_TEXT], plain[FTC_PLATFORM_TEXT];
     for (size_t k = 0; k < n; k++)
-        if (_snwprintf(path, FTC_PLATFORM_TEXT, L"%ls/%ls", folder, names[k]) > 0) DeleteFileW(path);
+        if (_snwprintf(path, FTC_PLATFORM_TEXT, L"%ls/%ls", folder, copied_name(names[k], decode, plain)) > 0)
+            DeleteFileW(path);
     if (_snwprintf(path, FTC_PLATFORM_TEXT, L"%ls/.complete", folder) > 0) DeleteFileW(path);
     for (size_t k = n; k-- > 0;) /* the subfolders, deepest first (names are sorted) */
         for (wchar_t *slash = wcsrchr(names[k], L'/'); slash; slash = wcsrchr(names[k], L'/')) {
@@ -288,6 +446,17 @@ static void remove_copy(const wchar_t *folder, wchar_t **names, size_t n) {
             if (_snwprintf(path, FTC_PLATFORM_TEXT, L"%ls/%ls", folder, names[k]) > 0) RemoveDirectoryW(path);
         }
     RemoveDirectoryW(folder);
+}
+
+/* `from` decoded by `decode` into the new file `to`; 0, or -1 (bad input, `why` says so) or -2. */
+static int decode_file(const wchar_t *from, const wchar_t *to, ftc_decoder decode, char *why, size_t size) {
+    FILE *in = _wfopen(from, L"rb"), *out = in ? _wfopen(to, L"wb") : NULL;
+    char reason[FTC_PLATFORM_TEXT] = "cannot read it", source[FTC_PLATFORM_TEXT];
+    int status = !in ? -1 : !out ? -2 : decode(in, out, reason, sizeof reason);
+    if (out && fclose(out) != 0 && status == 0) status = -2;
+    if (in) fclose(in);
+    if (status == -1 && narrow(from, source, sizeof source) == 0) snprintf(why, size, "%s: %s", source, reason);
+    return status;
 }
 
 /* The files to copy (`only`, or every file under `source`), sorted, in `names` (`*n` of them), and
@@ -307,30 +476,46 @@ static int listed_and_hashed(const wchar_t *source, const wchar_t *only, wchar_t
     return failed ? -1 : 0;
 }
 
+/* The files `names` of `source` copied (decoded, with `decode`) into `work`; 0, or -1 (a bad
+   compressed file: `why` names it) or -2. */
+static int copy_files(const wchar_t *source, const wchar_t *work, wchar_t **names, size_t n, ftc_decoder decode,
+                      char *why, size_t why_size) {
+    wchar_t from[FTC_PLATFORM_TEXT], to[FTC_PLATFORM_TEXT], plain[FTC_PLATFORM_TEXT];
+    int status = 0;
+    for (size_t k = 0; k < n && status == 0; k++) {
+        const wchar_t *name = copied_name(names[k], decode, plain);
+        if (_snwprintf(from, FTC_PLATFORM_TEXT, L"%ls/%ls", source, names[k]) < 0 ||
+            _snwprintf(to, FTC_PLATFORM_TEXT, L"%ls/%ls", work, name) < 0 || make_folders(to, 1) != 0)
+            status = -2;
+        else if (name == plain) status = decode_file(from, to, decode, why, why_size);
+        else status = CopyFileW(from, to, TRUE) ? 0 : -2;
+    }
+    return status;
+}
+
 /* The files `names` of `source` copied into a folder of this thread, marked complete and renamed
-   to `final`; 0 when `final` then holds them (ours, or another process's that was first). */
+   to `final`; 0 when `final` then holds them (ours, or another process's that was first), -1 (a
+   bad compressed file) or -2. */
 static int copy_into_place(const wchar_t *source, const wchar_t *final, const wchar_t *marker_path,
-                           wchar_t **names, size_t n) {
-    wchar_t work[FTC_PLATFORM_TEXT], from[FTC_PLATFORM_TEXT], to[FTC_PLATFORM_TEXT];
+                           wchar_t **names, size_t n, ftc_decoder decode, char *why, size_t why_size) {
+    wchar_t work[FTC_PLATFORM_TEXT], to[FTC_PLATFORM_TEXT];
     if (_snwprintf(work, FTC_PLATFORM_TEXT, L"%ls.part-%lu-%lu", final, GetCurrentProcessId(),
                    GetCurrentThreadId()) < 0 || make_folders(work, 0) != 0)
-        return -1;
-    int copied = 1;
-    for (size_t k = 0; k < n && copied; k++)
-        copied = _snwprintf(from, FTC_PLATFORM_TEXT, L"%ls/%ls", source, names[k]) > 0 &&
-                 _snwprintf(to, FTC_PLATFORM_TEXT, L"%ls/%ls", work, names[k]) > 0 && make_folders(to, 1) == 0 &&
-                 CopyFileW(from, to, TRUE);
+        return -2;
+    int copied = copy_files(source, work, names, n, decode, why, why_size);
     HANDLE marker = INVALID_HANDLE_VALUE;
-    if (copied && _snwprintf(to, FTC_PLATFORM_TEXT, L"%ls/.complete", work) > 0)
+    if (copied == 0 && _snwprintf(to, FTC_PLATFORM_TEXT, L"%ls/.complete", work) > 0)
         marker = CreateFileW(to, GENERIC_WRITE, 0, NULL, CREATE_NEW, FILE_ATTRIBUTE_NORMAL, NULL);
     if (marker != INVALID_HANDLE_VALUE) CloseHandle(marker);
     /* into place complete, or another process was first: its copy serves */
     if (marker != INVALID_HANDLE_VALUE && MoveFileExW(work, final, 0)) return 0;
-    remove_copy(work, names, n);
-    return GetFileAttributesW(marker_path) != INVALID_FILE_ATTRIBUTES ? 0 : -1;
+    remove_copy(work, names, n, decode);
+    if (copied == -1) return -1;
+    return GetFileAttributesW(marker_path) != INVALID_FILE_ATTRIBUTES ? 0 : -2;
 }
 
-int ftc_cached_copy(const char *folder, const char *only, char *out, size_t size) {
+static int cached_copy(const char *folder, const char *only, ftc_decoder decode, char *out, size_t size, char *why,
+                       size_t why_size) {
     wchar_t source[FTC_PLATFORM_TEXT], path[FTC_PLATFORM_TEXT], base[FTC_PLATFORM_TEXT], final[FTC_PLATFORM_TEXT];
     if (!wide(folder, source, FTC_PLATFORM_TEXT) || (only && !wide(only, path, FTC_PLATFORM_TEXT))) return -1;
     DWORD n_base = GetEnvironmentVariableW(L"LOCALAPPDATA", base, FTC_PLATFORM_TEXT);
@@ -338,17 +523,51 @@ int ftc_cached_copy(const char *folder, const char *only, char *out, size_t size
     wchar_t **names = calloc(CACHE_FILES, sizeof *names);
     size_t n = 0;
     unsigned long long h = 14695981039346656037ull;
+    if (decode) h = fnv(h, "decoded", 8); /* never the key of a plain copy of the same files */
     int status = -1;
     if (names && listed_and_hashed(source, only ? path : NULL, names, &n, &h) == 0 && n > 0 &&
         _snwprintf(final, FTC_PLATFORM_TEXT, L"%ls/fixed-time-cosim/runtime/%016llx", base, h) > 0 &&
         _snwprintf(path, FTC_PLATFORM_TEXT, L"%ls/.complete", final) > 0) {
         if (GetFileAttributesW(path) != INVALID_FILE_ATTRIBUTES) status = 0; /* made before */
-        else status = copy_into_place(source, final, path, names, n);
+        else status = copy_into_place(source, final, path, names, n, decode, why, why_size) == 0 ? 0 : -1;
     }
     for (size_t k = 0; names && k < n; k++) free(names[k]);
     free(names);
     if (status == 0 && narrow(final, out, size) != 0) status = -1;
     return status;
+}
+
+int ftc_cached_copy(const char *folder, const char *only, char *out, size_t size) {
+    char why[FTC_PLATFORM_TEXT];
+    return cached_copy(folder, only, NULL, out, size, why, sizeof why);
+}
+
+int ftc_cached_copy_decoded(const char *folder, ftc_decoder decode, char *out, size_t size, char *why,
+                            size_t why_size) {
+    why[0] = '\0';
+    return cached_copy(folder, NULL, decode, out, size, why, why_size);
+}
+
+int ftc_temporary_copy(const char *folder, ftc_decoder decode, char *out, size_t size, char *why,
+                       size_t why_size) {
+    wchar_t source[FTC_PLATFORM_TEXT], temp[FTC_PLATFORM_TEXT], work[FTC_PLATFORM_TEXT];
+    why[0] = '\0';
+    DWORD n_temp = GetTempPathW(FTC_PLATFORM_TEXT, temp);
+    if (!wide(folder, source, FTC_PLATFORM_TEXT) || n_temp == 0 || n_temp >= FTC_PLATFORM_TEXT - 96 ||
+        _snwprintf(work, FTC_PLATFORM_TEXT, L"%lsfixed-time-cosim-%lu-%lu-%llu", temp, GetCurrentProcessId(),
+                   GetCurrentThreadId(), (unsigned long long)GetTickCount64()) < 0 ||
+        make_folders(work, 0) != 0)
+        return -1;
+    wchar_t **names = calloc(CACHE_FILES, sizeof *names);
+    size_t n = 0;
+    int status = names && collect(source, L"", names, &n) == 0 ? copy_files(source, work, names, n, decode, why,
+                                                                          why_size)
+                                                              : -2;
+    if (status != 0) remove_copy(work, names, n, decode);
+    for (size_t k = 0; names && k < n; k++) free(names[k]);
+    free(names);
+    if (status == 0 && narrow(work, out, size) != 0) status = -1;
+    return status == 0 ? 0 : -1;
 }
 
 /* The shim's own file, opened without FILE_SHARE_DELETE while the shim is loaded (ftc_keep_own_file):

@@ -46,6 +46,32 @@ FILE *ftc_fopen(const char *path, const char *mode);
 int ftc_file_lock(const char *path);
 void ftc_file_unlock(int lock);
 
+/* A decoder of a compressed file (the shim's ftc_xz_decode): `in` decoded into `out`; 0, or what
+   failed in `why` and -1 (the input is bad: nothing else will decode it) or -2 (the output cannot
+   be written: another place may serve). */
+typedef int (*ftc_decoder)(FILE *in, FILE *out, char *why, size_t size);
+
+#ifndef _WIN32
+/* POSIX: the file `packed` decoded by `decode` into the user's cache once,
+   $XDG_CACHE_HOME/fixed-time-cosim/runtime/<key>/<name> (else ~/.cache/...), where <key> is a
+   64-bit FNV-1a hash of `packed`'s bytes: decoded into a temporary file of that folder and linked
+   into place complete, so that processes racing all succeed and none ever sees half a file. Where
+   there is no usable cache (no HOME, a read-only or full disk), into a new private folder of
+   $TMPDIR (else /tmp) instead, and `*temporary` is 1: the caller removes it with
+   ftc_remove_temporary once it has loaded the file (Linux keeps the mapping). Writes the decoded
+   file's path to `out`; 0, or -1 and one message naming `packed` in `why`. */
+int ftc_decoded_file(const char *packed, const char *name, ftc_decoder decode, char *out, size_t size,
+                     int *temporary, char *why, size_t why_size);
+void ftc_remove_temporary(const char *path);
+
+/* POSIX: a lock every library of the process shares (the shims of all FMUs: an abstract Unix
+   socket named after the process, nothing on the disk), so that of FMUs instantiated at once in
+   several threads one decodes and loads libpython and the others then find it; -1 if it cannot
+   be had (then nothing is locked). */
+int ftc_process_lock(void);
+void ftc_process_unlock(int lock);
+#endif
+
 #ifdef _WIN32
 /* The DLLs (*.dll, *.pyd) of folder `dir` are opened for reading without
    FILE_SHARE_DELETE, and the handles kept for the life of the process, so that their files cannot
@@ -67,6 +93,19 @@ void ftc_keep_files(const char *dir);
    copy's folder to `out`; 0, or -1 (no cache: no LOCALAPPDATA, a full disk, ...; the caller
    then loads from `folder`). */
 int ftc_cached_copy(const char *folder, const char *only, char *out, size_t size);
+
+/* ftc_cached_copy of every file of `folder` with its *.xz files decoded by `decode` to their names
+   without ".xz" (the key: the source files' hash, marked as decoded). -1 where there is no cache;
+   then `why` is empty, or, when a compressed file is bad, names it and says what failed. */
+int ftc_cached_copy_decoded(const char *folder, ftc_decoder decode, char *out, size_t size, char *why,
+                            size_t why_size);
+
+/* Where there is no cache: the same decoded copy in a new folder of the temporary folder
+   (GetTempPathW, fixed-time-cosim-<process>-<thread>-<time>), left there when the process ends
+   (Windows cannot delete a DLL its process holds loaded; the system's disk clean-up removes it).
+   0, or -1 and `why` as for ftc_cached_copy_decoded. */
+int ftc_temporary_copy(const char *folder, ftc_decoder decode, char *out, size_t size, char *why,
+                       size_t why_size);
 
 /* The shim's own file (`path`) opened without FILE_SHARE_DELETE until the host unloads the shim
    (DllMain): undeletable while loaded, as Windows keeps any loaded image, so that wine never

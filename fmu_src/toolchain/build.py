@@ -36,6 +36,7 @@ from __future__ import annotations
 import ast
 import hashlib
 import importlib.metadata
+import lzma
 import os
 import re
 import shutil
@@ -91,19 +92,25 @@ BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 BUILD_FORMAT = "10"
 SHIM_DIR = Path("fmu_src", "toolchain", "shim")  # relative to the source root
 # The shim laid out as the Modelica Reference FMUs lay theirs out (shim.h says what each file holds).
+# xz/: XZ Embedded's decoder (public domain / 0BSD, xz/README.md), for the runtime's .xz members (unpack.c).
+XZ_SOURCES = ("xz/xz_crc32.c", "xz/xz_crc64.c", "xz/xz_dec_stream.c", "xz/xz_dec_lzma2.c", "xz/xz_dec_bcj.c")
 SHIM_SOURCES = ("fmi2_functions.c", "guard.c", "cosimulation.c", "loader.c", "pool.c", "log.c", "resources.c",
-                "start_python.c")
-SHIM_HEADERS = ("shim.h", "start_python.h", "fmi2_calls.h", "description.h", "fmi3.h")
+                "start_python.c", "unpack.c", *XZ_SOURCES)
+SHIM_HEADERS = ("shim.h", "start_python.h", "fmi2_calls.h", "description.h", "fmi3.h", "unpack.h", "xz/xz.h",
+                "xz/xz_private.h", "xz/xz_config.h", "xz/xz_lzma2.h", "xz/xz_stream.h")
+XZ_LICENSE = Path("fmu_src", "toolchain", "shim", "xz", "LICENSE")  # relative to the source root
+XZ_LICENSE_NAME = "xz-embedded-COPYING.txt"
+XZ_DEFINES = ("XZ_DEC_X86", "XZ_USE_CRC64")  # what the decoder is compiled with: the x86 BCJ filter, CRC64
 CBASE_DIR = Path("fmu_src", "cbase")  # the lower C layer (platform.c, the FMI headers), relative to the root
 # The shared flags (fmu_src/cbase: no debug info, build id or symbol table, so the bytes depend only
 # on source, compiler and flags); the runtime's libraries are found by soname through
 # $ORIGIN/python/lib (see the shim's header).
 SHIM_FLAGS = (*cbase.REPRODUCIBLE_FLAGS, "-fPIC", "-shared", "-fvisibility=hidden", "-Wl,--enable-new-dtags",
-              "-Wl,-rpath,$ORIGIN/python/lib")
+              "-Wl,-rpath,$ORIGIN/python/lib", *(f"-D{d}" for d in XZ_DEFINES))
 SHIM_LIBS = ("-ldl", "-pthread")
 # The Windows shim: mingw-w64, linked against the system's KERNEL32 and msvcrt.dll only; no time
 # stamp in the PE header, so the bytes depend only on sources, compiler and flags.
-MINGW_FLAGS = (*cbase.REPRODUCIBLE_MINGW_FLAGS, "-shared")
+MINGW_FLAGS = (*cbase.REPRODUCIBLE_MINGW_FLAGS, "-shared", *(f"-D{d}" for d in XZ_DEFINES))
 WIN_PYCONFIG = Path("fmu_src", "toolchain", "shim", "win64", "pyconfig.h")  # relative to the source root
 # Windows extension modules: no C runtime of their own, python3.dll (stable ABI) and the Universal
 # C Runtime imported as python311.dll imports it: only its exact math (sqrt, fabs, floor, fmod;
@@ -181,6 +188,18 @@ PYTHONFMU_LINES = {
 CLASS_LINE = re.compile(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", re.MULTILINE)  # pythonfmu's loader regex
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 DEFLATE_KEPT = 64 << 10  # members this large (the runtimes' libraries, zips, DLLs) are deflated once
+# The two interpreter libraries, by far the runtimes' largest files, go into the FMU xz-compressed
+# (<name>.xz, stored, not deflated again): the x86 BCJ filter and LZMA2 at preset 9e take
+# libpython3.11.so.1.0 from 7.74 MB to 1.87 MB and python311.dll from 5.80 MB to 1.71 MB (deflate:
+# 2.59 and 2.30 MB). The shim decodes one only when it must load the bundled interpreter (unpack.c).
+# An 8 MiB dictionary holds either file whole: the same bytes as preset 9's 64 MiB, and 8 MiB is
+# all the decoder allocates (unpack.h's FTC_XZ_DICT_MAX).
+XZ_MEMBERS = ("binaries/linux64/python/lib/libpython3.11.so.1.0", "binaries/win64/python/python311.dll")
+XZ_SUFFIX = ".xz"
+XZ_DICT = 8 << 20
+XZ_FILTERS = ({"id": lzma.FILTER_X86},
+              {"id": lzma.FILTER_LZMA2, "preset": 9 | lzma.PRESET_EXTREME, "dict_size": XZ_DICT})
+XZ_LIMIT = 64 << 20  # unpack.h's FTC_XZ_LIMIT: the shim refuses to decode more
 GUID_NAMESPACE = uuid.UUID("5b0f3a52-4c1e-4d59-9a4e-2f6f1c1e7a10")
 
 
@@ -398,10 +417,13 @@ def _shim_work(root: Path, where: Path, sources: Sequence[str], defines: Sequenc
     """The shim's work folder under ``where`` holding ``sources`` and the headers, and its flags."""
     work = where / ("shim-win64" if windows else "shim")
     work.mkdir(parents=True, exist_ok=True)
-    for source in shim_files(root, sources):  # one flat folder: the includes name files only
+    shim = root / SHIM_DIR
+    for source in shim_files(root, sources):  # one folder (and xz/): the includes name files only
         if not source.is_file():
             raise BuildError(f"FMI shim source not found: {source}")
-        shutil.copyfile(source, work / source.name)
+        target = work / (source.relative_to(shim) if source.is_relative_to(shim) else source.name)
+        target.parent.mkdir(exist_ok=True)
+        shutil.copyfile(source, target)
     return work, [*(MINGW_FLAGS if windows else SHIM_FLAGS), *(f"-D{d}" for d in defines)]
 
 
@@ -712,7 +734,7 @@ def _write_normalized(raw_fmu: Path, target: Path, bundle: Bundle, digest: str, 
         if binary not in entries:
             raise BuildError(f"pythonfmu's archive for {bundle.model} has no {binary}")
         entries[f"binaries/{platform}/{bundle.model}_pythonfmu{suffix}"] = entries[binary]
-    entries.update(native)
+    entries.update(xz_members(native))
     entries.update(documentation(entries))
     entries["modelDescription.xml"] = _normalized_description(
         entries["modelDescription.xml"], digest, bundle.model
@@ -763,10 +785,40 @@ def write_archive(target: Path, entries: dict[str, bytes], kept: Path | None = N
             info.compress_type = zipfile.ZIP_DEFLATED
             info.external_attr = 0o644 << 16
             data = entries[name]
-            if len(data) >= DEFLATE_KEPT:
+            if name.endswith(XZ_SUFFIX):  # compressed already (:func:`xz_members`)
+                info.compress_type = zipfile.ZIP_STORED
+                archive.writestr(info, data)
+            elif len(data) >= DEFLATE_KEPT:
                 _write_deflated(archive, info, data, _deflated(data, kept))
             else:
                 archive.writestr(info, data)
+
+
+def xz_members(entries: dict[str, bytes], kept: Path | None = None) -> dict[str, bytes]:
+    """``entries`` with the members of :data:`XZ_MEMBERS` replaced by ``<name>.xz``, compressed with
+    :data:`XZ_FILTERS` (CRC64 check) once and kept in ``kept`` (default: the runtime cache's
+    ``xz/``) under the digest of the bytes and the settings: 7 s of CPU a file."""
+    kept = _ensure_runtime().root.parent / "xz" if kept is None else kept
+    settings = repr(XZ_FILTERS).encode()
+    out = dict(entries)
+    for name in XZ_MEMBERS:
+        if name not in out:
+            continue
+        data = out.pop(name)
+        if len(data) > XZ_LIMIT:
+            raise BuildError(f"{name}: {len(data)} bytes: more than the shim decodes ({XZ_LIMIT})")
+        path = kept / hashlib.sha256(hashlib.sha256(data).digest() + settings).hexdigest()
+        if path.is_file():
+            packed = path.read_bytes()
+        else:
+            packed = lzma.compress(data, format=lzma.FORMAT_XZ, check=lzma.CHECK_CRC64,
+                                   filters=list(XZ_FILTERS))
+            path.parent.mkdir(parents=True, exist_ok=True)
+            partial = path.with_name(f".{path.name}.{os.getpid()}")
+            partial.write_bytes(packed)
+            partial.replace(path)
+        out[name + XZ_SUFFIX] = packed
+    return out
 
 
 def _deflated(data: bytes, kept: Path) -> bytes:
@@ -816,7 +868,8 @@ def build_sources(root: Path = REPO_ROOT) -> list[Path]:
     the shim (tracked files only: what a build product is made from)."""
     here = Path(__file__).resolve().parent
     shim = sorted({*shim_files(root), root / SHIM_DIR / LAUNCHER_SOURCE})
-    return [*(here / n for n in BUILD_CODE), *shim, root / WIN_PYCONFIG, root / CBASE_DIR / "__init__.py"]
+    return [*(here / n for n in BUILD_CODE), *shim, root / XZ_LICENSE, root / WIN_PYCONFIG,
+            root / CBASE_DIR / "__init__.py"]
 
 
 def fmu_sources(bundle: Bundle, root: Path = REPO_ROOT) -> list[Path]:
@@ -895,6 +948,7 @@ def build_fmu(model: str, dest: Path, root: Path = REPO_ROOT, platforms: Sequenc
         for name, dll in shims.items():
             native[name] = shim_digest(root, runtime, Path(tmp), windows=dll).encode()
         native["documentation/licenses/pythonfmu-LICENSE.txt"] = _licence("pythonfmu")
+        native[f"documentation/licenses/{XZ_LICENSE_NAME}"] = (root / XZ_LICENSE).read_bytes()
         if FMATH_MODULE in bundle.modules:
             native[f"documentation/licenses/{FMATH_LICENSE.name}"] = (root / FMATH_LICENSE).read_bytes()
         extensions = {name: compile_extension(source, runtime, Path(tmp), root)

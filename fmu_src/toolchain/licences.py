@@ -30,6 +30,9 @@ NOTICES = {
                               "MIT"),
     "fmath-LICENSE.txt": ("controller/fmath (exp, sin, cos, pow), transcribed from musl's src/math, which "
                           "derives from Sun's fdlibm", "MIT"),
+    "xz-embedded-COPYING.txt": ("XZ Embedded (Lasse Collin and contributors): the .xz decoder compiled into "
+                                "the shim, which decodes python/lib/libpython3.11.so.1.0.xz and "
+                                "python/python311.dll.xz", "0BSD"),
     "Python-LICENSE.txt": ("CPython 3.11: libpython and the standard library under binaries/*/python/",
                            "PSF-2.0"),
     "Python-debian-copyright.txt": ("Debian's packages of CPython 3.11 (copyright file)", "PSF-2.0"),

@@ -275,7 +275,8 @@ def _write(target: Path, entries: Mapping[str, bytes]) -> None:
     with replacing(target) as temporary, zipfile.ZipFile(temporary, "w", zipfile.ZIP_DEFLATED) as archive:
         for name in sorted(entries):
             info = zipfile.ZipInfo(name, date_time=ZIP_DATE)
-            info.compress_type = zipfile.ZIP_DEFLATED
+            # the runtime's .xz members are compressed already (fmu_src/toolchain/build.py): stored
+            info.compress_type = zipfile.ZIP_STORED if name.endswith(".xz") else zipfile.ZIP_DEFLATED
             info.external_attr = (0o755 if name.endswith(".so") else 0o644) << 16
             archive.writestr(info, entries[name])
 

@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "shim.h"
+#include "unpack.h"
 
 /* pythonfmu's functions (shim.h). */
 #define DEFINE_POINTER(name, params, args) fmi2Status(*inner_##name) params;
@@ -101,20 +102,33 @@ static void shared_runtime_folder(const char *dir, char runtime[TEXT + 16]) {
 
 /* Where the runtime and pythonfmu's binary are loaded from: `runtime` (the python/ folder) and
    `inner_dir`. Windows: copies in the user's cache (see ftc_cached_copy), so that the host can
-   delete the folder it unpacked once it has freed the instances and this library; where there is
-   no cache, and on POSIX, the unpacked folder `dir` itself. */
-static void runtime_folders(const char *dir, char runtime[TEXT + 16], char inner_dir[TEXT]) {
+   delete the folder it unpacked once it has freed the instances and this library, the runtime's
+   python311.dll.xz decoded there (unpack.c); where there is no cache, the unpacked folder `dir`
+   itself, and the runtime decoded into a folder of %TEMP% (ftc_temporary_copy). POSIX: the
+   unpacked folder (libpython3.11.so.1.0.xz is decoded by open_python, only where it is needed). */
+static int runtime_folders(const char *dir, char runtime[TEXT + 16], char inner_dir[TEXT]) {
     shared_runtime_folder(dir, runtime);
     snprintf(inner_dir, TEXT, "%s", dir);
 #ifdef _WIN32
-    char file[TEXT + 64], cached_runtime[TEXT + 16], cached_inner[TEXT];
+    char file[TEXT + 64], cached_runtime[TEXT + 16], cached_inner[TEXT], why[TEXT];
     snprintf(file, sizeof file, "%s%s", model, INNER_SUFFIX);
-    if (ftc_cached_copy(runtime, NULL, cached_runtime, sizeof cached_runtime) == 0 &&
-        ftc_cached_copy(dir, file, cached_inner, sizeof cached_inner) == 0) {
+    if (ftc_cached_copy_decoded(runtime, ftc_xz_decode, cached_runtime, sizeof cached_runtime, why, sizeof why) == 0) {
+        if (ftc_cached_copy(dir, file, cached_inner, sizeof cached_inner) == 0)
+            snprintf(inner_dir, TEXT, "%s", cached_inner);
         snprintf(runtime, TEXT + 16, "%s", cached_runtime);
-        snprintf(inner_dir, TEXT, "%s", cached_inner);
+        return 0;
+    }
+    snprintf(file, sizeof file, "%s/" FTC_LIBPYTHON FTC_XZ_SUFFIX, runtime);
+    if (!why[0] && ftc_is_file(file) &&
+        ftc_temporary_copy(runtime, ftc_xz_decode, cached_runtime, sizeof cached_runtime, why, sizeof why) == 0)
+        snprintf(runtime, TEXT + 16, "%s", cached_runtime);
+    else if (why[0] || ftc_is_file(file)) { /* `why` names the file */
+        if (!why[0]) snprintf(why, sizeof why, "%s: no cache, and no folder of %%TEMP%% to decode it into", file);
+        snprintf(failure, TEXT, "%s: cannot decode the bundled " FTC_LIBPYTHON ": %s", model, why);
+        return -1;
     }
 #endif
+    return 0;
 }
 
 #ifdef _WIN32
@@ -143,28 +157,79 @@ static int open_python(const char *runtime, void **python) {
     return 0;
 }
 #else
-/* libpython by its soname where the process has no Python, zlib and expat (which it links)
-   before it. `*python`: the library (NULL: every library of the process). */
+static char decoded[TEXT];  /* the libpython this shim decoded and loaded, if any */
+static int decoded_temporary; /* 1: it is in a private folder of TMPDIR, removed once started */
+
+/* The runtime's libpython3.11.so.1.0.xz decoded (into the user's cache, else a private folder;
+   ftc_decoded_file) and loaded by its path; NULL and the message where it cannot be. */
+static void *load_decoded(const char *packed) {
+    char why[TEXT];
+    if (ftc_decoded_file(packed, FTC_LIBPYTHON, ftc_xz_decode, decoded, sizeof decoded, &decoded_temporary, why,
+                         sizeof why) != 0) {
+        snprintf(failure, TEXT, "%s: cannot decode the bundled %s: %s", model, FTC_LIBPYTHON, why);
+        decoded[0] = '\0';
+        return NULL;
+    }
+    void *handle = ftc_library_open(decoded, 1);
+    if (!handle) {
+        snprintf(failure, TEXT, "%s: cannot load the bundled %s (decoded from %s): %s", model, decoded, packed,
+                 ftc_library_error(decoded));
+        if (decoded_temporary) ftc_remove_temporary(decoded);
+        decoded[0] = '\0';
+    }
+    return handle;
+}
+
+/* libpython where the process has no Python, zlib and expat (which it links) before it. The
+   runtime carries it xz-compressed: one another FMU's shim is loading is taken by its soname,
+   else it is decoded and loaded by its path (load_decoded); an uncompressed one (an FMU of an
+   earlier build) by its path. `*python`: the library (NULL: every library of the process). */
 static int open_python(const char *runtime, void **python) {
     if (ftc_library_symbol(NULL, "Py_IsInitialized")) return 0;
     char zlib[TEXT + 64], expat[TEXT + 64];
     snprintf(zlib, sizeof zlib, "%s/fallback/libz.so.1", runtime);
     snprintf(expat, sizeof expat, "%s/fallback/libexpat.so.1", runtime);
-    /* the FMU's own libpython by soname (the shim's DT_RUNPATH finds it), a container's shared one by
-       its path (no other is in the process: a system's libpython3.11 must not serve instead) */
-    char library[TEXT + 64];
+    char library[TEXT + 64], packed[TEXT + 64];
     snprintf(library, sizeof library, "%s" FTC_LIBPYTHON_DIR FTC_LIBPYTHON, runtime);
-    if (!load_runtime_library("libz.so.1", zlib) || !load_runtime_library("libexpat.so.1", expat) ||
-        !(*python = load_runtime_library(shared_runtime ? library : FTC_LIBPYTHON, NULL)))
-        return -1;
-    return 0;
+    snprintf(packed, sizeof packed, "%s" FTC_XZ_SUFFIX, library);
+    if (!load_runtime_library("libz.so.1", zlib) || !load_runtime_library("libexpat.so.1", expat)) return -1;
+    if (!ftc_is_file(library) && ftc_is_file(packed)) {
+        /* FMUs instantiated in parallel threads: one decodes and loads it, the others then find
+           it by soname (decoded files of other folders would be other libpythons) */
+        int lock = ftc_process_lock();
+        *python = ftc_library_loaded(FTC_LIBPYTHON) ? load_runtime_library(FTC_LIBPYTHON, NULL) : load_decoded(packed);
+        ftc_process_unlock(lock);
+        return *python ? 0 : -1;
+    }
+    /* an uncompressed runtime: the FMU's own libpython by soname (the shim's DT_RUNPATH finds it),
+       a container's shared one by its path (a system's libpython3.11 must not serve instead) */
+    return (*python = load_runtime_library(shared_runtime ? library : FTC_LIBPYTHON, NULL)) ? 0 : -1;
 }
 #endif
+
+/* Whether `library` is a libpython the shim of an FMU decoded (ftc_decoded_file): named
+   libpython3.11.so.1.0 in a folder <16 hex digits> of .../fixed-time-cosim/runtime, or in a
+   private folder ftc-runtime-XXXXXX. */
+static int decoded_library(const char *library) {
+#ifdef _WIN32
+    (void)library;
+    return 0;
+#else
+    const char *slash = strrchr(library, '/');
+    if (!slash || strcmp(slash + 1, FTC_LIBPYTHON) != 0) return 0;
+    const char *folder = slash;
+    while (folder > library && folder[-1] != '/') folder--;
+    if (strncmp(folder, "ftc-runtime-", 12) == 0) return 1;
+    const char *parent = "/fixed-time-cosim/runtime/";
+    size_t m = strlen(parent);
+    return slash - folder == 16 && (size_t)(folder - library) >= m && strncmp(folder - m, parent, m) == 0;
+#endif
+}
 
 /* Starts the interpreter `python` if nobody has: the FMU's bundled runtime isolated
    (start_python.c), a host's own libpython as a host would. `*own`: Python is an FMU's bundled
    runtime (this one's or another's), not the host's. */
-static int start(void **python, int (*is_initialized)(void), int *own) {
+static int start(void **python, int (*is_initialized)(void), int *own, const char *runtime) {
     /* The shims of two FMUs may start at once in different threads: the second may find the
        libpython the first loaded before the first started it. So whether Python is an FMU's own
        runtime is decided by the file that defines it (<home>/lib/libpython... beside
@@ -177,6 +242,10 @@ static int start(void **python, int (*is_initialized)(void), int *own) {
     if (!*python) *python = ftc_library_loaded(library); /* the host's: symbols are per DLL */
 #endif
     *own = bundled_home(library, home);
+    if (!*own && decoded_library(library)) { /* decoded from a runtime: its home is the runtime's folder */
+        *own = 1;
+        snprintf(home, TEXT, "%s", runtime);
+    }
     int lock = ftc_file_lock(library);
     int status = 0;
     if (!is_initialized() && *own) {
@@ -235,17 +304,18 @@ static int open_inner(const char *self, const char *inner_dir, const char *runti
 /* Makes Python available if needed, then opens pythonfmu's binary. Called once, under load_lock. */
 static int load(void) {
     char self[TEXT], dir[TEXT], runtime[TEXT + 16], inner_dir[TEXT];
-    if (locate(self, dir) != 0) return -1;
-    runtime_folders(dir, runtime, inner_dir);
+    if (locate(self, dir) != 0 || runtime_folders(dir, runtime, inner_dir) != 0) return -1;
     void *python = NULL; /* NULL: every library of the process */
     if (open_python(runtime, &python) != 0) return -1;
     int (*is_initialized)(void) = (int (*)(void))ftc_library_symbol(python, "Py_IsInitialized");
-    if (!is_initialized) {
+    int own = 0, started = -1;
+    if (!is_initialized)
         snprintf(failure, TEXT, "%s: %s has no Py_IsInitialized: not a libpython", model, FTC_LIBPYTHON);
-        return -1;
-    }
-    int own = 0;
-    if (start(&python, is_initialized, &own) != 0 || open_inner(self, inner_dir, runtime) != 0) return -1;
+    else started = start(&python, is_initialized, &own, runtime);
+#ifndef _WIN32
+    if (decoded_temporary) ftc_remove_temporary(decoded); /* loaded and started: Linux keeps the mapping */
+#endif
+    if (started != 0 || open_inner(self, inner_dir, runtime) != 0) return -1;
 #ifndef _WIN32 /* the double free below is pythonfmu's on Linux (its binary cannot be unloaded there) */
     atexit(unload); /* after pythonfmu's static destructors were registered: runs before them */
 #endif

@@ -9,19 +9,30 @@
    shim as binaries/linux64/<model>.so, keeps pythonfmu's binary beside it as
    <model>_pythonfmu.so, and bundles a CPython runtime in binaries/linux64/python/ (libpython,
    the two libraries it links, a zipped subset of the standard library; fmu_src/toolchain/runtime.py).
+   libpython is carried xz-compressed, lib/libpython3.11.so.1.0.xz (1.9 MB instead of 2.6 MB
+   deflated; python311.dll.xz likewise on Windows), and decoded only where it is loaded.
    At the first fmi2Instantiate the shim:
 
    1. looks for Python in the process: dlsym(RTLD_DEFAULT, "Py_IsInitialized"). A Python host
       (fmpy, libcosimpy, OMSimulator's Python API, any version) keeps its own interpreter: the
-      FMU's code is plain Python that runs on 3.10 and later;
-   2. if there is none, loads the bundled libpython with RTLD_NOW | RTLD_GLOBAL (so pythonfmu's
-      undefined Python symbols resolve) by its soname: the shim's DT_RUNPATH is
-      $ORIGIN/python/lib, and a libpython3.11 another FMU's shim loaded already is found by
-      soname first, so one process holds one libpython whatever the number of FMUs. zlib and
-      expat, which libpython links, are loaded the same way before it;
+      FMU's code is plain Python that runs on 3.10 and later, and nothing is decoded;
+   2. if there is none, loads zlib and expat (which libpython links) by soname, the machine's or
+      else the runtime's fallback/ copies, then libpython with RTLD_NOW | RTLD_GLOBAL (so
+      pythonfmu's undefined Python symbols resolve): one another FMU's shim loaded already, found
+      by its soname (one process holds one libpython whatever the number of FMUs), else
+      lib/libpython3.11.so.1.0.xz decoded (unpack.c, XZ Embedded in xz/: CRC64 checked, at most
+      64 MiB) into the user's cache once, $XDG_CACHE_HOME/fixed-time-cosim/runtime/<hash of the
+      .xz>/ (else ~/.cache/...; platform.c, ftc_decoded_file: written under a temporary name and
+      linked into place, so racing processes all succeed and none loads half a file) and loaded
+      by that path; where there is no usable cache (no HOME, a read-only or full disk) into a
+      private folder of TMPDIR, removed once Python has started (Linux keeps the mapping). A
+      lock shared by the process's shims (ftc_process_lock) makes FMUs instantiated at once in
+      several threads decode and load it once. On Windows the runtime's copy in the user's cache
+      (ftc_cached_copy_decoded) holds python311.dll decoded, else a copy in %TEMP%;
    3. if Python is not initialized, starts it isolated (start_python.c: PyConfig isolated mode,
-      home and module search path inside this FMU's folder, no site, no environment variable,
-      no signal handler, no bytecode written) and releases the GIL. pythonfmu then finds Python
+      home and module search path inside this FMU's runtime folder, also for a decoded libpython;
+      no site, no environment variable, no signal handler, no bytecode written) and releases the
+      GIL. pythonfmu then finds Python
       initialized, so it neither initializes nor finalizes it, and takes the GIL with
       PyGILState_Ensure as it does in a Python host. A lock on the libpython file keeps FMUs
       instantiated in parallel threads from starting Python twice;
@@ -58,7 +69,8 @@
    binary, loaded once; pool.c pythonfmu's components kept for reuse; log.c messages to the host;
    resources.c the FMU's folder and resources; description.h the variable table the build
    generates (description.c, from the FMU's final modelDescription.xml); fmi3.h and fmi3_*.c the
-   FMI 3.0 layer on top; start_python.c the bundled interpreter's isolated start.
+   FMI 3.0 layer on top; start_python.c the bundled interpreter's isolated start; unpack.c the
+   decoder of the runtime's .xz files, on XZ Embedded (xz/, 0BSD, unmodified).
 
    Needs a C compiler, libc and the pinned runtime's headers (for start_python.c only): the
    Python C-API functions are looked up with dlsym, so the shim links no libpython. */
