@@ -60,6 +60,7 @@ from . import runtime_win64, stamps
 from .controller_doc import controller_documentation
 from .licences import documentation, generation_tool
 from .runtime import (
+    LIBRARIES,
     Runtime,
     RuntimeBundleError,
     compile_bytecode,
@@ -101,6 +102,10 @@ SHIM_HEADERS = ("shim.h", "start_python.h", "fmi2_calls.h", "description.h", "fm
 XZ_LICENSE = Path("fmu_src", "toolchain", "shim", "xz", "LICENSE")  # relative to the source root
 XZ_LICENSE_NAME = "xz-embedded-COPYING.txt"
 XZ_DEFINES = ("XZ_DEC_X86", "XZ_USE_CRC64")  # what the decoder is compiled with: the x86 BCJ filter, CRC64
+# Shim sources no variant's -D changes (the decoder, the platform layer): compiled with the shim's
+# flags alone, so that the FMI 2.0 shim, the FMI 3.0 shims and the clocked twins share their
+# objects (the cold build compiled each of them four times per platform: 7 s of CPU).
+VARIANT_FREE = ("unpack.c", *XZ_SOURCES, *cbase.PLATFORM_SOURCES)
 CBASE_DIR = Path("fmu_src", "cbase")  # the lower C layer (platform.c, the FMI headers), relative to the root
 # The shared flags (fmu_src/cbase: no debug info, build id or symbol table, so the bytes depend only
 # on source, compiler and flags); the runtime's libraries are found by soname through
@@ -189,16 +194,17 @@ CLASS_LINE = re.compile(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", re.MULTILINE)  #
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 DEFLATE_KEPT = 64 << 10  # members this large (the runtimes' libraries, zips, DLLs) are deflated once
 # The two interpreter libraries, by far the runtimes' largest files, go into the FMU xz-compressed
-# (<name>.xz, stored, not deflated again): the x86 BCJ filter and LZMA2 at preset 9e take
+# (<name>.xz, stored, not deflated again): the x86 BCJ filter and LZMA2 at preset 6 take
 # libpython3.11.so.1.0 from 7.74 MB to 1.87 MB and python311.dll from 5.80 MB to 1.71 MB (deflate:
 # 2.59 and 2.30 MB). The shim decodes one only when it must load the bundled interpreter (unpack.c).
-# An 8 MiB dictionary holds either file whole: the same bytes as preset 9's 64 MiB, and 8 MiB is
-# all the decoder allocates (unpack.h's FTC_XZ_DICT_MAX).
+# Preset 6's 8 MiB dictionary holds either file whole, and 8 MiB is all the decoder allocates
+# (unpack.h's FTC_XZ_DICT_MAX); preset 9e gave 2 KB more in 1.3x the time (6.2 s of CPU for both
+# files against 4.75 + 3.1 s, once per cold build: the result is kept).
 XZ_MEMBERS = ("binaries/linux64/python/lib/libpython3.11.so.1.0", "binaries/win64/python/python311.dll")
 XZ_SUFFIX = ".xz"
 XZ_DICT = 8 << 20
 XZ_FILTERS = ({"id": lzma.FILTER_X86},
-              {"id": lzma.FILTER_LZMA2, "preset": 9 | lzma.PRESET_EXTREME, "dict_size": XZ_DICT})
+              {"id": lzma.FILTER_LZMA2, "preset": 6, "dict_size": XZ_DICT})
 XZ_LIMIT = 64 << 20  # unpack.h's FTC_XZ_LIMIT: the shim refuses to decode more
 GUID_NAMESPACE = uuid.UUID("5b0f3a52-4c1e-4d59-9a4e-2f6f1c1e7a10")
 
@@ -343,10 +349,11 @@ def _mingw_version() -> str:
 
 
 def _objects(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequence[str], what: Path,
-             windows: str = "") -> tuple[str, list[str | Path], list[bytes]]:
+             windows: str = "", plain: Sequence[str] = ()) -> tuple[str, list[str | Path], list[bytes]]:
     """Compile each of ``sources`` (in ``work``) to an object against the runtime's headers (with
     the Windows pyconfig.h for ``windows``), each once for the same bytes of it and of the headers
-    beside it (nine FMUs share one shim's objects). The compiler, the inputs every step shares,
+    beside it (nine FMUs share one shim's objects); those also in ``plain`` with the shim's flags
+    without a variant's -D (:data:`VARIANT_FREE`). The compiler, the inputs every step shares,
     and the objects' bytes (also written beside their sources)."""
     compiler = mingw() if windows else c_compiler()[0]
     if windows:
@@ -363,8 +370,10 @@ def _objects(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequen
     common: list[str | Path] = [version, *(here / n for n in BUILD_CODE),
                                 *(f"{p.relative_to(work)}\0{stamps.file_digest(p)}" for p in header_files)]
     objects = []
+    base = MINGW_FLAGS if windows else SHIM_FLAGS  # for ``plain``: a shim variant's flags minus its -D
     for source in sources:
-        command = [compiler, *flags, *includes, "-c", "-o", f"{source}.o", source]
+        own = base if source in plain else flags
+        command = [compiler, *own, *includes, "-c", "-o", f"{source}.o", source]
         objects.append(_kept(runtime, work, command, f"{source}.o", what,
                              [*common, _relative(command, work), work / source]))
     for source, data in zip(sources, objects, strict=True):
@@ -373,14 +382,14 @@ def _objects(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequen
 
 
 def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequence[str],
-             libraries: Sequence[str], what: Path, windows: str = "") -> bytes:
+             libraries: Sequence[str], what: Path, windows: str = "", plain: Sequence[str] = ()) -> bytes:
     """Compile ``sources`` (in ``work``) into a shared object against the runtime's headers; its
     bytes (the same for the same sources, compiler, flags and runtime). ``what`` names the sources
     in the error. ``windows``: the DLL's file name, cross-compiled with mingw-w64 against the same
     headers with the Windows pyconfig.h."""
     # Content-addressed, in two steps: the objects (_objects), then the link into the named
     # library; the build is reproducible, so a kept product is the one it would make.
-    compiler, common, _ = _objects(work, runtime, flags, sources, what, windows)
+    compiler, common, _ = _objects(work, runtime, flags, sources, what, windows, plain)
     out = windows or "out.so"
     command = [compiler, *flags, "-o", out, *(f"{source}.o" for source in sources), *libraries]
     return _kept(runtime, work, command, out, what,
@@ -443,7 +452,7 @@ def shim_digest(root: Path, runtime: Runtime, where: Path, sources: Sequence[str
     The same for the same code: a changed comment leaves it, a changed message changes it."""
     work, flags = _shim_work(root, where, sources, defines, windows)
     sources = [*sources, *cbase.PLATFORM_SOURCES]
-    _, _, objects = _objects(work, runtime, flags, sources, root / SHIM_DIR, windows)
+    _, _, objects = _objects(work, runtime, flags, sources, root / SHIM_DIR, windows, VARIANT_FREE)
     return stamps.digest(*(hashlib.sha256(data).hexdigest() for data in objects))
 
 
@@ -467,7 +476,7 @@ def compile_shim(root: Path, runtime: Runtime, where: Path, description: bytes,
         raise BuildError(f"the variable table of the shim: {error}") from error
     libraries = () if windows else SHIM_LIBS
     return _compile(work, runtime, flags, [*sources, *cbase.PLATFORM_SOURCES, TABLE_SOURCE], libraries,
-                    root / SHIM_DIR, windows)
+                    root / SHIM_DIR, windows, VARIANT_FREE)
 
 
 def _extension_work(source: Path, work: Path, root: Path) -> None:
@@ -517,6 +526,10 @@ def compile_shared(root: Path = REPO_ROOT, platforms: Sequence[str] = PLATFORM_N
     runtime = _ensure_runtime()
     bundled_python(runtime, root)
     windows = "win64" in _platforms(platforms)
+    interpreters = {f"binaries/linux64/python/{name}": runtime.root / source for source, name in LIBRARIES}
+    if windows:
+        interpreters["binaries/win64/python/python311.dll"] = _ensure_win_runtime().embed / "python311.dll"
+    xz_members({name: path.read_bytes() for name, path in interpreters.items() if name in XZ_MEMBERS})
     with tempfile.TemporaryDirectory(prefix="ftc_shared_") as tmp:
         shim_digest(root, runtime, Path(tmp))
         if windows:
@@ -797,7 +810,7 @@ def write_archive(target: Path, entries: dict[str, bytes], kept: Path | None = N
 def xz_members(entries: dict[str, bytes], kept: Path | None = None) -> dict[str, bytes]:
     """``entries`` with the members of :data:`XZ_MEMBERS` replaced by ``<name>.xz``, compressed with
     :data:`XZ_FILTERS` (CRC64 check) once and kept in ``kept`` (default: the runtime cache's
-    ``xz/``) under the digest of the bytes and the settings: 7 s of CPU a file."""
+    ``xz/``) under the digest of the bytes and the settings: 2.5-3.6 s of CPU a file."""
     kept = _ensure_runtime().root.parent / "xz" if kept is None else kept
     settings = repr(XZ_FILTERS).encode()
     out = dict(entries)

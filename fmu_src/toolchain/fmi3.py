@@ -31,6 +31,7 @@ import hashlib
 import tempfile
 import uuid
 import zipfile
+from collections.abc import Sequence
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -38,6 +39,7 @@ from . import stamps
 from .build import (
     GUID_NAMESPACE,
     IDENTITY_FILE,
+    PLATFORM_NAMES,
     REPO_ROOT,
     SHIM_SOURCES,
     BuildError,
@@ -52,7 +54,8 @@ from .build import (
 from .clocked import ClockedError, clocked_model_description
 from .licences import generation_tool
 
-__all__ = ["CLOCKED_SUFFIX", "FMI3_PLATFORM", "FMI3_SHIM_SOURCES", "build_fmu3", "fmi3_model_description",
+__all__ = ["CLOCKED_SUFFIX", "FMI3_PLATFORM", "FMI3_SHIM_SOURCES", "build_fmu3", "compile_shared_fmi3",
+           "fmi3_model_description",
            "fmu3_current", "target_name"]
 
 FMI2_PLATFORM = "binaries/linux64/"
@@ -89,6 +92,21 @@ REFUSED_FEATURES = {  # what the FMI 3.0 layer does not provide, said explicitly
 }
 TIME = "time"
 VR_OFFSET = 1
+# The FMI 3.0 shim's -D: no FMI 2.0 exports; the per-FMU value references are constants of the
+# variable table's object (fmi3.h), so that every FMU shares the other objects; the clocked twin's too.
+FMI3_DEFINES = ("EXPORT=", "FTC_TIME_VR=ftc_time_vr", f"FTC_VR_OFFSET={VR_OFFSET}")
+CLOCKED_DEFINES = (*FMI3_DEFINES, "FTC_CLOCK_VR=ftc_clock_vr", "FTC_INTERVAL_VR=ftc_interval_vr")
+
+
+def compile_shared_fmi3(root: Path = REPO_ROOT, platforms: Sequence[str] = PLATFORM_NAMES) -> None:
+    """The FMI 3.0 shims' objects (plain and clocked) compiled once per platform, before builds run
+    in parallel (as :func:`~fmu_src.toolchain.build.compile_shared` compiles the FMI 2.0 shim's):
+    else two builds that start at once both compile them."""
+    runtime = _ensure_runtime()
+    with tempfile.TemporaryDirectory(prefix="ftc_shared3_") as tmp:
+        for sources, defines in ((FMI3_SHIM_SOURCES, FMI3_DEFINES), (CLOCKED_SHIM_SOURCES, CLOCKED_DEFINES)):
+            for windows in ("", "shared.dll") if "win64" in platforms else ("",):
+                shim_digest(root, runtime, Path(tmp) / f"{len(defines)}{windows}", sources, defines, windows)
 
 
 def _child(parent: ElementTree.Element, tag: str) -> ElementTree.Element | None:
@@ -245,8 +263,7 @@ def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT, *, force: bool = 
     if f"{FMI2_PLATFORM}{model}.so" not in entries:
         raise BuildError(f"{fmu2}: no {FMI2_PLATFORM}{model}.so")
     plain, time_vr = fmi3_model_description(xml, "")
-    # the per-FMU value references: constants of the variable table's object (fmi3.h)
-    defines: tuple[str, ...] = ("EXPORT=", "FTC_TIME_VR=ftc_time_vr", f"FTC_VR_OFFSET={VR_OFFSET}")
+    defines: tuple[str, ...] = FMI3_DEFINES
     constants = {"ftc_time_vr": time_vr}
     shim_sources: tuple[str, ...] = FMI3_SHIM_SOURCES
     if clocked:
@@ -254,7 +271,7 @@ def build_fmu3(fmu2: Path, dest: Path, root: Path = REPO_ROOT, *, force: bool = 
             twin = clocked_model_description(plain)
         except ClockedError as exc:
             raise BuildError(f"{fmu2}: no clocked twin: {exc}") from None
-        defines = (*defines, "FTC_CLOCK_VR=ftc_clock_vr", "FTC_INTERVAL_VR=ftc_interval_vr")
+        defines = CLOCKED_DEFINES
         constants |= {"ftc_clock_vr": twin.clock_vr, "ftc_interval_vr": twin.interval_vr}
         shim_sources = CLOCKED_SHIM_SOURCES
     moved = dict(entries)

@@ -158,8 +158,10 @@ def _in_parallel(builds: dict[str, Callable[[], Path]], say: Callable[[str], Non
 def _ensure_runtimes(root: Path, platforms: Sequence[str]) -> None:
     """The runtimes unpacked and what every FMU shares compiled, once, before the workers."""
     from fmu_src.toolchain.build import compile_shared
+    from fmu_src.toolchain.fmi3 import compile_shared_fmi3
 
     compile_shared(root, platforms)
+    compile_shared_fmi3(root, platforms)
 
 
 def _pack(name: str, sources: Path, fmus: dict[str, Path], target: Path, force: bool = False,
