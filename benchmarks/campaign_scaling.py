@@ -64,9 +64,14 @@ def external_cluster(folder: Path, workers: int) -> Iterator[str]:
         )
     ]
     try:
-        while not file.is_file():
-            time.sleep(0.2)
-        address = json.loads(file.read_text())["address"]
+        address = ""
+        while not address:  # the file appears before its JSON does
+            try:
+                address = json.loads(file.read_text())["address"]
+            except (OSError, ValueError, KeyError):
+                if procs[0].poll() is not None:
+                    raise SystemExit(f"the scheduler ended: see {folder / 'dask.log'}") from None
+                time.sleep(0.2)
         procs += [
             subprocess.Popen(
                 [

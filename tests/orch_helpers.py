@@ -3,9 +3,13 @@
 
 from __future__ import annotations
 
+import json
+import os
 import re
+import signal
 import subprocess
 import sys
+import time
 import zipfile
 from pathlib import Path
 
@@ -92,3 +96,53 @@ def write_zip(path: Path, members: dict[str, bytes]) -> Path:
         for name, data in members.items():
             zf.writestr(name, data)
     return path
+
+
+class DaskCluster:
+    """A real ``dask scheduler`` and ``workers`` single-threaded ``dask worker`` processes (each with
+    its nanny) on localhost, free ports, logging to ``folder/dask.log``; ``stop`` kills them."""
+
+    def __init__(self, folder: Path, workers: int) -> None:
+        self.folder = folder
+        self.log = open(folder / "dask.log", "a")  # noqa: SIM115 (closed in stop)
+        scheduler_file = folder / "scheduler.json"
+        scheduler_file.unlink(missing_ok=True)
+        self.scheduler = self._start("scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                                     "--scheduler-file", str(scheduler_file))
+        self.workers: list[subprocess.Popen] = []
+        try:
+            self.address = self._address(scheduler_file)
+            self.workers = [self._start("worker", self.address, "--nthreads", "1", "--no-dashboard",
+                                        "--local-directory", str(folder / f"w{i}")) for i in range(workers)]
+            from distributed import Client
+
+            with Client(self.address, timeout="30s") as client:
+                client.wait_for_workers(workers, timeout=60)
+        except BaseException:
+            self.stop()
+            raise
+
+    def _start(self, *args: str) -> subprocess.Popen:
+        # TMPDIR: the scheduler makes dask-scratch-space there and leaves it
+        return subprocess.Popen([str(Path(sys.executable).with_name("dask")), *args], stdout=self.log,
+                                stderr=self.log, env={**os.environ, "TMPDIR": str(self.folder)})
+
+    def _address(self, scheduler_file: Path) -> str:
+        """The address the scheduler wrote, once the file holds all of its JSON: it appears before
+        its content does (seen on a loaded CI machine as an empty file)."""
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and self.scheduler.poll() is None:
+            try:
+                return str(json.loads(scheduler_file.read_text())["address"])
+            except (OSError, ValueError, KeyError):
+                time.sleep(0.05)
+        raise AssertionError(f"the scheduler wrote no address to {scheduler_file} (exit "
+                             f"{self.scheduler.poll()}; log {self.folder / 'dask.log'})")
+
+    def stop(self) -> None:
+        """Kill the workers and the scheduler (SIGKILL: a clean close takes seconds) and wait."""
+        for p in [*self.workers, self.scheduler]:
+            if p.poll() is None:
+                p.send_signal(signal.SIGKILL)
+            p.wait(timeout=30)
+        self.log.close()

@@ -17,10 +17,12 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
+from orch_helpers import DaskCluster
 
 import orchestrator
 from orchestrator import RunOptions
@@ -124,70 +126,14 @@ def test_report_names_the_worst_runs(embedded: Path, tmp_path: Path) -> None:
 
 
 @pytest.fixture
-def external_cluster(tmp_path: Path):
+def external_cluster(tmp_path: Path) -> Iterator[str]:
     """A real ``dask scheduler`` and two ``dask worker`` processes on localhost (free ports), torn
     down afterwards."""
-    scheduler_file = tmp_path / "scheduler.json"
-    dask = str(VENV_BIN / "dask")
-    logs = open(tmp_path / "dask.log", "w")  # noqa: SIM115 (closed below)
-    procs = [
-        subprocess.Popen(
-            [
-                dask,
-                "scheduler",
-                "--host",
-                "127.0.0.1",
-                "--port",
-                "0",
-                "--no-dashboard",
-                "--scheduler-file",
-                str(scheduler_file),
-            ],
-            stdout=logs,
-            stderr=logs,
-            env={**os.environ, "TMPDIR": str(tmp_path)},  # its dask-scratch-space, left otherwise
-        )
-    ]
+    cluster = DaskCluster(tmp_path, 2)
     try:
-        deadline = time.monotonic() + 60
-        while not scheduler_file.is_file() and time.monotonic() < deadline:
-            time.sleep(0.2)
-        address = json.loads(scheduler_file.read_text())["address"]
-        for i in range(2):
-            procs.append(
-                subprocess.Popen(
-                    [
-                        dask,
-                        "worker",
-                        address,
-                        "--nthreads",
-                        "1",
-                        "--no-dashboard",
-                        "--local-directory",
-                        str(tmp_path / f"w{i}"),
-                    ],
-                    stdout=logs,
-                    stderr=logs,
-                )
-            )
-        from distributed import Client
-
-        with Client(address, timeout="30s") as client:
-            client.wait_for_workers(2, timeout=60)
-        yield address
+        yield cluster.address
     finally:
-        if len(procs) > 1:
-            from distributed import Client
-
-            with Client(address, timeout="10s") as client:
-                client.shutdown()  # scheduler and workers close at once (SIGTERM takes seconds)
-        for p in reversed(procs):
-            try:
-                p.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                p.terminate()
-                p.wait(timeout=10)
-        logs.close()
+        cluster.stop()
 
 
 def test_external_scheduler_gives_the_same_table(

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
-from orch_helpers import loop_scenario, write_zip, zip_members
+from orch_helpers import DaskCluster, loop_scenario, write_zip, zip_members
 
 from orchestrator.campaign.plugin import ScenarioPlugin
 from orchestrator.campaign.sweep import connect, sweep
@@ -38,54 +38,21 @@ VENV_BIN = Path(sys.executable).parent
 RUNS = 12
 
 
-class Cluster:
-    """A ``dask scheduler`` and ``dask worker`` processes (each with its nanny) on localhost."""
-
-    def __init__(self, folder: Path, workers: int) -> None:
-        self.folder = folder
-        self.log = open(folder / "dask.log", "a")  # noqa: SIM115 (closed in stop)
-        scheduler_file = folder / "scheduler.json"
-        scheduler_file.unlink(missing_ok=True)
-        self.scheduler = self._start("scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                                     "--scheduler-file", str(scheduler_file))
-        deadline = time.monotonic() + 60
-        while not scheduler_file.is_file() and time.monotonic() < deadline:
-            time.sleep(0.1)
-        self.address = json.loads(scheduler_file.read_text())["address"]
-        self.workers = [self._start("worker", self.address, "--nthreads", "1", "--no-dashboard",
-                                    "--local-directory", str(folder / f"w{i}")) for i in range(workers)]
-        from distributed import Client
-
-        with Client(self.address, timeout="30s") as client:
-            client.wait_for_workers(workers, timeout=60)
-
-    def _start(self, *args: str) -> subprocess.Popen:
-        # TMPDIR: the scheduler makes dask-scratch-space there and leaves it
-        return subprocess.Popen([str(VENV_BIN / "dask"), *args], stdout=self.log, stderr=self.log,
-                                env={**os.environ, "TMPDIR": str(self.folder)})
-
-    def worker_process(self, nanny: subprocess.Popen) -> int:
-        """The pid of the worker process a ``dask worker`` nanny started."""
-        for entry in Path("/proc").iterdir():
-            try:
-                ppid = int(entry.joinpath("stat").read_text().rsplit(")", 1)[1].split()[1])
-                if ppid == nanny.pid and b"spawn_main" in entry.joinpath("cmdline").read_bytes():
-                    return int(entry.name)
-            except (OSError, ValueError, IndexError):
-                continue
-        raise AssertionError("no worker process")
-
-    def stop(self) -> None:
-        for p in [*self.workers, self.scheduler]:
-            if p.poll() is None:
-                p.send_signal(signal.SIGKILL)
-            p.wait(timeout=30)
-        self.log.close()
+def worker_process(nanny: subprocess.Popen) -> int:
+    """The pid of the worker process a ``dask worker`` nanny started."""
+    for entry in Path("/proc").iterdir():
+        try:
+            ppid = int(entry.joinpath("stat").read_text().rsplit(")", 1)[1].split()[1])
+            if ppid == nanny.pid and b"spawn_main" in entry.joinpath("cmdline").read_bytes():
+                return int(entry.name)
+        except (OSError, ValueError, IndexError):
+            continue
+    raise AssertionError("no worker process")
 
 
 @pytest.fixture
-def cluster(tmp_path: Path) -> Iterator[Cluster]:
-    started = Cluster(tmp_path, 2)
+def cluster(tmp_path: Path) -> Iterator[DaskCluster]:
+    started = DaskCluster(tmp_path, 2)
     try:
         yield started
     finally:
@@ -138,7 +105,7 @@ def test_runs_the_dead_scheduler_did_not_finish_are_not_run_and_resume_finishes_
     assert len(first) == RUNS - summary.not_run and summary.ok == len(first)
     cluster.stop()
     (tmp_path / "again").mkdir()
-    again = Cluster(tmp_path / "again", 1)
+    again = DaskCluster(tmp_path / "again", 1)
     try:
         resumed = sweep([scenario], design, out, scheduler=again.address, resume=True, progress=False)
     finally:
@@ -150,7 +117,7 @@ def test_runs_the_dead_scheduler_did_not_finish_are_not_run_and_resume_finishes_
 
 def test_a_killed_worker_is_reported_with_the_runs_it_held(cluster, scenario, design, tmp_path):
     out = tmp_path / "out"
-    victim = cluster.worker_process(cluster.workers[0])
+    victim = worker_process(cluster.workers[0])
     watcher = _when_rows(out / "runs.csv", 1, lambda: os.kill(victim, signal.SIGKILL))
     summary = sweep([scenario], design, out, scheduler=cluster.address, progress=False)
     watcher.join()
