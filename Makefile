@@ -13,7 +13,7 @@ ALT_VENV   := .venv-alt
 ALT_STAMP  := $(ALT_VENV)/.installed-fmpy-pythonfmu
 BYTECODE := build/.bytecode
 
-.PHONY: run test unit build lint docs docs-figure browser windows-tools windows-matrix runtime-pins runtime-pins-win64 hostile executors crosscheck crosscheck-all conformance table study study-fixed-time check-fail-fast research report baselines bench clean
+.PHONY: run test unit build lint docs docs-figure browser windows-tools windows-matrix install-matrix runtime-pins runtime-pins-win64 hostile executors crosscheck crosscheck-all conformance table study study-fixed-time check-fail-fast research report baselines bench clean
 
 # pip's console script 'orchestrate' is then replaced by orchestrator/launcher.c, which holds SIGINT and
 # SIGTERM from its first instruction until the package's handlers are in (issue 20). Compiled to a
@@ -152,6 +152,12 @@ hostile: build
 ## (make test exports one container of each kind)
 executors: build
 	ORCHESTRATE_ALL_EXECUTORS=1 $(PY) -m pytest -q -n 2 tests/test_executors.py
+
+## install-matrix: the pins resolved for every supported Python (3.11.0, 3.11.2, 3.12, 3.13), every
+## pin used by one of them, and pyproject.toml's floors installed and run against the pins (make
+## test runs Debian's pip on the pins and the resolve for the oldest Python)
+install-matrix: $(DEV_STAMP) build
+	FTC_INSTALL_ALL=1 $(PY) -m pytest -q -n 2 tests/test_install.py
 
 ## runtime-pins: move the FMUs' runtime (fmu_src/toolchain/runtime_pins.txt) to the newest bookworm and
 ## bookworm-security packages, saying what changed; then 'make build' fetches them

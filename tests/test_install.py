@@ -14,12 +14,17 @@ declares (issue 42).
 
 Oracles: uv's and pip's resolvers against the pins; the pinned environment's results of the same
 runs (the same FMUs, so the same bits).
+
+``make test`` runs Debian's pip on the pins and uv's resolve for the oldest Python;
+``make install-matrix`` (FTC_INSTALL_ALL=1) also the other Pythons, the pins none of them use and
+the floors (about 100 s of the suite's time).
 """
 
 from __future__ import annotations
 
 import functools
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -40,6 +45,8 @@ PROJECT = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
 RUNTIME = (*PROJECT["dependencies"], *PROJECT["optional-dependencies"]["pandas"])  # a user's install
 OLDEST = PROJECT["requires-python"].removeprefix(">=")  # the floors are for the oldest supported Python
 PYTHONS = ("3.11.0", "3.11.2", "3.12.0", "3.13.0")
+ALL = os.environ.get("FTC_INSTALL_ALL") == "1"
+whole_matrix = pytest.mark.skipif(not ALL, reason="the whole install matrix: make install-matrix")
 PLATFORM = "x86_64-manylinux_2_28"  # wheels for glibc 2.28 or later (Debian 12 has 2.36)
 DEBIAN_PYTHON = Path("/usr/bin/python3")
 UV = find_uv_bin()
@@ -116,7 +123,7 @@ def _resolve(python: str) -> dict[str, str]:
 
 
 @pytest.mark.system
-@pytest.mark.parametrize("python", PYTHONS)
+@pytest.mark.parametrize("python", [PYTHONS[0], *(pytest.param(p, marks=whole_matrix) for p in PYTHONS[1:])])
 def test_the_pins_resolve_for_every_supported_python(python: str) -> None:
     resolved = _resolve(python)
     assert {"fmpy", "numpy", "pytest", "mkdocs"} <= resolved.keys()
@@ -124,6 +131,7 @@ def test_the_pins_resolve_for_every_supported_python(python: str) -> None:
 
 
 @pytest.mark.system
+@whole_matrix
 def test_every_pin_is_installed_on_some_python() -> None:
     used = set().union(*map(_resolve, PYTHONS))
     pinned = {canonicalize_name(Requirement(line).name)
@@ -175,6 +183,7 @@ def _campaign(folder: Path) -> tuple[list[dict], list[str]]:
 
 
 @pytest.mark.system
+@whole_matrix
 def test_the_declared_floors_install_and_run_as_the_pins_do(dist: Path, built: Path, tmp_path: Path) -> None:
     declared = [Requirement(r) for r in RUNTIME]
     python = _oldest_python()
