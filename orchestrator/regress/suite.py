@@ -23,6 +23,7 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import multiprocessing.connection
+import multiprocessing.resource_tracker
 import os
 import signal
 import time
@@ -470,6 +471,11 @@ def _run_isolated(cases: Sequence[Case], jobs: int, settings: Settings,
     """Every case in ``jobs`` worker processes (kept in ``workers``, which the caller ends); a
     worker that dies is replaced for the scenarios left."""
     context = multiprocessing.get_context("spawn")  # no fork of a process holding threads or FMUs
+    # The first spawn starts multiprocessing's resource tracker, and starting it unblocks SIGINT in
+    # this process (CPython's bpo-33613 guard): started now, before _start_worker blocks SIGINT, so
+    # that the first worker too inherits the block (it printed a KeyboardInterrupt traceback from
+    # its imports when Ctrl-C came while it started).
+    multiprocessing.resource_tracker.ensure_running()
     pending = list(enumerate(cases))
     started = 0
     while pending or _busy(workers):
