@@ -12,6 +12,7 @@ and a new binding after fmi2Reset.
 
 from __future__ import annotations
 
+import gc
 import sys
 import threading
 from collections.abc import Iterator
@@ -187,3 +188,48 @@ def test_reset_gives_a_fresh_instance(fmus: dict[str, Path], path: str) -> None:
         slave.reset()
         assert run(slave, vr) == first
         assert len(set(first)) > 5  # the outputs moved
+
+
+class _ExplodingLaw:
+    """Stands in for a controller's law: ``advance`` raises, as a bug in a model's step would (the
+    first time only: a path that ran the step twice would then succeed)."""
+
+    def __init__(self) -> None:
+        self.calls = 0
+
+    def advance(self, *args: object) -> object:
+        self.calls += 1
+        if self.calls == 1:
+            raise ZeroDivisionError("the law exploded on purpose")
+        return args[2]  # the state, unchanged
+
+
+def test_an_exception_in_do_step_is_reported_as_pythonfmu_reports_it(
+        fmus: dict[str, Path], monkeypatch: pytest.MonkeyPatch) -> None:
+    """A do_step that raises: on the direct path the shim keeps the exception and pythonfmu's
+    fmi2DoStep raises that very object again: the same status and the same messages as on
+    pythonfmu's own path (which names the exception, not its traceback)."""
+    seen = {}
+    for path in PATHS:
+        monkeypatch.setenv("FTC_FMU_DIRECT", "1" if path == "direct" else "0")
+        messages = Messages()
+        slave, _ = instantiate(fmus["FixedTimeController"], messages, name=f"exploding-{path}")
+        try:
+            slave.setupExperiment(startTime=0.0)
+            slave.enterInitializationMode()
+            slave.exitInitializationMode()
+            (model,) = [o for o in gc.get_objects() if type(o).__name__ == "FixedTimeController"
+                        and getattr(o, "instance_name", None) == f"exploding-{path}"]
+            model._law = _ExplodingLaw()
+            with pytest.raises(FMICallException) as raised:
+                slave.doStep(0.0, 1e-3)
+            assert model._law.calls == 1  # the step ran once: the exception kept, not the step redone
+            seen[path] = raised.value.status, messages.seen
+            del model
+        finally:
+            slave.freeInstance()
+    assert seen["direct"] == seen["pythonfmu"]
+    status, logged = seen["direct"]
+    assert status == 4  # fmi2Fatal: what pythonfmu makes of an exception in do_step
+    text = "\n".join(message for _, message in logged)
+    assert "ZeroDivisionError('the law exploded on purpose')" in text, text

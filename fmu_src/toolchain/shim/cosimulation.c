@@ -23,12 +23,14 @@
      set_real does) and marks the outputs stale if some output depends on an input;
    * fmi2GetReal of inputs and outputs reads them from __dict__, after the slave's
      refresh_outputs() if an output is asked for and they are stale (what get_real does);
-   * fmi2DoStep calls the slave's do_step through a wrapper that turns its result into a code.
+   * fmi2DoStep calls the slave's own do_step (bound), marks the outputs stale and turns its
+     result into fmi2OK or fmi2Discard; an exception it raised is kept in __dict__.
 
    Everything else, and any call that the direct path does not cover (parameters, unknown value
    references, a Python exception), goes to pythonfmu as before, so its messages and statuses are
    unchanged: a do_step that raises is replayed through pythonfmu's fmi2DoStep, which raises the
-   same exception object again (fmu_support keeps it), and a refresh that raises is retried by
+   same exception object again (the shim keeps it where fmu_support's do_step finds it, with its
+   traceback), and a refresh that raises is retried by
    pythonfmu's fmi2GetReal. Messages the slave queued during a direct call are passed to the host
    by an empty pythonfmu fmi2GetReal, which forwards the queue as after any call. The shim keeps
    the last successful time and the terminate wish that pythonfmu's fmi2DoStep would record.
@@ -39,9 +41,9 @@
    that slave (checked to be of this model and instance name) or None. FTC_FMU_DIRECT=0 turns the
    direct path off (everything forwarded), for comparison. */
 
-#define DIRECT_PROTOCOL 1
+#define DIRECT_PROTOCOL 2
+#define BINDING_ITEMS 10
 enum { KIND_NONE = 0, KIND_INPUT = 1, KIND_OUTPUT = 2 };
-enum { STEP_OK = 0, STEP_DISCARD = 1, STEP_RAISED = 2 };
 
 typedef struct _object PyObject; /* opaque: only pointers cross this file */
 
@@ -68,8 +70,12 @@ static struct {
     int (*is_true)(PyObject *);
     PyObject *(*error)(void);
     void (*clear_error)(void);
+    void (*fetch_error)(PyObject **, PyObject **, PyObject **);
+    void (*normalize_error)(PyObject **, PyObject **, PyObject **);
+    int (*set_traceback)(PyObject *, PyObject *);
     void (*decref)(PyObject *);
     PyObject *true_object;
+    PyObject *false_object;
     int (*is_initialized)(void);
 } py;
 
@@ -96,8 +102,12 @@ void resolve_python_api(void *python) {
     FIND(is_true, "PyObject_IsTrue");
     FIND(error, "PyErr_Occurred");
     FIND(clear_error, "PyErr_Clear");
+    FIND(fetch_error, "PyErr_Fetch");
+    FIND(normalize_error, "PyErr_NormalizeException");
+    FIND(set_traceback, "PyException_SetTraceback");
     FIND(decref, "Py_DecRef");
     FIND(true_object, "_Py_TrueStruct"); /* the object Py_True itself */
+    FIND(false_object, "_Py_FalseStruct");
     FIND(is_initialized, "Py_IsInitialized");
 #undef FIND
 }
@@ -106,10 +116,11 @@ void resolve_python_api(void *python) {
    and before fmi2Reset) and the items of that tuple, borrowed. */
 struct direct {
     PyObject *dict;      /* the slave's __dict__: its variables by name */
-    PyObject *do_step;   /* function (t, h) -> STEP_* */
-    PyObject *refresh;   /* function: refresh_outputs(), then _fmu_stale = False */
+    PyObject *do_step;   /* the slave's own do_step(t, h), bound: true to go on, false to discard */
+    PyObject *refresh;   /* the slave's refresh_outputs(), bound */
     PyObject *log_queue; /* the list pythonfmu forwards to the host's logger */
     PyObject *stale;     /* the key "_fmu_stale" */
+    PyObject *raised;    /* the key "_fmu_raised": an exception do_step raised, for pythonfmu */
     PyObject *names;     /* tuple: value reference -> variable name (None if not direct) */
     unsigned char *kinds; /* value reference -> KIND_*: where the slave's and the table's agree */
     size_t n;            /* number of value references covered */
@@ -133,7 +144,8 @@ void release_binding(struct instance *i) {
 }
 
 static int is_binding(PyObject *binding) {
-    return binding && py.tuple_size(binding) == 9 && py.as_long(py.tuple_item(binding, 0)) == DIRECT_PROTOCOL;
+    return binding && py.tuple_size(binding) == BINDING_ITEMS &&
+           py.as_long(py.tuple_item(binding, 0)) == DIRECT_PROTOCOL;
 }
 
 /* The kind of variable `vr` (the FMI 2.0 value reference) in the build's table (description.h): a
@@ -171,6 +183,7 @@ static struct direct *direct_of(PyObject *binding) {
     d->names = py.tuple_item(binding, 5);
     d->feedthrough = py.is_true(py.tuple_item(binding, 7)) == 1;
     d->stale = py.tuple_item(binding, 8);
+    d->raised = py.tuple_item(binding, 9);
     if (py.error()) {
         free_direct(d);
         return NULL;
@@ -241,7 +254,9 @@ fmi2Status get_real(struct instance *i, const fmi2ValueReference vr[], size_t n,
         PyObject *stale = py.dict_get(d->dict, d->stale);
         if (!stale || py.is_true(stale)) {
             PyObject *result = py.call(d->refresh, NULL);
-            if (!result) { /* pythonfmu calls refresh_outputs again and reports the exception */
+            if (!result || py.dict_set(d->dict, d->stale, py.false_object) != 0) {
+                /* pythonfmu calls refresh_outputs again and reports the exception */
+                if (result) py.decref(result);
                 py.clear_error();
                 py.gil_release(gil);
                 return inner_fmi2GetReal(i->inner, vr, n, v);
@@ -284,22 +299,40 @@ fmi2Status set_real(struct instance *i, const fmi2ValueReference vr[], size_t n,
     return fmi2OK;
 }
 
-fmi2Status do_step(struct instance *i, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior) {
-    if (!i->direct) return inner_fmi2DoStep(i->inner, t, h, noSetPrior);
-    int gil = py.gil_ensure();
-    PyObject *time = py.from_double(t), *step = py.from_double(h), *result = NULL;
-    if (time && step) result = py.call2(i->direct->do_step, time, step, NULL);
-    long code = result ? py.as_long(result) : STEP_RAISED;
-    PyObject *owned[] = {result, step, time};
+/* Keeps the exception being raised (its traceback attached) in the slave's __dict__, where
+   fmu_support's do_step raises it again when pythonfmu's fmi2DoStep calls it; the error is
+   cleared. Where it cannot be kept (no memory), pythonfmu steps the slave again itself. */
+static void keep_raised(struct direct *d) {
+    PyObject *type = NULL, *value = NULL, *traceback = NULL;
+    py.fetch_error(&type, &value, &traceback);
+    py.normalize_error(&type, &value, &traceback);
+    if (value && (!traceback || py.set_traceback(value, traceback) == 0))
+        py.dict_set(d->dict, d->raised, value);
+    PyObject *owned[] = {type, value, traceback};
     for (size_t k = 0; k < sizeof owned / sizeof owned[0]; k++)
         if (owned[k]) py.decref(owned[k]);
     if (py.error()) py.clear_error();
-    if (code == STEP_RAISED) { /* pythonfmu's fmi2DoStep raises the kept exception and reports it */
+}
+
+fmi2Status do_step(struct instance *i, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior) {
+    if (!i->direct) return inner_fmi2DoStep(i->inner, t, h, noSetPrior);
+    struct direct *d = i->direct;
+    int gil = py.gil_ensure();
+    PyObject *time = py.from_double(t), *step = py.from_double(h), *result = NULL;
+    if (time && step) result = py.call2(d->do_step, time, step, NULL);
+    int go_on = result ? py.is_true(result) : -1;
+    PyObject *owned[] = {result, step, time};
+    for (size_t k = 0; k < sizeof owned / sizeof owned[0]; k++)
+        if (owned[k]) py.decref(owned[k]);
+    if (go_on < 0) keep_raised(d);
+    /* the time or the state moved: the outputs are recomputed at their next read */
+    if (py.dict_set(d->dict, d->stale, py.true_object) != 0) py.clear_error();
+    if (go_on < 0) { /* pythonfmu's fmi2DoStep raises the kept exception and reports it */
         py.gil_release(gil);
         return inner_fmi2DoStep(i->inner, t, h, noSetPrior);
     }
     flush_log(i, gil);
-    if (code == STEP_OK) {
+    if (go_on) {
         i->last_successful_time = t + h;
         return fmi2OK;
     }
