@@ -96,6 +96,41 @@ def test_without_a_cache_nothing_is_left_in_tmpdir(fmus: dict[str, Path], tmp_pa
     assert not list((tmp_path / "tmpdir").iterdir())
 
 
+def test_what_killed_decodes_left_is_taken_back(fmus: dict[str, Path], tmp_path: Path) -> None:
+    """A process killed while it decoded leaves its private folder of TMPDIR, or its temporary file
+    in the cache (7.7 MB each). The next decode there removes those unchanged for ten minutes and
+    leaves younger ones (another process may be decoding) and anything else alone."""
+    hour_ago = os.stat(tmp_path).st_mtime - 3600
+
+    def leftover(path: Path, age: float | None = hour_ago) -> Path:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(b"part of a libpython")
+        if age is not None:
+            os.utime(path, (age, age))
+            os.utime(path.parent, (age, age))
+        return path
+
+    tmpdir = tmp_path / "tmpdir"
+    old = leftover(tmpdir / "ftc-runtime-AAAAAA" / "libpython3.11.so.1.0")
+    young = leftover(tmpdir / "ftc-runtime-BBBBBB" / "libpython3.11.so.1.0", age=None)
+    other = leftover(tmpdir / "ftc-runtime-CCCCCC" / "notes.txt")
+    env = environment(tmp_path, HOME=None, XDG_CACHE_HOME=None)
+    result = fmusim(fmus[MODEL], tmp_path / "out.csv", env, cwd=tmp_path)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert sorted(p.name for p in tmpdir.iterdir()) == ["ftc-runtime-BBBBBB", "ftc-runtime-CCCCCC"]
+    assert not old.parent.exists() and young.is_file() and other.is_file()
+
+    cache = tmp_path / "cache"
+    with zipfile.ZipFile(fmus[MODEL]) as archive:
+        folder = cache / "fixed-time-cosim" / "runtime" / fnv1a64(archive.read(MEMBER))
+    stale = leftover(folder / ".libpython3.11.so.1.0.DDDDDD")
+    fresh = leftover(folder / ".libpython3.11.so.1.0.EEEEEE", age=None)
+    result = fmusim(fmus[MODEL], tmp_path / "out2.csv", environment(tmp_path, XDG_CACHE_HOME=str(cache)))
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert not stale.exists() and fresh.is_file()
+    assert sorted(p.name for p in folder.iterdir()) == [fresh.name, "libpython3.11.so.1.0"]
+
+
 def test_a_read_only_cache_falls_back_to_tmpdir(fmus: dict[str, Path], tmp_path: Path) -> None:
     """A cache folder that cannot be written (XDG_CACHE_HOME a file): the same private folder."""
     (tmp_path / "not-a-folder").write_text("")

@@ -11,6 +11,7 @@
 
 #ifndef _WIN32 /* ---------------------------------------------------------------- POSIX */
 
+#include <dirent.h>
 #include <dlfcn.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -136,6 +137,34 @@ static int decode_into(const char *packed, int fd, ftc_decoder decode, char *why
     return status;
 }
 
+/* What a process killed while it decoded leaves (a decode takes a fraction of a second, and a
+   private folder of TMPDIR lives until Python has started): the user's own entries of `dir` whose
+   names begin with `prefix`, unchanged for STALE_SECONDS, are removed. `inner`: they are folders
+   holding only that file (else they are files). So the disk a killed process left is taken back
+   by the next decode there. */
+enum { STALE_SECONDS = 600 };
+static void remove_stale(const char *dir, const char *prefix, const char *inner) {
+    DIR *folder = opendir(dir);
+    if (!folder) return;
+    time_t now = time(NULL);
+    size_t n = strlen(prefix);
+    struct dirent *entry;
+    while ((entry = readdir(folder)) != NULL) {
+        char path[FTC_PLATFORM_TEXT], file[FTC_PLATFORM_TEXT];
+        struct stat st;
+        if (strncmp(entry->d_name, prefix, n) != 0 ||
+            (size_t)snprintf(path, sizeof path, "%s/%s", dir, entry->d_name) >= sizeof path ||
+            lstat(path, &st) != 0 || st.st_uid != getuid() || now - st.st_mtime < STALE_SECONDS)
+            continue;
+        if (!inner && S_ISREG(st.st_mode)) unlink(path);
+        else if (inner && S_ISDIR(st.st_mode) && (size_t)snprintf(file, sizeof file, "%s/%s", path, inner) < sizeof file) {
+            unlink(file);
+            rmdir(path); /* only if that was all it held */
+        }
+    }
+    closedir(folder);
+}
+
 /* `packed` decoded into <dir>/<name> through a temporary file of `dir`; 0 when <dir>/<name> then
    holds it (ours, or another process's that was first), -1 or -2 as decode_into. */
 static int decode_into_cache(const char *packed, const char *name, ftc_decoder decode, char *dir,
@@ -151,6 +180,8 @@ static int decode_into_cache(const char *packed, const char *name, ftc_decoder d
     if (status == 0 && link(part, final) != 0 && errno != EEXIST) /* EEXIST: another was first */
         status = ftc_is_file(final) || rename(part, final) == 0 ? 0 : -2; /* a file system without links */
     unlink(part);
+    part[strlen(part) - 6] = '\0'; /* .<name>. : the temporary files of other processes */
+    remove_stale(dir, strrchr(part, '/') + 1, NULL);
     return status;
 }
 
@@ -170,6 +201,7 @@ int ftc_decoded_file(const char *packed, const char *name, ftc_decoder decode, c
     }
     if (status == -2) { /* no usable cache: a private folder, removed once loaded */
         const char *tmp = getenv("TMPDIR");
+        remove_stale(tmp && tmp[0] ? tmp : "/tmp", "ftc-runtime-", name);
         snprintf(dir, sizeof dir, "%s/ftc-runtime-XXXXXX", tmp && tmp[0] ? tmp : "/tmp");
         if (!mkdtemp(dir)) {
             snprintf(why, why_size, "%s: no usable cache, and no folder can be made in %s: %s", packed,
