@@ -91,13 +91,14 @@ run: $(STAMP)
 ## conformance matrix of every scenario in every installed SSP tool to results/crosscheck/, and the
 ## sample project's regression (terminal, JUnit XML, report screenshots) to results/regress-sample/.
 ## The suite runs in a TMPDIR of its own and fails if it leaves anything there but pytest's folders
-## (kept for a look when a test failed, removed otherwise).
+## (kept for a look when a test failed, removed otherwise). The 15 slowest tests are listed at the
+## end: the suite must stay under 15 minutes on 2 cores.
 TEST_ENV := CROSSCHECK_OUTPUT=results/crosscheck REGRESS_SAMPLE_OUTPUT=results/regress-sample
 test: $(DEV_STAMP) build $(ALT_STAMP) browser windows-tools
 	@$(PY) -m fmu_src.toolchain.runtime check || true
 	@$(PY) -m fmu_src.toolchain.runtime_win64 check || true
 	@scratch=$$(mktemp -d) && chmod 1777 "$$scratch" && echo "TMPDIR=$$scratch $(TEST_ENV) pytest -q -n 2" && \
-	TMPDIR="$$scratch" $(TEST_ENV) $(PY) -m pytest -q -n 2 --dist loadgroup; status=$$?; \
+	TMPDIR="$$scratch" $(TEST_ENV) $(PY) -m pytest -q -n 2 --dist loadgroup --durations=15; status=$$?; \
 	left=$$(ls -A "$$scratch" | grep -v '^pytest-of-'); \
 	if [ -n "$$left" ]; then echo "make test: the suite left in $$scratch:" $$left; status=1; fi; \
 	if [ $$status = 0 ]; then rm -rf "$$scratch"; fi; exit $$status
