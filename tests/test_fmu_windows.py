@@ -22,6 +22,7 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from xml.etree import ElementTree
@@ -146,10 +147,20 @@ def test_without_a_cache_the_runtime_is_decoded_into_temp(wine: Wine, fmus: dict
     """A cache that cannot be written (a file where its folder would be; wine sets LOCALAPPDATA
     from the profile whatever the environment says): the shim decodes the runtime into a new
     folder of %TEMP% (ftc_temporary_copy), the FMU runs as its Linux binaries do, and that folder
-    holds python.org's python311.dll byte for byte (left there: a loaded DLL cannot be deleted)."""
+    holds python.org's python311.dll byte for byte (left there: a loaded DLL cannot be deleted).
+    The copy an ended process left an hour ago is removed first (all of it, subfolders too); one
+    of ten seconds ago stays (its process may still run)."""
     local = list(wine.drive_c.glob("users/*/AppData/Local"))
     temps = temp_folders(wine)
     assert local and temps
+    ended, young = temps[0] / "fixed-time-cosim-11-12-13", temps[0] / "fixed-time-cosim-21-22-23"
+    for copy, age in ((ended, 3600), (young, 10)):
+        for name in ("python311.dll", "python311.zip", "Lib/site-packages/x.pyd"):
+            (copy / name).parent.mkdir(parents=True, exist_ok=True)
+            (copy / name).write_bytes(b"left by an ended process")
+        then = time.time() - age
+        for path in sorted(copy.rglob("*"), reverse=True) + [copy]:
+            os.utime(path, (then, then))
     for folder in local:
         shutil.rmtree(folder / "fixed-time-cosim", ignore_errors=True)
         (folder / "fixed-time-cosim").write_text("not a folder", encoding="utf-8")
@@ -159,6 +170,8 @@ def test_without_a_cache_the_runtime_is_decoded_into_temp(wine: Wine, fmus: dict
     finally:
         for folder in local:
             (folder / "fixed-time-cosim").unlink()
+    assert not ended.exists() and young.is_dir()
+    shutil.rmtree(young)
     copies = [p for temp in temps for p in temp.glob("fixed-time-cosim-*")]
     assert len(copies) == 1, copies
     original = (runtime_win64.ensure_runtime().embed / "python311.dll").read_bytes()

@@ -580,11 +580,46 @@ int ftc_cached_copy_decoded(const char *folder, ftc_decoder decode, char *out, s
     return cached_copy(folder, NULL, decode, out, size, why, why_size);
 }
 
+/* The copies of %TEMP% (`temp`, ending in a separator) that ftc_temporary_copy made for processes
+   that have ended: each process leaves its own (a loaded DLL cannot be deleted), so each new copy
+   first removes those unchanged for ten minutes. python311.dll goes first: Windows refuses while a
+   process has it loaded, and then nothing of that copy is touched (its zip is read as it runs). */
+static void remove_ended_copies(const wchar_t *temp) {
+    const unsigned long long stale = 600ull * 10000000ull; /* ten minutes in FILETIME's 100 ns */
+    wchar_t pattern[FTC_PLATFORM_TEXT], folder[FTC_PLATFORM_TEXT], dll[FTC_PLATFORM_TEXT];
+    if (_snwprintf(pattern, FTC_PLATFORM_TEXT, L"%lsfixed-time-cosim-*", temp) < 0) return;
+    FILETIME now_time;
+    GetSystemTimeAsFileTime(&now_time);
+    unsigned long long now = (unsigned long long)now_time.dwHighDateTime << 32 | now_time.dwLowDateTime;
+    WIN32_FIND_DATAW found;
+    HANDLE search = FindFirstFileW(pattern, &found);
+    if (search == INVALID_HANDLE_VALUE) return;
+    wchar_t **names = calloc(CACHE_FILES, sizeof *names);
+    do {
+        unsigned long long written =
+            (unsigned long long)found.ftLastWriteTime.dwHighDateTime << 32 | found.ftLastWriteTime.dwLowDateTime;
+        size_t n = 0;
+        if (!names || !(found.dwFileAttributes & FILE_ATTRIBUTE_DIRECTORY) || written > now ||
+            now - written < stale || _snwprintf(folder, FTC_PLATFORM_TEXT, L"%ls%ls", temp, found.cFileName) < 0 ||
+            _snwprintf(dll, FTC_PLATFORM_TEXT, L"%ls/python311.dll", folder) < 0 ||
+            (GetFileAttributesW(dll) != INVALID_FILE_ATTRIBUTES && !DeleteFileW(dll)))
+            continue;
+        if (collect(folder, L"", names, &n) == 0) {
+            qsort(names, n, sizeof *names, by_name);
+            remove_copy(folder, names, n, NULL);
+        }
+        for (size_t k = 0; k < n; k++) free(names[k]);
+    } while (FindNextFileW(search, &found));
+    free(names);
+    FindClose(search);
+}
+
 int ftc_temporary_copy(const char *folder, ftc_decoder decode, char *out, size_t size, char *why,
                        size_t why_size) {
     wchar_t source[FTC_PLATFORM_TEXT], temp[FTC_PLATFORM_TEXT], work[FTC_PLATFORM_TEXT];
     why[0] = '\0';
     DWORD n_temp = GetTempPathW(FTC_PLATFORM_TEXT, temp);
+    if (n_temp > 0 && n_temp < FTC_PLATFORM_TEXT - 96) remove_ended_copies(temp);
     if (!wide(folder, source, FTC_PLATFORM_TEXT) || n_temp == 0 || n_temp >= FTC_PLATFORM_TEXT - 96 ||
         _snwprintf(work, FTC_PLATFORM_TEXT, L"%lsfixed-time-cosim-%lu-%lu-%llu", temp, GetCurrentProcessId(),
                    GetCurrentThreadId(), (unsigned long long)GetTickCount64()) < 0 ||
