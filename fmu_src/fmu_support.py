@@ -355,9 +355,19 @@ def _direct_binding(slave: Fmi2Slave, do_step: Any) -> tuple[Any, ...]:
     keeps an exception it raised under the second key, where the class's ``do_step`` as pythonfmu
     calls it raises that very exception (:func:`fmu_model`), so that pythonfmu reports it as
     usual; a true result is fmi2OK, a false one fmi2Discard. After ``refresh_outputs`` it clears
-    the stale flag."""
+    the stale flag.
+
+    A class that sets ``compiled_calls`` (a function of the slave and its two bound methods) hands
+    the shim what that returns instead, unless None: two callables in C (the model's extension)
+    that do what the two methods do on the usual path, with no interpreter frame, and call them
+    otherwise (initialization, a rejected step, an error), so that every message stays theirs."""
     d = slave.__dict__
     io: _ValueReferences = d["_fmu_io"]
+    step, refresh = do_step.__get__(slave), slave.refresh_outputs
+    compiled = getattr(type(slave), "compiled_calls", None)
+    calls = compiled(slave, step, refresh) if compiled is not None else None
+    if calls is not None:
+        step, refresh = calls
     size = max(io.real, default=-1) + 1
     names: list[str | None] = [None] * size
     kinds = bytearray(size)
@@ -366,7 +376,7 @@ def _direct_binding(slave: Fmi2Slave, do_step: Any) -> tuple[Any, ...]:
     for vr in io.computed:
         if vr in io.real:
             names[vr], kinds[vr] = sys.intern(io.real[vr]), _KIND_OUTPUT
-    return (DIRECT_PROTOCOL, d, do_step.__get__(slave), slave.refresh_outputs, slave.log_queue, tuple(names),
+    return (DIRECT_PROTOCOL, d, step, refresh, slave.log_queue, tuple(names),
             bytes(kinds), io.feedthrough, sys.intern("_fmu_stale"), sys.intern("_fmu_raised"))
 
 
