@@ -27,6 +27,10 @@
    evaluate(constants, state, inputs) -> (v, z_1..z_n, zeta_1..zeta_n, ptp_1..ptp_n, r', eta_1'..eta_n')
    advance(constants, substeps, h, first, state, inputs) -> (r, eta_1..eta_n) after h; first: None or
        evaluate's result at this state and inputs (its derivative is the first RK4 stage).
+   step_slave(binding, t, h), refresh_slave(binding): a controller FMU's do_step and refresh_outputs on
+       its slave's __dict__ (fmu_src/controller_core.py, compiled_controller_calls), what the FMU's shim
+       calls per step: the Python ones did the same around evaluate and advance in about 11,000
+       interpreter instructions per step (n = 2).
    Built against the stable ABI (Py_LIMITED_API) so that one binary loads in any CPython 3.8 or
    later: the FMU's own runtime, or the host's Python when the host runs one. */
 
@@ -373,11 +377,175 @@ static PyObject *advance(PyObject *self, PyObject *args) {
     return doubles(in, n + 1);
 }
 
+/* The controller FMU's own calls (fmu_src/controller_core.py, compiled_controller_calls): its step and
+   output refresh on the slave's __dict__, with no interpreter frame. binding: (the dict, the Python
+   step, the Python refresh, the input keys x_1..x_n, yd..yd^(n), the output keys r, eta_1_hat..
+   eta_n_hat, v, z_1..z_n, zeta_1..zeta_(n-1), then the keys below). The usual path reads and writes
+   the entries step_controller and refresh_controller_outputs do, with the same values; any other
+   (initialization, the semi-implicit law's step-size check, a non-finite state, an error, an entry
+   of another type) calls the Python function instead, having changed nothing, so that every message
+   stays the Python code's. The dict keeps every state (snapshots deep-copy it); nothing is kept here. */
+enum { B_DICT, B_STEP, B_REFRESH, B_INPUTS, B_OUTPUTS, B_LAW, B_STATE, B_STAGE, B_STALE, B_UNCHECKED,
+       B_PARAMS, B_SAMPLE_TIME, B_CONSTANTS, B_SUBSTEPS, B_ITEMS };
+
+/* The slave's law and its inputs and state: 1, 0 to call the Python function (an error cleared), -1
+   on an error to raise. *constants (a new reference) keeps law's arrays alive. */
+static int slave_law(PyObject *binding, Law *law, PyObject **constants, long *substeps, double *in) {
+    PyObject *d = PyTuple_GetItem(binding, B_DICT);
+    PyObject *held = PyDict_GetItemWithError(d, PyTuple_GetItem(binding, B_LAW)); /* None: initialization */
+    PyObject *state = PyDict_GetItemWithError(d, PyTuple_GetItem(binding, B_STATE));
+    PyObject *keys = PyTuple_GetItem(binding, B_INPUTS);
+    if (held == NULL || held == Py_None || state == NULL) return 0;
+    *constants = PyObject_GetAttr(held, PyTuple_GetItem(binding, B_CONSTANTS)); /* a CompiledLaw's */
+    PyObject *count = *constants ? PyObject_GetAttr(held, PyTuple_GetItem(binding, B_SUBSTEPS)) : NULL;
+    if (count == NULL || !PyBytes_Check(*constants) || unpack(*constants, law)) goto other;
+    *substeps = PyLong_AsLong(count);
+    Py_DECREF(count);
+    count = NULL;
+    if (*substeps < 1 || PyTuple_Size(keys) != 2 * law->n + 1 ||
+        doubles_of(state, law->n + 1, "state", law->n, in))
+        goto other;
+    for (Py_ssize_t i = 0; i < 2 * law->n + 1; i++) {
+        PyObject *value = PyDict_GetItemWithError(d, PyTuple_GetItem(keys, i));
+        if (value == NULL) goto other;
+        in[law->n + 1 + i] = PyFloat_AsDouble(value);
+        if (in[law->n + 1 + i] == -1.0 && PyErr_Occurred()) goto other;
+    }
+    return 1;
+other:
+    Py_XDECREF(count);
+    Py_CLEAR(*constants);
+    PyErr_Clear();
+    return 0;
+}
+
+/* The Python function binding[which] with args (a step's t and h, or none). */
+static PyObject *python_call(PyObject *binding, int which, PyObject *args) {
+    PyErr_Clear();
+    return PyObject_CallObject(PyTuple_GetItem(binding, which), args);
+}
+
+/* step_controller on the usual path: 1 done, 0 call the Python step, -1 error. */
+static int step_here(PyObject *binding, PyObject *step) {
+    PyObject *d = PyTuple_GetItem(binding, B_DICT), *constants = NULL;
+    Law law;
+    long substeps;
+    double in[3 * MAX_ORDER + 2], first[MAX_ORDER + 1];
+    int usual = slave_law(binding, &law, &constants, &substeps, in);
+    if (usual <= 0) return usual;
+    int n = law.n;
+    double h = PyFloat_AsDouble(step);
+    PyObject *unchecked = PyDict_GetItemWithError(d, PyTuple_GetItem(binding, B_UNCHECKED));
+    PyObject *stale = PyDict_GetItemWithError(d, PyTuple_GetItem(binding, B_STALE));
+    int check = unchecked ? PyObject_IsTrue(unchecked) : -1, is_stale = stale ? PyObject_IsTrue(stale) : -1;
+    if ((h == -1.0 && PyErr_Occurred()) || check < 0 || is_stale < 0) goto other;
+    if (check) { /* the semi-implicit law: nothing to check while h is its sample time */
+        PyObject *params = PyDict_GetItemWithError(d, PyTuple_GetItem(binding, B_PARAMS));
+        PyObject *sample = params ? PyObject_GetAttr(params, PyTuple_GetItem(binding, B_SAMPLE_TIME)) : NULL;
+        double sample_time = sample ? PyFloat_AsDouble(sample) : -1.0;
+        Py_XDECREF(sample);
+        if (PyErr_Occurred() || h != sample_time) goto other; /* the Python step checks and warns */
+    }
+    const double *start = NULL;
+    if (!is_stale) { /* the law behind the outputs is the first stage */
+        PyObject *stage = PyDict_GetItemWithError(d, PyTuple_GetItem(binding, B_STAGE));
+        if (stage == NULL || !PyTuple_Check(stage) || PyTuple_Size(stage) != 4 * n + 2) goto other;
+        for (int j = 0; j <= n; j++) {
+            first[j] = PyFloat_AsDouble(PyTuple_GetItem(stage, 3 * n + 1 + j));
+            if (first[j] == -1.0 && PyErr_Occurred()) goto other;
+        }
+        start = first;
+    }
+    Held held;
+    hold(&law, in + n + 1, in + 2 * n + 1, &held);
+    if (rk4(&law, &held, substeps, h, start, in)) goto other;
+    for (int j = 0; j <= n; j++)
+        if (!isfinite(in[j])) goto other; /* rejected: the Python step reports it */
+    Py_DECREF(constants);
+    PyObject *state = doubles(in, n + 1);
+    int failed = state == NULL || PyDict_SetItem(d, PyTuple_GetItem(binding, B_STALE), Py_True) ||
+                 PyDict_SetItem(d, PyTuple_GetItem(binding, B_STATE), state);
+    Py_XDECREF(state);
+    return failed ? -1 : 1;
+other:
+    Py_DECREF(constants);
+    return 0;
+}
+
+static PyObject *step_slave(PyObject *self, PyObject *args) {
+    (void)self;
+    PyObject *binding, *t, *h;
+    if (!PyArg_UnpackTuple(args, "step_slave", 3, 3, &binding, &t, &h)) return NULL;
+    if (!PyTuple_Check(binding) || PyTuple_Size(binding) != B_ITEMS) {
+        PyErr_SetString(PyExc_TypeError, "step_slave: binding not made by compiled_controller_calls");
+        return NULL;
+    }
+    int done = step_here(binding, h);
+    if (done < 0) return NULL;
+    if (done) Py_RETURN_TRUE;
+    PyObject *pair = PyTuple_Pack(2, t, h);
+    PyObject *result = pair ? python_call(binding, B_STEP, pair) : NULL;
+    Py_XDECREF(pair);
+    return result;
+}
+
+/* refresh_controller_outputs on the usual path: 1 done, 0 call the Python refresh, -1 error. */
+static int refresh_here(PyObject *binding) {
+    PyObject *d = PyTuple_GetItem(binding, B_DICT), *constants = NULL;
+    Law law;
+    long substeps;
+    double in[3 * MAX_ORDER + 2], out[4 * MAX_ORDER + 2];
+    int usual = slave_law(binding, &law, &constants, &substeps, in);
+    if (usual <= 0) return usual;
+    int n = law.n;
+    PyObject *keys = PyTuple_GetItem(binding, B_OUTPUTS);
+    Held held;
+    hold(&law, in + n + 1, in + 2 * n + 1, &held);
+    double *z = out + 1, *zeta = out + 1 + n, *ptp = out + 1 + 2 * n, *rates = out + 1 + 3 * n;
+    int failed = PyTuple_Size(keys) != 3 * n + 1 || law_at(&law, &held, in[0], in + 1, 1, z, zeta, ptp, rates);
+    Py_DECREF(constants);
+    if (failed) {
+        PyErr_Clear();
+        return 0;
+    }
+    out[0] = zeta[n - 1];
+    PyObject *stage = doubles(out, 4 * (Py_ssize_t)n + 2);
+    PyObject *state = PyDict_GetItemWithError(d, PyTuple_GetItem(binding, B_STATE));
+    Py_XINCREF(state);
+    failed = stage == NULL || PyDict_SetItem(d, PyTuple_GetItem(binding, B_STAGE), stage);
+    /* r, eta_hat_i from the state; v, z_i, zeta_i (i < n) from the stage */
+    for (Py_ssize_t i = 0; i < 3 * n + 1 && !failed; i++) {
+        PyObject *value = i <= n ? PyTuple_GetItem(state, i) : PyTuple_GetItem(stage, i - n - 1);
+        failed = PyDict_SetItem(d, PyTuple_GetItem(keys, i), value);
+    }
+    Py_XDECREF(stage);
+    Py_XDECREF(state);
+    return failed ? -1 : 1;
+}
+
+static PyObject *refresh_slave(PyObject *self, PyObject *args) {
+    (void)self;
+    PyObject *binding;
+    if (!PyArg_UnpackTuple(args, "refresh_slave", 1, 1, &binding)) return NULL;
+    if (!PyTuple_Check(binding) || PyTuple_Size(binding) != B_ITEMS) {
+        PyErr_SetString(PyExc_TypeError, "refresh_slave: binding not made by compiled_controller_calls");
+        return NULL;
+    }
+    int done = refresh_here(binding);
+    if (done < 0) return NULL;
+    if (done) Py_RETURN_NONE;
+    return python_call(binding, B_REFRESH, NULL);
+}
+
 static PyMethodDef methods[] = {
     {"evaluate", evaluate, METH_VARARGS,
      "The law at one state and input: (v, z, zeta, ptp, derivative), flat (see controller/native.py)."},
     {"advance", advance, METH_VARARGS,
      "The state after one communication step of RK4 with the inputs held (see controller/native.py)."},
+    {"step_slave", step_slave, METH_VARARGS,
+     "A controller FMU's step on its slave's dict (see fmu_src/controller_core.py)."},
+    {"refresh_slave", refresh_slave, METH_VARARGS,
+     "A controller FMU's output refresh on its slave's dict (see fmu_src/controller_core.py)."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -37,7 +37,8 @@ except ImportError:
         raise  # a built controller FMU carries it: without it the build is broken, not slower
     _law = None  # the source tree: the Python reference steps
 
-__all__ = ["COMPILED", "MAX_ORDER", "CompiledLaw", "Law", "ReferenceLaw", "law_constants", "law_for"]
+__all__ = ["COMPILED", "MAX_ORDER", "CompiledLaw", "Law", "ReferenceLaw", "law_constants", "law_for",
+           "slave_functions"]
 
 COMPILED = _law is not None
 MAX_ORDER = 4  # the plant orders the compiled law (and the controller FMUs) support: 1..4
@@ -80,7 +81,7 @@ def law_constants(p: ControllerParameters) -> bytes:
 class CompiledLaw:
     """:class:`Law` on ``_law.c`` (requires :data:`COMPILED`; plant orders 1..4)."""
 
-    __slots__ = ("advance", "evaluate", "n")
+    __slots__ = ("advance", "constants", "evaluate", "n", "substeps")
 
     def __init__(self, params: ControllerParameters, substeps: int = 1) -> None:
         if _law is None:
@@ -89,6 +90,8 @@ class CompiledLaw:
             raise ValueError(f"substeps must be >= 1 (got {substeps})")
         constants = law_constants(params)
         self.n = params.n
+        # what the controller FMU's compiled step reads (_law.step_slave, fmu_src/controller_core.py)
+        self.constants, self.substeps = constants, substeps
         # partial: no Python frame per call
         self.evaluate: partial[tuple[float, ...]] = partial(_law.evaluate, constants)
         self.advance: partial[tuple[float, ...]] = partial(_law.advance, constants, substeps)
@@ -128,6 +131,12 @@ class ReferenceLaw:
 
         self.evaluate = evaluate_law
         self.advance = advance_law
+
+
+def slave_functions() -> tuple[Callable[..., object], Callable[..., object]] | None:
+    """``_law.step_slave`` and ``_law.refresh_slave``, a controller FMU's step and output refresh on its
+    slave's dict (see ``fmu_src/controller_core.py``), or None where the law is not compiled."""
+    return None if _law is None else (_law.step_slave, _law.refresh_slave)
 
 
 def law_for(params: ControllerParameters, substeps: int = 1) -> Law:

@@ -20,22 +20,25 @@ d_r, r0, eta1_0..etan_0, mu1..mu7, tau, substeps, discretization, sample_time, b
 from __future__ import annotations
 
 import math
+import sys
 from abc import update_abstractmethods
 from collections.abc import Callable
+from functools import partial
 from math import isfinite
 from operator import itemgetter
-from typing import TypeVar, cast
+from typing import Any, TypeVar, cast
 
 from pythonfmu import Fmi2Causality, Fmi2Slave
 from pythonfmu.enums import Fmi2Status
 
-from controller.native import MAX_ORDER, law_for
+from controller.native import MAX_ORDER, law_for, slave_functions
 from controller.params import DEFAULT_CENTERS, ControllerParameters, Discretization, Mode, ParameterError
 
 from .fmu_support import declare, mark_stale, raise_problems, report
 
 __all__ = [
     "GAIN_DESCRIPTIONS",
+    "compiled_controller_calls",
     "controller_fmu",
     "ORDERS",
     "controller_model",
@@ -89,6 +92,7 @@ def controller_fmu(n: int) -> Callable[[SlaveClass], SlaveClass]:
         cls.refresh_outputs = refresh_controller_outputs
         cls.exit_initialization_mode = start_controller
         cls.do_step = step_controller
+        cls.compiled_calls = compiled_controller_calls
         update_abstractmethods(cls)  # the class was abstract until do_step was set
         return cls
 
@@ -327,6 +331,27 @@ def step_controller(slave: Fmi2Slave, current_time: float, step_size: float) -> 
         return False
     d["_state"] = state  # its outputs r, eta_hat_i at the next refresh_outputs (the state is stale)
     return True
+
+
+# The keys _law.step_slave and _law.refresh_slave read besides the variables (see _law.c): the slave's
+# law, state, stage, stale flag, step-size check and parameters, and the CompiledLaw's constants.
+_BINDING_KEYS = ("_law", "_state", "_stage", "_fmu_stale", "_step_unchecked", "_params", "sample_time",
+                 "constants", "substeps")
+
+
+def compiled_controller_calls(slave: Fmi2Slave, step: Callable[[float, float], bool],
+                              refresh: Callable[[], None]) -> tuple[Callable[..., Any], ...] | None:
+    """The FMU's step and output refresh in C (``_law.step_slave``, ``_law.refresh_slave``), what the
+    shim calls (``compiled_calls`` of :func:`~fmu_src.fmu_support._direct_binding`): the usual path of
+    :func:`step_controller` and :func:`refresh_controller_outputs` with no interpreter frame, the
+    same values written; ``step`` and ``refresh`` otherwise. None where the law is not compiled."""
+    functions = slave_functions()
+    if functions is None:
+        return None
+    n = slave._order
+    binding = (slave.__dict__, step, refresh, tuple(map(sys.intern, input_names(n))),
+               tuple(map(sys.intern, slave._outputs)), *map(sys.intern, _BINDING_KEYS))
+    return tuple(partial(function, binding) for function in functions)
 
 
 def _check_step(slave: Fmi2Slave, current_time: float, step_size: float) -> None:

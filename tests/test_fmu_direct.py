@@ -115,6 +115,29 @@ def test_instances_are_claimed(fmus: dict[str, Path], path: str) -> None:
             assert not unclaimed()
 
 
+# The FMUs whose step and output refresh the shim calls in C (compiled_calls), and their extension.
+COMPILED_CALLS = {**{f"FixedTimeController{n}": "_law" for n in ("", "1", "3", "4")}}
+
+
+@pytest.mark.parametrize("model", sorted(COMPILED_CALLS))
+def test_the_shim_gets_the_compiled_calls(fmus: dict[str, Path], model: str) -> None:
+    """The binding the shim claims holds the model extension's C functions, bound to the slave's
+    dict, so that test_results_identical_on_both_paths compares them with the Python methods that
+    pythonfmu's path calls (a model whose extension failed to hand them over would step in Python,
+    and no result would tell)."""
+    with instance(fmus[model], Messages()):
+        gc.collect()
+        slaves = [o for o in gc.get_objects()
+                  if type(o).__name__ == model and hasattr(o, "_fmu_direct_binding")]
+        assert len(slaves) == 1
+        binding = slaves[0]._fmu_direct_binding()
+    step, refresh = binding[2], binding[3]
+    for call, name in ((step, "step_slave"), (refresh, "refresh_slave")):
+        assert call.func.__name__ == name
+        assert call.func.__module__.endswith(f".{COMPILED_CALLS[model]}")
+        assert call.args[0][0] is binding[1]  # the slave's own dict
+
+
 def test_a_step_before_initialization_is_refused_on_both_paths(fmus: dict[str, Path], path: str) -> None:
     """A do_step before initialization never reaches the slave (whose own check raised, which
     pythonfmu made fmi2Fatal): the shim's guard answers fmi2Error with one message naming the call
