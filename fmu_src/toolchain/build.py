@@ -34,8 +34,10 @@ variants: ``fmu_src.toolchain.fmi3``, built on this module).
 from __future__ import annotations
 
 import ast
+import contextlib
 import hashlib
 import importlib.metadata
+import io
 import lzma
 import os
 import re
@@ -43,6 +45,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 import uuid
 import zipfile
 import zlib
@@ -72,7 +75,7 @@ from .variable_table import TABLE_SOURCE, variable_table
 
 __all__ = ["EXTENSIONS", "FMU_SCRIPTS", "PLATFORM_NAMES", "BuildError", "build_all", "build_fmu",
            "build_inputs", "build_sources", "buildable_platforms", "c_compiler", "compile_extension",
-           "compile_in_place", "compile_shared", "fmu_current", "fmu_sources"]
+           "compile_in_place", "compile_shared", "fmu_current", "fmu_sources", "prune_kept"]
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 LOCAL_PACKAGES = ("fmu_src", "controller")
@@ -143,6 +146,12 @@ LAUNCHER_FLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra")
 # The build's own code (fmu_src/): a change to it rebuilds every FMU.
 BUILD_CODE = ("build.py", "fmi3.py", "clocked.py", "controller_doc.py", "runtime.py", "runtime_pins.txt",
               "runtime_win64.py", "runtime_pins_win64.txt", "licences.py", "variable_table.py")
+# The runtime cache's folders of bytes a build made and keeps for the next (objects, runtime members,
+# deflated and xz-compressed members), pruned to KEPT_BUDGET bytes after a build (prune_kept).
+KEPT_FOLDERS = ("objects", "members", "deflated", "xz")
+KEPT_BUDGET = 1 << 30  # about six full builds' (one uses about 160 MB, most of it runtime members)
+KEPT_GRACE = 3600.0  # seconds: entries used more recently stay, whatever the budget
+
 # C extension modules bundled with the FMUs that import them (dotted name -> C source, relative to
 # the source root): built against the runtime's headers for the stable ABI, so that one binary
 # loads in the FMU's runtime and in a host's Python alike. -ffp-contract=off: no fused
@@ -408,8 +417,9 @@ def _kept(runtime: Runtime, work: Path, command: list[str], out: str, what: Path
     the digest of ``inputs``, made where not kept yet."""
     key = stamps.digest(*inputs)
     kept = runtime.root.parent / "objects" / key
-    if kept.is_file():
-        return kept.read_bytes()
+    known = _kept_bytes(kept)
+    if known is not None:
+        return known
     result = subprocess.run(command, cwd=work, capture_output=True, text=True)
     if result.returncode != 0:
         raise BuildError(f"{what}: {command[0]} failed:\n{result.stderr.strip()}")
@@ -590,8 +600,9 @@ def _runtime(bundle: Bundle, windows: bool, root: Path) -> dict[str, bytes]:
     platforms = PLATFORM_NAMES if windows else ("linux64",)
     key = stamps.digest("runtime members", fmu_inputs(bundle, root, platforms))
     kept = runtime.root.parent / "members" / f"{key}.zip"
-    if kept.is_file():
-        with zipfile.ZipFile(kept) as archive:
+    known = _kept_bytes(kept)
+    if known is not None:
+        with zipfile.ZipFile(io.BytesIO(known)) as archive:
             return {name: archive.read(name) for name in archive.namelist()}
     with tempfile.TemporaryDirectory(prefix="ftc_imports_") as tmp:
         try:
@@ -821,8 +832,9 @@ def xz_members(entries: dict[str, bytes], kept: Path | None = None) -> dict[str,
         if len(data) > XZ_LIMIT:
             raise BuildError(f"{name}: {len(data)} bytes: more than the shim decodes ({XZ_LIMIT})")
         path = kept / hashlib.sha256(hashlib.sha256(data).digest() + settings).hexdigest()
-        if path.is_file():
-            packed = path.read_bytes()
+        known = _kept_bytes(path)
+        if known is not None:
+            packed = known
         else:
             packed = lzma.compress(data, format=lzma.FORMAT_XZ, check=lzma.CHECK_CRC64,
                                    filters=list(XZ_FILTERS))
@@ -838,8 +850,9 @@ def _deflated(data: bytes, kept: Path) -> bytes:
     """``data`` deflated as zipfile deflates a member (a raw stream, zlib's default level), kept in
     the folder ``kept`` under its digest."""
     path = kept / hashlib.sha256(data).hexdigest()
-    if path.is_file():
-        return path.read_bytes()
+    known = _kept_bytes(path)
+    if known is not None:
+        return known
     compressor = zlib.compressobj(zlib.Z_DEFAULT_COMPRESSION, zlib.DEFLATED, -15)
     packed = compressor.compress(data) + compressor.flush()
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -847,6 +860,47 @@ def _deflated(data: bytes, kept: Path) -> bytes:
     partial.write_bytes(packed)
     partial.replace(path)
     return packed
+
+
+def _kept_bytes(path: Path) -> bytes | None:
+    """The bytes a build kept in ``path`` (None if it has none there), marked as used now: the
+    modification time orders :func:`prune_kept`'s removals. A file removed meanwhile by a pruning
+    beside is none."""
+    try:
+        with path.open("rb") as kept:
+            data = kept.read()
+        os.utime(path)
+    except FileNotFoundError:
+        return None
+    return data
+
+
+def prune_kept(cache: Path | None = None, budget: int = KEPT_BUDGET,
+               grace: float = KEPT_GRACE) -> tuple[int, int]:
+    """Remove the build's least recently used kept files (:data:`KEPT_FOLDERS` of the runtime cache
+    ``cache``) beyond ``budget`` bytes, and the half-written ones of builds that ended without
+    finishing them; nothing used less than ``grace`` seconds ago (a build beside may be reading
+    it). Every new source, pin or compiler flag makes new entries (15 MB of runtime members per FMU):
+    unpruned, a developer's cache grew to 1.8 GB. Returns (files removed, bytes kept)."""
+    root = _ensure_runtime().root.parent if cache is None else cache
+    recent = time.time() - grace
+    entries = []
+    for folder in KEPT_FOLDERS:
+        with contextlib.suppress(FileNotFoundError):
+            for entry in os.scandir(root / folder):
+                with contextlib.suppress(FileNotFoundError):
+                    stat = entry.stat(follow_symlinks=False)
+                    partial = entry.name.startswith(".")
+                    entries.append((stat.st_mtime, stat.st_size, partial, Path(entry.path)))
+    removed, total = 0, 0
+    for mtime, size, partial, path in sorted(entries, reverse=True):  # the newest first
+        if mtime >= recent or not partial and total + size <= budget:
+            total += size
+            continue
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
+            removed += 1
+    return removed, total
 
 
 def _write_deflated(archive: zipfile.ZipFile, info: zipfile.ZipInfo, data: bytes, packed: bytes) -> None:

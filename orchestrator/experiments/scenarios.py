@@ -55,7 +55,14 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
     once (more than 1 only from a fresh process such as ``orchestrate build``: a process that has
     loaded Python FMUs has their resources, a partial copy of pythonfmu, on ``sys.path``, which
     the workers would inherit)."""
-    from fmu_src.toolchain.build import FMU_SCRIPTS, REPO_ROOT, build_fmu, buildable_platforms, fmu_current
+    from fmu_src.toolchain.build import (
+        FMU_SCRIPTS,
+        REPO_ROOT,
+        build_fmu,
+        buildable_platforms,
+        fmu_current,
+        prune_kept,
+    )
     from fmu_src.toolchain.fmi3 import build_fmu3, fmu3_current
 
     root = REPO_ROOT if root is None else root
@@ -98,6 +105,9 @@ def build_scenarios(names: Iterable[str] | None, dest: str | os.PathLike,
             archives[name + suffix] = _pack(name, sources, fmus, target, force, root)
     if fmi3:
         archives |= _clocked(names, sources, dest, fmus2, root, force, say)
+    removed, kept = prune_kept()
+    if removed:
+        say(f"build cache: {removed} least recently used files removed, {kept / 2**20:.0f} MB kept")
     return archives
 
 
