@@ -386,31 +386,44 @@ static PyObject *advance(PyObject *self, PyObject *args) {
    of another type) calls the Python function instead, having changed nothing, so that every message
    stays the Python code's. The dict keeps every state (snapshots deep-copy it); nothing is kept here. */
 enum { B_DICT, B_STEP, B_REFRESH, B_INPUTS, B_OUTPUTS, B_LAW, B_STATE, B_STAGE, B_STALE, B_UNCHECKED,
-       B_PARAMS, B_SAMPLE_TIME, B_CONSTANTS, B_SUBSTEPS, B_ITEMS };
+       B_PARAMS, B_SAMPLE_TIME, B_CONSTANTS, B_SUBSTEPS, B_LAW_TYPE, B_ITEMS };
+
+/* v as a double if it is exactly a float (no Python code runs to convert it: the entries read stay
+   as they are while this code holds them borrowed); 0 if it is anything else. */
+static int exact(PyObject *v, double *out) {
+    if (v == NULL || !PyFloat_CheckExact(v)) return 0;
+    *out = PyFloat_AsDouble(v);
+    return 1;
+}
+
+/* The count floats of t at offset from, exactly (see exact), if t is exactly a tuple of size items;
+   0 if not. */
+static int exact_doubles(PyObject *t, Py_ssize_t size, Py_ssize_t from, Py_ssize_t count, double *out) {
+    if (t == NULL || !PyTuple_CheckExact(t) || PyTuple_Size(t) != size) return 0;
+    for (Py_ssize_t i = 0; i < count; i++)
+        if (!exact(PyTuple_GetItem(t, from + i), &out[i])) return 0;
+    return 1;
+}
 
 /* The slave's law and its inputs and state: 1, 0 to call the Python function (an error cleared), -1
    on an error to raise. *constants (a new reference) keeps law's arrays alive. */
 static int slave_law(PyObject *binding, Law *law, PyObject **constants, long *substeps, double *in) {
     PyObject *d = PyTuple_GetItem(binding, B_DICT);
     PyObject *held = PyDict_GetItemWithError(d, PyTuple_GetItem(binding, B_LAW)); /* None: initialization */
-    PyObject *state = PyDict_GetItemWithError(d, PyTuple_GetItem(binding, B_STATE));
     PyObject *keys = PyTuple_GetItem(binding, B_INPUTS);
-    if (held == NULL || held == Py_None || state == NULL) return 0;
-    *constants = PyObject_GetAttr(held, PyTuple_GetItem(binding, B_CONSTANTS)); /* a CompiledLaw's */
+    if (held == NULL || (PyObject *)Py_TYPE(held) != PyTuple_GetItem(binding, B_LAW_TYPE)) return 0;
+    *constants = PyObject_GetAttr(held, PyTuple_GetItem(binding, B_CONSTANTS)); /* a CompiledLaw's slots */
     PyObject *count = *constants ? PyObject_GetAttr(held, PyTuple_GetItem(binding, B_SUBSTEPS)) : NULL;
     if (count == NULL || !PyBytes_Check(*constants) || unpack(*constants, law)) goto other;
     *substeps = PyLong_AsLong(count);
     Py_DECREF(count);
     count = NULL;
+    PyObject *state = PyDict_GetItemWithError(d, PyTuple_GetItem(binding, B_STATE));
     if (*substeps < 1 || PyTuple_Size(keys) != 2 * law->n + 1 ||
-        doubles_of(state, law->n + 1, "state", law->n, in))
+        !exact_doubles(state, law->n + 1, 0, law->n + 1, in))
         goto other;
-    for (Py_ssize_t i = 0; i < 2 * law->n + 1; i++) {
-        PyObject *value = PyDict_GetItemWithError(d, PyTuple_GetItem(keys, i));
-        if (value == NULL) goto other;
-        in[law->n + 1 + i] = PyFloat_AsDouble(value);
-        if (in[law->n + 1 + i] == -1.0 && PyErr_Occurred()) goto other;
-    }
+    for (Py_ssize_t i = 0; i < 2 * law->n + 1; i++)
+        if (!exact(PyDict_GetItemWithError(d, PyTuple_GetItem(keys, i)), &in[law->n + 1 + i])) goto other;
     return 1;
 other:
     Py_XDECREF(count);
@@ -437,8 +450,10 @@ static int step_here(PyObject *binding, PyObject *step) {
     double h = PyFloat_AsDouble(step);
     PyObject *unchecked = PyDict_GetItemWithError(d, PyTuple_GetItem(binding, B_UNCHECKED));
     PyObject *stale = PyDict_GetItemWithError(d, PyTuple_GetItem(binding, B_STALE));
-    int check = unchecked ? PyObject_IsTrue(unchecked) : -1, is_stale = stale ? PyObject_IsTrue(stale) : -1;
-    if ((h == -1.0 && PyErr_Occurred()) || check < 0 || is_stale < 0) goto other;
+    int check = unchecked == Py_True, is_stale = stale == Py_True; /* exactly bool, or Python decides */
+    if ((h == -1.0 && PyErr_Occurred()) || (!check && unchecked != Py_False) ||
+        (!is_stale && stale != Py_False))
+        goto other;
     if (check) { /* the semi-implicit law: nothing to check while h is its sample time */
         PyObject *params = PyDict_GetItemWithError(d, PyTuple_GetItem(binding, B_PARAMS));
         PyObject *sample = params ? PyObject_GetAttr(params, PyTuple_GetItem(binding, B_SAMPLE_TIME)) : NULL;
@@ -449,11 +464,7 @@ static int step_here(PyObject *binding, PyObject *step) {
     const double *start = NULL;
     if (!is_stale) { /* the law behind the outputs is the first stage */
         PyObject *stage = PyDict_GetItemWithError(d, PyTuple_GetItem(binding, B_STAGE));
-        if (stage == NULL || !PyTuple_Check(stage) || PyTuple_Size(stage) != 4 * n + 2) goto other;
-        for (int j = 0; j <= n; j++) {
-            first[j] = PyFloat_AsDouble(PyTuple_GetItem(stage, 3 * n + 1 + j));
-            if (first[j] == -1.0 && PyErr_Occurred()) goto other;
-        }
+        if (!exact_doubles(stage, 4 * n + 2, 3 * n + 1, n + 1, first)) goto other;
         start = first;
     }
     Held held;
@@ -502,7 +513,8 @@ static int refresh_here(PyObject *binding) {
     Held held;
     hold(&law, in + n + 1, in + 2 * n + 1, &held);
     double *z = out + 1, *zeta = out + 1 + n, *ptp = out + 1 + 2 * n, *rates = out + 1 + 3 * n;
-    int failed = PyTuple_Size(keys) != 3 * n + 1 || law_at(&law, &held, in[0], in + 1, 1, z, zeta, ptp, rates);
+    int failed = PyTuple_Size(keys) != 3 * n + 1 ||
+                 law_at(&law, &held, in[0], in + 1, 1, z, zeta, ptp, rates);
     Py_DECREF(constants);
     if (failed) {
         PyErr_Clear();

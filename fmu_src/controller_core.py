@@ -31,7 +31,7 @@ from typing import Any, TypeVar, cast
 from pythonfmu import Fmi2Causality, Fmi2Slave
 from pythonfmu.enums import Fmi2Status
 
-from controller.native import MAX_ORDER, law_for, slave_functions
+from controller.native import MAX_ORDER, CompiledLaw, law_for, slave_functions
 from controller.params import DEFAULT_CENTERS, ControllerParameters, Discretization, Mode, ParameterError
 
 from .fmu_support import declare, mark_stale, raise_problems, report
@@ -334,7 +334,8 @@ def step_controller(slave: Fmi2Slave, current_time: float, step_size: float) -> 
 
 
 # The keys _law.step_slave and _law.refresh_slave read besides the variables (see _law.c): the slave's
-# law, state, stage, stale flag, step-size check and parameters, and the CompiledLaw's constants.
+# law, state, stage, stale flag, step-size check and parameters, and the CompiledLaw's constants (then the
+# class CompiledLaw: another law, or none yet, goes to the Python functions).
 _BINDING_KEYS = ("_law", "_state", "_stage", "_fmu_stale", "_step_unchecked", "_params", "sample_time",
                  "constants", "substeps")
 
@@ -350,7 +351,7 @@ def compiled_controller_calls(slave: Fmi2Slave, step: Callable[[float, float], b
         return None
     n = slave._order
     binding = (slave.__dict__, step, refresh, tuple(map(sys.intern, input_names(n))),
-               tuple(map(sys.intern, slave._outputs)), *map(sys.intern, _BINDING_KEYS))
+               tuple(map(sys.intern, slave._outputs)), *map(sys.intern, _BINDING_KEYS), CompiledLaw)
     return tuple(partial(function, binding) for function in functions)
 
 
