@@ -97,38 +97,41 @@ static int too_fast(double y1, double y2, double y3, const double *k, double rea
                            fabs(y3 + k[2] * reach) > limit);
 }
 
-/* (status, t, state a b c, next step, accepted, rejected, rate k): k only for RATE (else zeros). */
-static PyObject *result_rate(int status, double t, double a, double b, double c, double next,
-                             long long accepted, long long rejected, const double *k) {
-    return Py_BuildValue("(idddddLLddd)", status, t, a, b, c, next, accepted, rejected, k[0], k[1], k[2]);
+/* Where a step ended: status, t, state a b c, next step, accepted and rejected steps, and the rate
+   k for RATE (else zeros). */
+struct outcome {
+    int status;
+    double t, a, b, c, next;
+    long long accepted, rejected;
+    double k[3];
+};
+
+static int end(struct outcome *o, int status, double t, double a, double b, double c, double next,
+               long long accepted, long long rejected) {
+    *o = (struct outcome){status, t, a, b, c, next, accepted, rejected, {0.0, 0.0, 0.0}};
+    return status;
 }
 
-static PyObject *result(int status, double t, double a, double b, double c, double next, long long accepted,
-                        long long rejected) {
-    static const double none[3] = {0.0, 0.0, 0.0};
-    return result_rate(status, t, a, b, c, next, accepted, rejected, none);
+static int end_rate(struct outcome *o, double t, double a, double b, double c, const double *k) {
+    end(o, RATE, t, a, b, c, 0.0, 0, 0);
+    o->k[0] = k[0];
+    o->k[1] = k[1];
+    o->k[2] = k[2];
+    return RATE;
 }
 
-static PyObject *hold_step(PyObject *self, PyObject *args) {
-    (void)self;
-    struct plant p = {0};
-    double t, y1, y2, y3, h, rtol, atol, first_step, limit, y_limit, rate_horizon;
-    long long max_steps;
-    if (!PyArg_ParseTuple(args, "iddddddddddddddddLdd", &p.kind, &p.c1, &p.c2, &p.c3, &p.c4, &p.c5, &p.c6, &t,
-                          &y1, &y2, &y3, &p.uf, &h, &rtol, &atol, &first_step, &limit, &max_steps, &y_limit,
-                          &rate_horizon))
-        return NULL;
-    if (p.kind != EXAMPLE1 && p.kind != PENDULUM && p.kind != MANIPULATOR) {
-        PyErr_SetString(PyExc_ValueError, "unknown plant kind");
-        return NULL;
-    }
+/* One communication step from (t, y1, y2, y3) over h with p->uf held (plants.dopri_hold_step): its
+   status, the outcome in *o. */
+static int integrate(struct plant *p, double t, double y1, double y2, double y3, double h, double rtol,
+                     double atol, double first_step, double limit, long long max_steps, double y_limit,
+                     double rate_horizon, struct outcome *o) {
     double k1[3], k2[3], k3[3], k4[3], k5[3], k6[3], k7[3];
     double t_end = t + h;
-    rhs(&p, t, y1, y2, y3, k1);
-    if (p.domain) return result(DOMAIN, t, 0.0, 0.0, 0.0, 0.0, 0, 0);
+    rhs(p, t, y1, y2, y3, k1);
+    if (p->domain) return end(o, DOMAIN, t, 0.0, 0.0, 0.0, 0.0, 0, 0);
     double reach = rate_horizon * h;
     double x1_limit = py_min(limit, y_limit);
-    if (too_fast(y1, y2, y3, k1, reach, x1_limit, limit)) return result_rate(RATE, t, y1, y2, y3, 0.0, 0, 0, k1);
+    if (too_fast(y1, y2, y3, k1, reach, x1_limit, limit)) return end_rate(o, t, y1, y2, y3, k1);
     double dt = first_step > 0.0 ? py_min(first_step, h) : h;
     long long accepted = 0, rejected = 0;
     double grow = FAC_MAX;
@@ -137,31 +140,31 @@ static PyObject *hold_step(PyObject *self, PyObject *args) {
         double wanted = dt;
         int last = dt >= remaining * (1.0 - 1e-12);
         if (last) dt = remaining;
-        p.domain = 0;
-        rhs(&p, t + C2 * dt, y1 + dt * A21 * k1[0], y2 + dt * A21 * k1[1], y3 + dt * A21 * k1[2], k2);
-        rhs(&p, t + C3 * dt,
+        p->domain = 0;
+        rhs(p, t + C2 * dt, y1 + dt * A21 * k1[0], y2 + dt * A21 * k1[1], y3 + dt * A21 * k1[2], k2);
+        rhs(p, t + C3 * dt,
             y1 + dt * (A31 * k1[0] + A32 * k2[0]),
             y2 + dt * (A31 * k1[1] + A32 * k2[1]),
             y3 + dt * (A31 * k1[2] + A32 * k2[2]), k3);
-        rhs(&p, t + C4 * dt,
+        rhs(p, t + C4 * dt,
             y1 + dt * (A41 * k1[0] + A42 * k2[0] + A43 * k3[0]),
             y2 + dt * (A41 * k1[1] + A42 * k2[1] + A43 * k3[1]),
             y3 + dt * (A41 * k1[2] + A42 * k2[2] + A43 * k3[2]), k4);
-        rhs(&p, t + C5 * dt,
+        rhs(p, t + C5 * dt,
             y1 + dt * (A51 * k1[0] + A52 * k2[0] + A53 * k3[0] + A54 * k4[0]),
             y2 + dt * (A51 * k1[1] + A52 * k2[1] + A53 * k3[1] + A54 * k4[1]),
             y3 + dt * (A51 * k1[2] + A52 * k2[2] + A53 * k3[2] + A54 * k4[2]), k5);
         double t_new = last ? t_end : t + dt;
-        rhs(&p, t_new,
+        rhs(p, t_new,
             y1 + dt * (A61 * k1[0] + A62 * k2[0] + A63 * k3[0] + A64 * k4[0] + A65 * k5[0]),
             y2 + dt * (A61 * k1[1] + A62 * k2[1] + A63 * k3[1] + A64 * k4[1] + A65 * k5[1]),
             y3 + dt * (A61 * k1[2] + A62 * k2[2] + A63 * k3[2] + A64 * k4[2] + A65 * k5[2]), k6);
         double n1 = y1 + dt * (B1 * k1[0] + B3 * k3[0] + B4 * k4[0] + B5 * k5[0] + B6 * k6[0]);
         double n2 = y2 + dt * (B1 * k1[1] + B3 * k3[1] + B4 * k4[1] + B5 * k5[1] + B6 * k6[1]);
         double n3 = y3 + dt * (B1 * k1[2] + B3 * k3[2] + B4 * k4[2] + B5 * k5[2] + B6 * k6[2]);
-        rhs(&p, t_new, n1, n2, n3, k7);
+        rhs(p, t_new, n1, n2, n3, k7);
         double err = INFINITY;
-        if (!p.domain) {
+        if (!p->domain) {
             double e1 = dt * (E1 * k1[0] + E3 * k3[0] + E4 * k4[0] + E5 * k5[0] + E6 * k6[0] + E7 * k7[0]);
             double e2 = dt * (E1 * k1[1] + E3 * k3[1] + E4 * k4[1] + E5 * k5[1] + E6 * k6[1] + E7 * k7[1]);
             double e3 = dt * (E1 * k1[2] + E3 * k3[2] + E4 * k4[2] + E5 * k5[2] + E6 * k6[2] + E7 * k7[2]);
@@ -173,12 +176,12 @@ static PyObject *hold_step(PyObject *self, PyObject *args) {
         if (err <= 1.0) { /* accepted (false for nan) */
             accepted += 1;
             if (fabs(n1) > y_limit || fabs(n1) > limit || fabs(n2) > limit || fabs(n3) > limit)
-                return result(BEYOND, t_new, n1, n2, n3, 0.0, accepted, rejected);
+                return end(o, BEYOND, t_new, n1, n2, n3, 0.0, accepted, rejected);
             double fac = err > 0.0 ? py_min(grow, SAFETY * ftc_pow(err, -0.2)) : grow;
             double proposal = dt * py_max(FAC_MIN, fac);
-            if (last) return result(OK, t_new, n1, n2, n3, py_max(proposal, wanted), accepted, rejected);
+            if (last) return end(o, OK, t_new, n1, n2, n3, py_max(proposal, wanted), accepted, rejected);
             if (accepted + rejected >= max_steps)
-                return result(BUDGET, t_new, n1, n2, n3, 0.0, accepted, rejected);
+                return end(o, BUDGET, t_new, n1, n2, n3, 0.0, accepted, rejected);
             t = t_new;
             y1 = n1;
             y2 = n2;
@@ -186,18 +189,38 @@ static PyObject *hold_step(PyObject *self, PyObject *args) {
             k1[0] = k7[0]; /* first same as last */
             k1[1] = k7[1];
             k1[2] = k7[2];
-            if (too_fast(y1, y2, y3, k1, reach, x1_limit, limit))
-                return result_rate(RATE, t, y1, y2, y3, 0.0, 0, 0, k1);
+            if (too_fast(y1, y2, y3, k1, reach, x1_limit, limit)) return end_rate(o, t, y1, y2, y3, k1);
             dt = proposal;
             grow = FAC_MAX;
         } else {
             rejected += 1;
-            if (dt <= 1e-12 * h) return result(NO_STEP, t, y1, y2, y3, 0.0, accepted, rejected);
-            if (accepted + rejected >= max_steps) return result(BUDGET, t, y1, y2, y3, 0.0, accepted, rejected);
+            if (dt <= 1e-12 * h) return end(o, NO_STEP, t, y1, y2, y3, 0.0, accepted, rejected);
+            if (accepted + rejected >= max_steps) return end(o, BUDGET, t, y1, y2, y3, 0.0, accepted, rejected);
             dt *= isfinite(err) ? py_max(FAC_MIN, SAFETY * ftc_pow(err, -0.2)) : FAC_MIN;
             grow = 1.0;
         }
     }
+}
+
+static int known_kind(int kind) { return kind == EXAMPLE1 || kind == PENDULUM || kind == MANIPULATOR; }
+
+static PyObject *hold_step(PyObject *self, PyObject *args) {
+    (void)self;
+    struct plant p = {0};
+    double t, y1, y2, y3, h, rtol, atol, first_step, limit, y_limit, rate_horizon;
+    long long max_steps;
+    if (!PyArg_ParseTuple(args, "iddddddddddddddddLdd", &p.kind, &p.c1, &p.c2, &p.c3, &p.c4, &p.c5, &p.c6, &t,
+                          &y1, &y2, &y3, &p.uf, &h, &rtol, &atol, &first_step, &limit, &max_steps, &y_limit,
+                          &rate_horizon))
+        return NULL;
+    if (!known_kind(p.kind)) {
+        PyErr_SetString(PyExc_ValueError, "unknown plant kind");
+        return NULL;
+    }
+    struct outcome o;
+    integrate(&p, t, y1, y2, y3, h, rtol, atol, first_step, limit, max_steps, y_limit, rate_horizon, &o);
+    return Py_BuildValue("(idddddLLddd)", o.status, o.t, o.a, o.b, o.c, o.next, o.accepted, o.rejected, o.k[0],
+                         o.k[1], o.k[2]);
 }
 
 static PyMethodDef methods[] = {
