@@ -26,9 +26,23 @@
    c6 = K_B, as manipulator.manipulator_rhs_for binds them.
    Returns (status, t, a, b, c, next_step, accepted, rejected, k1, k2, k3), k the rate at a RATE
    status (zeros otherwise); plants.native_hold_step turns
-   a status other than OK into the Python code's exception and message. Built against the
-   stable ABI (Py_LIMITED_API) so that one binary loads in any CPython 3.8 or later: the FMU's
-   own runtime, or the host's Python when the host runs one. */
+   a status other than OK into the Python code's exception and message.
+
+   step_slave(binding, t, h) and refresh_slave(binding): a plant FMU's do_step and
+   refresh_outputs, which the FMU's shim calls (fmu_src/plant_core.py:compiled_plant_calls binds
+   them, fmu_support._direct_binding hands them over). Why: around the 2 500 instructions of this
+   integrator, a communication step spent about 24 000 in the interpreter (plant_core.step_plant,
+   native_hold_step, their argument tuples); here the usual path (Dormand-Prince, status OK, the
+   new state within its limits) reads and writes the slave's __dict__ entries that step_plant and
+   refresh_plant_outputs read and write, with the same values, and enters no Python frame. Every
+   other path (RK4, a rejected step, a value of another type, a missing entry, initialization)
+   leaves the __dict__ untouched and calls the Python method, whose result, exception and
+   messages are then the FMU's. Nothing is kept here: the state stays in the __dict__, which state
+   snapshots copy.
+
+   Built against the stable ABI (Py_LIMITED_API 3.8: METH_VARARGS, no METH_FASTCALL) so that one
+   binary loads in any CPython 3.8 or later: the FMU's own runtime, or the host's Python when the
+   host runs one. */
 
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -223,9 +237,155 @@ static PyObject *hold_step(PyObject *self, PyObject *args) {
                          o.k[1], o.k[2]);
 }
 
+/* ---- A plant FMU's step and output refresh (the shim's direct calls, fmu_src/fmu_support.py) ----
+
+   plant_core.compiled_plant_calls builds the binding, once per slave: the slave's __dict__, its
+   Python do_step and refresh_outputs (bound), plants.DOPRI, the class NativePlant, then the keys
+   (interned strings) of the entries read and written. Every state stays in the __dict__ (state
+   snapshots deep-copy it): nothing is kept here. */
+
+enum {
+    B_DICT, B_STEP, B_REFRESH, B_DOPRI, B_NATIVE_TYPE, B_STATE, B_UF, B_RTOL, B_ATOL, B_NEXT_STEP,
+    B_STATE_LIMIT, B_MAX_STEPS, B_Y_LIMIT, B_RATE_HORIZON, B_METHOD, B_NATIVE, B_STATES, B_Y, B_ITEMS
+};
+
+static PyObject *binding_of(PyObject *args, int n, PyObject **t, PyObject **h) {
+    PyObject *binding = NULL;
+    if (!PyArg_UnpackTuple(args, n == 1 ? "refresh_slave" : "step_slave", n, n, &binding, t, h)) return NULL;
+    if (!PyTuple_Check(binding) || PyTuple_Size(binding) != B_ITEMS ||
+        !PyDict_Check(PyTuple_GetItem(binding, B_DICT))) {
+        PyErr_SetString(PyExc_TypeError, "not a plant binding (plant_core.compiled_plant_calls)");
+        return NULL;
+    }
+    return binding;
+}
+
+/* The __dict__ entry under the binding's key `key` (borrowed), NULL if missing (maybe with an error). */
+static PyObject *entry(PyObject *binding, int key) {
+    return PyDict_GetItemWithError(PyTuple_GetItem(binding, B_DICT), PyTuple_GetItem(binding, key));
+}
+
+/* float(value) as PyArg_ParseTuple's "d" converts it (PyFloat_AsDouble); 0 on an error. */
+static int as_double(PyObject *value, double *x) {
+    if (!value) return 0;
+    *x = PyFloat_AsDouble(value);
+    return !(*x == -1.0 && PyErr_Occurred());
+}
+
+static int entry_double(PyObject *binding, int key, double *x) { return as_double(entry(binding, key), x); }
+
+/* An entry that is a float itself (compared as a Python object by step_plant: an int would compare
+   exactly, not rounded to a double). */
+static int entry_float(PyObject *binding, int key, double *x) {
+    PyObject *value = entry(binding, key);
+    return value && PyFloat_CheckExact(value) && as_double(value, x);
+}
+
+/* The exact tuple `value` with n items converted by "d" into x[]; 0 otherwise. */
+static int doubles(PyObject *value, Py_ssize_t n, double *x) {
+    if (!value || !PyTuple_CheckExact(value) || PyTuple_Size(value) != n) return 0;
+    for (Py_ssize_t k = 0; k < n; k++)
+        if (!as_double(PyTuple_GetItem(value, k), &x[k])) return 0;
+    return 1;
+}
+
+/* The usual path of plant_core.step_plant (Dormand-Prince, the compiled integrator, status OK, the
+   new state within its limits), reading and writing the same __dict__ entries with the same
+   values: 1 done; 0 another path (the __dict__ untouched, maybe an error set); -1 an error after
+   the first write. */
+static int usual_step(PyObject *binding, PyObject *t_obj, PyObject *h_obj) {
+    PyObject *method = entry(binding, B_METHOD);
+    if (!method || PyObject_RichCompareBool(method, PyTuple_GetItem(binding, B_DOPRI), Py_EQ) != 1) return 0;
+    struct plant p = {0};
+    PyObject *native = entry(binding, B_NATIVE); /* a NativePlant (kind, constants, names) */
+    if (!native || (PyObject *)Py_TYPE(native) != PyTuple_GetItem(binding, B_NATIVE_TYPE)) return 0;
+    PyObject *kind = PyTuple_GetItem(native, 0);
+    if (!kind || !PyLong_Check(kind)) return 0;
+    long kind_value = PyLong_AsLong(kind);
+    if (kind_value == -1 && PyErr_Occurred()) return 0;
+    if (kind_value != EXAMPLE1 && kind_value != PENDULUM && kind_value != MANIPULATOR) return 0; /* ValueError */
+    p.kind = (int)kind_value;
+    double c[6], y[3], t, h, rtol, atol, first_step, limit, y_limit, rate_horizon;
+    if (!doubles(PyTuple_GetItem(native, 1), 6, c)) return 0;
+    p.c1 = c[0], p.c2 = c[1], p.c3 = c[2], p.c4 = c[3], p.c5 = c[4], p.c6 = c[5];
+    PyObject *max_steps_obj = entry(binding, B_MAX_STEPS);
+    if (!max_steps_obj || !PyLong_Check(max_steps_obj)) return 0;
+    long long max_steps = PyLong_AsLongLong(max_steps_obj);
+    if (max_steps == -1 && PyErr_Occurred()) return 0;
+    if (!(as_double(t_obj, &t) && doubles(entry(binding, B_STATE), 3, y) && entry_double(binding, B_UF, &p.uf) &&
+          as_double(h_obj, &h) && entry_double(binding, B_RTOL, &rtol) && entry_double(binding, B_ATOL, &atol) &&
+          entry_double(binding, B_NEXT_STEP, &first_step) && entry_float(binding, B_STATE_LIMIT, &limit) &&
+          entry_float(binding, B_Y_LIMIT, &y_limit) && entry_double(binding, B_RATE_HORIZON, &rate_horizon)))
+        return 0;
+    struct outcome o;
+    if (integrate(&p, t, y[0], y[1], y[2], h, rtol, atol, first_step, limit, max_steps, y_limit, rate_horizon,
+                  &o) != OK)
+        return 0;
+    /* step_plant's check of the new state (nan fails it) */
+    if (!(fabs(o.a) <= py_min(limit, y_limit) && fabs(o.b) <= limit && fabs(o.c) <= limit)) return 0;
+    PyObject *state = PyTuple_New(3), *next = PyFloat_FromDouble(o.next);
+    const double values[3] = {o.a, o.b, o.c};
+    for (Py_ssize_t k = 0; state && k < 3; k++) {
+        PyObject *value = PyFloat_FromDouble(values[k]);
+        if (!value || PyTuple_SetItem(state, k, value) != 0) Py_CLEAR(state);
+    }
+    if (!state || !next) {
+        Py_XDECREF(state);
+        Py_XDECREF(next);
+        return 0;
+    }
+    PyObject *d = PyTuple_GetItem(binding, B_DICT);
+    /* step_plant's order: _next_step as it unpacks the integrator's result, state at the end */
+    int failed = PyDict_SetItem(d, PyTuple_GetItem(binding, B_NEXT_STEP), next) != 0 ||
+                 PyDict_SetItem(d, PyTuple_GetItem(binding, B_STATE), state) != 0;
+    Py_DECREF(state);
+    Py_DECREF(next);
+    return failed ? -1 : 1;
+}
+
+/* step_slave(binding, t, h): the slave's do_step(t, h), its usual path here and every other one
+   (RK4, a rejected step, an error) by the Python do_step, which gives its result and messages. */
+static PyObject *step_slave(PyObject *self, PyObject *args) {
+    (void)self;
+    PyObject *t = NULL, *h = NULL, *binding = binding_of(args, 3, &t, &h);
+    if (!binding) return NULL;
+    int done = usual_step(binding, t, h);
+    if (done > 0) Py_RETURN_TRUE;
+    if (done < 0) return NULL;
+    PyErr_Clear(); /* the Python code meets the same problem and reports it its own way */
+    return PyObject_CallFunctionObjArgs(PyTuple_GetItem(binding, B_STEP), t, h, NULL);
+}
+
+/* refresh_slave(binding): plant_core.refresh_plant_outputs, the outputs x1 (and y), x2 and the third
+   from the state; by the Python function before initialization has ended (no state yet). */
+static PyObject *refresh_slave(PyObject *self, PyObject *args) {
+    (void)self;
+    PyObject *binding = binding_of(args, 1, NULL, NULL);
+    if (!binding) return NULL;
+    PyObject *state = entry(binding, B_STATE), *names = entry(binding, B_STATES);
+    if (state && PyTuple_CheckExact(state) && PyTuple_Size(state) >= 3 && names && PyTuple_CheckExact(names) &&
+        PyTuple_Size(names) == 3 && PyUnicode_CheckExact(PyTuple_GetItem(names, 0)) &&
+        PyUnicode_CheckExact(PyTuple_GetItem(names, 1)) && PyUnicode_CheckExact(PyTuple_GetItem(names, 2))) {
+        PyObject *d = PyTuple_GetItem(binding, B_DICT), *x1 = PyTuple_GetItem(state, 0);
+        /* refresh_plant_outputs' order: d[first] = d["y"] = state[0], then the second and third */
+        if (PyDict_SetItem(d, PyTuple_GetItem(names, 0), x1) != 0 ||
+            PyDict_SetItem(d, PyTuple_GetItem(binding, B_Y), x1) != 0 ||
+            PyDict_SetItem(d, PyTuple_GetItem(names, 1), PyTuple_GetItem(state, 1)) != 0 ||
+            PyDict_SetItem(d, PyTuple_GetItem(names, 2), PyTuple_GetItem(state, 2)) != 0)
+            return NULL;
+        Py_RETURN_NONE;
+    }
+    PyErr_Clear();
+    return PyObject_CallObject(PyTuple_GetItem(binding, B_REFRESH), NULL);
+}
+
 static PyMethodDef methods[] = {
     {"hold_step", hold_step, METH_VARARGS,
      "One communication step of a plant by Dormand-Prince 5(4) (see fmu_src/models/plants.py)."},
+    {"step_slave", step_slave, METH_VARARGS,
+     "step_slave(binding, t, h): a plant FMU's do_step (see fmu_src/plant_core.py:compiled_plant_calls)."},
+    {"refresh_slave", refresh_slave, METH_VARARGS,
+     "refresh_slave(binding): a plant FMU's refresh_outputs (see fmu_src/plant_core.py:compiled_plant_calls)."},
     {NULL, NULL, 0, NULL},
 };
 
