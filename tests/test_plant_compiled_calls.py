@@ -186,21 +186,41 @@ def test_rejected_steps_are_the_python_ones(compiled: ModuleType, parameters: di
     assert reason in str(fast.log_queue[-1])
 
 
+class Real(float):
+    """A float of another type (as numpy's float64): the Python path takes it."""
+
+
 @pytest.mark.parametrize(
     ("name", "value"),
     [("uf", "1.0"), ("max_steps", 2.5e6), ("state", [0.5, 0.5, 0.0]), ("state", (0.5, 0.5)), ("rtol", None),
      ("state_limit", 10**6), ("y_limit", 10**30 + 1), ("_method", 0.0), ("_native", (0, (0.0,) * 6)),
-     ("_next_step", "0.001"), ("uf", 10**400), ("state_limit", math.nan), ("y_limit", math.nan)],
+     ("_next_step", "0.001"), ("uf", 10**400), ("state_limit", math.nan), ("uf", Real(5.0)),
+     ("_method", Real(0.0)), ("max_steps", True), ("state", (0.5, Real(0.5), 0.0))],
 )
 def test_other_values_take_the_python_path(compiled: ModuleType, name: str, value: Any) -> None:
-    """An entry of another type than the FMU's own (a list, an int, a string, a shorter state):
-    the Python step, whatever it makes of it (a result, an exception, a rejection)."""
+    """An entry of another type than the FMU's own (a list, an int, a string, a shorter state, a
+    float subclass) or a nan limit: the Python step, whatever it makes of it (a result, an
+    exception, a rejection)."""
     fast, slow = twins("Example1Plant")
     fast.uf = slow.uf = 5.0
     step_both(fast, slow, 0.0, H)
     fast.__dict__[name] = value
     slow.__dict__[name] = value
+    snapshot, queued = dict(fast.__dict__), list(fast.log_queue)
+    with Frames() as frames:
+        outcome(calls(fast)[0], H, H)
+    assert "step_plant" in frames.entered
+    fast.__dict__.clear()  # and again, compared with the Python step
+    fast.__dict__.update(snapshot)
+    fast.log_queue[:] = queued
     step_both(fast, slow, H, H)
+
+
+def test_a_nan_y_limit_is_no_limit_in_c_as_in_python(compiled: ModuleType) -> None:
+    """min(state_limit, nan) is state_limit in Python: the C step's check of the new state too."""
+    fast, slow = twins("Example1Plant")
+    fast.y_limit = slow.y_limit = math.nan
+    assert step_both(fast, slow, 0.0, H) is True
 
 
 def test_a_deleted_entry_takes_the_python_path(compiled: ModuleType) -> None:

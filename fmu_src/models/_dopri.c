@@ -265,9 +265,10 @@ static PyObject *entry(PyObject *binding, int key) {
     return PyDict_GetItemWithError(PyTuple_GetItem(binding, B_DICT), PyTuple_GetItem(binding, key));
 }
 
-/* float(value) as PyArg_ParseTuple's "d" converts it (PyFloat_AsDouble); 0 on an error. */
+/* A float or an int (exactly: no Python code runs, so the borrowed entries stay alive) converted
+   as PyArg_ParseTuple's "d" converts it (PyFloat_AsDouble); 0 otherwise or on an error. */
 static int as_double(PyObject *value, double *x) {
-    if (!value) return 0;
+    if (!value || !(PyFloat_CheckExact(value) || PyLong_CheckExact(value))) return 0;
     *x = PyFloat_AsDouble(value);
     return !(*x == -1.0 && PyErr_Occurred());
 }
@@ -295,12 +296,14 @@ static int doubles(PyObject *value, Py_ssize_t n, double *x) {
    the first write. */
 static int usual_step(PyObject *binding, PyObject *t_obj, PyObject *h_obj) {
     PyObject *method = entry(binding, B_METHOD);
-    if (!method || PyObject_RichCompareBool(method, PyTuple_GetItem(binding, B_DOPRI), Py_EQ) != 1) return 0;
+    if (!method || !PyLong_CheckExact(method) ||
+        PyObject_RichCompareBool(method, PyTuple_GetItem(binding, B_DOPRI), Py_EQ) != 1)
+        return 0;
     struct plant p = {0};
     PyObject *native = entry(binding, B_NATIVE); /* a NativePlant (kind, constants, names) */
     if (!native || (PyObject *)Py_TYPE(native) != PyTuple_GetItem(binding, B_NATIVE_TYPE)) return 0;
     PyObject *kind = PyTuple_GetItem(native, 0);
-    if (!kind || !PyLong_Check(kind)) return 0;
+    if (!kind || !PyLong_CheckExact(kind)) return 0;
     long kind_value = PyLong_AsLong(kind);
     if (kind_value == -1 && PyErr_Occurred()) return 0;
     if (kind_value != EXAMPLE1 && kind_value != PENDULUM && kind_value != MANIPULATOR) return 0; /* ValueError */
@@ -309,7 +312,7 @@ static int usual_step(PyObject *binding, PyObject *t_obj, PyObject *h_obj) {
     if (!doubles(PyTuple_GetItem(native, 1), 6, c)) return 0;
     p.c1 = c[0], p.c2 = c[1], p.c3 = c[2], p.c4 = c[3], p.c5 = c[4], p.c6 = c[5];
     PyObject *max_steps_obj = entry(binding, B_MAX_STEPS);
-    if (!max_steps_obj || !PyLong_Check(max_steps_obj)) return 0;
+    if (!max_steps_obj || !PyLong_CheckExact(max_steps_obj)) return 0;
     long long max_steps = PyLong_AsLongLong(max_steps_obj);
     if (max_steps == -1 && PyErr_Occurred()) return 0;
     if (!(as_double(t_obj, &t) && doubles(entry(binding, B_STATE), 3, y) && entry_double(binding, B_UF, &p.uf) &&
