@@ -13,6 +13,7 @@ from fmu_src.fmu_support import declare, fmu_model, raise_problems
 from fmu_src.models.native import EXAMPLE1
 from fmu_src.models.plants import example1_rhs
 from fmu_src.plant_core import (
+    compiled_plant_calls,
     declare_integrator,
     declare_plant_outputs,
     plant_problems,
@@ -36,6 +37,7 @@ class Example1Plant(Fmi2Slave):
         self.x1_0 = 0.5
         self.x2_0 = 0.5
         self.z_0 = 0.0
+        self._native = EXAMPLE1  # the compiled step's plant (plant_core.compiled_plant_calls reads it)
         declare(self, "uf", Fmi2Causality.input, "Control applied by the actuator, held over each step")
         declare_plant_outputs(self, None, None)
         declare(self, "x1_0", PARAMETER, "Initial value of x1")
@@ -51,7 +53,9 @@ class Example1Plant(Fmi2Slave):
     # the states now (the initial values until initialization has finished); the core's function
     # itself, no frame of the class's own at every read
     refresh_outputs = refresh_plant_outputs
+    # in a built FMU the shim's step and refresh run in C, these methods on every other path
+    compiled_calls = compiled_plant_calls
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         """Integrate the plant over the step with uf held."""
-        return step_plant(self, example1_rhs, EXAMPLE1, current_time, step_size)
+        return step_plant(self, example1_rhs, self._native, current_time, step_size)

@@ -16,6 +16,7 @@ from fmu_src.fmu_support import declare, fmu_model, raise_problems
 from fmu_src.models.native import pendulum_native
 from fmu_src.models.plants import PendulumParameters, pendulum_problems, pendulum_rhs_for
 from fmu_src.plant_core import (
+    compiled_plant_calls,
     declare_integrator,
     declare_plant_outputs,
     plant_problems,
@@ -70,6 +71,8 @@ class PendulumPlant(Fmi2Slave):
     # the states now (the initial values until initialization has finished); the core's function
     # itself, no frame of the class's own at every read
     refresh_outputs = refresh_plant_outputs
+    # in a built FMU the shim's step and refresh run in C, these methods on every other path
+    compiled_calls = compiled_plant_calls
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         """Integrate the pendulum over the step with uf held."""

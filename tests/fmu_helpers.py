@@ -6,11 +6,12 @@ from __future__ import annotations
 
 import importlib.util
 import math
+import sys
 import tempfile
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
-from types import ModuleType
+from types import FrameType, ModuleType
 from typing import Any
 
 import numpy as np
@@ -47,6 +48,29 @@ def compiled_extension(name: str, where: Path) -> ModuleType:
     spec.loader.exec_module(module)
     return module
 
+
+
+class Frames:
+    """The Python functions entered while active (``sys.setprofile``), by name: those whose code
+    lies under ``folder`` (an FMU's unpacked files), or every one but this object's ``__exit__``."""
+
+    def __init__(self, folder: str | None = None) -> None:
+        self.folder = folder
+        self.entered: list[str] = []
+
+    def _profile(self, frame: FrameType, event: str, arg: object) -> None:
+        code = frame.f_code
+        if event != "call" or code is Frames.__exit__.__code__:
+            return
+        if self.folder is None or code.co_filename.startswith(self.folder):
+            self.entered.append(code.co_name)
+
+    def __enter__(self) -> Frames:
+        sys.setprofile(self._profile)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        sys.setprofile(None)
 
 
 class Slave:

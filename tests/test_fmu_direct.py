@@ -7,17 +7,21 @@ pythonfmu's per-call machinery when the shim has claimed the slave. These tests 
 two paths cannot be told apart: identical co-simulation results (bit for bit), the same status
 and message when do_step raises (replayed through pythonfmu), the same fmi2Discard, last
 successful time and terminate wish, messages queued during a step reaching the host's logger,
-and a new binding after fmi2Reset.
+and a new binding after fmi2Reset. The plants' step and refresh on the direct path are compiled
+(fmu_src/models/_dopri.c step_slave and refresh_slave): no Python frame on their usual path, the
+Python methods' status and message on every other one.
 """
 
 from __future__ import annotations
 
+import functools
 import gc
 import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import fmpy
 import numpy as np
@@ -34,7 +38,7 @@ from fmpy.fmi2 import (
     fmi2LastSuccessfulTime,
     fmi2Terminated,
 )
-from fmu_helpers import unzipped
+from fmu_helpers import Frames, unzipped
 
 import orchestrator
 from orchestrator import RunOptions
@@ -90,9 +94,10 @@ def unclaimed() -> bool:
     return threading.get_ident() in sys.__dict__.get("_ftc_fmu_slaves", {})
 
 
-@pytest.mark.parametrize("scenario", ["example1", "pendulum"])
+@pytest.mark.parametrize("scenario", ["example1", "pendulum", "manipulator"])
 def test_results_identical_on_both_paths(built: Path, monkeypatch: pytest.MonkeyPatch, scenario: str) -> None:
-    """Every column of a 1 s co-simulation is the same to the bit, direct or through pythonfmu."""
+    """Every column of a 1 s co-simulation is the same to the bit, direct (the plant stepped and
+    refreshed in C) or through pythonfmu (the plant's Python methods)."""
     results = {}
     for value in ("1", "0"):
         monkeypatch.setenv("FTC_FMU_DIRECT", value)
@@ -256,3 +261,102 @@ def test_an_exception_in_do_step_is_reported_as_pythonfmu_reports_it(
     assert status == 4  # fmi2Fatal: what pythonfmu makes of an exception in do_step
     text = "\n".join(message for _, message in logged)
     assert "ZeroDivisionError('the law exploded on purpose')" in text, text
+
+
+PLANTS = ("Example1Plant", "PendulumPlant", "ManipulatorPlant")
+
+
+def the_slave(model: str, name: str) -> Any:
+    """The slave object of instance ``name`` of ``model`` in this process (the host's Python)."""
+    (slave,) = [o for o in gc.get_objects()
+                if type(o).__name__ == model and getattr(o, "instance_name", None) == name]
+    return slave
+
+
+def shims_binding(slave: Any) -> tuple[Any, ...]:
+    """The binding the shim holds for ``slave`` (nothing else keeps it once claimed)."""
+    (binding,) = [o for o in gc.get_objects() if type(o) is tuple and len(o) == 10 and o[1] is slave.__dict__]
+    return binding
+
+
+@pytest.mark.parametrize("model", PLANTS)
+def test_the_shim_steps_plants_in_c(fmus: dict[str, Path], path: str, model: str) -> None:
+    """On the direct path the shim got the FMU's own _dopri.step_slave and refresh_slave, bound to
+    the slave: 50 steps with their outputs read enter no Python function of the FMU; through
+    pythonfmu (the oracle of the other tests) its Python step and refresh run."""
+    name = f"compiled-{model}-{path}"
+    slave, vr = instantiate(fmus[model], Messages(), name=name)
+    try:
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        model_object = the_slave(model, name)
+        if path == "direct":
+            binding = shims_binding(model_object)
+            (dopri,) = {module for key, module in sys.modules.items()
+                        if key.startswith(f"_ftc_{model.lower()}_") and key.endswith(".models._dopri")}
+            step, refresh = binding[2], binding[3]
+            assert isinstance(step, functools.partial) and step.func is dopri.step_slave
+            assert isinstance(refresh, functools.partial) and refresh.func is dopri.refresh_slave
+            assert step.args[0][0] is refresh.args[0][0] is model_object.__dict__
+        outputs = [vr[n] for n in ("x1", "x2", "y")]
+        with Frames(str(Path(unzipped(fmus[model])).resolve())) as frames:
+            for k in range(50):
+                slave.setReal([vr["uf"]], [10.0 * (k % 7) - 30.0])
+                slave.doStep(k * 1e-3, 1e-3)
+                assert slave.getReal(outputs)[0] == model_object.state[0]
+        if path == "direct":
+            assert frames.entered == []
+        else:
+            assert {"step_plant", "refresh_plant_outputs"} <= set(frames.entered)
+        del model_object
+    finally:
+        slave.freeInstance()
+
+
+def plant_run(fmu: Path, name: str, reals: dict[str, float], integers: dict[str, int],
+              inputs: list[float]) -> tuple[list[Any], list[tuple[int, str]]]:
+    """Per step of 1 ms with input uf: the states read, or the status of a step that failed (then
+    the run ends); the messages logged."""
+    messages = Messages()
+    seen: list[Any] = []
+    slave, vr = instantiate(fmu, messages, name=name)
+    try:
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.setReal([vr[n] for n in reals], list(reals.values()))
+        slave.setInteger([vr[n] for n in integers], list(integers.values()))
+        slave.exitInitializationMode()
+        states = [vr[n] for n in ("x1", "x2", "z", "y")]
+        for k, uf in enumerate(inputs):
+            slave.setReal([vr["uf"]], [uf])
+            try:
+                slave.doStep(k * 1e-3, 1e-3)
+            except FMICallException as error:
+                seen += [error.status, slave.getRealStatus(fmi2LastSuccessfulTime), slave.getReal(states)]
+                break
+            seen.append(slave.getReal(states))
+    finally:
+        slave.freeInstance()
+    return seen, messages.seen
+
+
+@pytest.mark.parametrize(("reals", "integers", "inputs"), [
+    ({"state_limit": 0.6, "rate_horizon": 0.0}, {}, [0.0, 0.0, 1000.0, 0.0]),  # beyond state_limit
+    ({"y_limit": 0.6}, {}, [0.0, 1e5]),  # carried beyond y_limit within the rate horizon
+    ({}, {"max_steps": 2}, [0.0, 1e5]),  # the step budget spent
+    ({"max_step": 1e-4}, {"method": 1}, [0.0, 50.0, -50.0, 1e300]),  # RK4, then the rate bound
+])
+def test_plant_steps_off_the_usual_path_are_the_python_ones(
+        fmus: dict[str, Path], monkeypatch: pytest.MonkeyPatch, reals: dict[str, float],
+        integers: dict[str, int], inputs: list[float]) -> None:
+    """RK4 and rejected steps (fmi2Discard), which the C step leaves to the plant's Python step:
+    the same states, status, last successful time and messages, direct or through pythonfmu."""
+    seen = {}
+    for path in PATHS:
+        monkeypatch.setenv("FTC_FMU_DIRECT", "1" if path == "direct" else "0")
+        seen[path] = plant_run(fmus["Example1Plant"], f"off-{path}", reals, integers, inputs)
+    assert seen["direct"] == seen["pythonfmu"]
+    states, messages = seen["direct"]
+    assert states[-3] == fmi2Discard, states
+    assert any("step rejected (fmi2Discard)" in text for _, text in messages)

@@ -4,6 +4,9 @@ algorithm as :func:`~fmu_src.models.plants.dopri_hold_step`, giving the same bit
 exceptions and messages, about 11 times faster (0.36 us per integrator step of Example 1
 against 3.9 us, replaying a finite escape of 174 416 steps).
 
+``_dopri`` also steps a plant FMU's slave and refreshes its outputs for the FMU's shim with no
+Python frame (``step_slave``, ``refresh_slave``: see :func:`fmu_src.plant_core.compiled_plant_calls`).
+
 The FMU build (:mod:`fmu_src.toolchain.build`) compiles ``_dopri.c`` into every plant FMU, so an FMU always
 steps with it (``tests/test_plant_native.py`` checks that the built FMUs load it; an FMU that
 cannot load it fails to instantiate rather than step slower). In the source tree, where nothing
@@ -14,6 +17,7 @@ compare the compiled step against.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from types import ModuleType
 from typing import NamedTuple
 
 from .manipulator import STATE_NAMES as MANIPULATOR_STATES
@@ -36,7 +40,8 @@ except ImportError:
         raise  # a built plant FMU carries it: without it the build is broken, not slower
     _dopri = None  # the source tree: the Python reference steps
 
-__all__ = ["COMPILED", "EXAMPLE1", "NativePlant", "manipulator_native", "native_hold_step", "pendulum_native"]
+__all__ = ["COMPILED", "EXAMPLE1", "NativePlant", "compiled_module", "manipulator_native", "native_hold_step",
+           "pendulum_native"]
 
 COMPILED = _dopri is not None
 # Status codes of _dopri.hold_step (see _dopri.c).
@@ -67,6 +72,12 @@ def manipulator_native(p: ManipulatorParameters) -> NativePlant:
     :func:`~fmu_src.models.manipulator.manipulator_rhs_for` computes them."""
     inertia, gravity, friction = manipulator_constants(p)
     return NativePlant(2, (inertia, gravity, friction, p.L, p.R, p.K_B), MANIPULATOR_STATES)
+
+
+def compiled_module() -> ModuleType | None:
+    """The compiled ``_dopri`` if :data:`COMPILED`, else None (looked up at every call: the tests
+    put a compiled one in the source tree's place)."""
+    return _dopri if COMPILED else None
 
 
 def native_hold_step(
