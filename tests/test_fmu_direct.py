@@ -18,7 +18,7 @@ import functools
 import gc
 import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -118,29 +118,6 @@ def test_instances_are_claimed(fmus: dict[str, Path], path: str) -> None:
             assert not unclaimed()
             slave.reset()
             assert not unclaimed()
-
-
-# The FMUs whose step and output refresh the shim calls in C (compiled_calls), and their extension.
-COMPILED_CALLS = {**{f"FixedTimeController{n}": "_law" for n in ("", "1", "3", "4")}}
-
-
-@pytest.mark.parametrize("model", sorted(COMPILED_CALLS))
-def test_the_shim_gets_the_compiled_calls(fmus: dict[str, Path], model: str) -> None:
-    """The binding the shim claims holds the model extension's C functions, bound to the slave's
-    dict, so that test_results_identical_on_both_paths compares them with the Python methods that
-    pythonfmu's path calls (a model whose extension failed to hand them over would step in Python,
-    and no result would tell)."""
-    with instance(fmus[model], Messages()):
-        gc.collect()
-        slaves = [o for o in gc.get_objects()
-                  if type(o).__name__ == model and hasattr(o, "_fmu_direct_binding")]
-        assert len(slaves) == 1
-        binding = slaves[0]._fmu_direct_binding()
-    step, refresh = binding[2], binding[3]
-    for call, name in ((step, "step_slave"), (refresh, "refresh_slave")):
-        assert call.func.__name__ == name
-        assert call.func.__module__.endswith(f".{COMPILED_CALLS[model]}")
-        assert call.args[0][0] is binding[1]  # the slave's own dict
 
 
 def test_a_step_before_initialization_is_refused_on_both_paths(fmus: dict[str, Path], path: str) -> None:
@@ -279,11 +256,25 @@ def shims_binding(slave: Any) -> tuple[Any, ...]:
     return binding
 
 
-@pytest.mark.parametrize("model", PLANTS)
-def test_the_shim_steps_plants_in_c(fmus: dict[str, Path], path: str, model: str) -> None:
-    """On the direct path the shim got the FMU's own _dopri.step_slave and refresh_slave, bound to
-    the slave: 50 steps with their outputs read enter no Python function of the FMU; through
-    pythonfmu (the oracle of the other tests) its Python step and refresh run."""
+# The FMUs the shim steps in C (their classes' compiled_calls): the extension, the inputs set per step k,
+# the outputs read, the Python functions pythonfmu's path runs instead.
+IN_C: dict[str, tuple[str, dict[str, Callable[[int], float]], tuple[str, ...], set[str]]] = {
+    **{plant: (".models._dopri", {"uf": lambda k: 10.0 * (k % 7) - 30.0}, ("x1", "x2", "y"),
+               {"step_plant", "refresh_plant_outputs"}) for plant in PLANTS},
+    **{f"FixedTimeController{n}": (".controller._law",
+                                   {"x1": lambda k: 0.5 - 1e-3 * k, "yd": lambda k: 1e-3 * k},
+                                   ("v", "z1", "eta1_hat", "r"),
+                                   {"step_controller", "refresh_controller_outputs"})
+       for n in ("", "1", "3", "4")},
+}
+
+
+@pytest.mark.parametrize("model", sorted(IN_C))
+def test_the_shim_steps_models_in_c(fmus: dict[str, Path], path: str, model: str) -> None:
+    """On the direct path the shim got the FMU's own step_slave and refresh_slave (of its extension),
+    bound to the slave: 50 steps with their outputs read enter no Python function of the FMU;
+    through pythonfmu (the oracle of the other tests) its Python step and refresh run."""
+    extension, inputs, outputs, python = IN_C[model]
     name = f"compiled-{model}-{path}"
     slave, vr = instantiate(fmus[model], Messages(), name=name)
     try:
@@ -293,22 +284,23 @@ def test_the_shim_steps_plants_in_c(fmus: dict[str, Path], path: str, model: str
         model_object = the_slave(model, name)
         if path == "direct":
             binding = shims_binding(model_object)
-            (dopri,) = {module for key, module in sys.modules.items()
-                        if key.startswith(f"_ftc_{model.lower()}_") and key.endswith(".models._dopri")}
+            (module,) = {module for key, module in sys.modules.items()
+                         if key.startswith(f"_ftc_{model.lower()}_") and key.endswith(extension)}
             step, refresh = binding[2], binding[3]
-            assert isinstance(step, functools.partial) and step.func is dopri.step_slave
-            assert isinstance(refresh, functools.partial) and refresh.func is dopri.refresh_slave
+            assert isinstance(step, functools.partial) and step.func is module.step_slave
+            assert isinstance(refresh, functools.partial) and refresh.func is module.refresh_slave
             assert step.args[0][0] is refresh.args[0][0] is model_object.__dict__
-        outputs = [vr[n] for n in ("x1", "x2", "y")]
+        read = [vr[n] for n in outputs]
         with Frames(str(Path(unzipped(fmus[model])).resolve())) as frames:
             for k in range(50):
-                slave.setReal([vr["uf"]], [10.0 * (k % 7) - 30.0])
+                slave.setReal([vr[n] for n in inputs], [value(k) for value in inputs.values()])
                 slave.doStep(k * 1e-3, 1e-3)
-                assert slave.getReal(outputs)[0] == model_object.state[0]
+                values = slave.getReal(read)
+                assert values[0] == model_object.__dict__[outputs[0]]
         if path == "direct":
             assert frames.entered == []
         else:
-            assert {"step_plant", "refresh_plant_outputs"} <= set(frames.entered)
+            assert python <= set(frames.entered)
         del model_object
     finally:
         slave.freeInstance()
