@@ -8,10 +8,13 @@ current communication point t (the absolute FMU time, as in the paper).
 
 from __future__ import annotations
 
+from typing import Any
+
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from fmu_src.fmu_support import declare, fmu_model, mark_stale, raise_problems
 from fmu_src.models.actuator import ActuatorParameters, actuator_output, actuator_problems
+from fmu_src.models.signals_native import Refresh, Step, actuator_calls, param_values
 
 PARAMETER = Fmi2Causality.parameter
 INPUT = Fmi2Causality.input
@@ -29,6 +32,12 @@ class Actuator(Fmi2Slave):
 
     description = "Actuator fault (K(t), L(t)) and input dead-zone u(v) of the paper (eq. 2-6, 86-87)"
 
+    @staticmethod
+    def compiled_calls(slave: Fmi2Slave, step: Step, refresh: Refresh) -> tuple[Step, Refresh] | None:
+        """do_step and refresh_outputs in C (fmu_src/models/_signals.c), where the FMU build compiled
+        it: the same values with no interpreter frame per call (fmu_support's ``compiled_calls``)."""
+        return actuator_calls(slave, step, refresh, FAULT_TIME_TOLERANCE)
+
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)
         defaults = ActuatorParameters()
@@ -40,6 +49,7 @@ class Actuator(Fmi2Slave):
         self.time = 0.0
         self.uf = self.u_dz = 0.0  # written by refresh_outputs
         self._params: ActuatorParameters | None = None  # frozen at exit_initialization_mode
+        self._param_values: tuple[Any, ...] | None = None  # the compiled refresh's copy of _params
         declare(self, "v", INPUT, "Commanded control v from the controller")
         declare(self, "x1", INPUT, "Plant state x1 (enters the bias fault L(t))")
         declare(self, "x2", INPUT, "Plant state x2 (enters the bias fault L(t))")
@@ -102,6 +112,7 @@ class Actuator(Fmi2Slave):
         params = self._parameters()
         raise_problems(self.modelName, actuator_problems(params))
         self._params = params
+        self._param_values = param_values(params)
         mark_stale(self)
 
     def do_step(self, current_time: float, step_size: float) -> bool:

@@ -7,10 +7,13 @@ The outputs are the values at the current communication point t (no state beside
 
 from __future__ import annotations
 
+from typing import Any
+
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from fmu_src.fmu_support import declare, fmu_model, mark_stale, raise_problems
 from fmu_src.models.reference import ReferenceParameters, reference_derivatives, reference_problems
+from fmu_src.models.signals_native import Refresh, Step, param_values, reference_calls
 
 PARAMETER = Fmi2Causality.parameter
 OUTPUT = Fmi2Causality.output
@@ -22,6 +25,12 @@ class Reference(Fmi2Slave):
 
     description = "Reference signal yd = amplitude*sin(omega*t + phase) + offset and derivatives"
 
+    @staticmethod
+    def compiled_calls(slave: Fmi2Slave, step: Step, refresh: Refresh) -> tuple[Step, Refresh] | None:
+        """do_step and refresh_outputs in C (fmu_src/models/_signals.c), where the FMU build compiled
+        it: the same values with no interpreter frame per call (fmu_support's ``compiled_calls``)."""
+        return reference_calls(slave, step, refresh)
+
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)
         self.amplitude = 0.5
@@ -31,6 +40,7 @@ class Reference(Fmi2Slave):
         self.time = 0.0
         self.yd = self.yd_dot = self.yd_ddot = self.yd_dddot = self.yd_ddddot = 0.0  # by refresh_outputs
         self._params: ReferenceParameters | None = None  # frozen at exit_initialization_mode
+        self._param_values: tuple[Any, ...] | None = None  # the compiled refresh's copy of _params
         declare(self, "yd", OUTPUT, "Reference yd(t)", depends_on=())
         declare(self, "yd_dot", OUTPUT, "First derivative yd'(t)", depends_on=())
         declare(self, "yd_ddot", OUTPUT, "Second derivative yd''(t)", depends_on=())
@@ -62,6 +72,7 @@ class Reference(Fmi2Slave):
         params = self._parameters()
         raise_problems(self.modelName, reference_problems(params))
         self._params = params
+        self._param_values = param_values(params)
         mark_stale(self)
 
     def do_step(self, current_time: float, step_size: float) -> bool:

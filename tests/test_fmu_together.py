@@ -141,8 +141,9 @@ def test_all_five_in_libcosim(fmus: dict) -> None:
 
 
 def test_two_builds_of_a_module_do_not_shadow_each_other(fmus: dict, tmp_path: Path) -> None:
-    """Reference built from sources whose models.reference.reference_derivatives adds 1 to yd, loaded next
-    to the original: each instance uses its own bundled modules."""
+    """Reference built from sources whose models.reference.reference_derivatives adds 1 to yd, and
+    so does its compiled refresh (models/_signals.c, an extension module of the same name as the
+    original's), loaded next to the original: each instance uses its own bundled modules."""
     root = tmp_path / "src"
     for package in ("fmu_src", "controller"):
         shutil.copytree(REPO_ROOT / package, root / package, ignore=shutil.ignore_patterns("__pycache__"))
@@ -152,6 +153,10 @@ def test_two_builds_of_a_module_do_not_shadow_each_other(fmus: dict, tmp_path: P
         + "\n\n_original = reference_derivatives\n\n\n"
         + "def reference_derivatives(t, p):\n    yd, *rest = _original(t, p)\n    return (yd + 1.0, *rest)\n"
     )
+    compiled = root / "fmu_src" / "models" / "_signals.c"
+    source = compiled.read_text()
+    assert source.count("        a * s + offset,\n") == 1
+    compiled.write_text(source.replace("        a * s + offset,\n", "        a * s + offset + 1.0,\n"))
     changed = build_fmu("Reference", tmp_path / "changed", root=root)
     with open_slaves({"original": fmus["Reference"], "changed": changed}) as s:
         for slave in s.values():

@@ -157,6 +157,7 @@ KEPT_GRACE = 3600.0  # seconds: entries used more recently stay, whatever the bu
 # loads in the FMU's runtime and in a host's Python alike. -ffp-contract=off: no fused
 # multiply-add, so the compiled arithmetic rounds as Python's does (see fmu_src/models/_dopri.c).
 EXTENSIONS = {"fmu_src.models._dopri": Path("fmu_src", "models", "_dopri.c"),
+              "fmu_src.models._signals": Path("fmu_src", "models", "_signals.c"),
               "controller._law": Path("controller", "_law.c"),
               "controller._fmath": Path("controller", "_fmath.c")}
 # The headers every extension module's source includes (relative to the source root): fmath.h and
