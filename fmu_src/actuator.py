@@ -8,6 +8,7 @@ current communication point t (the absolute FMU time, as in the paper).
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from pythonfmu import Fmi2Causality, Fmi2Slave
@@ -96,8 +97,8 @@ class Actuator(Fmi2Slave):
         """uf and u_dz for the inputs set at the current communication point."""
         p = self._params or self._parameters()
         t = self.time
-        if abs(t - p.t_fault) <= FAULT_TIME_TOLERANCE * max(1.0, abs(p.t_fault)):
-            t = p.t_fault
+        if math.isfinite(p.t_fault) and abs(t - p.t_fault) <= FAULT_TIME_TOLERANCE * max(1.0, abs(p.t_fault)):
+            t = p.t_fault  # (t_fault = inf: never faulty, and inf - inf is no time to snap to)
         self.uf, self.u_dz = actuator_output(t, self.v, self.x1, self.x2, p)
 
     def setup_experiment(

@@ -128,9 +128,22 @@ def test_reference_same_bits_as_python(signals: ModuleType, parameters: tuple[fl
 
 def actuator_expected(t: float, v: float, x1: float, x2: float, p: ActuatorParameters) -> list[str]:
     """The pure-Python functions, with the refresh's snap of t to t_fault."""
-    if abs(t - p.t_fault) <= FAULT_TIME_TOLERANCE * max(1.0, abs(p.t_fault)):
+    if math.isfinite(p.t_fault) and abs(t - p.t_fault) <= FAULT_TIME_TOLERANCE * max(1.0, abs(p.t_fault)):
         t = p.t_fault
     return bits(actuator_output(t, v, x1, x2, p))
+
+
+@pytest.mark.parametrize("t", [0.0, 10.0, 1e6, 1e300])
+def test_an_infinite_fault_time_is_never_faulty(signals: ModuleType, t: float) -> None:
+    """t_fault = +inf (actuator_problems: never faulty): uf = v at every time, in Python and in C.
+    The refresh's snap of a time near t_fault took inf - inf <= 1e-12 inf for near, and applied
+    the fault (uf 0.6 for v = 2)."""
+    python, native = made(Actuator, t_fault=math.inf), made(Actuator, t_fault=math.inf)
+    for slave in (python, native):
+        slave.v, slave.x1, slave.x2, slave.time = 2.0, 0.3, -0.2, t
+    python.refresh_outputs()
+    compiled(native)[1]()
+    assert (python.uf, python.u_dz) == (native.uf, native.u_dz) == (2.0, 1.5)  # u_dz = m_r (v - b_r)
 
 
 @pytest.mark.parametrize("start", [9.5, 10.0 - 5e-13])

@@ -174,8 +174,10 @@ static PyObject *actuator_refresh(PyObject *self, PyObject *args) {
         usual = exact_float(dict, PyTuple_GetItem(binding, B_FIRST + k), &in[k]);
     if (!usual) return fallback(binding, args, B_REFRESH);
     const double v_in = in[0], x1 = in[1], x2 = in[2];
-    /* if abs(t - p.t_fault) <= FAULT_TIME_TOLERANCE * max(1.0, abs(p.t_fault)): t = p.t_fault */
-    if (fabs(t - p[T_FAULT]) <= PyFloat_AsDouble(tolerance) * py_max(1.0, fabs(p[T_FAULT]))) t = p[T_FAULT];
+    /* if isfinite(p.t_fault) and abs(t - p.t_fault) <= FAULT_TIME_TOLERANCE * max(1.0, abs(p.t_fault)):
+       t = p.t_fault */
+    double near = PyFloat_AsDouble(tolerance) * py_max(1.0, fabs(p[T_FAULT]));
+    if (isfinite(p[T_FAULT]) && fabs(t - p[T_FAULT]) <= near) t = p[T_FAULT];
     /* saturate: max(-u_max, min(u_max, v)) */
     const double v = py_max(-p[U_MAX], py_min(p[U_MAX], v_in));
     /* dead_zone */
