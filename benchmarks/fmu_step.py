@@ -15,8 +15,13 @@ controller FMU. ``--before DIR`` measures the FMUs of an earlier build (e.g. the
 ``build/fmus``) in the same run, beside the current ones. The plants are measured with their
 default integrator (Dormand-Prince 5(4)); ``--rk4`` adds the fixed-step RK4 (``method`` 1).
 
-Usage: ``python benchmarks/fmu_step.py [--steps N] [--fmus DIR] [--before DIR] [--rk4]`` (builds
-into a temporary folder without ``--fmus``). Figures only: timings are never asserted.
+``--instructions`` prints instead each FMU's instructions per step in the C host, which the machine's
+load does not move: ``valgrind --tool=callgrind`` counts the host for 1000 and for 2000 steps, and
+the difference is divided by 1000 (start-up cancels).
+
+Usage: ``python benchmarks/fmu_step.py [--steps N] [--fmus DIR] [--before DIR] [--rk4]
+[--instructions]`` (builds into a temporary folder without ``--fmus``). Figures only: timings are never
+asserted.
 """
 
 from __future__ import annotations
@@ -28,6 +33,8 @@ import statistics
 import subprocess
 import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from fmpy import extract, read_model_description
@@ -123,6 +130,37 @@ def compile_host(where: Path) -> Path:
 
 def measure_c(host: Path, path: Path, steps: int) -> tuple[float, float]:
     """(CPU us per step, median wall us per step) of the FMU in the C host."""
+    with c_host(host, path, steps) as command:
+        result = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    if result.returncode != 0:
+        raise RuntimeError(f"{path.name}: the C host failed ({result.returncode}): {result.stderr.strip()}")
+    figures = dict(line.split() for line in result.stdout.splitlines())
+    return float(figures["cpu_ns_per_step"]) / 1e3, float(figures["median_ns_per_step"]) / 1e3
+
+
+def count_instructions(host: Path, path: Path, steps: int) -> float:
+    """Instructions per step of the FMU in the C host: ``valgrind --tool=callgrind`` counts the host
+    process for ``steps`` and for twice as many, side by side; the difference divided by ``steps``
+    (start-up cancels). The machine's load does not move it."""
+    with tempfile.TemporaryDirectory() as tmp, c_host(host, path, steps) as short, \
+            c_host(host, path, 2 * steps) as long:
+        running = [subprocess.Popen(["valgrind", "--tool=callgrind", f"--callgrind-out-file={tmp}/{i}.out",
+                                     *command], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                   for i, command in enumerate((short, long))]
+        totals = []
+        for i, process in enumerate(running):
+            _, err = process.communicate(timeout=1200)
+            if process.returncode != 0:
+                raise RuntimeError(f"{path.name}: callgrind failed ({process.returncode}): {err[-2000:]}")
+            text = Path(tmp, f"{i}.out").read_text()
+            totals.append(int(next(line.split()[1] for line in text.splitlines()
+                                   if line.startswith("summary:"))))
+    return (totals[1] - totals[0]) / steps
+
+
+@contextmanager
+def c_host(host: Path, path: Path, steps: int) -> Iterator[list[str]]:
+    """The C host's command line stepping the FMU ``path`` (unpacked meanwhile) for ``steps``."""
     md = read_model_description(str(path))
     folder = Path(extract(str(path)))
     binary = folder / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"
@@ -135,17 +173,17 @@ def measure_c(host: Path, path: Path, steps: int) -> tuple[float, float]:
     if "Plant" in md.modelName:  # under a PD law, as in a loop: open loop a plant leaves its range
         args += [f"f:{outputs.index('x1')},0=-20.0", f"f:{outputs.index('x2')},0=-10.0"]
     resources = folder.joinpath("resources").as_uri()
-    command = [str(host), str(binary), resources, md.guid, str(steps), repr(H), "100"]
-    result = subprocess.run([*command, *args], capture_output=True, text=True, timeout=600)
-    shutil.rmtree(folder, ignore_errors=True)
-    if result.returncode != 0:
-        raise RuntimeError(f"{path.name}: the C host failed ({result.returncode}): {result.stderr.strip()}")
-    figures = dict(line.split() for line in result.stdout.splitlines())
-    return float(figures["cpu_ns_per_step"]) / 1e3, float(figures["median_ns_per_step"]) / 1e3
+    try:
+        yield [str(host), str(binary), resources, md.guid, str(steps), repr(H), "100", *args]
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def _measure(host: Path, path: Path, name: str, options: argparse.Namespace) -> float:
     """Print the FMU's line (and, with --rk4, its RK4 line for a plant); its CPU us per step in C."""
+    if options.instructions:
+        print(f"{name:<32}{count_instructions(host, path, 1000):>12.0f}", flush=True)
+        return 0.0
     cpu, wall = measure_c(host, path, options.steps)
     step, io = measure_fmpy(path, options.steps)
     print(f"{name:<32}{cpu:>12.2f}{wall:>9.2f}{step:>13.1f}{io:>13.1f}")
@@ -162,6 +200,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--fmus", type=Path, help="folder with the built FMUs (default: build now)")
     parser.add_argument("--before", type=Path, help="folder with FMUs of an earlier build, measured beside")
     parser.add_argument("--rk4", action="store_true", help="also the plants with RK4 (fmpy only)")
+    parser.add_argument("--instructions", action="store_true",
+                        help="instead: instructions per step in the C host (callgrind, 1000 and 2000 steps)")
     options = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         folder = options.fmus or Path(tmp)
@@ -169,15 +209,18 @@ def main(argv: list[str] | None = None) -> int:
             build_all(folder)
         host = compile_host(Path(tmp))
         sets = [("", folder)] + ([("before: ", options.before)] if options.before else [])
-        print(f"{'FMU':<32}{'C host: CPU':>12}{'median':>9}{'fmpy doStep':>13}{'get+set+get':>13}"
-              f"   (us per step, {options.steps} steps, h = 1 ms)")
+        if options.instructions:
+            print(f"{'FMU':<32}{'C host':>12}   (instructions per step, callgrind, h = 1 ms)")
+        else:
+            print(f"{'FMU':<32}{'C host: CPU':>12}{'median':>9}{'fmpy doStep':>13}{'get+set+get':>13}"
+                  f"   (us per step, {options.steps} steps, h = 1 ms)")
         share: dict[str, float] = {}
         for label, where in sets:
             for model in FMU_SCRIPTS:
                 path = where / f"{model}.fmu"
                 if path.is_file():
                     share[label + model] = _measure(host, path, label + model, options)
-        controllers = {n: v for n, v in share.items() if "FixedTimeController" in n}
+        controllers = {} if options.instructions else {n: v for n, v in share.items() if "Controller" in n}
         for name, cpu in controllers.items():
             verdict = "within" if cpu <= GOAL_US else "above"
             print(f"controller's share, {name}: {cpu:.2f} us per communication step, {verdict} the "
