@@ -51,18 +51,19 @@ def compiled_extension(name: str, where: Path) -> ModuleType:
 
 
 class Frames:
-    """The Python functions entered while active (``sys.setprofile``), by name: those whose code
-    lies under ``folder`` (an FMU's unpacked files), or every one but this object's ``__exit__``."""
+    """The Python functions entered while active (``sys.setprofile``), by name: those whose file
+    name contains ``part`` (e.g. ``/_ftc_``: the code an FMU bundles, from whichever unpacked copy
+    this process imported it first), or every one but this object's ``__exit__``."""
 
-    def __init__(self, folder: str | None = None) -> None:
-        self.folder = folder
+    def __init__(self, part: str | None = None) -> None:
+        self.part = part
         self.entered: list[str] = []
 
     def _profile(self, frame: FrameType, event: str, arg: object) -> None:
         code = frame.f_code
         if event != "call" or code is Frames.__exit__.__code__:
             return
-        if self.folder is None or code.co_filename.startswith(self.folder):
+        if self.part is None or self.part in code.co_filename:
             self.entered.append(code.co_name)
 
     def __enter__(self) -> Frames:

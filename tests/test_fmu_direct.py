@@ -291,7 +291,7 @@ def test_the_shim_steps_models_in_c(fmus: dict[str, Path], path: str, model: str
             assert isinstance(refresh, functools.partial) and refresh.func is module.refresh_slave
             assert step.args[0][0] is refresh.args[0][0] is model_object.__dict__
         read = [vr[n] for n in outputs]
-        with Frames(str(Path(unzipped(fmus[model])).resolve())) as frames:
+        with Frames("/_ftc_") as frames:  # any FMU's bundled package: its first copy may be another's
             for k in range(50):
                 slave.setReal([vr[n] for n in inputs], [value(k) for value in inputs.values()])
                 slave.doStep(k * 1e-3, 1e-3)

@@ -117,11 +117,12 @@ def test_finite_escape_trajectory_is_the_references(compiled):
 
 
 def test_only_the_plants_bundle_the_extension():
-    """_dopri in the plants, _law in the controllers, controller/fmath's compiled functions in all."""
+    """_dopri in the plants, _law in the controllers, _signals in the reference and the actuator,
+    controller/fmath's compiled functions in all."""
     for model in ("Example1Plant", "PendulumPlant", "ManipulatorPlant"):
         assert set(collect_bundle(model).extensions) == {"fmu_src.models._dopri", "controller._fmath"}
     for model in ("Reference", "Actuator"):
-        assert set(collect_bundle(model).extensions) == {"controller._fmath"}
+        assert set(collect_bundle(model).extensions) == {"fmu_src.models._signals", "controller._fmath"}
     for model in ("FixedTimeController", "FixedTimeController1", "FixedTimeController3",
                   "FixedTimeController4"):
         assert set(collect_bundle(model).extensions) == {"controller._law", "controller._fmath"}
