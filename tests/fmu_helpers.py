@@ -74,6 +74,37 @@ class Frames:
         sys.setprofile(None)
 
 
+# A model's __dict__ values compared by their repr (bit-exact floats, nan and -0.0 included; bools are
+# ints); the rest (pythonfmu's machinery, fmu_support's tables, laws, closures) are each slave's own.
+PLAIN = (float, int, str, tuple, frozenset, type(None))
+
+
+class Real(float):
+    """A float of another type (as numpy's float64): the compiled calls hand it to Python."""
+
+
+def shim_calls(slave: Any) -> tuple[Callable[..., Any], Callable[..., Any]]:
+    """The step and refresh that fmu_support hands the shim for the model object ``slave``."""
+    binding = slave._fmu_direct_binding()
+    return binding[2], binding[3]
+
+
+def plain(slave: Any) -> dict[str, str]:
+    """A model object's simulation entries, each as its repr, and its log queue's messages: what a
+    compiled call and the Python method it stands for must leave alike."""
+    entries = {key: repr(value) for key, value in vars(slave).items() if isinstance(value, PLAIN)}
+    entries["messages"] = repr([str(message) for message in slave.log_queue])
+    return entries
+
+
+def outcome(call: Callable[..., Any], *args: Any) -> Any:
+    """A call's result, or its exception's type and message."""
+    try:
+        return call(*args)
+    except Exception as error:  # noqa: BLE001 - any exception must be the Python code's
+        return type(error).__name__, str(error)
+
+
 class Slave:
     """One FMU instance driven by name: ``set``/``get`` of variables, ``step`` from time t."""
 

@@ -10,13 +10,13 @@ code)."""
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from functools import partial
 from types import ModuleType
 from typing import Any
 
 import pytest
-from fmu_helpers import Frames, compiled_extension
+from fmu_helpers import Frames, Real, compiled_extension, outcome, plain, shim_calls
 
 from controller import native
 from fmu_src.fixed_time_controller import FixedTimeController
@@ -26,9 +26,6 @@ from fmu_src.fixed_time_controller4 import FixedTimeController4
 
 ORDERS = {1: FixedTimeController1, 2: FixedTimeController, 3: FixedTimeController3, 4: FixedTimeController4}
 H = 1e-3
-# __dict__ values compared by their repr (bit-exact floats, nan and -0.0 included); the rest
-# (pythonfmu's machinery, fmu_support's tables, the law objects) are each slave's own
-PLAIN = (float, int, str, tuple, frozenset, bool, type(None))
 
 
 @pytest.fixture(scope="module")
@@ -52,27 +49,6 @@ def started(n: int, **parameters: Any) -> Any:
     return slave
 
 
-def calls(slave: Any) -> tuple[Callable[..., Any], Callable[..., Any]]:
-    """The step and refresh that fmu_support hands the shim for ``slave``."""
-    binding = slave._fmu_direct_binding()
-    return binding[2], binding[3]
-
-
-def plain(slave: Any) -> dict[str, str]:
-    """The slave's simulation entries, each as its repr; its log queue's messages."""
-    entries = {key: repr(value) for key, value in vars(slave).items() if isinstance(value, PLAIN)}
-    entries["messages"] = repr([str(message) for message in slave.log_queue])
-    return entries
-
-
-def outcome(call: Callable[..., Any], *args: Any) -> Any:
-    """A call's result, or its exception's type and message."""
-    try:
-        return call(*args)
-    except Exception as error:  # noqa: BLE001 - any exception must be the Python code's
-        return type(error).__name__, str(error)
-
-
 def set_inputs(slaves: tuple[Any, ...], k: int, n: int) -> None:
     """Step k's inputs, a closed loop's size (x near yd = 0.5 sin t), as the shim sets them: the
     outputs are stale after (they depend on the inputs directly)."""
@@ -88,14 +64,14 @@ def set_inputs(slaves: tuple[Any, ...], k: int, n: int) -> None:
 
 def refresh_both(fast: Any, slow: Any) -> None:
     """The refresh in C and in Python: the same outcome and entries; the outputs then current."""
-    assert outcome(calls(fast)[1]) == outcome(slow.refresh_outputs)
+    assert outcome(shim_calls(fast)[1]) == outcome(slow.refresh_outputs)
     fast.__dict__["_fmu_stale"] = slow.__dict__["_fmu_stale"] = False  # as the shim does
     assert plain(fast) == plain(slow)
 
 
 def step_both(fast: Any, slow: Any, t: float, h: float) -> Any:
     """One step of ``fast`` in C and of ``slow`` in Python: the same outcome and entries."""
-    result = outcome(calls(fast)[0], t, h)
+    result = outcome(shim_calls(fast)[0], t, h)
     assert result == outcome(slow.do_step, t, h)
     fast.__dict__["_fmu_stale"] = True  # as the shim does after every step
     assert plain(fast) == plain(slow)
@@ -106,14 +82,14 @@ def test_the_binding_is_the_compiled_calls(compiled: ModuleType) -> None:
     """fmu_support hands the shim partials of _law.step_slave and refresh_slave, bound to the slave's
     own __dict__ and its Python functions; the Python functions where nothing is compiled."""
     slave = started(2)
-    step, refresh = calls(slave)
+    step, refresh = shim_calls(slave)
     assert isinstance(step, partial) and step.func is compiled.step_slave
     assert isinstance(refresh, partial) and refresh.func is compiled.refresh_slave
     (binding,) = step.args
     assert refresh.args == (binding,) and binding[0] is slave.__dict__
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(native, "_law", None)
-        step, refresh = calls(slave)
+        step, refresh = shim_calls(slave)
     assert step.__func__.__name__ == "step_controller" and refresh == slave.refresh_outputs
 
 
@@ -125,7 +101,7 @@ def test_usual_steps_are_the_python_steps_bits_without_a_frame(compiled: ModuleT
     """200 steps, the outputs read before two of three (the step then starts from their stage): the
     same states, stage and outputs to the bit, and not one Python frame in the C calls."""
     fast, slow = started(n, **parameters), started(n, **parameters)
-    step, refresh = calls(fast)
+    step, refresh = shim_calls(fast)
     for k in range(200):
         set_inputs((fast, slow), k, n)
         if k % 3:
@@ -160,7 +136,7 @@ def test_the_semi_implicit_law_warns_once_in_c_as_in_python(compiled: ModuleType
     for k, h in enumerate((H, H, 2 * H, 2 * H, H)):
         set_inputs((fast, slow), k, 2)
         refresh_both(fast, slow)
-        step = calls(fast)[0]
+        step = shim_calls(fast)[0]
         with Frames() as frames:
             assert outcome(step, k * H, h) is True
         assert ("_check_step" in frames.entered) == ("step_controller" in frames.entered) == (k == 2), k
@@ -181,10 +157,6 @@ def test_a_non_finite_state_is_rejected_by_the_python_step(compiled: ModuleType)
     assert "non-finite state" in str(fast.log_queue[-1])
 
 
-class Real(float):
-    """A float of another type (as numpy's float64): the Python path takes it."""
-
-
 @pytest.mark.parametrize(("name", "value"), [
     ("x1", 1), ("x1", Real(0.5)), ("yd", "0.5"), ("_state", [0.0, 0.0, 0.0]), ("_state", (0.0, 0.0)),
     ("_state", (0.0, Real(0.0), 0.0)), ("_stage", None), ("_stage", (0.0,) * 3), ("_fmu_stale", 0),
@@ -200,7 +172,7 @@ def test_other_values_take_the_python_path(compiled: ModuleType, name: str, valu
     fast.__dict__[name] = value
     slow.__dict__[name] = value
     with Frames() as frames:
-        outcome(calls(fast)[0], 0.0, H)
+        outcome(shim_calls(fast)[0], 0.0, H)
     assert "step_controller" in frames.entered
     fast2, slow2 = started(2), started(2)
     set_inputs((fast2, slow2), 0, 2)
@@ -210,7 +182,7 @@ def test_other_values_take_the_python_path(compiled: ModuleType, name: str, valu
     fast3, slow3 = started(2), started(2)
     set_inputs((fast3, slow3), 0, 2)
     fast3.__dict__[name] = slow3.__dict__[name] = value
-    assert outcome(calls(fast3)[1]) == outcome(slow3.refresh_outputs)
+    assert outcome(shim_calls(fast3)[1]) == outcome(slow3.refresh_outputs)
     assert plain(fast3) == plain(slow3)
 
 

@@ -9,13 +9,13 @@ initialization: the Python methods', called by the C code)."""
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from functools import partial
 from types import ModuleType
 from typing import Any
 
 import pytest
-from fmu_helpers import Frames, compiled_extension
+from fmu_helpers import Frames, Real, compiled_extension, outcome, plain, shim_calls
 
 from fmu_src import plant_core
 from fmu_src.example1_plant import Example1Plant
@@ -27,9 +27,6 @@ from fmu_src.pendulum_plant import PendulumPlant
 PLANTS = {"Example1Plant": Example1Plant, "PendulumPlant": PendulumPlant,
           "ManipulatorPlant": ManipulatorPlant}
 H = 1e-3
-# __dict__ values compared by their repr (bit-exact floats, nan and -0.0 included); the rest (pythonfmu's
-# machinery, fmu_support's tables, the right-hand side closures) are objects of each slave's own
-PLAIN = (float, int, str, tuple, frozenset, type(None))
 
 
 @pytest.fixture(scope="module")
@@ -54,27 +51,6 @@ def started(model: str, **parameters: Any) -> Any:
     return slave
 
 
-def calls(slave: Any) -> tuple[Callable[..., Any], Callable[..., Any]]:
-    """The step and refresh that fmu_support hands the shim for ``slave``."""
-    binding = slave._fmu_direct_binding()
-    return binding[2], binding[3]
-
-
-def plain(slave: Any) -> dict[str, str]:
-    """The slave's simulation entries, each as its repr; its log queue's messages."""
-    entries = {key: repr(value) for key, value in vars(slave).items() if isinstance(value, PLAIN)}
-    entries["messages"] = repr([str(message) for message in slave.log_queue])
-    return entries
-
-
-def outcome(call: Callable[..., Any], *args: Any) -> Any:
-    """A call's result, or its exception's type and message."""
-    try:
-        return call(*args)
-    except Exception as error:  # noqa: BLE001 - any exception must be the Python code's
-        return type(error).__name__, str(error)
-
-
 def twins(model: str, **parameters: Any) -> tuple[Any, Any]:
     return started(model, **parameters), started(model, **parameters)
 
@@ -82,7 +58,7 @@ def twins(model: str, **parameters: Any) -> tuple[Any, Any]:
 def step_both(fast: Any, slow: Any, t: float, h: float) -> Any:
     """One step and refresh of ``fast`` in C and of ``slow`` in Python: the same outcome and
     entries; returns the outcome."""
-    step, refresh = calls(fast)
+    step, refresh = shim_calls(fast)
     a = outcome(step, t, h)
     b = outcome(slow.do_step, t, h)
     assert a == b
@@ -99,7 +75,7 @@ def test_the_binding_is_the_compiled_calls(compiled: ModuleType) -> None:
     """fmu_support hands the shim partials of _dopri.step_slave and refresh_slave, bound to the
     slave's own __dict__ and its Python methods; None where nothing is compiled."""
     slave = started("Example1Plant")
-    step, refresh = calls(slave)
+    step, refresh = shim_calls(slave)
     assert isinstance(step, partial) and step.func is compiled.step_slave
     assert isinstance(refresh, partial) and refresh.func is compiled.refresh_slave
     (binding,) = step.args
@@ -111,7 +87,7 @@ def test_the_binding_is_the_compiled_calls(compiled: ModuleType) -> None:
 def test_without_the_compiled_integrator_the_python_methods_stay(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(native, "COMPILED", False)
     slave = started("Example1Plant")
-    step, refresh = calls(slave)
+    step, refresh = shim_calls(slave)
     assert refresh == slave.refresh_outputs and step.__func__.__name__ == "do_step"
 
 
@@ -120,7 +96,7 @@ def test_usual_steps_are_the_python_steps_bits_without_a_frame(compiled: ModuleT
     """300 steps under a varying input: the same states, step sizes and outputs to the bit, and
     not one Python frame in the C step and refresh."""
     fast, slow = twins(model)
-    step, refresh = calls(fast)
+    step, refresh = shim_calls(fast)
     for k in range(300):
         uf = 300.0 * math.cos(7.0 * k * H) + (50.0 if k == 0 else 0.0)
         fast.uf = slow.uf = uf
@@ -141,7 +117,7 @@ def test_before_initialization_the_python_methods_answer(compiled: ModuleType) -
     step raises what the Python step raises."""
     fast, slow = PLANTS["PendulumPlant"](instance_name="twin"), PLANTS["PendulumPlant"](instance_name="twin")
     fast.x1_0 = slow.x1_0 = 0.25
-    step, refresh = calls(fast)
+    step, refresh = shim_calls(fast)
     refresh()
     slow.refresh_outputs()
     assert plain(fast) == plain(slow) and fast.x1 == fast.y == 0.25
@@ -155,7 +131,7 @@ def test_rk4_steps_are_the_python_ones(compiled: ModuleType, model: str) -> None
     """method = RK4: the Python step (called by the C one), the same bits."""
     fast, slow = twins(model, method=RK4)
     with Frames() as frames:
-        calls(fast)[0](0.0, H)
+        shim_calls(fast)[0](0.0, H)
     assert "step_plant" in frames.entered
     fast, slow = twins(model, method=RK4)
     for k in range(20):
@@ -186,10 +162,6 @@ def test_rejected_steps_are_the_python_ones(compiled: ModuleType, parameters: di
     assert reason in str(fast.log_queue[-1])
 
 
-class Real(float):
-    """A float of another type (as numpy's float64): the Python path takes it."""
-
-
 @pytest.mark.parametrize(
     ("name", "value"),
     [("uf", "1.0"), ("max_steps", 2.5e6), ("state", [0.5, 0.5, 0.0]), ("state", (0.5, 0.5)), ("rtol", None),
@@ -208,7 +180,7 @@ def test_other_values_take_the_python_path(compiled: ModuleType, name: str, valu
     slow.__dict__[name] = value
     snapshot, queued = dict(fast.__dict__), list(fast.log_queue)
     with Frames() as frames:
-        outcome(calls(fast)[0], H, H)
+        outcome(shim_calls(fast)[0], H, H)
     assert "step_plant" in frames.entered
     fast.__dict__.clear()  # and again, compared with the Python step
     fast.__dict__.update(snapshot)
@@ -226,7 +198,7 @@ def test_a_nan_y_limit_is_no_limit_in_c_as_in_python(compiled: ModuleType) -> No
 def test_a_deleted_entry_takes_the_python_path(compiled: ModuleType) -> None:
     fast, slow = twins("PendulumPlant")
     del fast.__dict__["rate_horizon"], slow.__dict__["rate_horizon"]
-    assert outcome(calls(fast)[0], 0.0, H) == outcome(slow.do_step, 0.0, H)
+    assert outcome(shim_calls(fast)[0], 0.0, H) == outcome(slow.do_step, 0.0, H)
     assert plain(fast) == plain(slow)
 
 
