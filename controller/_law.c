@@ -474,8 +474,8 @@ static int step_here(PyObject *binding, PyObject *step) {
         if (!isfinite(in[j])) goto other; /* rejected: the Python step reports it */
     Py_DECREF(constants);
     PyObject *state = doubles(in, n + 1);
-    int failed = state == NULL || PyDict_SetItem(d, PyTuple_GetItem(binding, B_STALE), Py_True) ||
-                 PyDict_SetItem(d, PyTuple_GetItem(binding, B_STATE), state);
+    /* the stale flag: the shim sets it after every step, as step_controller's caller does */
+    int failed = state == NULL || PyDict_SetItem(d, PyTuple_GetItem(binding, B_STATE), state);
     Py_XDECREF(state);
     return failed ? -1 : 1;
 other:
