@@ -6,7 +6,10 @@ a staged CSV when another format is asked for) and what of each row it holds (:m
 the recorder formats nothing else); when the run ends, however it ends, it writes the rows kept in
 the format asked for and finishes the provenance.
 
-:class:`RunOutput` with no file keeps only the record (status, rows, last time) for the result.
+:class:`RunOutput` with no file keeps only the record (status, rows, last time) for the result. The
+null device (``--output /dev/null``: a run that writes nothing) gets the rows, which it drops, and no
+provenance: its sidecar would be ``/dev/null.json``, a file in ``/dev`` (root) or a run that fails
+(anyone else).
 """
 
 from __future__ import annotations
@@ -98,8 +101,14 @@ class RunOutput:
         self.stream = formats.staging_path(self.path)
         record["output"] = {"format": self.path.suffix.lower(), "variables": list(self.selection.variables),
                             "interval": self.selection.interval, "left_out": list(self.selection.drop)}
-        provenance.write_provenance(self.path, record)
+        if not self.sink:
+            provenance.write_provenance(self.path, record)
         return self.stream
+
+    @property
+    def sink(self) -> bool:
+        """The output is the null device: rows go there and are gone, no provenance beside it."""
+        return self.path is not None and os.fspath(self.path) == os.devnull
 
     def finish(self, recorder: Recorder | None, record: dict[str, object], status: str, message: str,
                time: Callable[[int], float], step: float) -> dict[str, Path]:
@@ -108,7 +117,7 @@ class RunOutput:
         ``rows_computed``: every communication point computed; without a file: ``record``
         updated); returns the files written. ``time(k)`` is t_k."""
         count = recorder.count if recorder is not None else 0
-        if self.path is None or self.stream is None:
+        if self.path is None or self.stream is None or self.sink:
             record.update(status=status, rows=count, last_time=time(count - 1) if count else None)
             if message:
                 record["message"] = message
