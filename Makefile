@@ -139,19 +139,19 @@ windows-tools:
 ## windows-matrix: every FMU in every Windows host (C host console and GUI, FMPy; FMI 2.0 and 3.0) and
 ## every scenario exported, under wine64 against Linux -> docs/fmus/windows-matrix.md (commit it;
 ## make test runs one real case of each kind)
-windows-matrix: build windows-tools
+windows-matrix: $(DEV_STAMP) build windows-tools
 	rm -f build/windows/matrix.json
 	FTC_WINDOWS_ALL=1 $(PY) -m pytest -q tests/test_fmu_windows.py
 
 ## hostile: the hostile host (tests/fmu_hostile_host.c) on every case: all scenarios under valgrind,
 ## FMI 3.0 containers, every leak figure (make test runs one real case of each kind)
-hostile: build
+hostile: $(DEV_STAMP) build
 	FTC_HOSTILE_ALL=1 $(PY) -m pytest -q -n 2 tests/test_fmu_hostile.py
 
 ## executors: the three executors (Python master, compiled, exported container) bit for bit on
 ## every shipped scenario, both masters, FMI 2.0 and 3.0, a container exported for every case
 ## (make test exports one container of each kind)
-executors: build
+executors: $(DEV_STAMP) build
 	ORCHESTRATE_ALL_EXECUTORS=1 $(PY) -m pytest -q -n 2 tests/test_executors.py
 
 ## install-matrix: the pins resolved for every supported Python (3.11.0, 3.11.2, 3.12, 3.13), every
@@ -188,7 +188,7 @@ docs-figure: build
 ## DEMO_CASES open-simulation-platform/demo-cases, VICO_DATA Vico's test-data/data, ECOS_DATA
 ## Ecos' data/ssp/1.0), validated and run before (main at 633067d) and after issue 43, and compared
 ## with OMSimulator 3 and libcosim -> docs/ssp-conformance.md (~15 min)
-conformance: build
+conformance: $(DEV_STAMP) build
 	$(PY) tests/ssp_conformance/conformance.py $(if $(OMS_RESOURCES),--omsimulator $(OMS_RESOURCES)) \
 	  $(if $(LIBCOSIM_DATA),--libcosim $(LIBCOSIM_DATA)) $(if $(DEMO_CASES),--demo-cases $(DEMO_CASES)) \
 	  $(if $(VICO_DATA),--vico $(VICO_DATA)) $(if $(ECOS_DATA),--ecos $(ECOS_DATA))
@@ -223,7 +223,7 @@ study-fixed-time: build
 
 ## crosscheck-all: the cross-check system test over every scenario and FMI 3.0 twin in every tool
 ## (make test runs example1, manipulator and one FMI 3.0 twin; all of them take about 12 minutes)
-crosscheck-all: build
+crosscheck-all: $(DEV_STAMP) build
 	CROSSCHECK_ALL=1 $(PY) -m pytest -q tests/test_crosscheck_system.py
 
 ## check-fail-fast: the plants' fail-fast bounds against the unbounded continuous loop over
@@ -252,7 +252,7 @@ ACCEPT ?= --accept-all
 baselines: build
 	$(ORCH) baseline $(SCENARIOS) --baselines tests/baselines --review results/baseline-review $(ACCEPT)
 
-bench: build
+bench: $(DEV_STAMP) build
 	$(PY) benchmarks/controller_step.py
 	$(PY) benchmarks/fmu_step.py
 	$(PY) benchmarks/cosim_step.py
