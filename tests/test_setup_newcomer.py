@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import os
 import pwd
+import re
+import shlex
 import shutil
 import subprocess
 import tempfile
@@ -29,6 +31,34 @@ pytestmark = pytest.mark.system
 REPO = Path(__file__).resolve().parents[1]
 STOCK = Path("/usr/bin/python3")
 USER = "ftc-newcomer"
+FMUSIM = REPO.parent / "shared" / "tools" / "fmusim" / "bin" / "fmusim"
+
+
+def tour() -> tuple[list[list[str]], list[str]]:
+    """The README's "30-second tour": its shell lines after ``make run`` (comments dropped), and the
+    fmusim command it gives for the exported FMU."""
+    text = (REPO / "README.md").read_text()
+    section = text.split("## A 30-second tour", 1)[1]
+    block = section.split("```sh\n", 1)[1].split("```", 1)[0]
+    lines = [shlex.split(line, comments=True) for line in block.splitlines()]
+    found = re.search(r"`(fmusim [^`]+)`", section)
+    assert found, "the tour names an fmusim command"
+    return [words for words in lines if words and words != ["make", "run"]], shlex.split(found.group(1))
+
+
+def _the_tour(clone: Path, user: list[str]) -> None:
+    """Each line of the README's tour, in order, as the newcomer types it after ``make run``
+    (before: two of its lines ran example1, which ``make run`` does not build)."""
+    commands, fmusim = tour()
+    assert [words[0] for words in commands] == ["orchestrate"] * len(commands)
+    for words in commands:
+        done = subprocess.run([*user, str(clone / ".venv" / "bin" / "orchestrate"), *words[1:]], cwd=clone,
+                              capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, f"{shlex.join(words)}:\n{done.stdout[-2000:]}{done.stderr[-2000:]}"
+    if FMUSIM.is_file():  # the exported loop, in the Modelica Association's importer, without Python
+        done = subprocess.run([str(FMUSIM), *fmusim[1:-1], str(clone / fmusim[-1])], capture_output=True,
+                              text=True, timeout=300)
+        assert done.returncode == 0, done.stderr[-2000:]
 
 
 def _newcomer() -> tuple[list[str], str]:
@@ -83,6 +113,7 @@ def test_make_run_twice_in_a_fresh_clone_as_a_new_user_with_stock_python(built: 
         # the second run built nothing: every FMU up to date, the archive reused
         assert "4 of 4 FMUs up to date" in logs[1] and ": built" not in logs[1], logs[1]
         assert (clone / "results" / "pendulum.png").is_file()
+        _the_tour(clone, [*prefix, *environment])
         # the same numbers as the checkout's run of its own full build (linux64 and win64, FMI 3.0 too)
         ours = tmp_path / "pendulum.csv"
         argv = ["run", str(built / "ssp" / "pendulum.ssp"), "--quiet", "--no-plot", "--output", str(ours)]
