@@ -261,11 +261,15 @@ def test_an_output_that_is_not_a_regular_file_is_refused_up_front(case, loop, tm
             "folder": "Is a directory"}[case] in line
     assert os.devnull == "/dev/null"  # still allowed: written in place
     sidecar = Path(os.devnull + ".json")
-    made = not sidecar.exists()
+
+    def seen() -> tuple[int, int] | None:
+        return (sidecar.stat().st_mtime_ns, sidecar.stat().st_size) if sidecar.exists() else None
+
+    before = seen()  # a file another run left there must stay as it was
     r = orchestrate("run", str(loop), "--output", os.devnull, "--no-plot", "--quiet", tmp=tmp_path)
     assert r.returncode == 0, r.stderr
     # no provenance beside it: as root it was /dev/null.json (anyone else: Permission denied)
-    assert not (made and sidecar.exists())
+    assert seen() == before
 
 
 def _peak(*args: str, tmp: Path) -> tuple[int, str]:
