@@ -13,7 +13,7 @@ ALT_VENV   := .venv-alt
 ALT_STAMP  := $(ALT_VENV)/.installed-fmpy-pythonfmu
 BYTECODE := build/.bytecode
 
-.PHONY: run test unit build lint docs docs-figure browser windows-tools windows-matrix install-matrix runtime-pins runtime-pins-win64 hostile executors crosscheck crosscheck-all conformance table study study-fixed-time check-fail-fast research report baselines bench clean
+.PHONY: run test unit build lint docs docs-figure browser windows-tools windows-matrix install-matrix runtime-pins runtime-pins-win64 hostile executors crosscheck crosscheck-all conformance table study study-fixed-time check-fail-fast research report baselines bench bench-lean clean
 
 # pip's console script 'orchestrate' is then replaced by orchestrator/launcher.c, which holds SIGINT and
 # SIGTERM from its first instruction until the package's handlers are in (issue 20). Compiled to a
@@ -258,6 +258,21 @@ bench: $(DEV_STAMP) build
 	$(PY) benchmarks/cosim_step.py
 	$(PY) benchmarks/end_to_end.py
 	$(PY) benchmarks/step_instructions.py
+
+## bench-lean: issue 46's targets in one sitting (per-step CPU and instructions against libcosim,
+## 16 copies' memory, each FMU's step, sizes and start-up in fmusim, FMPy and libcosim, build CPU,
+## campaign efficiency); BEFORE=CHECKOUT (another checkout with its own make build) adds its figures
+BEFORE ?=
+LEAN_BEFORE = $(if $(BEFORE),--before $(abspath $(BEFORE)))
+bench-lean: $(DEV_STAMP) build
+	$(PY) benchmarks/end_to_end.py --repeat 5 --stop-time 300 $(LEAN_BEFORE)
+	$(PY) benchmarks/many_copies.py --copies 1 16 --repeat 5 $(LEAN_BEFORE)
+	$(PY) benchmarks/step_instructions.py
+	$(PY) benchmarks/fmu_step.py --fmus build/fmus --steps 30000 $(if $(BEFORE),--before $(abspath $(BEFORE))/build/fmus)
+	$(PY) benchmarks/fmu_step.py --fmus build/fmus --instructions $(if $(BEFORE),--before $(abspath $(BEFORE))/build/fmus)
+	$(PY) benchmarks/fmu_size.py --repeat 5 $(LEAN_BEFORE)
+	$(PY) benchmarks/rebuild.py $(LEAN_BEFORE)
+	$(PY) benchmarks/campaign_scaling.py
 
 clean:
 	rm -rf build results $(ALT_VENV)

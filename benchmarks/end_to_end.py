@@ -2,7 +2,7 @@
 """End to end, as a user runs it: ``orchestrate run`` against libcosim on the same archive.
 
     python benchmarks/end_to_end.py [--scenarios example1 pendulum] [--repeat 5] [--stop-time 30]
-        [--before CHECKOUT]
+        [--before CHECKOUT] [--no-others]
 
 For each built scenario (``build/ssp/<name>.ssp``, run ``make build`` first) this times whole
 processes, started one after the other in alternation (ours, libcosim, ours, ...), so that a
@@ -13,7 +13,12 @@ change of the machine's load hits both alike:
 * libcosim (libcosimpy) reading the archive's own algorithm (``from_ssp_file(path)``: its
   ``FixedStepAlgorithm`` with ``numWorkerThreads="0"``, serial), with its file observer writing
   every variable of every FMU to CSV, and with no observer;
-* start-up: both with a stop time of one step;
+* fmusim (the Modelica Association's reference importer, ``../shared/tools/fmusim``) and FMPy
+  (``simulate_fmu`` in this checkout's Python, every output recorded in memory at every step) on
+  the scenario exported as one FMU (``orchestrate export``: the same FMUs, connections and grid
+  inside a C container), as users of those tools run an SSP they cannot read; fmusim writes every
+  output to CSV;
+* start-up: each with a stop time of one step;
 * with ``--before CHECKOUT`` (another checkout of this repository with its own ``make build``):
   that revision's ``orchestrate run`` on its own build of the scenario, in the same alternation.
 
@@ -39,6 +44,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
+FMUSIM = REPO.parent / "shared" / "tools" / "fmusim" / "bin" / "fmusim"
+FMPY = ("import sys, fmpy; fmpy.simulate_fmu(sys.argv[1], stop_time=float(sys.argv[2]), "
+        "output_interval=float(sys.argv[3]))")
 
 LIBCOSIM = """
 import sys
@@ -78,8 +86,16 @@ def step_of(archive: Path) -> float:
     return step
 
 
-def commands(archive: Path, stop: float, out: Path, before: Path | None) -> dict[str, list[str]]:
-    """The timed command lines, by label."""
+def export(archive: Path, target: Path) -> Path:
+    """``archive`` exported as one FMU by this checkout (``orchestrate export``)."""
+    subprocess.run([str(REPO / ".venv" / "bin" / "orchestrate"), "export", str(archive), "-o", str(target),
+                    "--quiet"], check=True, cwd=target.parent)
+    return target
+
+
+def commands(archive: Path, stop: float, out: Path, before: Path | None, h: float,
+             container: Path | None) -> dict[str, list[str]]:
+    """The timed command lines, by label (fmusim and FMPy on ``container``, if given)."""
     def run(checkout: Path, scenario: Path) -> list[str]:
         return [str(checkout / ".venv" / "bin" / "orchestrate"), "run", str(scenario), "--quiet", "--no-plot",
                 "--stop-time", repr(stop)]
@@ -94,17 +110,26 @@ def commands(archive: Path, stop: float, out: Path, before: Path | None) -> dict
     labels = variants("ours", run(REPO, archive))
     if before is not None:
         labels.update(variants("before", run(before, before / "build" / "ssp" / archive.name)))
-    return {**labels, "libcosim, CSV": [*lib, str(out / "libcosim")], "libcosim, none": [*lib, ""]}
+    labels.update({"libcosim, CSV": [*lib, str(out / "libcosim")], "libcosim, none": [*lib, ""]})
+    if container is not None:
+        if FMUSIM.is_file():
+            labels["fmusim, CSV"] = [str(FMUSIM), "--interface-type", "cs", "--stop-time", repr(stop),
+                                     "--output-interval", repr(h), "--output-file", str(out / "fmusim.csv"),
+                                     str(container)]
+        labels["FMPy, in memory"] = [sys.executable, "-c", FMPY, str(container), repr(stop), repr(h)]
+    return labels
 
 
-def measure(archive: Path, stop: float, repeat: int, before: Path | None) -> dict[str, tuple[float, float]]:
+def measure(archive: Path, stop: float, repeat: int, before: Path | None,
+            others: bool) -> dict[str, tuple[float, float]]:
     """Median (wall, CPU) per label for the whole run and for one step (labels ending in
-    ``start-up``), alternating the processes."""
+    ``start-up``), alternating the processes; with ``others``, fmusim and FMPy on the export."""
     h = step_of(archive)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
-        runs = {**commands(archive, stop, out, before),
-                **{f"{k} start-up": v for k, v in commands(archive, h, out, before).items()}}
+        container = export(archive, out / f"{archive.stem}.fmu") if others else None
+        runs = {**commands(archive, stop, out, before, h, container),
+                **{f"{k} start-up": v for k, v in commands(archive, h, out, before, h, container).items()}}
         for command in runs.values():  # untimed: fills the FMU cache, warms the page cache
             timed(command, out)
         samples: dict[str, list[tuple[float, float]]] = {k: [] for k in runs}
@@ -148,6 +173,11 @@ def report(name: str, stop: float, steps: int, figures: dict[str, tuple[float, f
         print(f"wall ratio before/libcosim, both with full CSV: "
               f"{figures['before, CSV'][0] / figures['libcosim, CSV'][0]:.2f}")
     print("CPU per step / libcosim's: writing CSV against its CSV, writing nothing against no observer")
+    for host in ("fmusim, CSV", "FMPy, in memory"):
+        if host in figures:
+            own = per_step(host)
+            print(f"CPU per step, ours / {host.split(',')[0]}: with CSV {per_step('ours, CSV') / own:.2f}, "
+                  f"writing nothing {per_step('ours, /dev/null') / own:.2f}")
     print(f"first run on a machine (empty FMU cache), start-up wall: {cold:.3f} s")
 
 
@@ -158,6 +188,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--stop-time", type=float, default=30.0)
     parser.add_argument("--before", type=Path, metavar="CHECKOUT",
                         help="another checkout (with its .venv and build/) to time beside this one")
+    parser.add_argument("--no-others", dest="others", action="store_false",
+                        help="leave out fmusim and FMPy on the exported scenario")
     args = parser.parse_args(argv)
     if args.before is not None and not (args.before / ".venv" / "bin" / "orchestrate").is_file():
         parser.error(f"{args.before}: no .venv/bin/orchestrate (run 'make build' there)")
@@ -165,7 +197,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         archive = REPO / "build" / "ssp" / f"{name}.ssp"
         if not archive.is_file():
             parser.error(f"{archive} does not exist: run 'make build' first")
-        figures = measure(archive, args.stop_time, args.repeat, args.before)
+        figures = measure(archive, args.stop_time, args.repeat, args.before, args.others)
         steps = round(args.stop_time / step_of(archive))
         report(name, args.stop_time, steps, figures, cold_start(archive))
     return 0
