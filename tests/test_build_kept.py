@@ -2,7 +2,8 @@
 """The build's kept bytes (the runtime cache's objects, members, deflated and xz folders) are
 bounded: :func:`~fmu_src.toolchain.build.prune_kept` removes the least recently used beyond its
 budget, never what was used within the grace period, and the half-written files of builds that
-died; reading a kept file marks it used. The oracle is the file system's sizes and times."""
+died; reading a kept file marks it used. What every compile shares (the Windows headers, the
+import libraries) is made once per digest. The oracle is the file system's sizes, times and bytes."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import os
 import time
 from pathlib import Path
 
-from fmu_src.toolchain.build import KEPT_FOLDERS, _kept_bytes, prune_kept
+from fmu_src.toolchain.build import KEPT_FOLDERS, _kept_bytes, _made_once, _win_headers, prune_kept
 
 HOUR = 3600.0
 
@@ -44,3 +45,40 @@ def test_reading_a_kept_file_marks_it_used(tmp_path: Path) -> None:
     assert time.time() - path.stat().st_mtime < 60.0
     assert prune_kept(tmp_path, budget=0, grace=HOUR) == (0, 5)  # used now: it stays
     assert _kept_bytes(tmp_path / "missing") is None
+
+
+def test_what_every_compile_shares_is_made_once_per_digest(tmp_path: Path) -> None:
+    made: list[Path] = []
+
+    def make(folder: Path) -> None:
+        folder.mkdir()
+        (folder / "lib.a").write_bytes(b"archive")
+        made.append(folder)
+
+    cache = tmp_path / "win64-imports"
+    cache.mkdir()
+    (cache / f".{'a' * 32}.999999").mkdir()  # half made by a build that died
+    first = _made_once(cache, "a" * 64, make)
+    assert _made_once(cache, "a" * 64, make) == first and len(made) == 1
+    assert (first / "lib.a").read_bytes() == b"archive"
+    newer = _made_once(cache, "b" * 64, make)  # another runtime, or other imports
+    assert len(made) == 2 and newer != first and not first.exists()
+    assert sorted(p.name for p in cache.iterdir() if not p.name.startswith(".")) == [newer.name]
+
+
+def test_the_windows_headers_are_the_runtimes_with_the_windows_pyconfig(tmp_path: Path) -> None:
+    include = tmp_path / "python3.11"
+    (include / "cpython").mkdir(parents=True)
+    (include / "Python.h").write_text('#include "pyconfig.h"\n')
+    (include / "pyconfig.h").write_text("#error unknown multiarch location for pyconfig.h\n")  # Debian's
+    (include / "cpython" / "object.h").write_text("/* one */\n")
+    windows = tmp_path / "pyconfig-win64.h"
+    windows.write_text("#define MS_WIN64\n")
+    folder, digest = _win_headers.__wrapped__(include, windows, tmp_path / "cache")
+    assert (folder / "pyconfig.h").read_text() == "#define MS_WIN64\n"
+    assert (folder / "Python.h").read_bytes() == (include / "Python.h").read_bytes()
+    assert (folder / "cpython" / "object.h").read_text() == "/* one */\n"
+    (include / "cpython" / "object.h").write_text("/* two */\n")  # a runtime with other headers
+    other, other_digest = _win_headers.__wrapped__(include, windows, tmp_path / "cache")
+    assert other_digest != digest and (other / "cpython" / "object.h").read_text() == "/* two */\n"
+    assert not folder.exists()

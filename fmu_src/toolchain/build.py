@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import ast
 import contextlib
+import functools
 import hashlib
 import importlib.metadata
 import io
@@ -366,18 +367,17 @@ def _objects(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequen
     without a variant's -D (:data:`VARIANT_FREE`). The compiler, the inputs every step shares,
     and the objects' bytes (also written beside their sources)."""
     compiler = mingw() if windows else c_compiler()[0]
+    tree: list[str | Path] = []
     if windows:
-        headers = work / "include"
-        if not headers.is_dir():
-            shutil.copytree(runtime.include_dirs[0], headers)
-            shutil.copyfile(REPO_ROOT / WIN_PYCONFIG, headers / "pyconfig.h")
-        includes = [f"-I{headers}"]
+        headers, headers_digest = _win_headers(runtime.include_dirs[0], REPO_ROOT / WIN_PYCONFIG,
+                                               runtime.root.parent)
+        includes, tree = [f"-I{headers}"], [f"include\0{headers_digest}"]
     else:
         includes = [f"-I{d}" for d in runtime.include_dirs]
     version = _mingw_version() if windows else c_compiler()[1]
     header_files = sorted(p for p in work.rglob("*.h") if p.is_file())
     here = Path(__file__).resolve().parent  # the build's code and the runtimes' pins
-    common: list[str | Path] = [version, *(here / n for n in BUILD_CODE),
+    common: list[str | Path] = [version, *(here / n for n in BUILD_CODE), *tree,
                                 *(f"{p.relative_to(work)}\0{stamps.file_digest(p)}" for p in header_files)]
     objects = []
     base = MINGW_FLAGS if windows else SHIM_FLAGS  # for ``plain``: a shim variant's flags minus its -D
@@ -391,12 +391,55 @@ def _objects(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequen
     return compiler, common, objects
 
 
+@functools.cache
+def _win_headers(include: Path, pyconfig: Path, cache: Path) -> tuple[Path, str]:
+    """The runtime's Python headers with the Windows pyconfig.h (Debian's dispatches on
+    ``__linux__``, and Python.h finds the one beside it first), and their digest: one copy per
+    runtime and pyconfig.h in ``cache/win64-include``, hashed once per process. Each compile
+    copied and hashed the 330 headers itself: 13 000 of a cold build's 19 000 new files."""
+    own = include / "pyconfig.h"
+    files = sorted(p for p in include.rglob("*") if p.is_file() and p != own)
+    digest = stamps.digest(*(f"{p.relative_to(include)}\0{stamps.file_digest(p)}" for p in files),
+                           f"pyconfig.h\0{stamps.file_digest(pyconfig)}")
+
+    def make(folder: Path) -> None:
+        shutil.copytree(include, folder)
+        shutil.copyfile(pyconfig, folder / "pyconfig.h")
+
+    return _made_once(cache / "win64-include", digest, make), digest
+
+
+def _made_once(folder: Path, digest: str, make: Callable[[Path], None]) -> Path:
+    """``folder/<digest>``, made by ``make`` (given a folder name that does not exist yet) unless it
+    is there: made under a temporary name and renamed, so that a build beside this one sees all of
+    it or nothing. Entries of other digests (an older runtime's) are removed."""
+    target = folder / digest[:32]
+    if target.is_dir():
+        return target
+    folder.mkdir(parents=True, exist_ok=True)
+    partial = folder / f".{target.name}.{os.getpid()}"
+    shutil.rmtree(partial, ignore_errors=True)
+    make(partial)
+    try:
+        partial.rename(target)
+    except OSError:  # made meanwhile by a build beside this one
+        shutil.rmtree(partial, ignore_errors=True)
+        if not target.is_dir():
+            raise
+    for entry in folder.iterdir():
+        if entry.name != target.name and not entry.name.startswith("."):
+            shutil.rmtree(entry, ignore_errors=True)
+    return target
+
+
 def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequence[str],
-             libraries: Sequence[str], what: Path, windows: str = "", plain: Sequence[str] = ()) -> bytes:
+             libraries: Sequence[str], what: Path, windows: str = "", plain: Sequence[str] = (),
+             archives: Sequence[Path] = ()) -> bytes:
     """Compile ``sources`` (in ``work``) into a shared object against the runtime's headers; its
     bytes (the same for the same sources, compiler, flags and runtime). ``what`` names the sources
     in the error. ``windows``: the DLL's file name, cross-compiled with mingw-w64 against the same
-    headers with the Windows pyconfig.h."""
+    headers with the Windows pyconfig.h. ``archives``: the static libraries ``libraries`` link from
+    outside ``work`` (their bytes are part of what is kept)."""
     # Content-addressed, in two steps: the objects (_objects), then the link into the named
     # library; the build is reproducible, so a kept product is the one it would make.
     compiler, common, _ = _objects(work, runtime, flags, sources, what, windows, plain)
@@ -404,7 +447,7 @@ def _compile(work: Path, runtime: Runtime, flags: Sequence[str], sources: Sequen
     command = [compiler, *flags, "-o", out, *(f"{source}.o" for source in sources), *libraries]
     return _kept(runtime, work, command, out, what,
                  [*common, _relative(command, work), *(work / f"{source}.o" for source in sources),
-                  *(work / lib for lib in sorted(os.listdir(work)) if lib.endswith(".a"))])
+                  *(work / lib for lib in sorted(os.listdir(work)) if lib.endswith(".a")), *archives])
 
 
 def _relative(command: Sequence[str], work: Path) -> str:
@@ -513,20 +556,36 @@ def compile_extension_win64(source: Path, runtime: Runtime, windows: runtime_win
     ``<name>.pyd``."""
     work = where / f"ext_win64_{source.stem}"
     _extension_work(source, work, root)
-    tool = Path(mingw()).with_name(Path(mingw()).name.replace("gcc", "dlltool"))
-    libraries = [str(windows.embed / "python3.dll"), "-L."]
-    for number, (dll, symbols) in enumerate(WIN_IMPORTS.items()):  # an import library per DLL
-        definition = work / f"imports{number}.def"
-        definition.write_text(f"LIBRARY {dll}\nEXPORTS\n" + "\n".join(symbols) + "\n")
-        # dlltool leaves an empty temporary file behind on every call: keep it in the work folder
-        result = subprocess.run([str(tool), "-d", str(definition), "-l", str(work / f"libimports{number}.a")],
-                                capture_output=True, text=True, env={**os.environ, "TMPDIR": str(work)})
-        if result.returncode != 0:
-            raise BuildError(f"{tool} failed:\n{result.stderr.strip()}")
-        libraries.append(f"-limports{number}")
-    libraries.append("-lkernel32")
+    imports = _win_import_libraries(runtime.root.parent)
+    libraries = [str(windows.embed / "python3.dll"), f"-L{imports}",
+                 *(f"-limports{number}" for number in range(len(WIN_IMPORTS))), "-lkernel32"]
     return _compile(work, runtime, WIN_EXTENSION_FLAGS, [source.name], libraries, source,
-                    f"{source.stem}{WIN_EXTENSION_SUFFIX}")
+                    f"{source.stem}{WIN_EXTENSION_SUFFIX}", archives=sorted(imports.glob("*.a")))
+
+
+@functools.cache
+def _win_import_libraries(cache: Path) -> Path:
+    """The import libraries of :data:`WIN_IMPORTS` (``libimports<n>.a``, one per DLL, by mingw's
+    dlltool), made once per set of imports and compiler in ``cache/win64-imports``. Each extension's
+    compile ran dlltool three times (and its assembler): 78 dlltool and 218 assembler runs in a
+    cold build, most of them for objects already kept."""
+    tool = Path(mingw()).with_name(Path(mingw()).name.replace("gcc", "dlltool"))
+    definitions = [f"LIBRARY {dll}\nEXPORTS\n" + "\n".join(symbols) + "\n"
+                   for dll, symbols in WIN_IMPORTS.items()]
+
+    def make(folder: Path) -> None:
+        folder.mkdir()
+        for number, text in enumerate(definitions):
+            definition = folder / f"imports{number}.def"
+            definition.write_text(text)
+            # dlltool leaves an empty temporary file behind on every call: keep it in this folder
+            library = folder / f"libimports{number}.a"
+            result = subprocess.run([str(tool), "-d", str(definition), "-l", str(library)],
+                                    capture_output=True, text=True, env={**os.environ, "TMPDIR": str(folder)})
+            if result.returncode != 0:
+                raise BuildError(f"{tool} failed:\n{result.stderr.strip()}")
+
+    return _made_once(cache / "win64-imports", stamps.digest(_mingw_version(), *definitions), make)
 
 
 def compile_shared(root: Path = REPO_ROOT, platforms: Sequence[str] = PLATFORM_NAMES) -> None:
