@@ -19,13 +19,15 @@ import os
 import re
 import shutil
 import stat
+import sys
 import tempfile
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
-__all__ = ["HOST", "alive", "not_regular", "remove_stale", "replacing", "reserve", "sha256",
+__all__ = ["HOST", "alive", "bulk_sha256", "not_regular", "remove_stale", "replacing", "reserve", "sha256",
            "temporary_folder", "write_text"]
 
 try:  # CPython's own SHA-256 (3.12+: _sha2, 3.11: _sha256): hashlib loads OpenSSL's libcrypto, which
@@ -37,6 +39,14 @@ except ImportError:  # (issue 46); it hashes at 0.4 GB/s, and a run hashes an FM
         from hashlib import sha256
 
 HOST = sha256(os.uname().nodename.encode()).hexdigest()[:8]  # in temporary names: whose pid
+
+
+def bulk_sha256() -> Any:
+    """A SHA-256 object for megabytes (an FMU's bytes): OpenSSL's, 4x faster with the CPU's SHA
+    instructions, where this process has imported hashlib anyway (a build packing 24 scenarios
+    spent 2.2 s in CPython's), else CPython's own (:data:`sha256`: a run loads no libcrypto)."""
+    hashlib = sys.modules.get("hashlib")
+    return hashlib.sha256() if hashlib is not None else sha256()
 QUIET = 60.0  # s without a change after which a dead process's temporary file is certainly abandoned
 
 
@@ -81,10 +91,11 @@ def remove_stale(folder: str | os.PathLike, pattern: str, quiet: float = 0.0) ->
     now = time.time()
     for entry in entries:
         match = regex.fullmatch(entry.name)
+        if match is None:  # before stat: a folder of many files (the FMU cache's notes) is scanned often
+            continue
         try:
             info = entry.stat(follow_symlinks=False)
-            if (match is None or info.st_uid != os.getuid() or now - info.st_mtime < quiet
-                    or alive(int(match["pid"]))):
+            if info.st_uid != os.getuid() or now - info.st_mtime < quiet or alive(int(match["pid"])):
                 continue
             if entry.is_dir(follow_symlinks=False):
                 shutil.rmtree(entry.path)

@@ -103,7 +103,7 @@ def member_sha256(path: str | os.PathLike, archive: str | os.PathLike, member: s
 
 def _hash(path: str | os.PathLike, note: Path | None) -> str:
     """SHA-256 of the file's bytes, read in blocks, and remembered in ``note``."""
-    h = files.sha256()
+    h = files.bulk_sha256()
     with open(path, "rb") as stream:
         for block in iter(lambda: stream.read(1 << 20), b""):
             h.update(block)

@@ -47,7 +47,7 @@ def digest(path: str | os.PathLike) -> str:
     path = Path(path)
     if deferred(path) or path.is_file():
         return sha256(path)  # computed once per process (the FMU cache needs it too)
-    h = files.sha256()
+    h = files.bulk_sha256()
     for f in sorted(f for f in path.rglob("*") if f.is_file()):
         if path.is_dir():
             h.update(f.relative_to(path).as_posix().encode() + b"\0")

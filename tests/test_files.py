@@ -59,3 +59,12 @@ def test_the_written_file_gets_the_mode_open_gives(tmp_path: Path) -> None:
         os.umask(umask)
     assert stat.S_IMODE((tmp_path / "a.txt").stat().st_mode) == 0o644  # 0o666 less the umask 0o022
     assert (tmp_path / "a.txt").read_bytes() == b"a\n"
+
+
+def test_bulk_sha256_is_sha256_whichever_implementation_it_takes() -> None:
+    import hashlib
+
+    data = os.urandom(3 << 20)
+    h = files.bulk_sha256()
+    h.update(data)
+    assert h.hexdigest() == hashlib.sha256(data).hexdigest() == files.sha256(data).hexdigest()
