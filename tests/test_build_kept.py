@@ -3,15 +3,28 @@
 bounded: :func:`~fmu_src.toolchain.build.prune_kept` removes the least recently used beyond its
 budget, never what was used within the grace period, and the half-written files of builds that
 died; reading a kept file marks it used. What every compile shares (the Windows headers, the
-import libraries) is made once per digest. The oracle is the file system's sizes, times and bytes."""
+import libraries) is made once per digest, a standard-library zip once per set of modules. The
+oracle is the file system's sizes, times and bytes, and an interpreter that is not there."""
 
 from __future__ import annotations
 
+import io
 import os
 import time
+import zipfile
 from pathlib import Path
 
-from fmu_src.toolchain.build import KEPT_FOLDERS, _kept_bytes, _made_once, _win_headers, prune_kept
+import pytest
+
+from fmu_src.toolchain.build import (
+    KEPT_FOLDERS,
+    _kept_bytes,
+    _made_once,
+    _win_headers,
+    bundled_python,
+    prune_kept,
+)
+from fmu_src.toolchain.runtime import _stdlib_zip, ensure_runtime
 
 HOUR = 3600.0
 
@@ -82,3 +95,16 @@ def test_the_windows_headers_are_the_runtimes_with_the_windows_pyconfig(tmp_path
     other, other_digest = _win_headers.__wrapped__(include, windows, tmp_path / "cache")
     assert other_digest != digest and (other / "cpython" / "object.h").read_text() == "/* two */\n"
     assert not folder.exists()
+
+
+def test_a_standard_library_zip_is_compiled_once_per_set_of_modules(tmp_path: Path) -> None:
+    runtime = ensure_runtime()
+    launcher = bundled_python(runtime)
+    modules = {"colorsys": runtime.stdlib / "colorsys.py", "this": runtime.stdlib / "this.py"}
+    first = _stdlib_zip(runtime, launcher, modules)  # compiled now, or kept by an earlier run
+    absent = tmp_path / launcher.name  # the same interpreter's name, nothing to run there
+    assert _stdlib_zip(runtime, absent, modules) == first  # kept: no interpreter ran
+    with zipfile.ZipFile(io.BytesIO(first)) as archive:
+        assert sorted(archive.namelist()) == ["colorsys.pyc", "this.pyc"]
+    with pytest.raises(OSError):  # another set is compiled: by the interpreter named, absent
+        _stdlib_zip(runtime, absent, {"this": runtime.stdlib / "this.py"})

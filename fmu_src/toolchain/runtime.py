@@ -644,12 +644,29 @@ print(json.dumps(sys.implementation.cache_tag))
 
 
 def _stdlib_zip(runtime: Runtime, launcher: Path, modules: dict[str, Path]) -> bytes:
-    """``python311.zip`` of the given modules, compiled by the bundled interpreter."""
+    """``python311.zip`` of the given modules, compiled by the bundled interpreter; kept in the
+    runtime's cache (``members/``) under the digest of the runtime, the interpreter, the writer and
+    the modules, since most FMUs import the same ones (a cold build compiled it nine times, 0.37 s
+    of CPU each, for three different sets)."""
     listing = [(str(modules[n]), modules[n].relative_to(runtime.stdlib).as_posix()) for n in sorted(modules)]
+    key = hashlib.sha256(json.dumps([manifest(), launcher.name, ZIP_WRITER, ZIP_DATE,
+                                     [name for _, name in listing]]).encode()).hexdigest()
+    kept = runtime.root.parent / "members" / f"stdlib-{key}.zip"
+    try:
+        data = kept.read_bytes()
+        os.utime(kept)  # used: the cache's pruning keeps what was used last
+        return data
+    except OSError:
+        pass
     with tempfile.TemporaryDirectory() as tmp:
         target = Path(tmp) / f"python{TAG}.zip"
         runtime.run(launcher, ZIP_WRITER, [listing, str(target), ZIP_DATE])
-        return target.read_bytes()
+        data = target.read_bytes()
+    kept.parent.mkdir(parents=True, exist_ok=True)
+    partial = kept.with_name(f".{kept.name}.{os.getpid()}")
+    partial.write_bytes(data)
+    partial.replace(kept)
+    return data
 
 
 def compile_bytecode(runtime: Runtime, launcher: Path, sources: dict[str, bytes]) -> dict[str, bytes]:
