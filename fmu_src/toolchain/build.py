@@ -486,8 +486,20 @@ def _shim_work(root: Path, where: Path, sources: Sequence[str], defines: Sequenc
             raise BuildError(f"FMI shim source not found: {source}")
         target = work / (source.relative_to(shim) if source.is_relative_to(shim) else source.name)
         target.parent.mkdir(exist_ok=True)
-        shutil.copyfile(source, target)
+        _place(source, target)
     return work, [*(MINGW_FLAGS if windows else SHIM_FLAGS), *(f"-D{d}" for d in defines)]
+
+
+def _place(source: Path, target: Path) -> None:
+    """``source`` at ``target`` for the compiler to read: a hard link where both are on one file
+    system (no new inode: a cold build placed 3 800 shim files, and creating inodes was a fifth
+    of its CPU on a busy ext4), else a copy. ``target`` is unlinked first, so that nothing is ever
+    written through a link into the source tree."""
+    target.unlink(missing_ok=True)
+    try:
+        os.link(source, target)
+    except OSError:  # another file system (a tmpfs TMPDIR), or links not allowed
+        shutil.copyfile(source, target)
 
 
 def shim_files(root: Path, sources: Sequence[str] = SHIM_SOURCES) -> list[Path]:
@@ -536,9 +548,9 @@ def compile_shim(root: Path, runtime: Runtime, where: Path, description: bytes,
 def _extension_work(source: Path, work: Path, root: Path) -> None:
     """``work`` made, holding ``source`` and :data:`EXTENSION_HEADERS` from ``root``."""
     work.mkdir(parents=True)
-    shutil.copyfile(source, work / source.name)
+    _place(source, work / source.name)
     for header in EXTENSION_HEADERS:
-        shutil.copyfile(root / header, work / header.name)
+        _place(root / header, work / header.name)
 
 
 def compile_extension(source: Path, runtime: Runtime, where: Path, root: Path = REPO_ROOT) -> bytes:
