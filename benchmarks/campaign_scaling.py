@@ -11,10 +11,12 @@ inside ``orchestrator.run`` on the worker (both measured in the same minutes, so
 work on the machine cancels), and against the bare run measured here.
 
 Parallel efficiency, apart from the machine's load: the CPU the workers spent (user + system of
-the worker processes, read from this process's reaped children: workers' start-up and shut-down
-included) per run, and that CPU over the campaign's wall time times the workers (1.0: every
-worker busy all the time). On a loaded machine runs per minute fall, CPU per run does not: a
-regression shows in CPU per run; a busy machine shows in the efficiency alone.
+the worker processes: for the embedded cluster read from this process's reaped children, the
+workers' start-up and shut-down included, over the campaign's whole wall time; for the external
+cluster read on its workers before and after the campaign, over the campaign's wall time) per
+run, and that CPU over the wall time times the workers (1.0: every worker busy all the time). On
+a loaded machine runs per minute fall, CPU per run does not: a regression shows in CPU per run; a
+busy machine shows in the efficiency alone.
 """
 
 from __future__ import annotations
@@ -108,6 +110,16 @@ def children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
+def workers_cpu(address: str) -> float:
+    """User + system CPU seconds the worker processes of the cluster at ``address`` have spent so
+    far (``os.times`` run on each worker)."""
+    from distributed import Client
+
+    with Client(address) as client:
+        times = client.run(os.times)
+    return sum(t[0] + t[1] for t in times.values())
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenario", type=Path, help="default: build example1_no_fault into a temp folder")
@@ -159,12 +171,12 @@ def main() -> None:
                 continue
             results[label] = s
             cpu[label] = children_cpu() - before
-        before = children_cpu()
         with external_cluster(tmp, 2) as address:
+            start = workers_cpu(address)  # the cluster is up: its start-up is not the campaign's
             results["external scheduler, 2 workers"] = sweep(
                 [scenario], design, tmp / "external", metrics=TRACKING, scheduler=address, progress=False
             )
-        cpu["external scheduler, 2 workers"] = children_cpu() - before
+            cpu["external scheduler, 2 workers"] = workers_cpu(address) - start
         for label, s in results.items():
             rate = 60 * args.runs / s.run_time
             print(
