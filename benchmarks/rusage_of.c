@@ -7,12 +7,20 @@
 #define _DEFAULT_SOURCE
 #include <stdio.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 int main(int argc, char **argv) {
     if (argc < 3) {
         fprintf(stderr, "usage: rusage_of OUT COMMAND [ARG...]\n");
+        return 2;
+    }
+    struct stat target;
+    if (stat(argv[1], &target) == 0 && S_ISREG(target.st_mode) && (target.st_mode & 0111)) {
+        /* "rusage_of COMMAND ..." without OUT would overwrite COMMAND with two numbers */
+        fprintf(stderr, "rusage_of: OUT %s is an executable file, not written (usage: rusage_of OUT COMMAND)\n",
+                argv[1]);
         return 2;
     }
     pid_t pid = fork();
