@@ -196,17 +196,19 @@ def _pack(name: str, sources: Path, fmus: dict[str, Path], target: Path, force: 
     files = _scenario_files(folder)
     key = stamps.digest(*_named(folder, files), *(f"{n}\0{sha256(p)}" for n, p in sorted(needed.items())),
                         Path(ssp.__file__))
-    if not force and stamps.up_to_date(target, key):  # packed from the same files (and validated then)
-        return target
-    stamps.forget(target)
-    target = pack_ssp(folder, needed, target)
-    with open_system(target):  # validate the packed archive against the FMUs
-        pass
     root = REPO_ROOT if root is None else root
     originals = _scenario_files(origin) if origin is not None else files
     recorded: dict[str, str] = stamps.source_digests([*originals, Path(ssp.__file__)], root)
     for fmu in needed.values():
         recorded |= stamps.recorded_sources(fmu)
+    if not force and stamps.up_to_date(target, key):  # packed from the same files (and validated then)
+        if stamps.recorded_sources(target) != recorded:  # its FMUs rebuilt, to the same bytes, from
+            stamps.record(target, key, recorded, root)  # edited sources: the archive is current again
+        return target
+    stamps.forget(target)
+    target = pack_ssp(folder, needed, target)
+    with open_system(target):  # validate the packed archive against the FMUs
+        pass
     stamps.record(target, key, recorded, root)
     return target
 
