@@ -73,9 +73,11 @@ def cpu(command: Sequence[str], cwd: Path) -> float:
 
 
 def export(checkout: Path, target: Path) -> Path:
-    """example1 exported as one FMU from ``checkout``'s built SSP, by that checkout's exporter."""
+    """example1 exported as one FMU from ``checkout``'s built SSP, by that checkout's exporter
+    (another checkout's as it was built: 633067d's Makefile compiles an extension after packing
+    the archives, which its stale-build check then refuses)."""
     command = [str(PYTHON), "-m", "orchestrator", "export", str(checkout / "build" / "ssp" / "example1.ssp"),
-               "-o", str(target), "--quiet"]
+               "-o", str(target), "--quiet", *(["--allow-stale"] if checkout.resolve() != REPO else [])]
     subprocess.run(command, check=True, cwd=checkout, env={**os.environ, "PYTHONPATH": str(checkout)})
     return target
 
