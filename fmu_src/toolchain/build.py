@@ -579,7 +579,7 @@ def compile_extension_win64(source: Path, runtime: Runtime, windows: runtime_win
 def _win_import_libraries(cache: Path) -> Path:
     """The import libraries of :data:`WIN_IMPORTS` (``libimports<n>.a``, one per DLL, by mingw's
     dlltool), made once per set of imports and compiler in ``cache/win64-imports``. Each extension's
-    compile ran dlltool three times (and its assembler): 78 dlltool and 218 assembler runs in a
+    compile ran dlltool three times (and its assembler): 78 dlltool and 150 assembler runs in a
     cold build, most of them for objects already kept."""
     tool = Path(mingw()).with_name(Path(mingw()).name.replace("gcc", "dlltool"))
     definitions = [f"LIBRARY {dll}\nEXPORTS\n" + "\n".join(symbols) + "\n"

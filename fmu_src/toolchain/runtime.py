@@ -647,7 +647,7 @@ def _stdlib_zip(runtime: Runtime, launcher: Path, modules: dict[str, Path]) -> b
     """``python311.zip`` of the given modules, compiled by the bundled interpreter; kept in the
     runtime's cache (``members/``) under the digest of the runtime, the interpreter, the writer and
     the modules, since most FMUs import the same ones (a cold build compiled it nine times, 0.37 s
-    of CPU each, for three different sets)."""
+    of CPU each, for two different sets)."""
     listing = [(str(modules[n]), modules[n].relative_to(runtime.stdlib).as_posix()) for n in sorted(modules)]
     key = hashlib.sha256(json.dumps([manifest(), launcher.name, ZIP_WRITER, ZIP_DATE,
                                      [name for _, name in listing]]).encode()).hexdigest()
