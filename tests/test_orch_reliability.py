@@ -377,10 +377,24 @@ def _mapped(pid: int, name: str) -> bool:
         return False
 
 
+def _rows_written(folder: Path) -> bool:
+    """Whether the run's CSV (still under its temporary name) holds rows: not the provenance
+    sidecar's temporary file, which a glob may find a moment before it is renamed away."""
+    for part in folder.glob(".r.csv.*.part"):
+        if part.name.startswith(".r.csv.json."):
+            continue
+        try:
+            if part.stat().st_size > 2000:
+                return True
+        except FileNotFoundError:  # renamed onto the result since the glob
+            continue
+    return False
+
+
 MOMENTS: dict[str, Callable[[int, Path], bool]] = {
     "importing": lambda pid, tmp: _mapped(pid, "_multiarray_umath"),  # numpy, imported after the guard
     "unpacking": lambda pid, tmp: bool(list(tmp.glob("ssp-*"))),
-    "stepping": lambda pid, tmp: any(p.stat().st_size > 2000 for p in tmp.parent.glob(".r.csv.*.part")),
+    "stepping": lambda pid, tmp: _rows_written(tmp.parent),
 }
 
 
