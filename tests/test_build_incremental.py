@@ -56,7 +56,7 @@ def test_an_fmu_is_rebuilt_only_when_what_it_bundles_changes(tmp_path: Path) -> 
     assert after[0][1] != before[0][1] and after[1][1] != before[1][1]
     with zipfile.ZipFile(again) as archive:
         bundled = [n for n in archive.namelist()
-                   if n.startswith("resources/ftc_reference_") and n.endswith(".py")]
+                   if n.startswith("resources/_ftc_reference_") and n.endswith("/fmu_src/reference.py")]
         assert len(bundled) == 1 and b"# the reference's edit" in archive.read(bundled[0])
     # a damaged or missing record of the inputs: rebuilt, never trusted
     (fmus / ".Reference.fmu.inputs").write_text("not a record\n")

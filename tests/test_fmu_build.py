@@ -23,7 +23,7 @@ from fmu_helpers import MODELS
 
 from fmu_src.toolchain import runtime
 from fmu_src.toolchain.__main__ import main
-from fmu_src.toolchain.build import CLASS_LINE, REPO_ROOT, XZ_MEMBERS, BuildError, build_fmu
+from fmu_src.toolchain.build import CLASS_LINE, FMU_SCRIPTS, REPO_ROOT, XZ_MEMBERS, BuildError, build_fmu
 from fmu_src.toolchain.variable_table import variable_table
 
 pytestmark = pytest.mark.system
@@ -63,12 +63,16 @@ def test_bundle_layout(fmus: dict, model: str) -> None:
     with zipfile.ZipFile(fmus[model]) as archive:
         names = archive.namelist()
         module = archive.read("resources/slavemodule.txt").decode().strip()
-        script = archive.read(f"resources/{module}.py").decode()
+        digest = module.rsplit("_", 1)[1]
+        package = f"_ftc_{model.lower()}_{digest}"
+        entry = archive.read(f"resources/{module}.py").decode()
+        script = archive.read(f"resources/{package}/fmu_src/{FMU_SCRIPTS[model]}").decode()
         sources = {n: archive.read(n).decode() for n in names if n.endswith(".py") and "/pythonfmu/" not in n}
-    digest = module.rsplit("_", 1)[1]
-    package = f"_ftc_{model.lower()}_{digest}"
     assert module == f"ftc_{model.lower()}_{digest}"
     assert CLASS_LINE.findall(script) == [model]
+    # pythonfmu's entry, run again for every instance, only imports the class from the script
+    assert CLASS_LINE.findall(entry) == []
+    assert f"from {package}.fmu_src.{FMU_SCRIPTS[model][:-3]} import {model}\n" in entry
     # nothing bundled imports the repository's packages by their own names
     for name, text in sources.items():
         for node in ast.walk(ast.parse(text)):

@@ -3,10 +3,11 @@
 
 All pythonfmu FMUs in one process share one interpreter and one module cache, and each FMU's
 ``resources`` folder goes to ``sys.path[0]``. So two FMUs that bundle modules of the same name
-see whichever was imported first. To rule that out, every FMU bundles its script as
-``ftc_<model>_<hash>.py`` and the code it needs (modules of ``fmu_src`` and ``controller``) as a
-package ``_ftc_<model>_<hash>``, where ``<hash>`` is a digest of every bundled byte. Only the
-script's own ``from fmu_src... / from controller... import`` lines are rewritten (with ``ast``);
+see whichever was imported first. To rule that out, every FMU bundles its script and the code it
+needs (modules of ``fmu_src`` and ``controller``) as a package ``_ftc_<model>_<hash>`` (the script
+as ``fmu_src/<script>.py`` in it), where ``<hash>`` is a digest of every bundled byte;
+pythonfmu's entry ``ftc_<model>_<hash>.py`` imports the model's class from there (:func:`_entry`).
+Only the script's own ``from fmu_src... / from controller... import`` lines are rewritten (with ``ast``);
 bundled modules must import their own package relatively, and the other local package with a
 module-level ``from ... import`` (rewritten likewise: ``fmu_src.controller_core`` uses ``controller``).
 
@@ -94,7 +95,7 @@ FMU_SCRIPTS = {
 }
 BUILD_OPTIONS = {"canGetAndSetFMUstate": True}
 # Bump when the staging or normalization below changes the archive layout.
-BUILD_FORMAT = "10"
+BUILD_FORMAT = "11"
 SHIM_DIR = Path("fmu_src", "toolchain", "shim")  # relative to the source root
 # The shim laid out as the Modelica Reference FMUs lay theirs out (shim.h says what each file holds).
 # xz/: XZ Embedded's decoder (public domain / 0BSD, xz/README.md), for the runtime's .xz members (unpack.c).
@@ -201,7 +202,7 @@ PYTHONFMU_LINES = {
                      "from xml.etree.ElementTree import Element, SubElement\n": _LAZY_XML},
     "variables.py": {"from xml.etree.ElementTree import Element, SubElement\n": _LAZY_XML},
 }
-CLASS_LINE = re.compile(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", re.MULTILINE)  # pythonfmu's loader regex
+CLASS_LINE = re.compile(r"^class (\w+)\(\s*Fmi2Slave\s*\)\s*:", re.MULTILINE)  # the script's one model class
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 DEFLATE_KEPT = 64 << 10  # members this large (the runtimes' libraries, zips, DLLs) are deflated once
 # The two interpreter libraries, by far the runtimes' largest files, go into the FMU xz-compressed
@@ -758,13 +759,14 @@ def _rewrite_script(bundle: Bundle, package: str) -> str:
     if classes != [bundle.model]:
         raise BuildError(
             f"{bundle.script}: expected exactly one line 'class {bundle.model}(Fmi2Slave):' "
-            f"(pythonfmu's loader matches it literally), found {classes}"
+            f"(the class the FMU's entry imports), found {classes}"
         )
     return text
 
 
 def _stage(bundle: Bundle, digest: str, where: Path) -> tuple[Path, Path]:
-    """Write the rewritten script and the uniquely named package; return both paths."""
+    """Write the uniquely named package, the rewritten script in it (``fmu_src/<script>.py``), and
+    pythonfmu's entry module (:func:`_entry`); return the entry's path and the package's."""
     package = f"_ftc_{bundle.model.lower()}_{digest[:12]}"
     package_dir = where / package
     package_dir.mkdir(parents=True)
@@ -778,9 +780,32 @@ def _stage(bundle: Bundle, digest: str, where: Path) -> tuple[Path, Path]:
                 (package_dir / parent / "__init__.py").write_text(init, encoding="utf-8")
         if target.name != "__init__.py":
             target.write_text(_rewrite_imports(source, package), encoding="utf-8")
+    (package_dir / "fmu_src").mkdir(exist_ok=True)
+    if not (package_dir / "fmu_src" / "__init__.py").exists():
+        (package_dir / "fmu_src" / "__init__.py").write_text(init, encoding="utf-8")
+    script_text = _rewrite_script(bundle, package)
+    (package_dir / "fmu_src" / bundle.script.name).write_text(script_text, encoding="utf-8")
     script = where / f"ftc_{bundle.model.lower()}_{digest[:12]}.py"
-    script.write_text(_rewrite_script(bundle, package), encoding="utf-8")
+    script.write_text(_entry(bundle, package), encoding="utf-8")
     return script, package_dir
+
+
+def _entry(bundle: Bundle, package: str) -> str:
+    """pythonfmu's entry module, which imports the model class from the bundled script.
+
+    pythonfmu 0.7.0 compiles and runs this file again every time it constructs a component (its
+    findClass, looking for the class), and keeps what that made: running the script itself there
+    built, and leaked, the model's class once per instance. findClass also releases a reference
+    to this module's namespace that it never took (``Py_DECREF`` of ``PyModule_GetDict``'s
+    borrowed result); the leaked class's functions used to hold enough, so each run of the entry
+    keeps one (8 bytes), or the second instance would find the namespace freed."""
+    script = f"{package}.fmu_src.{bundle.script.stem}"
+    return (f'"""The {bundle.model} FMU\'s entry for pythonfmu: the script is {script}.\n\n'
+            "pythonfmu runs this file again for every component it constructs, then releases one\n"
+            'reference to this namespace that it never took: each run keeps one."""\n\n'
+            f"from {script} import {bundle.model}\n\n"
+            f"__all__ = [\"{bundle.model}\"]\n"
+            'globals().setdefault("_pythonfmu_references", []).append(globals())\n')
 
 
 @contextmanager
