@@ -20,7 +20,6 @@ import sys
 import threading
 import warnings
 from collections.abc import Callable, Sequence
-from importlib.metadata import PackageNotFoundError, entry_points, version
 from pathlib import Path
 from typing import NoReturn, TypedDict, Unpack
 
@@ -38,6 +37,7 @@ from .errors import (
     terminate,
 )
 from .fmi import CALLS
+from .installed import entry_points, version
 from .locate import BUILD_DIR, fmu_dirs, resolve_scenario
 from .master import LOOP_ITERATIONS, LOOP_TOLERANCE
 from .plots import check_plot, plot_run
@@ -280,7 +280,7 @@ def _parser(command: str | None = None) -> argparse.ArgumentParser:
     p.add_argument("shell", choices=SHELLS, metavar="SHELL", help=f"one of {', '.join(SHELLS)}")
 
     if command not in BUILTIN_COMMANDS:
-        for entry in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
+        for entry in entry_points(COMMAND_GROUP):
             entry.load()(sub)
     return parser
 
@@ -380,10 +380,7 @@ def archive_limits(args: argparse.Namespace) -> Limits:
 def version_line() -> str:
     """``orchestrate X.Y.Z (fmpy A, numpy B, Python C)``: what ``--version`` prints."""
     def installed(name: str) -> str:
-        try:
-            return version(name)
-        except PackageNotFoundError:
-            return "not installed"
+        return version(name) or "not installed"
 
     return (f"orchestrate {installed('fixed-time-cosim')} (fmpy {installed('fmpy')}, "
             f"numpy {installed('numpy')}, Python {sys.version.split()[0]})")
@@ -475,7 +472,7 @@ def scenario_checks(scenario: Path) -> list[str]:
     ``check(scenario) -> str``, '' when fine) find wrong with running ``scenario`` as it is, e.g.
     a build older than its sources (:mod:`orchestrator.experiments.builds`)."""
     found = []
-    for entry in sorted(entry_points(group=CHECK_GROUP), key=lambda e: e.name):
+    for entry in entry_points(CHECK_GROUP):
         problem = entry.load()(scenario)
         if problem:
             found.append(problem)

@@ -18,7 +18,6 @@ import fnmatch
 import logging
 import os
 from collections.abc import Callable, Mapping, Sequence
-from importlib.metadata import entry_points
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -26,6 +25,7 @@ import numpy as np
 
 from . import files
 from .errors import OutputError, UsageError, option
+from .installed import entry_points
 
 if TYPE_CHECKING:
     import matplotlib.figure
@@ -143,7 +143,7 @@ def _figure(result: np.ndarray, title: str, units: Mapping[str, str | None] | No
 def _application_figure(result: np.ndarray, units: Mapping[str, str | None],
                         record: Mapping[str, object] | None) -> matplotlib.figure.Figure | None:
     """The figure of the first ``orchestrate.figures`` entry point that recognises ``result``."""
-    for entry in sorted(entry_points(group=FIGURE_GROUP), key=lambda e: e.name):
+    for entry in entry_points(FIGURE_GROUP):
         function: FigureFunction = entry.load()
         fig = function(result, units, record)
         if fig is not None:

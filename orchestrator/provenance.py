@@ -20,12 +20,12 @@ import subprocess
 import sys
 import time
 from collections.abc import Iterable, Mapping
-from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 from . import files
 from .errors import OutputError
 from .fmucache import deferred, sha256
+from .installed import version
 from .results import FLUSH_ROWS, FLUSH_SECONDS
 from .system import System
 
@@ -61,10 +61,7 @@ def versions() -> dict[str, str]:
     """Versions of Python and of the packages a result depends on."""
     found = {"python": sys.version.split()[0]}  # platform.python_version(), without importing platform
     for name in PACKAGES:
-        try:
-            found[name] = version(name)
-        except PackageNotFoundError:
-            found[name] = "not installed"
+        found[name] = version(name) or "not installed"
     return found
 
 
