@@ -64,7 +64,7 @@ static struct {
     long (*tuple_size)(PyObject *);
     char *(*bytes_string)(PyObject *);
     long (*bytes_size)(PyObject *);
-    PyObject *(*dict_get)(PyObject *, PyObject *);
+    PyObject *(*dict_get)(PyObject *, PyObject *); /* PyDict_GetItemWithError: no error saved and restored */
     int (*dict_set)(PyObject *, PyObject *, PyObject *);
     long (*list_size)(PyObject *);
     int (*is_true)(PyObject *);
@@ -96,7 +96,7 @@ void resolve_python_api(void *python) {
     FIND(tuple_size, "PyTuple_Size");
     FIND(bytes_string, "PyBytes_AsString");
     FIND(bytes_size, "PyBytes_Size");
-    FIND(dict_get, "PyDict_GetItem");
+    FIND(dict_get, "PyDict_GetItemWithError");
     FIND(dict_set, "PyDict_SetItem");
     FIND(list_size, "PyList_Size");
     FIND(is_true, "PyObject_IsTrue");
@@ -121,7 +121,7 @@ struct direct {
     PyObject *log_queue; /* the list pythonfmu forwards to the host's logger */
     PyObject *stale;     /* the key "_fmu_stale" */
     PyObject *raised;    /* the key "_fmu_raised": an exception do_step raised, for pythonfmu */
-    PyObject *names;     /* tuple: value reference -> variable name (None if not direct) */
+    PyObject **names;    /* value reference -> variable name (None if not direct), the binding's */
     unsigned char *kinds; /* value reference -> KIND_*: where the slave's and the table's agree */
     size_t n;            /* number of value references covered */
     int feedthrough;     /* some output depends directly on an input */
@@ -132,6 +132,7 @@ static void free_direct(struct direct *d) {
     if (!d) return;
     if (d->binding) py.decref(d->binding);
     free(d->kinds);
+    free(d->names);
     free(d);
 }
 
@@ -170,17 +171,20 @@ static struct direct *direct_of(PyObject *binding) {
     const unsigned char *offered = (const unsigned char *)py.bytes_string(kinds);
     d->n = offered ? (size_t)py.bytes_size(kinds) : 0;
     d->kinds = offered ? malloc(d->n + 1) : NULL;
-    if (!d->kinds || py.error()) {
+    d->names = offered ? calloc(d->n + 1, sizeof *d->names) : NULL;
+    if (!d->kinds || !d->names || py.error()) {
         free_direct(d);
         return NULL;
     }
-    for (size_t vr = 0; vr < d->n; vr++)
-        d->kinds[vr] = offered[vr] == table_kind((unsigned)vr) ? offered[vr] : KIND_NONE;
+    PyObject *names = py.tuple_item(binding, 5);
+    for (size_t vr = 0; vr < d->n; vr++) {
+        d->names[vr] = names ? py.tuple_item(names, (long)vr) : NULL;
+        d->kinds[vr] = d->names[vr] && offered[vr] == table_kind((unsigned)vr) ? offered[vr] : KIND_NONE;
+    }
     d->dict = py.tuple_item(binding, 1);
     d->do_step = py.tuple_item(binding, 2);
     d->refresh = py.tuple_item(binding, 3);
     d->log_queue = py.tuple_item(binding, 4);
-    d->names = py.tuple_item(binding, 5);
     d->feedthrough = py.is_true(py.tuple_item(binding, 7)) == 1;
     d->stale = py.tuple_item(binding, 8);
     d->raised = py.tuple_item(binding, 9);
@@ -252,6 +256,7 @@ fmi2Status get_real(struct instance *i, const fmi2ValueReference vr[], size_t n,
     int gil = py.gil_ensure();
     if (outputs) {
         PyObject *stale = py.dict_get(d->dict, d->stale);
+        if (!stale && py.error()) py.clear_error();
         if (!stale || py.is_true(stale)) {
             PyObject *result = py.call(d->refresh, NULL);
             if (!result || py.dict_set(d->dict, d->stale, py.false_object) != 0) {
@@ -265,7 +270,7 @@ fmi2Status get_real(struct instance *i, const fmi2ValueReference vr[], size_t n,
         }
     }
     for (size_t k = 0; k < n; k++) {
-        PyObject *value = py.dict_get(d->dict, py.tuple_item(d->names, (long)vr[k]));
+        PyObject *value = py.dict_get(d->dict, d->names[vr[k]]);
         v[k] = value ? py.as_double(value) : -1.0;
         if (!value || (v[k] == -1.0 && py.error())) { /* not a number: pythonfmu reports it */
             py.clear_error();
@@ -286,7 +291,7 @@ fmi2Status set_real(struct instance *i, const fmi2ValueReference vr[], size_t n,
     int failed = 0;
     for (size_t k = 0; k < n && !failed; k++) {
         PyObject *value = py.from_double(v[k]);
-        failed = !value || py.dict_set(d->dict, py.tuple_item(d->names, (long)vr[k]), value) != 0;
+        failed = !value || py.dict_set(d->dict, d->names[vr[k]], value) != 0;
         if (value) py.decref(value);
     }
     if (!failed && d->feedthrough) failed = py.dict_set(d->dict, d->stale, py.true_object) != 0;

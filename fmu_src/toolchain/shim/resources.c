@@ -22,6 +22,8 @@ int ftc_fmu_root(const char *binary, char *root, size_t size) {
 }
 
 const struct ftc_variable *ftc_variable(const struct ftc_model *model, unsigned vr) {
+    /* pythonfmu numbers its variables 0, 1, 2 ...: the table's entry vr is mostly vr's own */
+    if (vr < model->n && model->variables[vr].vr == vr) return &model->variables[vr];
     size_t low = 0, high = model->n;
     while (low < high) {
         size_t mid = low + (high - low) / 2;
