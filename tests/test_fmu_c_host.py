@@ -171,6 +171,20 @@ def test_five_fmus_instantiated_at_once_in_five_threads(parallel_host: Path, unz
         assert result.stdout.split() == ["ok"] * len(unzipped)
 
 
+def test_sixteen_instances_of_one_fmu_at_once_without_python(parallel_host: Path, unzipped: dict) -> None:
+    """16 live instances of one FMU in a host without Python (the bundled interpreter): pythonfmu
+    constructs each, running the FMU's entry module again every time, and releases a reference to
+    its namespace that it never took; the entry keeps one per run (fmu_src/toolchain/build.py
+    ``_entry``), else an instance after the first would find the namespace freed."""
+    for model in ("Reference", "FixedTimeController"):
+        folder = unzipped[model]
+        md = fmpy.read_model_description(str(folder))
+        binary = folder / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"
+        result = host_run([str(parallel_host), *[str(binary), (folder / "resources").as_uri(), md.guid] * 16])
+        assert result.returncode == 0, f"exit {result.returncode}\n{result.stdout}\n{result.stderr}"
+        assert result.stdout.split() == ["ok"] * 16, model
+
+
 @pytest.mark.skipif(not MALLOC_DEBUG.is_file(), reason="needs glibc's libc_malloc_debug.so.0")
 def test_exit_leaves_the_heap_intact(host: Path, unzipped: dict) -> None:
     """pythonfmu 0.7.0 frees its PyState twice at exit when its binary is still loaded (the host
