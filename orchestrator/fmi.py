@@ -289,7 +289,7 @@ class Instance(InstanceBase):
         self.event_mode = False  # FMI 3.0 instantiated with eventModeUsed (set by open)
         self.in_event_mode = False  # from exitInitializationMode (event mode used) to the first tick
         self.c = c_void_p(fmu.component)
-        lib = ctypes.PyDLL(fmu.dll._name, handle=fmu.dll._handle)
+        lib = _library(fmu)
         if self.fmi3:
             self._bind_fmi3(lib)
         elif self.fmi1:
@@ -538,6 +538,21 @@ def _slave(kind: type[FMU1Slave | FMU2Slave | FMU3Slave], guid: str, unzipdir: s
         ctypes.CDLL(fmu.dll._name)  # this slave's reference, given back by its freeInstance
     fmu._ftc_template = template  # lives while a slave of it does
     return fmu
+
+
+def _library(fmu: FMU1Slave | FMU2Slave | FMU3Slave) -> ctypes.PyDLL:
+    """The FMU's library, for its hot functions: one ctypes library per template (:func:`_slave`),
+    so that the instances of one FMU share its functions and their argtypes (ctypes makes a class
+    per library object and an object per function: 23 KB per copy of example1). The template
+    keeps the library loaded for as long as the functions can be called: a library unloaded and
+    loaded again may come back at another address under the same handle."""
+    template = getattr(fmu, "_ftc_template", None)
+    lib = getattr(template, "_ftc_library", None)
+    if lib is None or lib._handle != fmu.dll._handle:
+        lib = ctypes.PyDLL(fmu.dll._name, handle=fmu.dll._handle)
+        if template is not None:
+            template._ftc_library = lib
+    return lib
 
 
 CALLS = logging.getLogger("orchestrator.fmi.calls")
