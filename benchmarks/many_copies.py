@@ -40,6 +40,9 @@ from pathlib import Path
 from lxml import etree
 
 REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO / "benchmarks"))
+from end_to_end import as_a_user_runs  # noqa: E402 - the benchmarks share it
+
 SSD = "SystemStructure.ssd"
 NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription"}
 LIBCOSIM = """
@@ -141,6 +144,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--step", type=float, default=1e-3)
     parser.add_argument("--before", type=Path, metavar="CHECKOUT")
     args = parser.parse_args(argv)
+    as_a_user_runs()
     archive = REPO / "build" / "ssp" / f"{args.scenario}.ssp"
     if not archive.is_file():
         parser.error(f"{archive} does not exist: run 'make build' first")

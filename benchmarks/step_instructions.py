@@ -37,7 +37,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "benchmarks"))
-from end_to_end import LIBCOSIM, step_of  # noqa: E402 - the benchmarks share the libcosim script
+from end_to_end import LIBCOSIM, as_a_user_runs, step_of  # noqa: E402 - the benchmarks share these
 
 GROUPS = (
     ("interpreter (the models' Python)", re.compile(r"libpython")),
@@ -129,6 +129,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--scenarios", nargs="+", default=["example1", "pendulum"])
     parser.add_argument("--steps", type=int, default=1000, help="steps of the shorter run (default 1000)")
     args = parser.parse_args(argv)
+    as_a_user_runs()
     if shutil.which("valgrind") is None:
         raise SystemExit("valgrind is not installed (Debian: apt-get install valgrind)")
     for name in args.scenarios:
