@@ -6,9 +6,9 @@
 CPU seconds per step swing with the machine's load (``end_to_end.py`` measured example1's ratio
 anywhere from 0.61 to 1.2 on this shared 2-core machine). Instructions do not:
 ``valgrind --tool=callgrind`` counts the same total for the same binary and inputs whatever else
-runs. For each built scenario (``build/ssp/<name>.ssp``, run ``make build`` first), both hosts run
-the archive for ``--steps`` and for twice as many steps under callgrind, the two processes of
-each length side by side:
+runs, as long as nothing a process does per second enters the count (so the counted processes run
+one at a time). For each built scenario (``build/ssp/<name>.ssp``, run ``make build`` first), both
+hosts run the archive for ``--steps`` and for twice as many steps under callgrind:
 
 * ours: ``python -m orchestrator run`` writing a CSV of two rows (``--output-interval`` the stop
   time: the rows not asked for are never formatted), the compiled executor;
