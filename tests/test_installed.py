@@ -56,6 +56,20 @@ def test_made_up_site_folders(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -
     assert [e.name for e in installed.entry_points("demo.group")] == ["CamelCase", "CamelCase", "plain"]
 
 
+def test_a_damaged_entry_points_file_leaves_the_others(tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """One distribution's unreadable entry_points.txt (no section header; not UTF-8) takes only its
+    own entry points away: a run's checks still find the others'."""
+    _dist(tmp_path, "broken-1.0.dist-info", "broken", "1.0", "name = no.section:here\n")
+    _dist(tmp_path, "binary-1.0.dist-info", "binary", "1.0")
+    (tmp_path / "binary-1.0.dist-info" / "entry_points.txt").write_bytes(b"[demo.group]\nx = \xff\xfe\n")
+    _dist(tmp_path, "fine-2.0.dist-info", "fine", "2.0", "[demo.group]\nok = fine.module:check\n")
+    monkeypatch.setattr(sys, "path", [str(tmp_path)])
+    good = installed.EntryPoint("ok", "fine.module:check", "demo.group")
+    assert installed.entry_points("demo.group") == [good]
+    assert installed.version("broken") == "1.0"
+
+
 def test_an_entry_point_loads_what_it_names() -> None:
     point = installed.EntryPoint("x", "os.path : join", "g")
     assert point.load() is __import__("os").path.join
