@@ -18,13 +18,12 @@ import pytest
 
 from fmu_src.toolchain.build import (
     KEPT_FOLDERS,
-    _kept_bytes,
     _made_once,
     _win_headers,
     bundled_python,
     prune_kept,
 )
-from fmu_src.toolchain.runtime import _stdlib_zip, ensure_runtime
+from fmu_src.toolchain.runtime import _stdlib_zip, ensure_runtime, keep, read_kept
 
 HOUR = 3600.0
 
@@ -54,10 +53,18 @@ def test_the_least_recently_used_go_beyond_the_budget(tmp_path: Path) -> None:
 
 def test_reading_a_kept_file_marks_it_used(tmp_path: Path) -> None:
     path = kept(tmp_path, KEPT_FOLDERS[0], "k", 5, 5 * HOUR)
-    assert _kept_bytes(path) == b"xxxxx"
+    assert read_kept(path) == b"xxxxx"
     assert time.time() - path.stat().st_mtime < 60.0
     assert prune_kept(tmp_path, budget=0, grace=HOUR) == (0, 5)  # used now: it stays
-    assert _kept_bytes(tmp_path / "missing") is None
+    assert read_kept(tmp_path / "missing") is None
+
+
+def test_a_kept_file_is_written_whole_or_not_at_all(tmp_path: Path) -> None:
+    path = tmp_path / "objects" / "k"
+    keep(path, b"first")
+    keep(path, b"second")
+    assert path.read_bytes() == b"second"
+    assert sorted(p.name for p in path.parent.iterdir()) == ["k"]  # no half-written file left
 
 
 def test_what_every_compile_shares_is_made_once_per_digest(tmp_path: Path) -> None:

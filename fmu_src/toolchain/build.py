@@ -70,7 +70,9 @@ from .runtime import (
     RuntimeBundleError,
     compile_bytecode,
     ensure_runtime,
+    keep,
     measured_imports,
+    read_kept,
     runtime_members,
 )
 from .variable_table import TABLE_SOURCE, variable_table
@@ -462,17 +464,14 @@ def _kept(runtime: Runtime, work: Path, command: list[str], out: str, what: Path
     the digest of ``inputs``, made where not kept yet."""
     key = stamps.digest(*inputs)
     kept = runtime.root.parent / "objects" / key
-    known = _kept_bytes(kept)
+    known = read_kept(kept)
     if known is not None:
         return known
     result = subprocess.run(command, cwd=work, capture_output=True, text=True)
     if result.returncode != 0:
         raise BuildError(f"{what}: {command[0]} failed:\n{result.stderr.strip()}")
     binary = (work / out).read_bytes()
-    kept.parent.mkdir(parents=True, exist_ok=True)
-    partial = kept.with_name(f".{key}.{os.getpid()}")
-    partial.write_bytes(binary)
-    partial.replace(kept)
+    keep(kept, binary)
     return binary
 
 
@@ -673,7 +672,7 @@ def _runtime(bundle: Bundle, windows: bool, root: Path) -> dict[str, bytes]:
     platforms = PLATFORM_NAMES if windows else ("linux64",)
     key = stamps.digest("runtime members", fmu_inputs(bundle, root, platforms))
     kept = runtime.root.parent / "members" / f"{key}.zip"
-    known = _kept_bytes(kept)
+    known = read_kept(kept)
     if known is not None:
         with zipfile.ZipFile(io.BytesIO(known)) as archive:
             return {name: archive.read(name) for name in archive.namelist()}
@@ -929,16 +928,11 @@ def xz_members(entries: dict[str, bytes], kept: Path | None = None) -> dict[str,
         if len(data) > XZ_LIMIT:
             raise BuildError(f"{name}: {len(data)} bytes: more than the shim decodes ({XZ_LIMIT})")
         path = kept / hashlib.sha256(hashlib.sha256(data).digest() + settings).hexdigest()
-        known = _kept_bytes(path)
-        if known is not None:
-            packed = known
-        else:
+        packed = read_kept(path)
+        if packed is None:
             packed = lzma.compress(data, format=lzma.FORMAT_XZ, check=lzma.CHECK_CRC64,
                                    filters=list(XZ_FILTERS))
-            path.parent.mkdir(parents=True, exist_ok=True)
-            partial = path.with_name(f".{path.name}.{os.getpid()}")
-            partial.write_bytes(packed)
-            partial.replace(path)
+            keep(path, packed)
         out[name + XZ_SUFFIX] = packed
     return out
 
@@ -947,29 +941,13 @@ def _deflated(data: bytes, kept: Path) -> bytes:
     """``data`` deflated as zipfile deflates a member (a raw stream, zlib's default level), kept in
     the folder ``kept`` under its digest."""
     path = kept / hashlib.sha256(data).hexdigest()
-    known = _kept_bytes(path)
+    known = read_kept(path)
     if known is not None:
         return known
     compressor = zlib.compressobj(zlib.Z_DEFAULT_COMPRESSION, zlib.DEFLATED, -15)
     packed = compressor.compress(data) + compressor.flush()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_name(f".{path.name}.{os.getpid()}")
-    partial.write_bytes(packed)
-    partial.replace(path)
+    keep(path, packed)
     return packed
-
-
-def _kept_bytes(path: Path) -> bytes | None:
-    """The bytes a build kept in ``path`` (None if it has none there), marked as used now: the
-    modification time orders :func:`prune_kept`'s removals. A file removed meanwhile by a pruning
-    beside is none."""
-    try:
-        with path.open("rb") as kept:
-            data = kept.read()
-        os.utime(path)
-    except FileNotFoundError:
-        return None
-    return data
 
 
 def prune_kept(cache: Path | None = None, budget: int = KEPT_BUDGET,

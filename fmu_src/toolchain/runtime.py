@@ -61,9 +61,11 @@ __all__ = [
     "compare_versions",
     "compile_bytecode",
     "ensure_runtime",
+    "keep",
     "measured_imports",
     "newest_versions",
     "parse_pins",
+    "read_kept",
     "read_pins",
     "runtime_members",
     "unpack_deb",
@@ -643,6 +645,28 @@ print(json.dumps(sys.implementation.cache_tag))
 """
 
 
+def read_kept(path: Path) -> bytes | None:
+    """The bytes a build kept in ``path`` (None if it has none there), marked as used now: the
+    modification time orders the build's pruning of kept files (``build.prune_kept``). A file
+    removed meanwhile by a pruning beside is none."""
+    try:
+        with path.open("rb") as kept:
+            data = kept.read()
+        os.utime(path)
+    except FileNotFoundError:
+        return None
+    return data
+
+
+def keep(path: Path, data: bytes) -> None:
+    """Keep ``data`` in ``path``, written under ``.<name>.<pid>`` and renamed: a build beside reads
+    all of it or nothing, and a half-written file is left to the pruning."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(f".{path.name}.{os.getpid()}")
+    partial.write_bytes(data)
+    partial.replace(path)
+
+
 def _stdlib_zip(runtime: Runtime, launcher: Path, modules: dict[str, Path]) -> bytes:
     """``python311.zip`` of the given modules, compiled by the bundled interpreter; kept in the
     runtime's cache (``members/``) under the digest of the runtime, the interpreter, the writer and
@@ -652,20 +676,14 @@ def _stdlib_zip(runtime: Runtime, launcher: Path, modules: dict[str, Path]) -> b
     key = hashlib.sha256(json.dumps([manifest(), launcher.name, ZIP_WRITER, ZIP_DATE,
                                      [name for _, name in listing]]).encode()).hexdigest()
     kept = runtime.root.parent / "members" / f"stdlib-{key}.zip"
-    try:
-        data = kept.read_bytes()
-        os.utime(kept)  # used: the cache's pruning keeps what was used last
-        return data
-    except OSError:
-        pass
+    known = read_kept(kept)
+    if known is not None:
+        return known
     with tempfile.TemporaryDirectory() as tmp:
         target = Path(tmp) / f"python{TAG}.zip"
         runtime.run(launcher, ZIP_WRITER, [listing, str(target), ZIP_DATE])
         data = target.read_bytes()
-    kept.parent.mkdir(parents=True, exist_ok=True)
-    partial = kept.with_name(f".{kept.name}.{os.getpid()}")
-    partial.write_bytes(data)
-    partial.replace(kept)
+    keep(kept, data)
     return data
 
 
