@@ -78,12 +78,17 @@ def test_what_every_compile_shares_is_made_once_per_digest(tmp_path: Path) -> No
     cache = tmp_path / "win64-imports"
     cache.mkdir()
     (cache / f".{'a' * 32}.999999").mkdir()  # half made by a build that died
+    dead = cache / f".{'c' * 32}.999998"  # half made hours ago: left behind by a killed build
+    dead.mkdir()
+    then = time.time() - 3 * HOUR
+    os.utime(dead, (then, then))
     first = _made_once(cache, "a" * 64, make)
     assert _made_once(cache, "a" * 64, make) == first and len(made) == 1
     assert (first / "lib.a").read_bytes() == b"archive"
     newer = _made_once(cache, "b" * 64, make)  # another runtime, or other imports
     assert len(made) == 2 and newer != first and not first.exists()
     assert sorted(p.name for p in cache.iterdir() if not p.name.startswith(".")) == [newer.name]
+    assert not dead.exists() and (cache / f".{'a' * 32}.999999").exists()  # a young one may be made now
 
 
 def test_the_windows_headers_are_the_runtimes_with_the_windows_pyconfig(tmp_path: Path) -> None:

@@ -415,7 +415,8 @@ def _win_headers(include: Path, pyconfig: Path, cache: Path) -> tuple[Path, str]
 def _made_once(folder: Path, digest: str, make: Callable[[Path], None]) -> Path:
     """``folder/<digest>``, made by ``make`` (given a folder name that does not exist yet) unless it
     is there: made under a temporary name and renamed, so that a build beside this one sees all of
-    it or nothing. Entries of other digests (an older runtime's) are removed."""
+    it or nothing. Entries of other digests (an older runtime's) are removed, and half-made ones
+    older than :data:`KEPT_GRACE` (a build killed while making one: 2 MB of headers each)."""
     target = folder / digest[:32]
     if target.is_dir():
         return target
@@ -429,9 +430,11 @@ def _made_once(folder: Path, digest: str, make: Callable[[Path], None]) -> Path:
         shutil.rmtree(partial, ignore_errors=True)
         if not target.is_dir():
             raise
+    dead = time.time() - KEPT_GRACE
     for entry in folder.iterdir():
-        if entry.name != target.name and not entry.name.startswith("."):
-            shutil.rmtree(entry, ignore_errors=True)
+        with contextlib.suppress(FileNotFoundError):  # removed by a build beside
+            if entry.name != target.name and (not entry.name.startswith(".") or entry.stat().st_mtime < dead):
+                shutil.rmtree(entry, ignore_errors=True)
     return target
 
 
