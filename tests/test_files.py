@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 import stat
+import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -61,10 +62,17 @@ def test_the_written_file_gets_the_mode_open_gives(tmp_path: Path) -> None:
     assert (tmp_path / "a.txt").read_bytes() == b"a\n"
 
 
-def test_bulk_sha256_is_sha256_whichever_implementation_it_takes() -> None:
+@pytest.mark.parametrize("hashlib_loaded", [True, False])
+def test_bulk_sha256_is_sha256_whichever_implementation_it_takes(hashlib_loaded: bool,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """OpenSSL's where the process has imported hashlib, else CPython's own: the same digest."""
     import hashlib
 
+    expected_type = type(hashlib.sha256()) if hashlib_loaded else type(files.sha256())
+    if not hashlib_loaded:
+        monkeypatch.delitem(sys.modules, "hashlib")
     data = os.urandom(3 << 20)
     h = files.bulk_sha256()
     h.update(data)
-    assert h.hexdigest() == hashlib.sha256(data).hexdigest() == files.sha256(data).hexdigest()
+    assert type(h) is expected_type
+    assert h.hexdigest() == hashlib.sha256(data).hexdigest()
