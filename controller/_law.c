@@ -39,6 +39,7 @@
 #include <math.h>
 #include <stdint.h>
 
+#include "direct_calls.h"
 #include "fmath.h"
 
 #define MAX_ORDER 4
@@ -438,8 +439,8 @@ static PyObject *python_call(PyObject *binding, int which, PyObject *args) {
     return PyObject_CallObject(PyTuple_GetItem(binding, which), args);
 }
 
-/* step_controller on the usual path: 1 done, 0 call the Python step, -1 error. */
-static int step_here(PyObject *binding, PyObject *step) {
+/* step_controller on the usual path for a step of h: 1 done, 0 call the Python step, -1 error. */
+static int step_here(PyObject *binding, double h) {
     PyObject *d = PyTuple_GetItem(binding, B_DICT), *constants = NULL;
     Law law;
     long substeps;
@@ -447,11 +448,10 @@ static int step_here(PyObject *binding, PyObject *step) {
     int usual = slave_law(binding, &law, &constants, &substeps, in);
     if (usual <= 0) return usual;
     int n = law.n;
-    double h = PyFloat_AsDouble(step);
     PyObject *unchecked = PyDict_GetItemWithError(d, PyTuple_GetItem(binding, B_UNCHECKED));
     PyObject *stale = PyDict_GetItemWithError(d, PyTuple_GetItem(binding, B_STALE));
     int check = unchecked == Py_True, is_stale = stale == Py_True; /* exactly bool, or Python decides */
-    if ((h == -1.0 && PyErr_Occurred()) || (!check && unchecked != Py_False) ||
+    if ((!check && unchecked != Py_False) ||
         (!is_stale && stale != Py_False))
         goto other;
     if (check) { /* the semi-implicit law: nothing to check while h is its sample time */
@@ -483,15 +483,21 @@ other:
     return 0;
 }
 
+/* Whether binding is a tuple of compiled_controller_calls' size. */
+static int is_slave_binding(PyObject *binding) {
+    return PyTuple_Check(binding) && PyTuple_Size(binding) == B_ITEMS;
+}
+
 static PyObject *step_slave(PyObject *self, PyObject *args) {
     (void)self;
     PyObject *binding, *t, *h;
     if (!PyArg_UnpackTuple(args, "step_slave", 3, 3, &binding, &t, &h)) return NULL;
-    if (!PyTuple_Check(binding) || PyTuple_Size(binding) != B_ITEMS) {
+    if (!is_slave_binding(binding)) {
         PyErr_SetString(PyExc_TypeError, "step_slave: binding not made by compiled_controller_calls");
         return NULL;
     }
-    int done = step_here(binding, h);
+    double step = PyFloat_AsDouble(h);
+    int done = step == -1.0 && PyErr_Occurred() ? 0 : step_here(binding, step);
     if (done < 0) return NULL;
     if (done) Py_RETURN_TRUE;
     PyObject *pair = PyTuple_Pack(2, t, h);
@@ -539,7 +545,7 @@ static PyObject *refresh_slave(PyObject *self, PyObject *args) {
     (void)self;
     PyObject *binding;
     if (!PyArg_UnpackTuple(args, "refresh_slave", 1, 1, &binding)) return NULL;
-    if (!PyTuple_Check(binding) || PyTuple_Size(binding) != B_ITEMS) {
+    if (!is_slave_binding(binding)) {
         PyErr_SetString(PyExc_TypeError, "refresh_slave: binding not made by compiled_controller_calls");
         return NULL;
     }
@@ -548,6 +554,19 @@ static PyObject *refresh_slave(PyObject *self, PyObject *args) {
     if (done) Py_RETURN_NONE;
     return python_call(binding, B_REFRESH, NULL);
 }
+
+/* The shim's C entries (direct_calls.h): step_slave and refresh_slave on their usual path, 0 (no
+   error set) for every other, which the shim then leaves to them. */
+static int step_entry(PyObject *binding, double t, double h) {
+    (void)t;
+    return ftc_answer(is_slave_binding(binding) ? step_here(binding, h) : 0);
+}
+
+static int refresh_entry(PyObject *binding) {
+    return ftc_answer(is_slave_binding(binding) ? refresh_here(binding) : 0);
+}
+
+static const struct ftc_direct_calls direct_calls = {FTC_DIRECT_CALLS_VERSION, step_entry, refresh_entry};
 
 static PyMethodDef methods[] = {
     {"evaluate", evaluate, METH_VARARGS,
@@ -566,4 +585,8 @@ static struct PyModuleDef module = {
     NULL, NULL, NULL, NULL,
 };
 
-PyMODINIT_FUNC PyInit__law(void) { return PyModule_Create(&module); }
+PyMODINIT_FUNC PyInit__law(void) {
+    PyObject *m = PyModule_Create(&module);
+    if (m != NULL && ftc_add_direct_calls(m, "direct_calls", &direct_calls) != 0) Py_CLEAR(m);
+    return m;
+}

@@ -133,10 +133,11 @@ class ReferenceLaw:
         self.advance = advance_law
 
 
-def slave_functions() -> tuple[Callable[..., object], Callable[..., object]] | None:
+def slave_functions() -> tuple[Callable[..., object], Callable[..., object], object] | None:
     """``_law.step_slave`` and ``_law.refresh_slave``, a controller FMU's step and output refresh on its
-    slave's dict (see ``fmu_src/controller_core.py``), or None where the law is not compiled."""
-    return None if _law is None else (_law.step_slave, _law.refresh_slave)
+    slave's dict (see ``fmu_src/controller_core.py``), and ``_law.direct_calls``, the capsule of their
+    C entries for the FMU's shim (``controller/direct_calls.h``); None where the law is not compiled."""
+    return None if _law is None else (_law.step_slave, _law.refresh_slave, _law.direct_calls)
 
 
 def law_for(params: ControllerParameters, substeps: int = 1) -> Law:

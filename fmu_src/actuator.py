@@ -15,7 +15,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from fmu_src.fmu_support import declare, fmu_model, mark_stale, raise_problems
 from fmu_src.models.actuator import ActuatorParameters, actuator_output, actuator_problems
-from fmu_src.models.signals_native import Refresh, Step, actuator_calls, param_values
+from fmu_src.models.signals_native import Compiled, Refresh, Step, actuator_calls, param_values
 
 PARAMETER = Fmi2Causality.parameter
 INPUT = Fmi2Causality.input
@@ -34,7 +34,7 @@ class Actuator(Fmi2Slave):
     description = "Actuator fault (K(t), L(t)) and input dead-zone u(v) of the paper (eq. 2-6, 86-87)"
 
     @staticmethod
-    def compiled_calls(slave: Fmi2Slave, step: Step, refresh: Refresh) -> tuple[Step, Refresh] | None:
+    def compiled_calls(slave: Fmi2Slave, step: Step, refresh: Refresh) -> Compiled | None:
         """do_step and refresh_outputs in C (fmu_src/models/_signals.c), where the FMU build compiled
         it: the same values with no interpreter frame per call (fmu_support's ``compiled_calls``)."""
         return actuator_calls(slave, step, refresh, FAULT_TIME_TOLERANCE)

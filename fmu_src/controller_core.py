@@ -341,18 +341,21 @@ _BINDING_KEYS = ("_law", "_state", "_stage", "_fmu_stale", "_step_unchecked", "_
 
 
 def compiled_controller_calls(slave: Fmi2Slave, step: Callable[[float, float], bool],
-                              refresh: Callable[[], None]) -> tuple[Callable[..., Any], ...] | None:
+                              refresh: Callable[[], None]) -> tuple[Any, ...] | None:
     """The FMU's step and output refresh in C (``_law.step_slave``, ``_law.refresh_slave``), what the
     shim calls (``compiled_calls`` of :func:`~fmu_src.fmu_support._direct_binding`): the usual path of
     :func:`step_controller` and :func:`refresh_controller_outputs` with no interpreter frame, the
-    same values written; ``step`` and ``refresh`` otherwise. None where the law is not compiled."""
+    same values written; ``step`` and ``refresh`` otherwise. Then ``_law.direct_calls`` and the
+    binding: the same two as C entries the shim calls with no Python call between
+    (``controller/direct_calls.h``). None where the law is not compiled."""
     functions = slave_functions()
     if functions is None:
         return None
+    step_slave, refresh_slave, direct_calls = functions
     n = slave._order
     binding = (slave.__dict__, step, refresh, tuple(map(sys.intern, input_names(n))),
                tuple(map(sys.intern, slave._outputs)), *map(sys.intern, _BINDING_KEYS), CompiledLaw)
-    return tuple(partial(function, binding) for function in functions)
+    return partial(step_slave, binding), partial(refresh_slave, binding), direct_calls, binding
 
 
 def _check_step(slave: Fmi2Slave, current_time: float, step_size: float) -> None:

@@ -339,7 +339,7 @@ def _set_fmu_state(self: Fmi2Slave, state: dict[str, Any]) -> None:
 
 
 # The binding handed to the shim; bump with the shim's DIRECT_PROTOCOL when the tuple changes.
-DIRECT_PROTOCOL = 2
+DIRECT_PROTOCOL = 3
 _KIND_INPUT, _KIND_OUTPUT = 1, 2
 
 
@@ -348,7 +348,8 @@ def _direct_binding(slave: Fmi2Slave, do_step: Any) -> tuple[Any, ...]:
     slave's ``__dict__``, ``do_step`` bound to the slave, its ``refresh_outputs`` bound, the log
     queue pythonfmu forwards, value reference -> name, value reference -> kind (bytes: 1 Real input,
     2 Real output, 0 any other), whether an output depends directly on an input, the keys of the
-    stale flag and of a kept exception).
+    stale flag and of a kept exception, then the C entries of the two calls (a capsule, see
+    ``controller/direct_calls.h``) and the binding they take, or None and None).
 
     The shim calls the two bound methods itself, with no Python wrapper between (a frame less per
     call, four FMUs twice a step): after ``do_step`` it sets the stale flag, whatever happened, and
@@ -360,14 +361,19 @@ def _direct_binding(slave: Fmi2Slave, do_step: Any) -> tuple[Any, ...]:
     A class that sets ``compiled_calls`` (a function of the slave and its two bound methods) hands
     the shim what that returns instead, unless None: two callables in C (the model's extension)
     that do what the two methods do on the usual path, with no interpreter frame, and call them
-    otherwise (initialization, a rejected step, an error), so that every message stays theirs."""
+    otherwise (initialization, a rejected step, an error), so that every message stays theirs;
+    and the capsule of their C entries with their binding, which the shim calls first, with no
+    Python call at all (no argument tuple, no float objects for the time and step), leaving every
+    path but the usual one to the two callables."""
     d = slave.__dict__
     io: _ValueReferences = d["_fmu_io"]
     step, refresh = do_step.__get__(slave), slave.refresh_outputs
     compiled = getattr(type(slave), "compiled_calls", None)
     calls = compiled(slave, step, refresh) if compiled is not None else None
+    entries: tuple[Any, Any] = (None, None)
     if calls is not None:
-        step, refresh = calls
+        step, refresh, capsule, model_binding = calls
+        entries = (capsule, model_binding)
     size = max(io.real, default=-1) + 1
     names: list[str | None] = [None] * size
     kinds = bytearray(size)
@@ -377,7 +383,7 @@ def _direct_binding(slave: Fmi2Slave, do_step: Any) -> tuple[Any, ...]:
         if vr in io.real:
             names[vr], kinds[vr] = sys.intern(io.real[vr]), _KIND_OUTPUT
     return (DIRECT_PROTOCOL, d, step, refresh, slave.log_queue, tuple(names),
-            bytes(kinds), io.feedthrough, sys.intern("_fmu_stale"), sys.intern("_fmu_raised"))
+            bytes(kinds), io.feedthrough, sys.intern("_fmu_stale"), sys.intern("_fmu_raised"), *entries)
 
 
 def _claim(model: str, instance_name: str) -> tuple[Any, ...] | None:

@@ -18,6 +18,7 @@ import math
 import sys
 from collections.abc import Callable
 from functools import partial
+from typing import Any
 
 from pythonfmu import Fmi2Causality, Fmi2Slave
 
@@ -274,12 +275,14 @@ _BOUND_KEYS = ("state", "uf", "rtol", "atol", "_next_step", "state_limit", "max_
 
 def compiled_plant_calls(
     slave: Fmi2Slave, step: Callable[[float, float], bool], refresh: Callable[[], None]
-) -> tuple[Callable[[float, float], bool], Callable[[], None]] | None:
+) -> tuple[Callable[[float, float], bool], Callable[[], None], Any, tuple[Any, ...]] | None:
     """The plant's ``compiled_calls`` (:func:`~fmu_src.fmu_support.fmu_model`): ``do_step`` and
     ``refresh_outputs`` in C for the shim, ``_dopri.step_slave`` and ``_dopri.refresh_slave`` bound
     to the slave's ``__dict__``, its two Python methods (``step``, ``refresh``: every path but the
     usual one, so that messages and statuses stay theirs) and the interned keys; None where
-    nothing is compiled (the source tree). The slave's ``_native`` is its NativePlant.
+    nothing is compiled (the source tree). The slave's ``_native`` is its NativePlant. Then
+    ``_dopri.direct_calls`` and the binding: the same two as C entries the shim calls with no Python
+    call between (``controller/direct_calls.h``).
 
     Why: the Python frames around the compiled integrator cost about ten times what it does in a
     communication step (some 24,000 instructions against 2,500); the state stays in the
@@ -288,4 +291,5 @@ def compiled_plant_calls(
     if compiled is None:
         return None
     binding = (slave.__dict__, step, refresh, DOPRI, NativePlant, *map(sys.intern, _BOUND_KEYS))
-    return partial(compiled.step_slave, binding), partial(compiled.refresh_slave, binding)
+    return (partial(compiled.step_slave, binding), partial(compiled.refresh_slave, binding),
+            compiled.direct_calls, binding)

@@ -13,7 +13,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave
 
 from fmu_src.fmu_support import declare, fmu_model, mark_stale, raise_problems
 from fmu_src.models.reference import ReferenceParameters, reference_derivatives, reference_problems
-from fmu_src.models.signals_native import Refresh, Step, param_values, reference_calls
+from fmu_src.models.signals_native import Compiled, Refresh, Step, param_values, reference_calls
 
 PARAMETER = Fmi2Causality.parameter
 OUTPUT = Fmi2Causality.output
@@ -26,7 +26,7 @@ class Reference(Fmi2Slave):
     description = "Reference signal yd = amplitude*sin(omega*t + phase) + offset and derivatives"
 
     @staticmethod
-    def compiled_calls(slave: Fmi2Slave, step: Step, refresh: Refresh) -> tuple[Step, Refresh] | None:
+    def compiled_calls(slave: Fmi2Slave, step: Step, refresh: Refresh) -> Compiled | None:
         """do_step and refresh_outputs in C (fmu_src/models/_signals.c), where the FMU build compiled
         it: the same values with no interpreter frame per call (fmu_support's ``compiled_calls``)."""
         return reference_calls(slave, step, refresh)

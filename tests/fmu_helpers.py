@@ -4,6 +4,7 @@ values and step times, state get/set). The FMUs come from the session fixture ``
 
 from __future__ import annotations
 
+import ctypes
 import importlib.util
 import math
 import sys
@@ -53,7 +54,7 @@ def compiled_extension(name: str, where: Path) -> ModuleType:
 class Frames:
     """The Python functions entered while active (``sys.setprofile``), by name: those whose file
     name contains ``part`` (e.g. ``/_ftc_``: the code an FMU bundles, from whichever unpacked copy
-    this process imported it first), or every one but this object's ``__exit__``."""
+    this process imported it first), or every one but this module's."""
 
     def __init__(self, part: str | None = None) -> None:
         self.part = part
@@ -61,8 +62,8 @@ class Frames:
 
     def _profile(self, frame: FrameType, event: str, arg: object) -> None:
         code = frame.f_code
-        if event != "call" or code is Frames.__exit__.__code__:
-            return
+        if event != "call" or code is Frames.__exit__.__code__ or code.co_filename == __file__:
+            return  # this module's own frames (shim_calls' stand-ins for the shim) are not the model's
         if self.part is None or self.part in code.co_filename:
             self.entered.append(code.co_name)
 
@@ -83,10 +84,47 @@ class Real(float):
     """A float of another type (as numpy's float64): the compiled calls hand it to Python."""
 
 
-def shim_calls(slave: Any) -> tuple[Callable[..., Any], Callable[..., Any]]:
-    """The step and refresh that fmu_support hands the shim for the model object ``slave``."""
+class DirectCalls(ctypes.Structure):
+    """controller/direct_calls.h's struct: a model extension's C entries, called through ctypes as
+    the shim calls them (the GIL held; an exception they set is raised here)."""
+
+    _fields_ = [("version", ctypes.c_int),
+                ("step", ctypes.PYFUNCTYPE(ctypes.c_int, ctypes.py_object, ctypes.c_double, ctypes.c_double)),
+                ("refresh", ctypes.PYFUNCTYPE(ctypes.c_int, ctypes.py_object))]
+
+
+def direct_calls(capsule: object) -> DirectCalls:
+    """The C entries in a model extension's capsule (named as the shim asks for it)."""
+    pointer = ctypes.pythonapi.PyCapsule_GetPointer
+    pointer.restype, pointer.argtypes = ctypes.c_void_p, [ctypes.py_object, ctypes.c_char_p]
+    return DirectCalls.from_address(pointer(capsule, b"ftc_direct_calls"))
+
+
+def handed(slave: Any) -> tuple[Any, Any, Any, Any]:
+    """What fmu_support hands the shim for the model object ``slave``: the step and refresh
+    callables, the capsule of their C entries and the binding those take (None, None: none)."""
     binding = slave._fmu_direct_binding()
-    return binding[2], binding[3]
+    return binding[2], binding[3], binding[10], binding[11]
+
+
+def shim_calls(slave: Any) -> tuple[Callable[..., Any], Callable[..., Any]]:
+    """The step and refresh of the model object ``slave`` as the FMU's shim makes them
+    (cosimulation.c): the model's C entries first, where it has them (1: done; an exception set:
+    raised), and the callables fmu_support hands over where those answer 0 (not the usual path)."""
+    step, refresh, capsule, model = handed(slave)
+    if capsule is None:
+        return step, refresh
+    entries = direct_calls(capsule)
+    assert entries.version == 1
+
+    def shim_step(t: float, h: float) -> Any:
+        return True if entries.step(model, t, h) == 1 else step(t, h)
+
+    def shim_refresh() -> None:
+        if entries.refresh(model) != 1:
+            refresh()
+
+    return shim_step, shim_refresh
 
 
 def plain(slave: Any) -> dict[str, str]:

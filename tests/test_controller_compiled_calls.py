@@ -16,7 +16,7 @@ from types import ModuleType
 from typing import Any
 
 import pytest
-from fmu_helpers import Frames, Real, compiled_extension, outcome, plain, shim_calls
+from fmu_helpers import Frames, Real, compiled_extension, handed, outcome, plain, shim_calls
 
 from controller import native
 from fmu_src.fixed_time_controller import FixedTimeController
@@ -82,15 +82,16 @@ def test_the_binding_is_the_compiled_calls(compiled: ModuleType) -> None:
     """fmu_support hands the shim partials of _law.step_slave and refresh_slave, bound to the slave's
     own __dict__ and its Python functions; the Python functions where nothing is compiled."""
     slave = started(2)
-    step, refresh = shim_calls(slave)
+    step, refresh, capsule, binding = handed(slave)
     assert isinstance(step, partial) and step.func is compiled.step_slave
     assert isinstance(refresh, partial) and refresh.func is compiled.refresh_slave
-    (binding,) = step.args
-    assert refresh.args == (binding,) and binding[0] is slave.__dict__
+    assert step.args == refresh.args == (binding,) and binding[0] is slave.__dict__
+    assert capsule is compiled.direct_calls
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(native, "_law", None)
-        step, refresh = shim_calls(slave)
+        step, refresh, capsule, binding = handed(slave)
     assert step.__func__.__name__ == "step_controller" and refresh == slave.refresh_outputs
+    assert capsule is binding is None
 
 
 @pytest.mark.parametrize("n", sorted(ORDERS))

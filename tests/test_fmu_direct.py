@@ -284,7 +284,7 @@ def the_slave(model: str, name: str) -> Any:
 
 def shims_binding(slave: Any) -> tuple[Any, ...]:
     """The binding the shim holds for ``slave`` (nothing else keeps it once claimed)."""
-    (binding,) = [o for o in gc.get_objects() if type(o) is tuple and len(o) == 10 and o[1] is slave.__dict__]
+    (binding,) = [o for o in gc.get_objects() if type(o) is tuple and len(o) == 12 and o[1] is slave.__dict__]
     return binding
 
 
@@ -303,9 +303,9 @@ IN_C: dict[str, tuple[str, dict[str, Callable[[int], float]], tuple[str, ...], s
 
 @pytest.mark.parametrize("model", sorted(IN_C))
 def test_the_shim_steps_models_in_c(fmus: dict[str, Path], path: str, model: str) -> None:
-    """On the direct path the shim got the FMU's own step_slave and refresh_slave (of its extension),
-    bound to the slave: 50 steps with their outputs read enter no Python function of the FMU;
-    through pythonfmu (the oracle of the other tests) its Python step and refresh run."""
+    """On the direct path the shim got the FMU's own step_slave and refresh_slave (of its extension)
+    and their C entries, bound to the slave: 50 steps with their outputs read enter no Python
+    function of the FMU; through pythonfmu (the oracle of the other tests) its Python step and refresh run."""
     extension, inputs, outputs, python = IN_C[model]
     name = f"compiled-{model}-{path}"
     slave, vr = instantiate(fmus[model], Messages(), name=name)
@@ -322,6 +322,7 @@ def test_the_shim_steps_models_in_c(fmus: dict[str, Path], path: str, model: str
             assert isinstance(step, functools.partial) and step.func is module.step_slave
             assert isinstance(refresh, functools.partial) and refresh.func is module.refresh_slave
             assert step.args[0][0] is refresh.args[0][0] is model_object.__dict__
+            assert binding[10] is module.direct_calls and binding[11] is step.args[0]  # its C entries
         read = [vr[n] for n in outputs]
         with Frames("/_ftc_") as frames:  # any FMU's bundled package: its first copy may be another's
             for k in range(50):

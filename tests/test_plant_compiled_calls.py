@@ -15,7 +15,7 @@ from types import ModuleType
 from typing import Any
 
 import pytest
-from fmu_helpers import Frames, Real, compiled_extension, outcome, plain, shim_calls
+from fmu_helpers import Frames, Real, compiled_extension, handed, outcome, plain, shim_calls
 
 from fmu_src import plant_core
 from fmu_src.example1_plant import Example1Plant
@@ -75,11 +75,10 @@ def test_the_binding_is_the_compiled_calls(compiled: ModuleType) -> None:
     """fmu_support hands the shim partials of _dopri.step_slave and refresh_slave, bound to the
     slave's own __dict__ and its Python methods; None where nothing is compiled."""
     slave = started("Example1Plant")
-    step, refresh = shim_calls(slave)
+    step, refresh, capsule, binding = handed(slave)
     assert isinstance(step, partial) and step.func is compiled.step_slave
     assert isinstance(refresh, partial) and refresh.func is compiled.refresh_slave
-    (binding,) = step.args
-    assert refresh.args == (binding,)
+    assert step.args == refresh.args == (binding,) and capsule is compiled.direct_calls
     assert binding[0] is slave.__dict__
     assert binding[1].__self__ is slave and binding[2] == slave.refresh_outputs
 

@@ -24,7 +24,7 @@ import pytest
 from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave
-from fmu_helpers import compiled_extension, unzipped
+from fmu_helpers import compiled_extension, handed, shim_calls, unzipped
 from test_fmu_direct import Messages, instantiate
 
 from fmu_src.actuator import FAULT_TIME_TOLERANCE, Actuator
@@ -77,9 +77,8 @@ def signals(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ModuleType]:
 
 
 def compiled(slave: Any) -> tuple[Any, Any]:
-    """The slave's (step, refresh) as the shim gets them (fmu_support's _direct_binding)."""
-    binding = slave._fmu_direct_binding()
-    return binding[2], binding[3]
+    """The slave's (step, refresh) as the shim makes them: the C entries, else the callables."""
+    return shim_calls(slave)
 
 
 def made(cls: type, **parameters: float) -> Any:
@@ -92,10 +91,12 @@ def made(cls: type, **parameters: float) -> Any:
 
 
 def test_the_binding_holds_the_compiled_functions(signals: ModuleType) -> None:
-    for cls, refresh in ((Reference, signals.reference_refresh), (Actuator, signals.actuator_refresh)):
-        step_c, refresh_c = compiled(made(cls))
+    for cls, refresh, capsule in ((Reference, signals.reference_refresh, signals.reference_direct_calls),
+                                  (Actuator, signals.actuator_refresh, signals.actuator_direct_calls)):
+        step_c, refresh_c, entries, binding = handed(made(cls))
         assert isinstance(step_c, partial) and step_c.func is signals.step_slave
         assert isinstance(refresh_c, partial) and refresh_c.func is refresh
+        assert entries is capsule and step_c.args == refresh_c.args == (binding,)
 
 
 def test_no_compiled_calls_without_the_extension(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -265,8 +266,9 @@ def test_a_restored_snapshot_keeps_the_compiled_path(signals: ModuleType) -> Non
 
 
 def test_step_with_other_than_floats_is_the_python_method(signals: ModuleType) -> None:
+    """The callable step_slave (the shim's C entry takes doubles only) with ints or a string."""
     slave = made(Reference)
-    step, _ = compiled(slave)
+    step = handed(slave)[0]
     assert step(1, 2) is True and type(slave.time) is int and slave.time == 3
     assert step(0.1, 0.2) is True and slave.time == 0.1 + 0.2
     with pytest.raises(TypeError):
@@ -328,11 +330,12 @@ def fmu(
 
 def assert_compiled(slave: Any, refresh_name: str) -> None:
     """The binding the FMU's slave hands the shim holds the FMU's own compiled functions."""
-    step, refresh = slave._fmu_direct_binding()[2:4]
+    step, refresh, capsule, _ = handed(slave)
     module = step.func.__self__
     assert module.__name__.startswith("_ftc_") and module.__name__.endswith(".models._signals")
     assert module.__file__.endswith(".abi3.so")
     assert step.func is module.step_slave and refresh.func is getattr(module, refresh_name)
+    assert capsule is getattr(module, refresh_name.replace("_refresh", "_direct_calls"))
 
 
 @pytest.mark.system

@@ -48,6 +48,7 @@
 #include <Python.h>
 #include <math.h>
 
+#include "direct_calls.h"
 #include "fmath.h"
 
 enum { OK = 0, RATE = 1, BEYOND = 2, BUDGET = 3, NO_STEP = 4, DOMAIN = 5 };
@@ -249,11 +250,15 @@ enum {
     B_STATE_LIMIT, B_MAX_STEPS, B_Y_LIMIT, B_RATE_HORIZON, B_METHOD, B_NATIVE, B_STATES, B_Y, B_ITEMS
 };
 
+/* Whether binding is a tuple of compiled_plant_calls' size around a dict. */
+static int is_binding(PyObject *binding) {
+    return PyTuple_Check(binding) && PyTuple_Size(binding) == B_ITEMS && PyDict_Check(PyTuple_GetItem(binding, B_DICT));
+}
+
 static PyObject *binding_of(PyObject *args, int n, PyObject **t, PyObject **h) {
     PyObject *binding = NULL;
     if (!PyArg_UnpackTuple(args, n == 1 ? "refresh_slave" : "step_slave", n, n, &binding, t, h)) return NULL;
-    if (!PyTuple_Check(binding) || PyTuple_Size(binding) != B_ITEMS ||
-        !PyDict_Check(PyTuple_GetItem(binding, B_DICT))) {
+    if (!is_binding(binding)) {
         PyErr_SetString(PyExc_TypeError, "not a plant binding (plant_core.compiled_plant_calls)");
         return NULL;
     }
@@ -294,7 +299,7 @@ static int doubles(PyObject *value, Py_ssize_t n, double *x) {
    new state within its limits), reading and writing the same __dict__ entries with the same
    values: 1 done; 0 another path (the __dict__ untouched, maybe an error set); -1 an error after
    the first write. */
-static int usual_step(PyObject *binding, PyObject *t_obj, PyObject *h_obj) {
+static int usual_step(PyObject *binding, double t, double h) {
     PyObject *method = entry(binding, B_METHOD);
     if (!method || !PyLong_CheckExact(method) ||
         PyObject_RichCompareBool(method, PyTuple_GetItem(binding, B_DOPRI), Py_EQ) != 1)
@@ -308,15 +313,14 @@ static int usual_step(PyObject *binding, PyObject *t_obj, PyObject *h_obj) {
     if (kind_value == -1 && PyErr_Occurred()) return 0;
     if (kind_value != EXAMPLE1 && kind_value != PENDULUM && kind_value != MANIPULATOR) return 0; /* ValueError */
     p.kind = (int)kind_value;
-    double c[6], y[3], t, h, rtol, atol, first_step, limit, y_limit, rate_horizon;
+    double c[6], y[3], rtol, atol, first_step, limit, y_limit, rate_horizon;
     if (!doubles(PyTuple_GetItem(native, 1), 6, c)) return 0;
     p.c1 = c[0], p.c2 = c[1], p.c3 = c[2], p.c4 = c[3], p.c5 = c[4], p.c6 = c[5];
     PyObject *max_steps_obj = entry(binding, B_MAX_STEPS);
     if (!max_steps_obj || !PyLong_CheckExact(max_steps_obj)) return 0;
     long long max_steps = PyLong_AsLongLong(max_steps_obj);
     if (max_steps == -1 && PyErr_Occurred()) return 0;
-    if (!(as_double(t_obj, &t) && doubles(entry(binding, B_STATE), 3, y) && entry_double(binding, B_UF, &p.uf) &&
-          as_double(h_obj, &h) && entry_double(binding, B_RTOL, &rtol) && entry_double(binding, B_ATOL, &atol) &&
+    if (!(doubles(entry(binding, B_STATE), 3, y) && entry_double(binding, B_UF, &p.uf) && entry_double(binding, B_RTOL, &rtol) && entry_double(binding, B_ATOL, &atol) &&
           entry_double(binding, B_NEXT_STEP, &first_step) && entry_float(binding, B_STATE_LIMIT, &limit) &&
           entry_float(binding, B_Y_LIMIT, &y_limit) && entry_double(binding, B_RATE_HORIZON, &rate_horizon)))
         return 0;
@@ -352,35 +356,54 @@ static PyObject *step_slave(PyObject *self, PyObject *args) {
     (void)self;
     PyObject *t = NULL, *h = NULL, *binding = binding_of(args, 3, &t, &h);
     if (!binding) return NULL;
-    int done = usual_step(binding, t, h);
+    double t_value, h_value;
+    int done = as_double(t, &t_value) && as_double(h, &h_value) ? usual_step(binding, t_value, h_value) : 0;
     if (done > 0) Py_RETURN_TRUE;
     if (done < 0) return NULL;
     PyErr_Clear(); /* the Python code meets the same problem and reports it its own way */
     return PyObject_CallFunctionObjArgs(PyTuple_GetItem(binding, B_STEP), t, h, NULL);
 }
 
-/* refresh_slave(binding): plant_core.refresh_plant_outputs, the outputs x1 (and y), x2 and the third
-   from the state; by the Python function before initialization has ended (no state yet). */
+/* plant_core.refresh_plant_outputs, the outputs x1 (and y), x2 and the third from the state: 1
+   done, 0 the Python function's path (before initialization has ended: no state yet), -1 error. */
+static int refresh_here(PyObject *binding) {
+    PyObject *state = entry(binding, B_STATE), *names = entry(binding, B_STATES);
+    if (!(state && PyTuple_CheckExact(state) && PyTuple_Size(state) >= 3 && names && PyTuple_CheckExact(names) &&
+          PyTuple_Size(names) == 3 && PyUnicode_CheckExact(PyTuple_GetItem(names, 0)) &&
+          PyUnicode_CheckExact(PyTuple_GetItem(names, 1)) && PyUnicode_CheckExact(PyTuple_GetItem(names, 2))))
+        return 0;
+    PyObject *d = PyTuple_GetItem(binding, B_DICT), *x1 = PyTuple_GetItem(state, 0);
+    /* refresh_plant_outputs' order: d[first] = d["y"] = state[0], then the second and third */
+    if (PyDict_SetItem(d, PyTuple_GetItem(names, 0), x1) != 0 ||
+        PyDict_SetItem(d, PyTuple_GetItem(binding, B_Y), x1) != 0 ||
+        PyDict_SetItem(d, PyTuple_GetItem(names, 1), PyTuple_GetItem(state, 1)) != 0 ||
+        PyDict_SetItem(d, PyTuple_GetItem(names, 2), PyTuple_GetItem(state, 2)) != 0)
+        return -1;
+    return 1;
+}
+
 static PyObject *refresh_slave(PyObject *self, PyObject *args) {
     (void)self;
     PyObject *binding = binding_of(args, 1, NULL, NULL);
     if (!binding) return NULL;
-    PyObject *state = entry(binding, B_STATE), *names = entry(binding, B_STATES);
-    if (state && PyTuple_CheckExact(state) && PyTuple_Size(state) >= 3 && names && PyTuple_CheckExact(names) &&
-        PyTuple_Size(names) == 3 && PyUnicode_CheckExact(PyTuple_GetItem(names, 0)) &&
-        PyUnicode_CheckExact(PyTuple_GetItem(names, 1)) && PyUnicode_CheckExact(PyTuple_GetItem(names, 2))) {
-        PyObject *d = PyTuple_GetItem(binding, B_DICT), *x1 = PyTuple_GetItem(state, 0);
-        /* refresh_plant_outputs' order: d[first] = d["y"] = state[0], then the second and third */
-        if (PyDict_SetItem(d, PyTuple_GetItem(names, 0), x1) != 0 ||
-            PyDict_SetItem(d, PyTuple_GetItem(binding, B_Y), x1) != 0 ||
-            PyDict_SetItem(d, PyTuple_GetItem(names, 1), PyTuple_GetItem(state, 1)) != 0 ||
-            PyDict_SetItem(d, PyTuple_GetItem(names, 2), PyTuple_GetItem(state, 2)) != 0)
-            return NULL;
-        Py_RETURN_NONE;
-    }
+    int done = refresh_here(binding);
+    if (done < 0) return NULL;
+    if (done) Py_RETURN_NONE;
     PyErr_Clear();
     return PyObject_CallObject(PyTuple_GetItem(binding, B_REFRESH), NULL);
 }
+
+/* The shim's C entries (direct_calls.h): 0 (no error set) where the binding is not a plant's or
+   the usual path does not apply, which the shim then leaves to step_slave and refresh_slave. */
+static int step_entry(PyObject *binding, double t, double h) {
+    return ftc_answer(is_binding(binding) ? usual_step(binding, t, h) : 0);
+}
+
+static int refresh_entry(PyObject *binding) {
+    return ftc_answer(is_binding(binding) ? refresh_here(binding) : 0);
+}
+
+static const struct ftc_direct_calls direct_calls = {FTC_DIRECT_CALLS_VERSION, step_entry, refresh_entry};
 
 static PyMethodDef methods[] = {
     {"hold_step", hold_step, METH_VARARGS,
@@ -397,4 +420,8 @@ static struct PyModuleDef module = {
     NULL, NULL, NULL, NULL,
 };
 
-PyMODINIT_FUNC PyInit__dopri(void) { return PyModule_Create(&module); }
+PyMODINIT_FUNC PyInit__dopri(void) {
+    PyObject *m = PyModule_Create(&module);
+    if (m != NULL && ftc_add_direct_calls(m, "direct_calls", &direct_calls) != 0) Py_CLEAR(m);
+    return m;
+}

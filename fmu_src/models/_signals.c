@@ -44,6 +44,8 @@
 #include "fmath.h"
 #pragma GCC diagnostic pop
 
+#include "direct_calls.h"
+
 enum { B_DICT, B_STEP, B_REFRESH, B_TIME, B_PARAMS, B_VALUES, B_FIRST };
 enum { REFERENCE_PARAMS = 4, REFERENCE_OUTPUTS = 5 };
 enum { ACTUATOR_PARAMS = 11, ACTUATOR_INPUTS = 3, ACTUATOR_OUTPUTS = 2 };
@@ -115,6 +117,15 @@ static int store(PyObject *dict, PyObject *binding, Py_ssize_t first, const doub
 static inline double py_max(double a, double b) { return b > a ? b : a; }
 static inline double py_min(double a, double b) { return b < a ? b : a; }
 
+/* do_step's `time = current_time + step_size` on binding: 1 done, -1 an error (out of memory). */
+static int step_here(PyObject *binding, double t, double h) {
+    PyObject *time = PyFloat_FromDouble(t + h);
+    if (!time) return -1;
+    int failed = PyDict_SetItem(PyTuple_GetItem(binding, B_DICT), PyTuple_GetItem(binding, B_TIME), time);
+    Py_DECREF(time);
+    return failed ? -1 : 1;
+}
+
 /* step_slave(binding, t, h): do_step's `time = current_time + step_size`, True. */
 static PyObject *step_slave(PyObject *self, PyObject *args) {
     (void)self;
@@ -122,28 +133,21 @@ static PyObject *step_slave(PyObject *self, PyObject *args) {
     if (!binding) return NULL;
     PyObject *t = PyTuple_GetItem(args, 1), *h = PyTuple_GetItem(args, 2);
     if (!PyFloat_CheckExact(t) || !PyFloat_CheckExact(h)) return fallback(binding, args, B_STEP);
-    PyObject *time = PyFloat_FromDouble(PyFloat_AsDouble(t) + PyFloat_AsDouble(h));
-    if (!time) return NULL;
-    int failed = PyDict_SetItem(PyTuple_GetItem(binding, B_DICT), PyTuple_GetItem(binding, B_TIME), time);
-    Py_DECREF(time);
-    if (failed) return NULL;
+    if (step_here(binding, PyFloat_AsDouble(t), PyFloat_AsDouble(h)) < 0) return NULL;
     Py_RETURN_TRUE;
 }
 
-/* reference_refresh(binding): refresh_outputs of fmu_src/reference.py, i.e.
-   models/reference.py:reference_derivatives(time, _params) into yd .. yd_ddddot. */
-static PyObject *reference_refresh(PyObject *self, PyObject *args) {
-    (void)self;
-    PyObject *binding = binding_of(args, 1, REFERENCE_SIZE);
-    if (!binding) return NULL;
+/* refresh_outputs of fmu_src/reference.py, i.e. models/reference.py:reference_derivatives(time,
+   _params) into yd .. yd_ddddot: 1 done, 0 the Python method's path (nothing written), -1 error. */
+static int reference_here(PyObject *binding) {
     PyObject *dict = PyTuple_GetItem(binding, B_DICT);
     double p[REFERENCE_PARAMS], t;
     if (!exact_float(dict, PyTuple_GetItem(binding, B_TIME), &t) || !frozen_params(binding, dict, p, REFERENCE_PARAMS))
-        return fallback(binding, args, B_REFRESH);
+        return 0;
     const double amplitude = p[0], omega = p[1], phase = p[2], offset = p[3];
     /* angle = p.omega * t + p.phase; s, c = sin(angle), cos(angle) (ValueError for an infinite angle) */
     const double angle = omega * t + phase;
-    if (isinf(angle)) return fallback(binding, args, B_REFRESH);
+    if (isinf(angle)) return 0;
     const double s = ftc_sin(angle), c = ftc_cos(angle);
     const double a = amplitude, w = omega;
     /* (a * s + p.offset, a * w * c, -a * w * w * s, -a * w * w * w * c, a * w * w * w * w * s) */
@@ -154,17 +158,13 @@ static PyObject *reference_refresh(PyObject *self, PyObject *args) {
         -a * w * w * w * c,
         a * w * w * w * w * s,
     };
-    if (store(dict, binding, B_FIRST, out, REFERENCE_OUTPUTS) != 0) return NULL;
-    Py_RETURN_NONE;
+    return store(dict, binding, B_FIRST, out, REFERENCE_OUTPUTS) != 0 ? -1 : 1;
 }
 
-/* actuator_refresh(binding): refresh_outputs of fmu_src/actuator.py, i.e. the fault time snapped
-   to t_fault within the tolerance, then models/actuator.py:actuator_output(t, v, x1, x2, _params)
-   into uf and u_dz. */
-static PyObject *actuator_refresh(PyObject *self, PyObject *args) {
-    (void)self;
-    PyObject *binding = binding_of(args, 1, ACTUATOR_SIZE);
-    if (!binding) return NULL;
+/* refresh_outputs of fmu_src/actuator.py, i.e. the fault time snapped to t_fault within the
+   tolerance, then models/actuator.py:actuator_output(t, v, x1, x2, _params) into uf and u_dz: as
+   reference_here. */
+static int actuator_here(PyObject *binding) {
     PyObject *dict = PyTuple_GetItem(binding, B_DICT);
     PyObject *tolerance = PyTuple_GetItem(binding, B_FIRST + ACTUATOR_INPUTS + ACTUATOR_OUTPUTS);
     double p[ACTUATOR_PARAMS], t, in[ACTUATOR_INPUTS];
@@ -172,7 +172,7 @@ static PyObject *actuator_refresh(PyObject *self, PyObject *args) {
                 && frozen_params(binding, dict, p, ACTUATOR_PARAMS);
     for (Py_ssize_t k = 0; usual && k < ACTUATOR_INPUTS; k++)
         usual = exact_float(dict, PyTuple_GetItem(binding, B_FIRST + k), &in[k]);
-    if (!usual) return fallback(binding, args, B_REFRESH);
+    if (!usual) return 0;
     const double v_in = in[0], x1 = in[1], x2 = in[2];
     /* if isfinite(p.t_fault) and abs(t - p.t_fault) <= FAULT_TIME_TOLERANCE * max(1.0, abs(p.t_fault)):
        t = p.t_fault */
@@ -193,17 +193,58 @@ static PyObject *actuator_refresh(PyObject *self, PyObject *args) {
         /* K = p.K_inf + p.K_amp * exp(-p.K_rate * t) (OverflowError where exp overflows) */
         const double x = -p[K_RATE] * t;
         const double e = ftc_exp(x);
-        if (e == INFINITY && x != INFINITY) return fallback(binding, args, B_REFRESH);
+        if (e == INFINITY && x != INFINITY) return 0;
         const double K = p[K_INF] + p[K_AMP] * e;
         /* cos_x1 = cos(x1) (ValueError for an infinite x1); L = p.L_gain * x2 * cos_x1 * cos_x1 + p.L_bias */
-        if (isinf(x1)) return fallback(binding, args, B_REFRESH);
+        if (isinf(x1)) return 0;
         const double cos_x1 = ftc_cos(x1);
         const double L = p[L_GAIN] * x2 * cos_x1 * cos_x1 + p[L_BIAS];
         out[0] = K * u + L;
     }
-    if (store(dict, binding, B_FIRST + ACTUATOR_INPUTS, out, ACTUATOR_OUTPUTS) != 0) return NULL;
-    Py_RETURN_NONE;
+    return store(dict, binding, B_FIRST + ACTUATOR_INPUTS, out, ACTUATOR_OUTPUTS) != 0 ? -1 : 1;
 }
+
+/* A refresh on the usual path (`here`, 1 done, 0 the Python method's path, -1 error), else the
+   Python method. */
+static PyObject *refresh(PyObject *args, Py_ssize_t size, int (*here)(PyObject *)) {
+    PyObject *binding = binding_of(args, 1, size);
+    if (!binding) return NULL;
+    int done = here(binding);
+    if (done < 0) return NULL;
+    if (done) Py_RETURN_NONE;
+    return fallback(binding, args, B_REFRESH);
+}
+
+static PyObject *reference_refresh(PyObject *self, PyObject *args) {
+    (void)self;
+    return refresh(args, REFERENCE_SIZE, reference_here);
+}
+
+static PyObject *actuator_refresh(PyObject *self, PyObject *args) {
+    (void)self;
+    return refresh(args, ACTUATOR_SIZE, actuator_here);
+}
+
+/* The shim's C entries (direct_calls.h): 0 (no error set) where the binding is not of this model or
+   the usual path does not apply, which the shim then leaves to step_slave and the refresh. */
+static int is_binding(PyObject *binding, Py_ssize_t size) {
+    return PyTuple_Check(binding) && PyTuple_Size(binding) >= size;
+}
+
+static int step_entry(PyObject *binding, double t, double h) {
+    return is_binding(binding, B_TIME + 1) ? step_here(binding, t, h) : 0;
+}
+
+static int reference_entry(PyObject *binding) {
+    return ftc_answer(is_binding(binding, REFERENCE_SIZE) ? reference_here(binding) : 0);
+}
+
+static int actuator_entry(PyObject *binding) {
+    return ftc_answer(is_binding(binding, ACTUATOR_SIZE) ? actuator_here(binding) : 0);
+}
+
+static const struct ftc_direct_calls reference_calls = {FTC_DIRECT_CALLS_VERSION, step_entry, reference_entry};
+static const struct ftc_direct_calls actuator_calls = {FTC_DIRECT_CALLS_VERSION, step_entry, actuator_entry};
 
 static PyMethodDef methods[] = {
     {"step_slave", step_slave, METH_VARARGS,
@@ -220,4 +261,10 @@ static struct PyModuleDef module = {
     NULL, NULL, NULL, NULL,
 };
 
-PyMODINIT_FUNC PyInit__signals(void) { return PyModule_Create(&module); }
+PyMODINIT_FUNC PyInit__signals(void) {
+    PyObject *m = PyModule_Create(&module);
+    if (m != NULL && (ftc_add_direct_calls(m, "reference_direct_calls", &reference_calls) != 0 ||
+                      ftc_add_direct_calls(m, "actuator_direct_calls", &actuator_calls) != 0))
+        Py_CLEAR(m);
+    return m;
+}

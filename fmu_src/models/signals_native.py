@@ -36,6 +36,9 @@ COMPILED = _signals is not None
 
 Step = Callable[[float, float], bool]
 Refresh = Callable[[], None]
+# What a compiled_calls hook hands fmu_support: the step and refresh as Python callables, and the
+# extension's capsule of their C entries (controller/direct_calls.h) with the binding they take.
+Compiled = tuple[Step, Refresh, Any, tuple[Any, ...]]
 # The dict key under which an FMU keeps param_values() of its frozen parameters.
 VALUES_KEY = "_param_values"
 
@@ -58,20 +61,24 @@ def _binding(
     return (slave.__dict__, step, refresh, *keys, *extra)
 
 
-def reference_calls(slave: Any, step: Step, refresh: Refresh) -> tuple[Step, Refresh] | None:
-    """The Reference FMU's compiled (do_step, refresh_outputs), or None where not compiled."""
+def reference_calls(slave: Any, step: Step, refresh: Refresh) -> Compiled | None:
+    """The Reference FMU's compiled do_step and refresh_outputs (:data:`Compiled`), or None where
+    not compiled."""
     if _signals is None:
         return None
     binding = _binding(slave, step, refresh, ("yd", "yd_dot", "yd_ddot", "yd_dddot", "yd_ddddot"))
-    return partial(_signals.step_slave, binding), partial(_signals.reference_refresh, binding)
+    return (partial(_signals.step_slave, binding), partial(_signals.reference_refresh, binding),
+            _signals.reference_direct_calls, binding)
 
 
 def actuator_calls(
     slave: Any, step: Step, refresh: Refresh, fault_time_tolerance: float
-) -> tuple[Step, Refresh] | None:
-    """The Actuator FMU's compiled (do_step, refresh_outputs), or None where not compiled; the
-    refresh snaps the time to t_fault within ``fault_time_tolerance`` as the Python one does."""
+) -> Compiled | None:
+    """The Actuator FMU's compiled do_step and refresh_outputs (:data:`Compiled`), or None where
+    not compiled; the refresh snaps the time to t_fault within ``fault_time_tolerance`` as the
+    Python one does."""
     if _signals is None:
         return None
     binding = _binding(slave, step, refresh, ("v", "x1", "x2", "uf", "u_dz"), float(fault_time_tolerance))
-    return partial(_signals.step_slave, binding), partial(_signals.actuator_refresh, binding)
+    return (partial(_signals.step_slave, binding), partial(_signals.actuator_refresh, binding),
+            _signals.actuator_direct_calls, binding)

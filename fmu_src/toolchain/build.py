@@ -166,8 +166,9 @@ EXTENSIONS = {"fmu_src.models._dopri": Path("fmu_src", "models", "_dopri.c"),
               "controller._fmath": Path("controller", "_fmath.c")}
 # The headers every extension module's source includes (relative to the source root): fmath.h and
 # its fmath_pow.h, the elementary functions that give the same bits on every platform
-# (controller/fmath.py).
-EXTENSION_HEADERS = (Path("controller", "fmath.h"), Path("controller", "fmath_pow.h"))
+# (controller/fmath.py), and direct_calls.h, the C entries the shim calls.
+EXTENSION_HEADERS = (Path("controller", "fmath.h"), Path("controller", "fmath_pow.h"),
+                     Path("controller", "direct_calls.h"))
 FMATH_MODULE = "controller.fmath"  # musl's functions: an FMU that bundles them carries their licence
 FMATH_LICENSE = Path("controller", "fmath-LICENSE.txt")
 EXTENSION_SUFFIX = ".abi3.so"

@@ -35,17 +35,32 @@
    by an empty pythonfmu fmi2GetReal, which forwards the queue as after any call. The shim keeps
    the last successful time and the terminate wish that pythonfmu's fmi2DoStep would record.
 
+   Where the model's extension offers them (its class's compiled_calls), the step and the refresh
+   are first called as C functions (controller/direct_calls.h: a capsule of function pointers and
+   the binding they take), with no Python call between: no argument tuple, no float objects for the
+   time and step, no functools.partial. Their "not here" (0) leaves the call to the Python callables
+   as above.
+
    The binding: pythonfmu constructs the slave inside fmi2Instantiate (and again in fmi2Reset) in
    the calling thread; fmu_model's __init__ leaves a weak reference to it under the thread's id in
    sys._ftc_fmu_slaves, and sys._ftc_fmu_claim(model, instance name) hands the shim the binding of
    that slave (checked to be of this model and instance name) or None. FTC_FMU_DIRECT=0 turns the
    direct path off (everything forwarded), for comparison. */
 
-#define DIRECT_PROTOCOL 2
-#define BINDING_ITEMS 10
+#define DIRECT_PROTOCOL 3
+#define BINDING_ITEMS 12
 enum { KIND_NONE = 0, KIND_INPUT = 1, KIND_OUTPUT = 2 };
 
 typedef struct _object PyObject; /* opaque: only pointers cross this file */
+
+/* controller/direct_calls.h's layout (that header needs Python.h, which the shim is built without). */
+#define FTC_DIRECT_CALLS "ftc_direct_calls"
+#define FTC_DIRECT_CALLS_VERSION 1
+struct ftc_direct_calls {
+    int version;
+    int (*step)(PyObject *binding, double t, double h);
+    int (*refresh)(PyObject *binding);
+};
 
 /* The Python C-API functions the direct path uses, looked up in the process's libpython. */
 static struct {
@@ -77,6 +92,7 @@ static struct {
     PyObject *true_object;
     PyObject *false_object;
     int (*is_initialized)(void);
+    void *(*capsule_pointer)(PyObject *, const char *);
 } py;
 
 void resolve_python_api(void *python) {
@@ -109,6 +125,7 @@ void resolve_python_api(void *python) {
     FIND(true_object, "_Py_TrueStruct"); /* the object Py_True itself */
     FIND(false_object, "_Py_FalseStruct");
     FIND(is_initialized, "Py_IsInitialized");
+    FIND(capsule_pointer, "PyCapsule_GetPointer");
 #undef FIND
 }
 
@@ -125,6 +142,8 @@ struct direct {
     unsigned char *kinds; /* value reference -> KIND_*: where the slave's and the table's agree */
     size_t n;            /* number of value references covered */
     int feedthrough;     /* some output depends directly on an input */
+    const struct ftc_direct_calls *calls; /* the model's C entries, or NULL */
+    PyObject *model;     /* the binding they take */
     PyObject *binding;   /* the tuple the slave handed over, owning the objects above */
 };
 
@@ -155,6 +174,14 @@ static unsigned char table_kind(unsigned vr) {
     const struct ftc_variable *v = ftc_variable(&ftc_description, vr + FTC_VR_OFFSET);
     if (!v || v->type != 'r') return KIND_NONE;
     return v->causality == 'i' ? KIND_INPUT : v->causality == 'o' ? KIND_OUTPUT : KIND_NONE;
+}
+
+/* The C entries in `capsule` (controller/direct_calls.h), or NULL (no error left) where it is not
+   such a capsule (None: the model has none) or of another version. */
+static const struct ftc_direct_calls *entries(PyObject *capsule) {
+    const struct ftc_direct_calls *calls = capsule ? py.capsule_pointer(capsule, FTC_DIRECT_CALLS) : NULL;
+    if (!calls) py.clear_error();
+    return calls && calls->version == FTC_DIRECT_CALLS_VERSION ? calls : NULL;
 }
 
 /* The direct path on `binding` (taken over), or NULL (then released): the slave's kinds kept
@@ -188,6 +215,8 @@ static struct direct *direct_of(PyObject *binding) {
     d->feedthrough = py.is_true(py.tuple_item(binding, 7)) == 1;
     d->stale = py.tuple_item(binding, 8);
     d->raised = py.tuple_item(binding, 9);
+    d->calls = entries(py.tuple_item(binding, 10));
+    d->model = py.tuple_item(binding, 11);
     if (py.error()) {
         free_direct(d);
         return NULL;
@@ -258,15 +287,15 @@ fmi2Status get_real(struct instance *i, const fmi2ValueReference vr[], size_t n,
         PyObject *stale = py.dict_get(d->dict, d->stale);
         if (!stale && py.error()) py.clear_error();
         if (!stale || py.is_true(stale)) {
-            PyObject *result = py.call(d->refresh, NULL);
-            if (!result || py.dict_set(d->dict, d->stale, py.false_object) != 0) {
+            int done = d->calls ? d->calls->refresh(d->model) : 0; /* 0: not here, the callable's */
+            PyObject *result = done == 0 ? py.call(d->refresh, NULL) : NULL;
+            if (result) py.decref(result);
+            if (done < 0 || (done == 0 && !result) || py.dict_set(d->dict, d->stale, py.false_object) != 0) {
                 /* pythonfmu calls refresh_outputs again and reports the exception */
-                if (result) py.decref(result);
                 py.clear_error();
                 py.gil_release(gil);
                 return inner_fmi2GetReal(i->inner, vr, n, v);
             }
-            py.decref(result);
         }
     }
     for (size_t k = 0; k < n; k++) {
@@ -323,12 +352,15 @@ fmi2Status do_step(struct instance *i, fmi2Real t, fmi2Real h, fmi2Boolean noSet
     if (!i->direct) return inner_fmi2DoStep(i->inner, t, h, noSetPrior);
     struct direct *d = i->direct;
     int gil = py.gil_ensure();
-    PyObject *time = py.from_double(t), *step = py.from_double(h), *result = NULL;
-    if (time && step) result = py.call2(d->do_step, time, step, NULL);
-    int go_on = result ? py.is_true(result) : -1;
-    PyObject *owned[] = {result, step, time};
-    for (size_t k = 0; k < sizeof owned / sizeof owned[0]; k++)
-        if (owned[k]) py.decref(owned[k]);
+    int go_on = d->calls ? d->calls->step(d->model, t, h) : 0; /* 1 stepped, 0 not here, -1 raised */
+    if (go_on == 0) {
+        PyObject *time = py.from_double(t), *step = py.from_double(h), *result = NULL;
+        if (time && step) result = py.call2(d->do_step, time, step, NULL);
+        go_on = result ? py.is_true(result) : -1; /* false: fmi2Discard */
+        PyObject *owned[] = {result, step, time};
+        for (size_t k = 0; k < sizeof owned / sizeof owned[0]; k++)
+            if (owned[k]) py.decref(owned[k]);
+    }
     if (go_on < 0) keep_raised(d);
     /* the time or the state moved: the outputs are recomputed at their next read */
     if (py.dict_set(d->dict, d->stale, py.true_object) != 0) py.clear_error();
