@@ -16,8 +16,10 @@ controller FMU. ``--before DIR`` measures the FMUs of an earlier build (e.g. the
 default integrator (Dormand-Prince 5(4)); ``--rk4`` adds the fixed-step RK4 (``method`` 1).
 
 ``--instructions`` prints instead each FMU's instructions per step in the C host, which the machine's
-load does not move: ``valgrind --tool=callgrind`` counts the host for 1000 and for 2000 steps, and
-the difference is divided by 1000 (start-up cancels).
+load does not move: ``valgrind --tool=callgrind`` counts the host for :data:`COUNTED_STEPS` and for
+twice as many steps, one process after the other, and the difference is divided by
+:data:`COUNTED_STEPS` (start-up cancels; at 1 000 steps, side by side, a one-off event of the
+interpreter in one run moved the controller's count by 1 800, see ``step_instructions.py``).
 
 Usage: ``python benchmarks/fmu_step.py [--steps N] [--fmus DIR] [--before DIR] [--rk4]
 [--instructions]`` (builds into a temporary folder without ``--fmus``). Figures only: timings are never
@@ -46,6 +48,7 @@ from fmu_src.toolchain.build import FMU_SCRIPTS, build_all
 H = 1e-3
 HOST = Path(__file__).with_name("fmu_step_host.c")
 GOAL_US = 3.0  # issue 35: the controller's share of a closed-loop step
+COUNTED_STEPS = 5000  # --instructions: the shorter run's steps under callgrind
 HALF_PI = math.pi / 2
 
 
@@ -140,20 +143,20 @@ def measure_c(host: Path, path: Path, steps: int) -> tuple[float, float]:
 
 def count_instructions(host: Path, path: Path, steps: int) -> float:
     """Instructions per step of the FMU in the C host: ``valgrind --tool=callgrind`` counts the host
-    process for ``steps`` and for twice as many, side by side; the difference divided by ``steps``
-    (start-up cancels). The machine's load does not move it."""
-    with tempfile.TemporaryDirectory() as tmp, c_host(host, path, steps) as short, \
-            c_host(host, path, 2 * steps) as long:
-        running = [subprocess.Popen(["valgrind", "--tool=callgrind", f"--callgrind-out-file={tmp}/{i}.out",
-                                     *command], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-                   for i, command in enumerate((short, long))]
-        totals = []
-        for i, process in enumerate(running):
-            _, err = process.communicate(timeout=1200)
-            if process.returncode != 0:
-                raise RuntimeError(f"{path.name}: callgrind failed ({process.returncode}): {err[-2000:]}")
-            text = Path(tmp, f"{i}.out").read_text()
-            totals.append(int(next(line.split()[1] for line in text.splitlines()
+    process for ``steps`` and for twice as many, one after the other; the difference divided by
+    ``steps`` (start-up cancels). The machine's load does not move it."""
+    totals = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in (steps, 2 * steps):
+            out = Path(tmp, f"{n}.out")
+            with c_host(host, path, n) as command:
+                counting = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *command]
+                done = subprocess.run(counting, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                                      timeout=1200)
+            if done.returncode != 0:
+                failure = done.stderr[-2000:]
+                raise RuntimeError(f"{path.name}: callgrind failed ({done.returncode}): {failure}")
+            totals.append(int(next(line.split()[1] for line in out.read_text().splitlines()
                                    if line.startswith("summary:"))))
     return (totals[1] - totals[0]) / steps
 
@@ -182,7 +185,7 @@ def c_host(host: Path, path: Path, steps: int) -> Iterator[list[str]]:
 def _measure(host: Path, path: Path, name: str, options: argparse.Namespace) -> float:
     """Print the FMU's line (and, with --rk4, its RK4 line for a plant); its CPU us per step in C."""
     if options.instructions:
-        print(f"{name:<32}{count_instructions(host, path, 1000):>12.0f}", flush=True)
+        print(f"{name:<32}{count_instructions(host, path, COUNTED_STEPS):>12.0f}", flush=True)
         return 0.0
     cpu, wall = measure_c(host, path, options.steps)
     step, io = measure_fmpy(path, options.steps)
@@ -201,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--before", type=Path, help="folder with FMUs of an earlier build, measured beside")
     parser.add_argument("--rk4", action="store_true", help="also the plants with RK4 (fmpy only)")
     parser.add_argument("--instructions", action="store_true",
-                        help="instead: instructions per step in the C host (callgrind, 1000 and 2000 steps)")
+                        help="instead: instructions per step in the C host (callgrind, 5000 and 10000 steps)")
     options = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         folder = options.fmus or Path(tmp)
