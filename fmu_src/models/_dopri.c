@@ -320,7 +320,8 @@ static int usual_step(PyObject *binding, double t, double h) {
     if (!max_steps_obj || !PyLong_CheckExact(max_steps_obj)) return 0;
     long long max_steps = PyLong_AsLongLong(max_steps_obj);
     if (max_steps == -1 && PyErr_Occurred()) return 0;
-    if (!(doubles(entry(binding, B_STATE), 3, y) && entry_double(binding, B_UF, &p.uf) && entry_double(binding, B_RTOL, &rtol) && entry_double(binding, B_ATOL, &atol) &&
+    if (!(doubles(entry(binding, B_STATE), 3, y) && entry_double(binding, B_UF, &p.uf) &&
+          entry_double(binding, B_RTOL, &rtol) && entry_double(binding, B_ATOL, &atol) &&
           entry_double(binding, B_NEXT_STEP, &first_step) && entry_float(binding, B_STATE_LIMIT, &limit) &&
           entry_float(binding, B_Y_LIMIT, &y_limit) && entry_double(binding, B_RATE_HORIZON, &rate_horizon)))
         return 0;
