@@ -41,13 +41,29 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return dest
 
 
+def checkout_copy(dest: Path) -> Path:
+    """The checkout's files (tracked, and new ones git does not ignore) copied into ``dest``."""
+    command = ["git", "-C", str(REPO), "ls-files", "-z", "--cached", "--others", "--exclude-standard"]
+    listed = subprocess.run(command, capture_output=True, text=True, timeout=120)
+    assert listed.returncode == 0, f"{REPO} is not a git checkout: {listed.stderr.strip()}"
+    for name in filter(None, listed.stdout.split("\0")):
+        source = REPO / name
+        if source.is_file():  # one deleted but not yet committed is not
+            (dest / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(source, dest / name)
+    return dest
+
+
 @pytest.fixture(scope="session")
 def dist(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """An sdist and a wheel of the checkout, as PyPI would serve them (the wheel built from the
-    sdist, so the sdist is complete)."""
+    sdist, so the sdist is complete). Built from a copy of the checkout's files: setuptools writes
+    its egg-info into the source tree, and two xdist workers building in the checkout at once
+    broke each other's sdist ("No such file or directory", fresh-clone CI at ec6ee5e)."""
     out = tmp_path_factory.mktemp("dist")
-    proc = subprocess.run([sys.executable, "-m", "build", "--no-isolation", "--outdir", str(out), str(REPO)],
-                          cwd=out, capture_output=True, text=True, timeout=1200)
+    source = checkout_copy(tmp_path_factory.mktemp("source"))
+    command = [sys.executable, "-m", "build", "--no-isolation", "--outdir", str(out), str(source)]
+    proc = subprocess.run(command, cwd=out, capture_output=True, text=True, timeout=1200)
     assert proc.returncode == 0, f"{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
     return out
 
