@@ -370,10 +370,9 @@ def _direct_binding(slave: Fmi2Slave, do_step: Any) -> tuple[Any, ...]:
     step, refresh = do_step.__get__(slave), slave.refresh_outputs
     compiled = getattr(type(slave), "compiled_calls", None)
     calls = compiled(slave, step, refresh) if compiled is not None else None
-    entries: tuple[Any, Any] = (None, None)
+    capsule = model_binding = None
     if calls is not None:
         step, refresh, capsule, model_binding = calls
-        entries = (capsule, model_binding)
     size = max(io.real, default=-1) + 1
     names: list[str | None] = [None] * size
     kinds = bytearray(size)
@@ -383,7 +382,8 @@ def _direct_binding(slave: Fmi2Slave, do_step: Any) -> tuple[Any, ...]:
         if vr in io.real:
             names[vr], kinds[vr] = sys.intern(io.real[vr]), _KIND_OUTPUT
     return (DIRECT_PROTOCOL, d, step, refresh, slave.log_queue, tuple(names),
-            bytes(kinds), io.feedthrough, sys.intern("_fmu_stale"), sys.intern("_fmu_raised"), *entries)
+            bytes(kinds), io.feedthrough, sys.intern("_fmu_stale"), sys.intern("_fmu_raised"), capsule,
+            model_binding)
 
 
 def _claim(model: str, instance_name: str) -> tuple[Any, ...] | None:

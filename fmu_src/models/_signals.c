@@ -53,6 +53,11 @@ enum { M_R, M_L, B_R, B_L, K_INF, K_AMP, K_RATE, L_GAIN, L_BIAS, T_FAULT, U_MAX 
 #define REFERENCE_SIZE (B_FIRST + REFERENCE_OUTPUTS)
 #define ACTUATOR_SIZE (B_FIRST + ACTUATOR_INPUTS + ACTUATOR_OUTPUTS + 1)
 
+/* Whether binding is a tuple of at least `size` items (signals_native's bindings). */
+static int is_binding(PyObject *binding, Py_ssize_t size) {
+    return PyTuple_Check(binding) && PyTuple_Size(binding) >= size;
+}
+
 /* The binding passed as the call's first argument, checked to have at least `size` items. */
 static PyObject *binding_of(PyObject *args, Py_ssize_t nargs, Py_ssize_t size) {
     if (!PyTuple_Check(args) || PyTuple_Size(args) != nargs) {
@@ -60,7 +65,7 @@ static PyObject *binding_of(PyObject *args, Py_ssize_t nargs, Py_ssize_t size) {
         return NULL;
     }
     PyObject *binding = PyTuple_GetItem(args, 0);
-    if (!binding || !PyTuple_Check(binding) || PyTuple_Size(binding) < size) {
+    if (!binding || !is_binding(binding, size)) {
         PyErr_SetString(PyExc_TypeError, "_signals: not a binding of fmu_src/models/signals_native.py");
         return NULL;
     }
@@ -227,10 +232,6 @@ static PyObject *actuator_refresh(PyObject *self, PyObject *args) {
 
 /* The shim's C entries (direct_calls.h): 0 (no error set) where the binding is not of this model or
    the usual path does not apply, which the shim then leaves to step_slave and the refresh. */
-static int is_binding(PyObject *binding, Py_ssize_t size) {
-    return PyTuple_Check(binding) && PyTuple_Size(binding) >= size;
-}
-
 static int step_entry(PyObject *binding, double t, double h) {
     return is_binding(binding, B_TIME + 1) ? step_here(binding, t, h) : 0;
 }
