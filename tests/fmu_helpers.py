@@ -93,11 +93,13 @@ class DirectCalls(ctypes.Structure):
                 ("refresh", ctypes.PYFUNCTYPE(ctypes.c_int, ctypes.py_object))]
 
 
+_CAPSULE_POINTER = ctypes.PYFUNCTYPE(ctypes.c_void_p, ctypes.py_object, ctypes.c_char_p)(
+    ("PyCapsule_GetPointer", ctypes.pythonapi))
+
+
 def direct_calls(capsule: object) -> DirectCalls:
     """The C entries in a model extension's capsule (named as the shim asks for it)."""
-    pointer = ctypes.pythonapi.PyCapsule_GetPointer
-    pointer.restype, pointer.argtypes = ctypes.c_void_p, [ctypes.py_object, ctypes.c_char_p]
-    return DirectCalls.from_address(pointer(capsule, b"ftc_direct_calls"))
+    return DirectCalls.from_address(_CAPSULE_POINTER(capsule, b"ftc_direct_calls"))
 
 
 def handed(slave: Any) -> tuple[Any, Any, Any, Any]:

@@ -76,11 +76,6 @@ def signals(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ModuleType]:
     signals_native._signals = saved
 
 
-def compiled(slave: Any) -> tuple[Any, Any]:
-    """The slave's (step, refresh) as the shim makes them: the C entries, else the callables."""
-    return shim_calls(slave)
-
-
 def made(cls: type, **parameters: float) -> Any:
     """An instance with the parameters set and frozen (exit_initialization_mode)."""
     slave = cls(instance_name="native-test")
@@ -103,7 +98,7 @@ def test_no_compiled_calls_without_the_extension(monkeypatch: pytest.MonkeyPatch
     """In the source tree (nothing compiled) the shim keeps the Python methods."""
     monkeypatch.setattr(signals_native, "_signals", None)
     slave = made(Reference)
-    step, refresh = compiled(slave)
+    step, refresh = shim_calls(slave)
     assert not isinstance(step, partial) and step.__self__ is slave
     assert refresh == slave.refresh_outputs
 
@@ -113,7 +108,7 @@ def test_reference_same_bits_as_python(signals: ModuleType, parameters: tuple[fl
     """Step and refresh over 0.25 .. 40 s in steps of 0.37 s: the same time and outputs, to the bit."""
     named = dict(zip(("amplitude", "omega", "phase", "offset"), parameters, strict=True))
     python, native = made(Reference, **named), made(Reference, **named)
-    step, refresh = compiled(native)
+    step, refresh = shim_calls(native)
     t = python.time = native.time = 0.25
     while t < 40.0:
         python.refresh_outputs()
@@ -143,7 +138,7 @@ def test_an_infinite_fault_time_is_never_faulty(signals: ModuleType, t: float) -
     for slave in (python, native):
         slave.v, slave.x1, slave.x2, slave.time = 2.0, 0.3, -0.2, t
     python.refresh_outputs()
-    compiled(native)[1]()
+    shim_calls(native)[1]()
     assert (python.uf, python.u_dz) == (native.uf, native.u_dz) == (2.0, 1.5)  # u_dz = m_r (v - b_r)
 
 
@@ -152,7 +147,7 @@ def test_actuator_same_bits_as_python(signals: ModuleType, start: float) -> None
     """Across t_fault (with the snap of a time an ulp away), every point: saturation, the three
     branches of the dead-zone, nan inputs."""
     python, native = made(Actuator, **ACTUATOR_PARAMETERS), made(Actuator, **ACTUATOR_PARAMETERS)
-    step, refresh = compiled(native)
+    step, refresh = shim_calls(native)
     params = native._params
     t = python.time = native.time = start
     seen_fault = seen_before = False
@@ -177,12 +172,12 @@ def test_parameters_not_frozen_yet_fall_back(signals: ModuleType) -> None:
     """Before exit_initialization_mode (``_params`` None) the outputs use the parameters set so far."""
     slave = Reference(instance_name="r")
     slave.amplitude, slave.time = 2.0, 1.0
-    _, refresh = compiled(slave)
+    _, refresh = shim_calls(slave)
     refresh()
     assert state(slave, REFERENCE_OUTPUTS) == bits(reference_derivatives(1.0, ReferenceParameters(2.0)))
     actuator = Actuator(instance_name="a")
     actuator.t_fault, actuator.v, actuator.K_amp = 0.0, 2.0, 0.0
-    _, refresh = compiled(actuator)
+    _, refresh = shim_calls(actuator)
     refresh()
     assert state(actuator, ACTUATOR_OUTPUTS) == bits((0.4 * 1.5, 1.5))
 
@@ -211,7 +206,7 @@ def test_actuator_other_paths_are_the_python_methods(
     """Every path but the usual one: the Python refresh's result or exception, and where it raises
     the dict as the Python method left it."""
     python, native = made(Actuator, t_fault=1.0), made(Actuator, t_fault=1.0)
-    _, refresh = compiled(native)
+    _, refresh = shim_calls(native)
     for slave in (python, native):
         slave.time, slave.v, slave.x1, slave.x2 = 2.0, 1.0, 0.5, 0.5
         vars(slave).update(change)
@@ -231,7 +226,7 @@ def test_reference_other_paths_are_the_python_methods(signals: ModuleType) -> No
     for time, expected in ((math.inf, ValueError), (-math.inf, ValueError), (math.nan, None), (1, None)):
         python, native = made(Reference), made(Reference)
         python.time = native.time = time
-        _, refresh = compiled(native)
+        _, refresh = shim_calls(native)
         before = dict(vars(native))
         got, want = outcome(refresh), outcome(python.refresh_outputs)
         assert got == want
@@ -245,7 +240,7 @@ def test_replaced_parameters_are_not_read_from_the_stale_copy(signals: ModuleTyp
     """A ``_params`` that is no longer the one the copy was made of (a snapshot of another state,
     a change by hand): the Python refresh, with the parameters it reads."""
     slave = made(Reference)
-    _, refresh = compiled(slave)
+    _, refresh = shim_calls(slave)
     slave._params = ReferenceParameters(amplitude=3.0)
     slave.time = 0.5
     refresh()
@@ -256,7 +251,7 @@ def test_a_restored_snapshot_keeps_the_compiled_path(signals: ModuleType) -> Non
     """fmi2SetFMUstate deep-copies the dict in one go: the copy of the values still names the copy
     of ``_params``, so the compiled refresh keeps reading them (and gives the Python bits)."""
     slave = made(Actuator, **ACTUATOR_PARAMETERS)
-    _, refresh = compiled(slave)
+    _, refresh = shim_calls(slave)
     snapshot = slave._get_fmu_state()
     slave._set_fmu_state(snapshot)
     assert slave._param_values[0] is slave._params and slave._params is not snapshot["_params"]
